@@ -1,0 +1,52 @@
+# cartan — the two commands: `make demo` and `make test`.  Each creates .venv on first use
+# (Python >= 3.11 from $(PYTHON)), installs cartan with its extras, then runs.
+
+PYTHON ?= python3
+VENV   ?= .venv
+PY     := $(VENV)/bin/python
+STAMP  := $(VENV)/.cartan-installed
+OUT    ?= out
+PYTEST_ARGS ?=
+
+.PHONY: install test test-slow test-all demo bench lint clean clean-cache help
+
+help:
+	@echo "make demo       run the demo simulation (writes a netCDF file and a PNG to $(OUT)/)"
+	@echo "make test       run the test suite (fast cases; < 10 min)"
+	@echo "make test-slow  run the long cases marked 'slow'"
+	@echo "make bench      run the asv benchmarks once on this machine (offline)"
+	@echo "make lint       ruff"
+
+$(STAMP): pyproject.toml
+	@$(PYTHON) -c 'import sys; sys.exit(0 if sys.version_info >= (3, 11) else "cartan needs Python >= 3.11; found " + sys.version.split()[0] + " (set PYTHON=python3.11)")'
+	@test -x $(PY) || $(PYTHON) -m venv $(VENV)
+	$(PY) -m pip install --quiet --upgrade pip
+	$(PY) -m pip install --quiet -e ".[test,bench,dev]"
+	@touch $(STAMP)
+
+install: $(STAMP)
+
+test: $(STAMP)
+	$(PY) -m pytest -m "not slow" $(PYTEST_ARGS)
+
+test-slow: $(STAMP)
+	$(PY) -m pytest -m slow $(PYTEST_ARGS)
+
+test-all: $(STAMP)
+	$(PY) -m pytest $(PYTEST_ARGS)
+
+demo: $(STAMP)
+	$(PY) examples/rigid_body_demo.py --outdir $(OUT)
+
+bench: $(STAMP)
+	$(VENV)/bin/asv machine --yes >/dev/null
+	$(VENV)/bin/asv run --python=same --quick --show-stderr
+
+lint: $(STAMP)
+	$(VENV)/bin/ruff check cartan tests benchmarks examples
+
+clean:
+	rm -rf $(OUT) .asv .pytest_cache .hypothesis
+
+clean-cache:
+	find cartan plugins -name '*.nbi' -delete -o -name '*.nbc' -delete

@@ -1,0 +1,1 @@
+"""asv benchmark suite of cartan (``asv run --python=same``; see docs/benchmarks.md)."""

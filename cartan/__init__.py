@@ -1,0 +1,64 @@
+"""cartan — geometric continuum mechanics of Cartan media.
+
+Continua whose points live in a homogeneous space X acted on by a Lie group G (Kikuchi &
+Adhikari, *Cartan media: geometric continuum mechanics in homogeneous spaces*).  The core
+provides exact Lie-group kernels, homogeneous spaces and a plugin system; media, schemes,
+integrators, verification cases and scenes arrive through the ``cartan`` entry points.
+
+Public API
+----------
+``cartan.group(name, **params)``     a registered :class:`~cartan.groups.SymmetryGroup`
+``cartan.space(name, **params)``     a registered :class:`~cartan.spaces.HomogeneousSpace`
+``cartan.registry(kind)``            ``{name: object}`` for ``"groups"``, ``"spaces"``, ...
+``cartan.hookimpl``                  marker for plugin hook implementations
+``cartan.use_backend(name)``         ``"numba"`` (default) or ``"numpy"`` reference kernels
+"""
+
+from __future__ import annotations
+
+from importlib.metadata import PackageNotFoundError
+from importlib.metadata import version as _version
+from typing import Any
+
+from ._backend import get_backend, set_backend, use_backend
+from .groups import SymmetryGroup
+from .plugins import PluginWarning, RegistryError, hookimpl, registry
+
+try:
+    __version__ = _version("cartan")
+except PackageNotFoundError:  # pragma: no cover - running from an uninstalled checkout
+    __version__ = "0+unknown"
+
+__all__ = [
+    "PluginWarning",
+    "RegistryError",
+    "SymmetryGroup",
+    "__version__",
+    "get_backend",
+    "group",
+    "hookimpl",
+    "registry",
+    "set_backend",
+    "space",
+    "use_backend",
+]
+
+
+def _construct(kind: str, name: str, params: dict[str, Any]) -> Any:
+    from .plugins import get_registry
+
+    cls = get_registry().get(kind, name)
+    try:
+        return cls(**params)
+    except TypeError as exc:
+        raise TypeError(f"{kind[:-1]} {name!r}: {exc}") from None
+
+
+def group(name: str, **params: Any) -> SymmetryGroup:
+    """Instance of the registered group ``name``: ``group("SE3")``, ``group("SO", n=5)``."""
+    return _construct("groups", name, params)
+
+
+def space(name: str, **params: Any):
+    """Instance of the registered homogeneous space ``name``: ``space("sphere", n=2)``."""
+    return _construct("spaces", name, params)

@@ -1,0 +1,75 @@
+"""The run-level public API, re-exported by :mod:`cartan`.
+
+``cartan.simulate``, ``cartan.open``, ``cartan.load_scene``, ``cartan.scene``,
+``cartan.medium`` and the problem-building classes (``Problem``, ``Grid``,
+``InitialState``, ``Free``, ``Clamped``, ``Damping``, ``UniformForce``, ``PotentialLoad``),
+with the errors and warnings a run can raise (``InstabilityError``, ``StabilityWarning``,
+``SceneError``).  Importing this module does not import xarray (that happens on the first
+run or read).
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+from .grid import Grid
+from .io import open_dataset
+from .medium import Medium
+from .problem import Clamped, Damping, Free, InitialState, PotentialLoad, Problem, UniformForce
+from .scene import Scene, SceneError, load_scene, scene
+from .simulate import InstabilityError, StabilityWarning, simulate
+
+__all__ = [
+    "Clamped",
+    "Damping",
+    "Free",
+    "Grid",
+    "InitialState",
+    "InstabilityError",
+    "PotentialLoad",
+    "Problem",
+    "Scene",
+    "SceneError",
+    "StabilityWarning",
+    "UniformForce",
+    "load_scene",
+    "medium",
+    "open",
+    "scene",
+    "simulate",
+]
+
+#: ``cartan.open(path)``: read a run file (see :func:`cartan.io.open_dataset`).
+open = open_dataset  # noqa: A001 - the public name is cartan.open
+
+
+def medium(name: str, **params: Any) -> Medium:
+    """Instance of the registered medium ``name`` with its parameters.
+
+    Parameters
+    ----------
+    name : str
+        Registered name, e.g. ``"cosserat-rod"`` (``cartan list media`` shows them all).
+    **params
+        Constructor keywords of the medium.
+
+    Returns
+    -------
+    Medium
+
+    Raises
+    ------
+    cartan.RegistryError
+        If no medium of that name is registered.
+    ValueError
+        If a parameter is invalid (the medium names it).
+    TypeError
+        If a keyword is not a parameter of the medium.
+    """
+    from .plugins import get_registry
+
+    cls = get_registry().get("media", name)
+    try:
+        return cls(**params)
+    except TypeError as exc:
+        raise TypeError(f"medium {name!r}: {exc}") from None

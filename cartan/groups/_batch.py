@@ -1,0 +1,53 @@
+"""Broadcasting and flattening glue between vectorised arrays and per-point kernels.
+
+A numba batch kernel has the form ``kernel(a_flat, b_flat, ..., out_flat)``: every input
+is a C-contiguous array of shape ``(P, *core_shape)`` and the output ``(P, *out_core)`` is
+filled in place.  :func:`run_kernel` broadcasts the leading (batch) axes of the inputs
+against each other, flattens them to ``P`` points, calls the kernel and restores them.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Sequence
+
+import numpy as np
+
+
+def leading_shape(arrays: Sequence[np.ndarray], core_ndims: Sequence[int]) -> tuple[int, ...]:
+    """Broadcast shape of the batch axes of ``arrays`` (each has ``core_ndims[i]`` core axes)."""
+    return np.broadcast_shapes(*(a.shape[: a.ndim - k] for a, k in zip(arrays, core_ndims)))
+
+
+def run_kernel(
+    kernel: Callable[..., None],
+    out_core: tuple[int, ...],
+    arrays: Sequence[np.ndarray],
+    core_ndims: Sequence[int],
+) -> np.ndarray:
+    """Call a batch kernel on broadcast, flattened inputs and return the reshaped output.
+
+    Parameters
+    ----------
+    kernel
+        numba function ``kernel(*flat_inputs, out)``.
+    out_core
+        Core shape of one output point, e.g. ``(4, 4)``.
+    arrays
+        Inputs, float64, each of shape ``[..., *core]``.
+    core_ndims
+        Number of core axes of each input.
+
+    Returns
+    -------
+    numpy.ndarray
+        Shape ``[..., *out_core]`` with the broadcast batch shape in front.
+    """
+    lead = leading_shape(arrays, core_ndims)
+    npts = int(np.prod(lead, dtype=np.int64))
+    flat = []
+    for a, k in zip(arrays, core_ndims):
+        core = a.shape[a.ndim - k :]
+        flat.append(np.ascontiguousarray(np.broadcast_to(a, lead + core).reshape((npts, *core))))
+    out = np.empty((npts, *out_core))
+    kernel(*flat, out)
+    return out.reshape(lead + tuple(out_core))

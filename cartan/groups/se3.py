@@ -1,0 +1,611 @@
+"""The special Euclidean group SE(3) in the paper's affine convention, in closed form.
+
+Conventions (paper, Appendix "Vector and matrix operations")
+------------------------------------------------------------
+* A group element is the 4 × 4 matrix ``g = (a; A) = [[1, 0ᵀ], [a, A]]``: the homogeneous
+  coordinate comes **first**, the translation ``a`` fills rows 1..3 of column 0 and the
+  rotation ``A`` the lower-right 3 × 3 block.  It acts on ``x ∈ R³`` by ``A x + a``.
+* Algebra components ``ξ = (a1, a2)``: translation ``a1`` first, rotation ``a2`` second, and
+  ``hat(ξ) = {a1; a2} = [[0, 0ᵀ], [a1, â2]]`` (the paper's basis ``b_i``).
+* ``ad_ξ = [[â2, â1], [0, â2]]`` and ``Ad_g = [[A, âA], [0, A]]`` (6 × 6);
+  ``[ξ, η] = (a2 × b1 + a1 × b2, a2 × b2)`` for ``η = (b1, b2)``.
+* ``exp(ξ) = (J(a2) a1; exp(â2))`` with ``J`` the SO(3) left Jacobian.
+* ``dexp(ξ) = Σ_k ad_ξᵏ/(k+1)! = [[J, Q], [0, J]]`` with ``J = J(a2)`` and Barfoot–Furgale's
+  block (their ordering ``(ρ, φ)`` is the paper's ``(a1, a2)``; ``P = â1``, ``K = â2``)::
+
+      Q = ½P + C (KP + PK + KPK) + D (K²P + PK² − 3KPK) + E (KPK² + K²PK),
+      C = (θ − sin θ)/θ³,  D = (θ² + 2 cos θ − 2)/(2θ⁴),  E = (2θ − 3 sin θ + θ cos θ)/(2θ⁵),
+
+  ``θ = |a2|``.  ``dexp⁻¹(ξ) = [[J⁻¹, −J⁻¹QJ⁻¹], [0, J⁻¹]]`` and ``𝓔(Δt, Y) = Δt·dexp(ΔtY)``.
+
+Numerics
+--------
+``D = (½ − B)/θ²`` and ``E = (3C − B)/(2θ²)`` (``B = ½ sinc²(θ/2)``) for ``θ ≥ 0.1``; below,
+every coefficient comes from its six-term Taylor series in ``θ²``.  The rotation parts reuse
+the SO(3) kernels of :mod:`cartan.groups.so3`; ``log`` is the SO(3) quaternion logarithm
+followed by ``a1 = J⁻¹(a2) a``.  Numpy reference path and numba kernels share the
+``register_jitable`` arithmetic, so they evaluate identical formulas.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numba import njit
+from numba.extending import register_jitable
+
+from .base import SymmetryGroup
+from .so3 import (
+    SMALL_THETA2,
+    TAYLOR_A,
+    TAYLOR_B,
+    TAYLOR_C,
+    _C_direct,
+    _exp_coeffs_direct,
+    cross3,
+    cross_np,
+    dexp_inv_coeff_np,
+    hat_np,
+    horner,
+    log_np,
+    matmul3_np,
+    matvec3_np,
+    poly_np,
+    so3_dexp_inv_coeff,
+    so3_log_point,
+    so3_poly_point,
+    so3_vee_point,
+    vee_np,
+)
+
+__all__ = [
+    "SE3",
+    "se3_Ad_point",
+    "se3_E_point",
+    "se3_act_point",
+    "se3_ad_point",
+    "se3_bracket_point",
+    "se3_compose_point",
+    "se3_dexp_coeffs",
+    "se3_dexp_inv_point",
+    "se3_dexp_point",
+    "se3_exp_coeffs",
+    "se3_exp_point",
+    "se3_hat_point",
+    "se3_inverse_point",
+    "se3_log_point",
+    "se3_vee_point",
+]
+
+#: (θ² + 2 cos θ − 2)/(2θ⁴) = Σ (−1)ᵏ tᵏ/(2k+4)!, t = θ², highest power first
+TAYLOR_D = (-1.0 / 87178291200.0, 1.0 / 479001600.0, -1.0 / 3628800.0, 1.0 / 40320.0,
+            -1.0 / 720.0, 1.0 / 24.0)
+#: (2θ − 3 sin θ + θ cos θ)/(2θ⁵) = Σ (−1)ᵏ (k+1) tᵏ/(2k+5)!
+TAYLOR_E = (-6.0 / 1307674368000.0, 5.0 / 6227020800.0, -4.0 / 39916800.0, 3.0 / 362880.0,
+            -2.0 / 5040.0, 1.0 / 120.0)
+
+
+# ---------------------------------------------------------------------- shared arithmetic
+@register_jitable
+def _exp_coeffs3_direct(t2):
+    a, b = _exp_coeffs_direct(t2)
+    return a, b, _C_direct(t2)
+
+
+@register_jitable
+def _exp_coeffs3_series(t2):
+    return horner(t2, TAYLOR_A), horner(t2, TAYLOR_B), horner(t2, TAYLOR_C)
+
+
+@register_jitable
+def _dexp_coeffs_direct(t2):
+    b = _exp_coeffs_direct(t2)[1]
+    c = _C_direct(t2)
+    return b, c, (0.5 - b) / t2, (3.0 * c - b) / (2.0 * t2)
+
+
+@register_jitable
+def _dexp_coeffs_series(t2):
+    return horner(t2, TAYLOR_B), horner(t2, TAYLOR_C), horner(t2, TAYLOR_D), horner(t2, TAYLOR_E)
+
+
+@register_jitable
+def _V_apply(w0, w1, w2, b, c, v0, v1, v2):
+    """``v + b (w × v) + c w × (w × v)`` (``J(w) v`` or ``J⁻¹(w) v``) by components."""
+    u0, u1, u2 = cross3(w0, w1, w2, v0, v1, v2)
+    z0, z1, z2 = cross3(w0, w1, w2, u0, u1, u2)
+    return v0 + b * u0 + c * z0, v1 + b * u1 + c * z1, v2 + b * u2 + c * z2
+
+
+@register_jitable
+def _Q_apply(r0, r1, r2, p0, p1, p2, c, d, e, v0, v1, v2):
+    """``Q v`` for translation ``r`` (``P = r̂``), rotation ``p`` (``K = p̂``) and coefficients
+    ``(C, D, E)``, by chained cross products."""
+    Pv = cross3(r0, r1, r2, v0, v1, v2)
+    Kv = cross3(p0, p1, p2, v0, v1, v2)
+    KPv = cross3(p0, p1, p2, Pv[0], Pv[1], Pv[2])
+    PKv = cross3(r0, r1, r2, Kv[0], Kv[1], Kv[2])
+    KKv = cross3(p0, p1, p2, Kv[0], Kv[1], Kv[2])
+    KPKv = cross3(p0, p1, p2, PKv[0], PKv[1], PKv[2])
+    KKPv = cross3(p0, p1, p2, KPv[0], KPv[1], KPv[2])
+    PKKv = cross3(r0, r1, r2, KKv[0], KKv[1], KKv[2])
+    KPKKv = cross3(p0, p1, p2, PKKv[0], PKKv[1], PKKv[2])
+    KKPKv = cross3(p0, p1, p2, KPKv[0], KPKv[1], KPKv[2])
+    out0 = (0.5 * Pv[0] + c * (KPv[0] + PKv[0] + KPKv[0])
+            + d * (KKPv[0] + PKKv[0] - 3.0 * KPKv[0]) + e * (KPKKv[0] + KKPKv[0]))
+    out1 = (0.5 * Pv[1] + c * (KPv[1] + PKv[1] + KPKv[1])
+            + d * (KKPv[1] + PKKv[1] - 3.0 * KPKv[1]) + e * (KPKKv[1] + KKPKv[1]))
+    out2 = (0.5 * Pv[2] + c * (KPv[2] + PKv[2] + KPKv[2])
+            + d * (KKPv[2] + PKKv[2] - 3.0 * KPKv[2]) + e * (KPKKv[2] + KKPKv[2]))
+    return out0, out1, out2
+
+
+_UNIT = ((1.0, 0.0, 0.0), (0.0, 1.0, 0.0), (0.0, 0.0, 1.0))
+
+
+# ---------------------------------------------------------------------- numba point kernels
+@njit(cache=True)
+def se3_exp_coeffs(t2):
+    """``(A, B, C) = (sin θ/θ, (1 − cos θ)/θ², (θ − sin θ)/θ³)`` for ``t2 = θ²``."""
+    if t2 < SMALL_THETA2:
+        return _exp_coeffs3_series(t2)
+    return _exp_coeffs3_direct(t2)
+
+
+@njit(cache=True)
+def se3_dexp_coeffs(t2):
+    """``(B, C, D, E)``: the coefficients of ``J`` and of the ``Q`` block for ``t2 = θ²``."""
+    if t2 < SMALL_THETA2:
+        return _dexp_coeffs_series(t2)
+    return _dexp_coeffs_direct(t2)
+
+
+@njit(cache=True)
+def se3_hat_point(xi, out):
+    """``out`` (4, 4) ← ``{a1; a2} = [[0, 0ᵀ], [a1, â2]]`` for ``xi`` (6,)."""
+    out[0, 0] = 0.0
+    out[0, 1] = 0.0
+    out[0, 2] = 0.0
+    out[0, 3] = 0.0
+    out[1, 0] = xi[0]
+    out[2, 0] = xi[1]
+    out[3, 0] = xi[2]
+    out[1, 1] = 0.0
+    out[1, 2] = -xi[5]
+    out[1, 3] = xi[4]
+    out[2, 1] = xi[5]
+    out[2, 2] = 0.0
+    out[2, 3] = -xi[3]
+    out[3, 1] = -xi[4]
+    out[3, 2] = xi[3]
+    out[3, 3] = 0.0
+
+
+@njit(cache=True)
+def se3_vee_point(A, out):
+    """``out`` (6,) ← ``(A[1:, 0], vee(A[1:, 1:]))`` for ``A`` (4, 4)."""
+    out[0] = A[1, 0]
+    out[1] = A[2, 0]
+    out[2] = A[3, 0]
+    so3_vee_point(A[1:, 1:], out[3:])
+
+
+@njit(cache=True)
+def se3_compose_point(g, h, out):
+    """``out`` (4, 4) ← ``g h = (A_g a_h + a_g; A_g A_h)``; ``out`` must not alias the inputs."""
+    out[0, 0] = 1.0
+    for j in range(1, 4):
+        out[0, j] = 0.0
+    for i in range(1, 4):
+        out[i, 0] = g[i, 1] * h[1, 0] + g[i, 2] * h[2, 0] + g[i, 3] * h[3, 0] + g[i, 0]
+        for j in range(1, 4):
+            out[i, j] = g[i, 1] * h[1, j] + g[i, 2] * h[2, j] + g[i, 3] * h[3, j]
+
+
+@njit(cache=True)
+def se3_inverse_point(g, out):
+    """``out`` (4, 4) ← ``g⁻¹ = (−Aᵀa; Aᵀ)``; ``out`` must not alias ``g``."""
+    out[0, 0] = 1.0
+    for j in range(1, 4):
+        out[0, j] = 0.0
+    for i in range(1, 4):
+        out[i, 0] = -(g[1, i] * g[1, 0] + g[2, i] * g[2, 0] + g[3, i] * g[3, 0])
+        for j in range(1, 4):
+            out[i, j] = g[j, i]
+
+
+@njit(cache=True)
+def se3_act_point(g, x, out):
+    """``out`` (3,) ← ``A x + a`` for ``g = (a; A)`` (4, 4) and ``x`` (3,)."""
+    for i in range(3):
+        out[i] = g[i + 1, 1] * x[0] + g[i + 1, 2] * x[1] + g[i + 1, 3] * x[2] + g[i + 1, 0]
+
+
+@njit(cache=True)
+def se3_exp_point(xi, out):
+    """``out`` (4, 4) ← ``exp({a1; a2}) = (J(a2) a1; exp(â2))`` for ``xi`` (6,)."""
+    w0, w1, w2 = xi[3], xi[4], xi[5]
+    a, b, c = se3_exp_coeffs(w0 * w0 + w1 * w1 + w2 * w2)
+    so3_poly_point(w0, w1, w2, a, b, 1.0, out[1:, 1:])
+    t = _V_apply(w0, w1, w2, b, c, xi[0], xi[1], xi[2])
+    out[0, 0] = 1.0
+    out[0, 1] = 0.0
+    out[0, 2] = 0.0
+    out[0, 3] = 0.0
+    out[1, 0] = t[0]
+    out[2, 0] = t[1]
+    out[3, 0] = t[2]
+
+
+@njit(cache=True)
+def se3_log_point(g, out):
+    """``out`` (6,) ← principal logarithm of ``g`` (4, 4): ``a2 = log A``, ``a1 = J⁻¹(a2) a``."""
+    so3_log_point(g[1:, 1:], out[3:])
+    w0, w1, w2 = out[3], out[4], out[5]
+    c = so3_dexp_inv_coeff(w0 * w0 + w1 * w1 + w2 * w2)
+    t = _V_apply(w0, w1, w2, -0.5, c, g[1, 0], g[2, 0], g[3, 0])
+    out[0] = t[0]
+    out[1] = t[1]
+    out[2] = t[2]
+
+
+@njit(cache=True)
+def se3_Ad_point(g, out):
+    """``out`` (6, 6) ← ``Ad_g = [[A, âA], [0, A]]`` for ``g = (a; A)`` (4, 4)."""
+    a0, a1, a2 = g[1, 0], g[2, 0], g[3, 0]
+    for j in range(3):
+        col = cross3(a0, a1, a2, g[1, j + 1], g[2, j + 1], g[3, j + 1])
+        for i in range(3):
+            out[i, j] = g[i + 1, j + 1]
+            out[i + 3, j + 3] = g[i + 1, j + 1]
+            out[i + 3, j] = 0.0
+            out[i, j + 3] = col[i]
+
+
+@njit(cache=True)
+def se3_ad_point(xi, out):
+    """``out`` (6, 6) ← ``ad_ξ = [[â2, â1], [0, â2]]`` for ``xi`` (6,)."""
+    for i in range(3):
+        for j in range(3):
+            out[i + 3, j] = 0.0
+    out[0, 0] = 0.0
+    out[0, 1] = -xi[5]
+    out[0, 2] = xi[4]
+    out[1, 0] = xi[5]
+    out[1, 1] = 0.0
+    out[1, 2] = -xi[3]
+    out[2, 0] = -xi[4]
+    out[2, 1] = xi[3]
+    out[2, 2] = 0.0
+    for i in range(3):
+        for j in range(3):
+            out[i + 3, j + 3] = out[i, j]
+    out[0, 3] = 0.0
+    out[0, 4] = -xi[2]
+    out[0, 5] = xi[1]
+    out[1, 3] = xi[2]
+    out[1, 4] = 0.0
+    out[1, 5] = -xi[0]
+    out[2, 3] = -xi[1]
+    out[2, 4] = xi[0]
+    out[2, 5] = 0.0
+
+
+@njit(cache=True)
+def se3_bracket_point(xi, eta, out):
+    """``out`` (6,) ← ``[ξ, η] = (a2 × b1 + a1 × b2, a2 × b2)``."""
+    u = cross3(xi[3], xi[4], xi[5], eta[0], eta[1], eta[2])
+    v = cross3(xi[0], xi[1], xi[2], eta[3], eta[4], eta[5])
+    w = cross3(xi[3], xi[4], xi[5], eta[3], eta[4], eta[5])
+    out[0] = u[0] + v[0]
+    out[1] = u[1] + v[1]
+    out[2] = u[2] + v[2]
+    out[3] = w[0]
+    out[4] = w[1]
+    out[5] = w[2]
+
+
+@njit(cache=True)
+def _se3_dexp_fill(r0, r1, r2, w0, w1, w2, s, out):
+    """``out`` (6, 6) ← ``s·dexp({r; w}) = s [[J, Q], [0, J]]``."""
+    b, c, d, e = se3_dexp_coeffs(w0 * w0 + w1 * w1 + w2 * w2)
+    so3_poly_point(w0, w1, w2, b, c, s, out[:3, :3])
+    for j in range(3):
+        q = _Q_apply(r0, r1, r2, w0, w1, w2, c, d, e, _UNIT[j][0], _UNIT[j][1], _UNIT[j][2])
+        for i in range(3):
+            out[i + 3, j + 3] = out[i, j]
+            out[i + 3, j] = 0.0
+            out[i, j + 3] = s * q[i]
+
+
+@njit(cache=True)
+def se3_dexp_point(xi, out):
+    """``out`` (6, 6) ← ``dexp(ξ) = [[J, Q], [0, J]]`` for ``xi`` (6,)."""
+    _se3_dexp_fill(xi[0], xi[1], xi[2], xi[3], xi[4], xi[5], 1.0, out)
+
+
+@njit(cache=True)
+def se3_E_point(dt, xi, out):
+    """``out`` (6, 6) ← ``𝓔(Δt, ξ) = Δt·dexp(Δt ξ)`` for scalar ``dt``."""
+    _se3_dexp_fill(dt * xi[0], dt * xi[1], dt * xi[2], dt * xi[3], dt * xi[4], dt * xi[5], dt, out)
+
+
+@njit(cache=True)
+def se3_dexp_inv_point(xi, out):
+    """``out`` (6, 6) ← ``dexp(ξ)⁻¹ = [[J⁻¹, −J⁻¹QJ⁻¹], [0, J⁻¹]]`` for ``xi`` (6,)."""
+    r0, r1, r2, w0, w1, w2 = xi[0], xi[1], xi[2], xi[3], xi[4], xi[5]
+    t2 = w0 * w0 + w1 * w1 + w2 * w2
+    cinv = so3_dexp_inv_coeff(t2)
+    _, c, d, e = se3_dexp_coeffs(t2)
+    Jinv = out[:3, :3]
+    Q = out[3:, :3]  # scratch, zeroed at the end
+    so3_poly_point(w0, w1, w2, -0.5, cinv, 1.0, Jinv)
+    for j in range(3):
+        q = _Q_apply(r0, r1, r2, w0, w1, w2, c, d, e, _UNIT[j][0], _UNIT[j][1], _UNIT[j][2])
+        for i in range(3):
+            Q[i, j] = q[i]
+    for j in range(3):
+        t0 = Q[0, 0] * Jinv[0, j] + Q[0, 1] * Jinv[1, j] + Q[0, 2] * Jinv[2, j]
+        t1 = Q[1, 0] * Jinv[0, j] + Q[1, 1] * Jinv[1, j] + Q[1, 2] * Jinv[2, j]
+        t2_ = Q[2, 0] * Jinv[0, j] + Q[2, 1] * Jinv[1, j] + Q[2, 2] * Jinv[2, j]
+        for i in range(3):
+            out[i, j + 3] = -(Jinv[i, 0] * t0 + Jinv[i, 1] * t1 + Jinv[i, 2] * t2_)
+    for i in range(3):
+        for j in range(3):
+            out[i + 3, j + 3] = Jinv[i, j]
+            out[i + 3, j] = 0.0
+
+
+# ---------------------------------------------------------------------- numba batch loops
+@njit(cache=True)
+def _hat_batch(xi, out):
+    for p in range(xi.shape[0]):
+        se3_hat_point(xi[p], out[p])
+
+
+@njit(cache=True)
+def _vee_batch(A, out):
+    for p in range(A.shape[0]):
+        se3_vee_point(A[p], out[p])
+
+
+@njit(cache=True)
+def _compose_batch(g, h, out):
+    for p in range(g.shape[0]):
+        se3_compose_point(g[p], h[p], out[p])
+
+
+@njit(cache=True)
+def _inverse_batch(g, out):
+    for p in range(g.shape[0]):
+        se3_inverse_point(g[p], out[p])
+
+
+@njit(cache=True)
+def _act_batch(g, x, out):
+    for p in range(g.shape[0]):
+        se3_act_point(g[p], x[p], out[p])
+
+
+@njit(cache=True)
+def _exp_batch(xi, out):
+    for p in range(xi.shape[0]):
+        se3_exp_point(xi[p], out[p])
+
+
+@njit(cache=True)
+def _log_batch(g, out):
+    for p in range(g.shape[0]):
+        se3_log_point(g[p], out[p])
+
+
+@njit(cache=True)
+def _Ad_batch(g, out):
+    for p in range(g.shape[0]):
+        se3_Ad_point(g[p], out[p])
+
+
+@njit(cache=True)
+def _ad_batch(xi, out):
+    for p in range(xi.shape[0]):
+        se3_ad_point(xi[p], out[p])
+
+
+@njit(cache=True)
+def _bracket_batch(xi, eta, out):
+    for p in range(xi.shape[0]):
+        se3_bracket_point(xi[p], eta[p], out[p])
+
+
+@njit(cache=True)
+def _dexp_batch(xi, out):
+    for p in range(xi.shape[0]):
+        se3_dexp_point(xi[p], out[p])
+
+
+@njit(cache=True)
+def _dexp_inv_batch(xi, out):
+    for p in range(xi.shape[0]):
+        se3_dexp_inv_point(xi[p], out[p])
+
+
+@njit(cache=True)
+def _E_batch(dt, xi, out):
+    for p in range(xi.shape[0]):
+        se3_E_point(dt[p], xi[p], out[p])
+
+
+# ---------------------------------------------------------------------- numpy helpers
+def _exp_coeffs3_np(t2):
+    small = t2 < SMALL_THETA2
+    safe = np.where(small, 1.0, t2)
+    series = _exp_coeffs3_series(t2)
+    direct = _exp_coeffs3_direct(safe)
+    return tuple(np.where(small, s, d) for s, d in zip(series, direct, strict=True))
+
+
+def _dexp_coeffs_np(t2):
+    small = t2 < SMALL_THETA2
+    safe = np.where(small, 1.0, t2)
+    series = _dexp_coeffs_series(t2)
+    direct = _dexp_coeffs_direct(safe)
+    return tuple(np.where(small, s, d) for s, d in zip(series, direct, strict=True))
+
+
+def _Q_np(r, w, c, d, e) -> np.ndarray:
+    """``Q`` block ``[..., 3, 3]`` for translation ``r`` and rotation ``w`` ``[..., 3]``."""
+    r0, r1, r2, w0, w1, w2 = r[..., 0], r[..., 1], r[..., 2], w[..., 0], w[..., 1], w[..., 2]
+    cols = [np.stack(np.broadcast_arrays(*_Q_apply(r0, r1, r2, w0, w1, w2, c, d, e, *u)), axis=-1)
+            for u in _UNIT]
+    return np.stack(cols, axis=-1)
+
+
+def _blocks(tl, tr, br) -> np.ndarray:
+    """The 6 × 6 matrix ``[[tl, tr], [0, br]]`` from broadcast ``[..., 3, 3]`` blocks."""
+    tl, tr, br = np.broadcast_arrays(tl, tr, br)
+    out = np.zeros((*tl.shape[:-2], 6, 6))
+    out[..., :3, :3] = tl
+    out[..., :3, 3:] = tr
+    out[..., 3:, 3:] = br
+    return out
+
+
+def _affine(t, R) -> np.ndarray:
+    """``(t; R)`` as ``[..., 4, 4]`` from ``t`` ``[..., 3]`` and ``R`` ``[..., 3, 3]``."""
+    lead = np.broadcast_shapes(t.shape[:-1], R.shape[:-2])
+    out = np.zeros((*lead, 4, 4))
+    out[..., 0, 0] = 1.0
+    out[..., 1:, 0] = t
+    out[..., 1:, 1:] = R
+    return out
+
+
+def _dexp_np(r, w, s) -> np.ndarray:
+    w0, w1, w2 = w[..., 0], w[..., 1], w[..., 2]
+    b, c, d, e = _dexp_coeffs_np(w0 * w0 + w1 * w1 + w2 * w2)
+    J = poly_np(w0, w1, w2, b, c, s)
+    Q = _Q_np(r, w, c, d, e)
+    s = np.asarray(s)[..., None, None]
+    return _blocks(J, s * Q, J)
+
+
+# ---------------------------------------------------------------------- the group
+class SE3(SymmetryGroup):
+    """Rigid motions of R³ as ``g = (a; A) = [[1, 0ᵀ], [a, A]]``; algebra se(3) ≅ R⁶.
+
+    Algebra components ``ξ = (a1, a2)`` ``[..., 6]`` — translation first, rotation second —
+    map to ``{a1; a2} = [[0, 0ᵀ], [a1, â2]]`` (paper, Appendix "Vector and matrix
+    operations").  :meth:`log_domain_norm` is the rotation angle ``|a2|``.  All operations
+    are closed-form; see the module docstring.
+    """
+
+    name = "SE3"
+    dim = 6
+    matrix_size = 4
+    affine = True
+    _kernels = {
+        "hat": _hat_batch,
+        "vee": _vee_batch,
+        "compose": _compose_batch,
+        "inverse": _inverse_batch,
+        "act": _act_batch,
+        "exp": _exp_batch,
+        "log": _log_batch,
+        "Ad": _Ad_batch,
+        "ad": _ad_batch,
+        "bracket": _bracket_batch,
+        "dexp": _dexp_batch,
+        "dexp_inv": _dexp_inv_batch,
+        "E": _E_batch,
+    }
+
+    def basis(self) -> np.ndarray:
+        """Generators ``b_i = {(δ_i1, δ_i2, δ_i3); (δ_i4, δ_i5, δ_i6)}``, shape ``(6, 4, 4)``."""
+        return self._hat(np.eye(6))
+
+    def defect(self, g) -> np.ndarray:
+        """Distance from SE(3): ``‖AᵀA − I‖_F + ‖g[0, :] − (1, 0, 0, 0)‖``.
+
+        Parameters
+        ----------
+        g : array_like, shape ``[..., 4, 4]``
+
+        Returns
+        -------
+        numpy.ndarray, shape ``[...]``
+        """
+        g = self._element(g)
+        A = g[..., 1:, 1:]
+        rot = np.linalg.norm(np.swapaxes(A, -1, -2) @ A - np.eye(3), axis=(-2, -1))
+        return rot + np.linalg.norm(g[..., 0, :] - np.array([1.0, 0.0, 0.0, 0.0]), axis=-1)
+
+    def log_domain_norm(self, xi) -> np.ndarray:
+        """Rotation angle ``|a2|`` of ``xi`` ``[..., 6]`` → ``[...]``."""
+        xi = self._algebra(xi)
+        return np.linalg.norm(xi[..., 3:], axis=-1)
+
+    # ------------------------------------------------------------------ numpy reference
+    def _hat(self, xi: np.ndarray) -> np.ndarray:
+        out = np.zeros((*xi.shape[:-1], 4, 4))
+        out[..., 1:, 0] = xi[..., :3]
+        out[..., 1:, 1:] = hat_np(xi[..., 3:])
+        return out
+
+    def _vee(self, A: np.ndarray) -> np.ndarray:
+        return np.concatenate([A[..., 1:, 0], vee_np(A[..., 1:, 1:])], axis=-1)
+
+    def _compose(self, g: np.ndarray, h: np.ndarray) -> np.ndarray:
+        Ag = g[..., 1:, 1:]
+        return _affine(matvec3_np(Ag, h[..., 1:, 0]) + g[..., 1:, 0], matmul3_np(Ag, h[..., 1:, 1:]))
+
+    def _inverse(self, g: np.ndarray) -> np.ndarray:
+        At = np.swapaxes(g[..., 1:, 1:], -1, -2)
+        return _affine(-matvec3_np(At, g[..., 1:, 0]), At)
+
+    def _act(self, g: np.ndarray, x: np.ndarray) -> np.ndarray:
+        return matvec3_np(g[..., 1:, 1:], x) + g[..., 1:, 0]
+
+    def _exp(self, xi: np.ndarray) -> np.ndarray:
+        w0, w1, w2 = xi[..., 3], xi[..., 4], xi[..., 5]
+        a, b, c = _exp_coeffs3_np(w0 * w0 + w1 * w1 + w2 * w2)
+        R = poly_np(w0, w1, w2, a, b, 1.0)
+        t = np.stack(_V_apply(w0, w1, w2, b, c, xi[..., 0], xi[..., 1], xi[..., 2]), axis=-1)
+        return _affine(t, R)
+
+    def _log(self, g: np.ndarray) -> np.ndarray:
+        w = log_np(g[..., 1:, 1:])
+        w0, w1, w2 = w[..., 0], w[..., 1], w[..., 2]
+        c = dexp_inv_coeff_np(w0 * w0 + w1 * w1 + w2 * w2)
+        v = np.stack(_V_apply(w0, w1, w2, -0.5, c, g[..., 1, 0], g[..., 2, 0], g[..., 3, 0]), axis=-1)
+        return np.concatenate([v, w], axis=-1)
+
+    def _Ad(self, g: np.ndarray) -> np.ndarray:
+        A = g[..., 1:, 1:]
+        a = g[..., 1:, 0]
+        aA = np.stack([cross_np(a, A[..., :, j]) for j in range(3)], axis=-1)
+        return _blocks(A, aA, A)
+
+    def _ad(self, xi: np.ndarray) -> np.ndarray:
+        K = hat_np(xi[..., 3:])
+        return _blocks(K, hat_np(xi[..., :3]), K)
+
+    def _bracket(self, xi: np.ndarray, eta: np.ndarray) -> np.ndarray:
+        top = cross_np(xi[..., 3:], eta[..., :3]) + cross_np(xi[..., :3], eta[..., 3:])
+        return np.concatenate(np.broadcast_arrays(top, cross_np(xi[..., 3:], eta[..., 3:])), axis=-1)
+
+    def _dexp(self, xi: np.ndarray) -> np.ndarray:
+        return _dexp_np(xi[..., :3], xi[..., 3:], 1.0)
+
+    def _dexp_inv(self, xi: np.ndarray) -> np.ndarray:
+        w = xi[..., 3:]
+        w0, w1, w2 = w[..., 0], w[..., 1], w[..., 2]
+        t2 = w0 * w0 + w1 * w1 + w2 * w2
+        cinv = dexp_inv_coeff_np(t2)
+        _, c, d, e = _dexp_coeffs_np(t2)
+        Jinv = poly_np(w0, w1, w2, -0.5, cinv, 1.0)
+        Q = _Q_np(xi[..., :3], w, c, d, e)
+        return _blocks(Jinv, -matmul3_np(Jinv, matmul3_np(Q, Jinv)), Jinv)
+
+    def _E(self, dt: np.ndarray, Y: np.ndarray) -> np.ndarray:
+        dt = np.asarray(dt, dtype=float)
+        Ys = dt[..., None] * Y
+        return _dexp_np(Ys[..., :3], Ys[..., 3:], dt)

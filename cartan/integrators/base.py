@@ -1,0 +1,105 @@
+"""The :class:`Integrator` base: the written contract for time integrators.
+
+An integrator advances a :class:`~cartan.schemes.base.State` by one step through the
+:class:`~cartan.schemes.base.Scheme` interface only (``velocity``, ``force``, ``drift``,
+``constrain``), so every integrator runs on every scheme and knows nothing of the medium.
+
+Implementers
+------------
+* set the class attributes ``name`` (kebab-case), ``order``, ``geometric`` (Φ stays in G),
+  ``symplectic``, ``explicit``, and ``stability`` — the largest stable ``Δt·ω_max`` for
+  the undamped linear oscillator (2 for leapfrog, 2√2 for RK4, 0 when no Δt is stable), or
+  for ``rate = "overdamped"`` the largest ``Δt·λ_max`` of the linear gradient flow;
+* implement :meth:`_step`, which advances ``state`` in place by ``dt`` (time included) and
+  calls :meth:`force` (never ``scheme.force`` directly) so the counters stay right;
+* keep ``_step`` deterministic: a restart from a checkpoint reproduces the run bit for bit.
+
+The base class keeps the counters (``nstep``, ``nforce``, ``wall_time``), advances
+``state.t``, and integrates the dissipated and external powers (trapezoidal rule) into
+``state.scalars`` so that the energy balance of a run closes to the integrator's order.
+"""
+
+from __future__ import annotations
+
+import abc
+import time
+from typing import Any, ClassVar
+
+import numpy as np
+
+from ..schemes.base import Scheme, State
+
+__all__ = ["Integrator"]
+
+
+class Integrator(abc.ABC):
+    """Base class of time integrators (see module docstring for the contract)."""
+
+    name: ClassVar[str] = ""
+    order: ClassVar[int] = 1
+    geometric: ClassVar[bool] = True
+    symplectic: ClassVar[bool] = False
+    explicit: ClassVar[bool] = True
+    stability: ClassVar[float] = 0.0
+    rate: ClassVar[str] = "inertial"
+    #: False for integrators that prescribe N (kinematic, overdamped): S is not evolved.
+    uses_momentum: ClassVar[bool] = True
+
+    def __init__(self, **options: Any):
+        if options:
+            raise ValueError(f"integrator {self.name!r} takes no option(s) {sorted(options)}")
+        self.reset()
+
+    def reset(self) -> None:
+        """Zero the counters."""
+        self.nstep = 0
+        self.nforce = 0
+        self.wall_time = 0.0
+
+    def options(self) -> dict[str, Any]:
+        return {}
+
+    # ------------------------------------------------------------------ contract
+    @abc.abstractmethod
+    def _step(self, scheme: Scheme, state: State, dt: float) -> None:
+        """Advance ``state`` in place by ``dt`` (configuration and momentum; not ``t``)."""
+
+    # ------------------------------------------------------------------ shared
+    def velocity(self, scheme: Scheme, state: State) -> np.ndarray:
+        """N used for the energy bookkeeping (the state's own velocity by default)."""
+        return scheme.velocity(state)
+
+    def force(self, scheme: Scheme, state: State, N: np.ndarray, t: float) -> np.ndarray:
+        """Counted call of ``scheme.force``."""
+        self.nforce += 1
+        return scheme.force(state, N, t)
+
+    def step(self, scheme: Scheme, state: State, dt: float) -> None:
+        """Advance ``state`` in place by one step of size ``dt``."""
+        t0 = time.perf_counter()
+        p0 = self._powers(scheme, state)
+        self._step(scheme, state, dt)
+        state.t = state.t + dt
+        p1 = self._powers(scheme, state)
+        for key in ("dissipated", "external"):
+            name = "dissipated_energy" if key == "dissipated" else "external_work"
+            state.scalars[name] = state.scalars.get(name, 0.0) + 0.5 * dt * (p0[key] + p1[key])
+        state.scalars["nstep"] = state.scalars.get("nstep", 0) + 1
+        self.nstep += 1
+        self.wall_time += time.perf_counter() - t0
+
+    def _powers(self, scheme: Scheme, state: State) -> dict[str, float]:
+        if not scheme.problem.loads and not getattr(scheme, "_end_loads", None):
+            return {"dissipated": 0.0, "external": 0.0}
+        return scheme.powers(state, self.velocity(scheme, state), state.t)
+
+    def dt_max(self, scheme: Scheme, state: State) -> float:
+        """CFL estimate: the largest stable Δt for the linearised system at ``state``
+        (0 when no Δt is stable; inf when the integrator has no stability limit)."""
+        if self.stability == np.inf:
+            return np.inf
+        return self.stability * scheme.dt_max(state, rate=self.rate)
+
+    def __repr__(self) -> str:
+        opts = ", ".join(f"{k}={v!r}" for k, v in self.options().items())
+        return f"{type(self).__name__}({opts})"

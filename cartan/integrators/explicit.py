@@ -1,0 +1,312 @@
+"""The explicit integrators of ARCHITECTURE.md §5.
+
+Notation: the scheme supplies N(S), the force density W and the drift Φ ← Φ exp(τN); the
+momentum obeys ``Ṡ = ad_Nᵀ S + W`` (paper §V with ad* = −adᵀ), i.e. ``Ṡ + ad*_N S = W``.
+
+==================  =====  =========  ==========  =======================================
+name                order  geometric  symplectic  update
+==================  =====  =========  ==========  =======================================
+``forward-euler``   1      no         no          Φ += ΔtΦN̂, S += Δt(ad_NᵀS + W)
+``lie-euler``       1      yes        no          paper §V: S⁺ = Ad*_{exp ΔtN}S + 𝓔*(Δt,N)W,
+                                                  Φ⁺ = Φ exp(ΔtN)
+``lie-verlet``      2      yes        yes         half kick, exact split free flow, half kick
+``rkmk4``           4      yes        no          Runge–Kutta–Munthe-Kaas, classical tableau
+``overdamped``      1–2    yes        —           N = Γ⁻¹W(N = 0); Lie–Euler or RKMK2 (Heun)
+``kinematic``       1–4    yes        —           N = f(t, u, X) prescribed; RKMK of that order
+==================  =====  =========  ==========  =======================================
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from typing import Any
+
+import numpy as np
+
+from ..schemes.base import Scheme, State
+from .base import Integrator
+
+__all__ = ["ForwardEuler", "Kinematic", "LieEuler", "LieVerlet", "Overdamped", "RKMK4"]
+
+
+def _adT(group, N: np.ndarray, S: np.ndarray) -> np.ndarray:
+    """Lie–Poisson term ad_Nᵀ S = −ad*_N S, ``[..., r]``."""
+    return np.einsum("...ji,...j->...i", group.ad(N), S)
+
+
+def _coAd_exp(group, tau: float, N: np.ndarray, S: np.ndarray) -> np.ndarray:
+    """Ad*_{exp(τN)} S = Ad_{exp(τN)}ᵀ S, the exact solution of Ṡ = ad_NᵀS for frozen N."""
+    return np.einsum("...ji,...j->...i", group.Ad(group.exp(tau * N)), S)
+
+
+class ForwardEuler(Integrator):
+    """Naive explicit Euler on the matrix entries of Φ (and of the edge elements) and on S.
+
+    The baseline that shows why geometry matters: Φ leaves the group at every step, and
+    for undamped motion the method is unstable at every Δt (``stability = 0``).
+    """
+
+    name = "forward-euler"
+    order = 1
+    geometric = False
+    stability = 0.0
+
+    def _step(self, scheme: Scheme, state: State, dt: float) -> None:
+        N = scheme.velocity(state)
+        W = self.force(scheme, state, N, state.t)
+        S_dot = _adT(scheme.group, N, state.S) + W
+        scheme.drift(state, dt, N, exact=False)
+        state.S = state.S + dt * S_dot
+        scheme.constrain(state)
+
+
+class LieEuler(Integrator):
+    """The paper's Lie group integrator (§V), faithfully:
+
+    ``S⁺ = Ad*_{exp(ΔtN)} S + 𝓔*(Δt, N) W`` with ``𝓔*(Δt, N) = 𝓔(Δt, N)ᵀ``, and the
+    configuration advanced by ``Φ⁺ = Φ exp(ΔtN)`` (on the lattice: edges conjugated; on
+    collocation: ``X⁺ = Ad_{exp(−ΔtN)}X + 𝓔(Δt,−N)∂_uN``).  First order; stays in G.
+    """
+
+    name = "lie-euler"
+    order = 1
+    stability = 0.0
+
+    def _step(self, scheme: Scheme, state: State, dt: float) -> None:
+        g = scheme.group
+        N = scheme.velocity(state)
+        W = self.force(scheme, state, N, state.t)
+        S = _coAd_exp(g, dt, N, state.S) + np.einsum("...ji,...j->...i", g.E(dt, N), W)
+        scheme.drift(state, dt, N, exact=True)
+        state.S = S
+        scheme.constrain(state)
+
+
+def _abelian_pieces(group, live: np.ndarray) -> list[np.ndarray]:
+    """Group the live basis directions into mutually commuting sets.
+
+    Within a set K the sub-Hamiltonian ½Σ_{k∈K} S_k²/m_k generates a flow with N constant
+    (its components S_K are invariant under Ad* by elements of the abelian subalgebra), so
+    Φ ← Φ exp(τN), S ← Ad*_{exp τN} S is its exact solution.
+    """
+    r = group.dim
+    eye = np.eye(r)
+    pieces: list[list[int]] = []
+    for k in range(r):
+        if not live[k]:
+            continue
+        for piece in pieces:
+            if all(np.max(np.abs(group.bracket(eye[k], eye[j]))) == 0.0 for j in piece):
+                piece.append(k)
+                break
+        else:
+            pieces.append([k])
+    return [np.array(p) for p in pieces]
+
+
+class LieVerlet(Integrator):
+    """Symplectic, explicit, second-order splitting that stays in G.
+
+    ``S += ½Δt W``; exact free flow over Δt; ``S += ½Δt W``.  The free flow of the kinetic
+    energy ½Σ S_k²/m_k is split into commuting blocks of basis directions
+    (:func:`_abelian_pieces`; for SE(3): the three translations, then each rotation axis),
+    each solved exactly, and composed palindromically (Strang) — the generalisation to any
+    group of the splitting of the free rigid body (McLachlan 1993; Dullweber, Leimkuhler &
+    McLachlan 1997).  The force at the end of a step is reused at the start of the next when
+    no load depends on N (one force evaluation per step).
+    """
+
+    name = "lie-verlet"
+    order = 2
+    symplectic = True
+    stability = 2.0
+
+    def __init__(self, **options: Any):
+        super().__init__(**options)
+        self._fsal: tuple | None = None
+
+    def reset(self) -> None:
+        super().reset()
+        self._fsal = None
+
+    def _sequence(self, scheme: Scheme) -> list[tuple[np.ndarray, float]]:
+        pieces = _abelian_pieces(scheme.group, scheme.live)
+        seq = [(p, 0.5) for p in pieces[:-1]] + [(pieces[-1], 1.0)] + [(p, 0.5) for p in reversed(pieces[:-1])]
+        return seq
+
+    def _kick_force(self, scheme: Scheme, state: State) -> np.ndarray:
+        N = scheme.velocity(state)
+        key = (id(state), state.t, state.scalars.get("nstep", 0))
+        velocity_free = not any(ld.velocity_dependent for ld in scheme.problem.loads) and not getattr(
+            scheme.medium, "velocity_dependent_forces", False)
+        if velocity_free and self._fsal is not None and self._fsal[0] == key:
+            return self._fsal[1]
+        return self.force(scheme, state, N, state.t)
+
+    def _step(self, scheme: Scheme, state: State, dt: float) -> None:
+        g = scheme.group
+        state.S = state.S + 0.5 * dt * self._kick_force(scheme, state)
+        scheme.constrain(state)
+        for piece, frac in self._sequence(scheme):
+            N = scheme.velocity(state)
+            Np = np.zeros_like(N)
+            Np[..., piece] = N[..., piece]
+            tau = frac * dt
+            state.S = _coAd_exp(g, tau, Np, state.S)
+            scheme.drift(state, tau, Np, exact=True)
+        scheme.constrain(state)
+        t1 = state.t + dt
+        W1 = self.force(scheme, state, scheme.velocity(state), t1)
+        state.S = state.S + 0.5 * dt * W1
+        scheme.constrain(state)
+        # cache the force at the new configuration for the next step's first kick
+        self._fsal = ((id(state), t1, state.scalars.get("nstep", 0) + 1), W1)
+
+
+# ---------------------------------------------------------------------------- RKMK family
+_TABLEAUX: dict[int, tuple[np.ndarray, np.ndarray, np.ndarray]] = {
+    1: (np.array([[0.0]]), np.array([1.0]), np.array([0.0])),
+    2: (np.array([[0.0, 0.0], [1.0, 0.0]]), np.array([0.5, 0.5]), np.array([0.0, 1.0])),
+    4: (
+        np.array([[0, 0, 0, 0], [0.5, 0, 0, 0], [0, 0.5, 0, 0], [0, 0, 1.0, 0]], dtype=float),
+        np.array([1, 2, 2, 1], dtype=float) / 6,
+        np.array([0, 0.5, 0.5, 1.0]),
+    ),
+}
+
+
+def _rkmk(integ: Integrator, scheme: Scheme, state: State, dt: float, order: int,
+          velocity: Callable[[State, float], np.ndarray], dynamics: bool) -> None:
+    """One explicit Runge–Kutta–Munthe-Kaas step (Munthe-Kaas 1999).
+
+    Φ(t+s) = Φ(t) exp(σ(s)) with ``σ̇ = dexp⁻¹_{−σ} N`` (right-trivialised: our ``dexp`` is
+    the left Jacobian, and Φ̇ = ΦN), S by the same Runge–Kutta tableau on
+    ``Ṡ = ad_NᵀS + W`` when ``dynamics`` is True.
+    """
+    g = scheme.group
+    A, b, c = _TABLEAUX[order]
+    s = len(b)
+    k_sig: list[np.ndarray] = []
+    k_S: list[np.ndarray] = []
+    for i in range(s):
+        sigma = sum((dt * A[i, j] * k_sig[j] for j in range(i) if A[i, j]), np.zeros_like(state.S))
+        stage = state.copy()
+        if dynamics:
+            stage.S = state.S + sum((dt * A[i, j] * k_S[j] for j in range(i) if A[i, j]), np.zeros_like(state.S))
+        if np.any(sigma):
+            scheme.drift(stage, 1.0, sigma, exact=True)
+        t_i = state.t + c[i] * dt
+        N = velocity(stage, t_i)
+        k_sig.append(np.einsum("...ij,...j->...i", g.dexp_inv(-sigma), N))
+        if dynamics:
+            W = integ.force(scheme, stage, N, t_i)
+            k_S.append(_adT(g, N, stage.S) + W)
+    sigma = sum(dt * b[i] * k_sig[i] for i in range(s))
+    scheme.drift(state, 1.0, sigma, exact=True)
+    if dynamics:
+        state.S = state.S + sum(dt * b[i] * k_S[i] for i in range(s))
+        scheme.constrain(state)
+
+
+class RKMK4(Integrator):
+    """Classical 4-stage Runge–Kutta–Munthe-Kaas: fourth order, stays in G, 4 forces/step."""
+
+    name = "rkmk4"
+    order = 4
+    stability = 2.0 * np.sqrt(2.0)
+
+    def _step(self, scheme: Scheme, state: State, dt: float) -> None:
+        _rkmk(self, scheme, state, dt, 4, lambda st, t: scheme.velocity(st), dynamics=True)
+
+
+class Overdamped(Integrator):
+    """Gradient (overdamped) dynamics ``Γ N = W(N = 0)``: N = Γ⁻¹(D*Q + T), Γ the drag of the
+    problem's :class:`~cartan.problem.Damping` loads.  ``order=1``: Lie–Euler; ``order=2``:
+    RKMK2 (Heun).  Momentum is not evolved (S = 0)."""
+
+    name = "overdamped"
+    rate = "overdamped"
+    stability = 2.0
+    uses_momentum = False
+
+    def __init__(self, order: int = 1):
+        if order not in (1, 2):
+            raise ValueError(f"order must be 1 or 2 for overdamped, got {order!r}")
+        self.order = order
+        self._cache: tuple | None = None
+        super().__init__()
+
+    def options(self):
+        return {"order": self.order}
+
+    def drift_velocity(self, scheme: Scheme, state: State, t: float) -> np.ndarray:
+        gam = scheme.drag()
+        bad = scheme.live & ~(gam > 0)
+        if bad.any():
+            raise ValueError(
+                "the overdamped integrator needs a Damping load with positive coefficients on every "
+                f"non-gauge component; missing for components {np.flatnonzero(bad).tolist()}"
+            )
+        W = self.force(scheme, state, np.zeros_like(state.S), t)
+        N = np.where(scheme.live, W / np.where(gam > 0, gam, 1.0), 0.0)
+        N[scheme._clamped] = 0.0
+        return N
+
+    def velocity(self, scheme, state):
+        key = (id(state), state.t, state.scalars.get("nstep", 0))
+        if self._cache is not None and self._cache[0] == key:
+            return self._cache[1]
+        N = self.drift_velocity(scheme, state, state.t)
+        self._cache = (key, N)
+        return N
+
+    def _step(self, scheme: Scheme, state: State, dt: float) -> None:
+        if self.order == 1:
+            N = self.velocity(scheme, state)
+            scheme.drift(state, dt, N, exact=True)
+        else:
+            _rkmk(self, scheme, state, dt, 2, lambda st, t: self.drift_velocity(scheme, st, t), dynamics=False)
+        state.S = np.zeros_like(state.S)
+
+
+class Kinematic(Integrator):
+    """Prescribed velocity N(t, u, X) (paper §III.B): the configuration follows
+    Φ̇ = ΦN by RKMK of the requested order (1, 2 or 4).
+
+    Parameters
+    ----------
+    velocity : callable ``(t, u, X) -> N``
+        ``t`` float, ``u`` node coordinates ``[*shape, d]``, ``X`` nodal strains
+        ``[*shape, d, r]``; returns ``[*shape, r]``.
+    order : int
+    """
+
+    name = "kinematic"
+    stability = np.inf
+    uses_momentum = False
+
+    def __init__(self, velocity: Callable | None = None, order: int = 4):
+        if velocity is None or not callable(velocity):
+            raise ValueError("kinematic integrator needs velocity=callable(t, u, X) -> N")
+        if order not in _TABLEAUX:
+            raise ValueError(f"order must be one of {sorted(_TABLEAUX)}, got {order!r}")
+        self.velocity_field = velocity
+        self.order = order
+        super().__init__()
+
+    def options(self):
+        return {"order": self.order, "velocity": getattr(self.velocity_field, "__name__", "callable")}
+
+    def _N(self, scheme: Scheme, state: State, t: float) -> np.ndarray:
+        grid = scheme.grid
+        u = np.stack(np.meshgrid(*[grid.coordinates(a) for a in range(grid.d)], indexing="ij"), axis=-1)
+        N = np.asarray(self.velocity_field(t, u, scheme.nodal_strains(state)), dtype=float)
+        N = np.broadcast_to(N, (*grid.shape, scheme.group.dim)).copy()
+        N[scheme._clamped] = 0.0
+        return N
+
+    def velocity(self, scheme, state):
+        return self._N(scheme, state, state.t)
+
+    def _step(self, scheme: Scheme, state: State, dt: float) -> None:
+        _rkmk(self, scheme, state, dt, self.order, lambda st, t: self._N(scheme, st, t), dynamics=False)

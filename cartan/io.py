@@ -1,0 +1,466 @@
+"""Run output: the :class:`xarray.Dataset` of a simulation and its netCDF files.
+
+Layout (ARCHITECTURE.md §4)
+---------------------------
+Dimensions
+    ``time`` (saved frames); ``node`` and ``edge`` for d = 1 (``u``, ``v``, ``w`` for the node
+    axes when d ≥ 2); ``component`` (Lie-algebra basis index, r values); ``row``/``col``
+    for positions and frames of affine groups; ``axis`` (material axis) for strains of
+    d ≥ 2 media; ``point`` (or ``point_row``/``point_col``) for the configuration field of
+    non-affine groups.
+Fields per frame
+    ``X`` strains as stored by the scheme (on edges for the ``lattice`` scheme when d = 1,
+    averaged onto the nodes when d ≥ 2), ``N`` velocity, ``S`` momentum density; for affine
+    groups ``position`` = Φ[..., 1:, 0] and ``frame`` = Φ[..., 1:, 1:] (columns are the
+    directors), otherwise ``field`` = Φ·q_r (the configuration q in the medium's space).
+Series
+    ``kinetic_energy``, ``potential_energy``, ``dissipated_energy``, ``external_work``,
+    ``integrability_residual``, ``closure_residual``, ``group_defect`` and
+    ``total_momentum`` (spatial frame, per component); coordinate ``step`` (time-step index).
+
+Units
+-----
+cartan media take their parameters in whatever consistent unit system the user chooses,
+so the ``units`` attribute names the physical *dimension* in that system: ``"time"``,
+``"length"``, ``"energy"``, ``"1"`` (dimensionless) — and ``"mixed"`` for Lie-algebra
+components whose entries differ in dimension (e.g. for SE(3) the translational strain is
+dimensionless and the rotational strain is 1/length); the global attribute
+``units_convention`` repeats this.
+
+Files
+-----
+:func:`write_dataset` writes netCDF-4 (``engine="netcdf4"``) atomically: a temporary file in
+the target's directory, fsync, then :func:`os.replace`, so a reader never sees a partial file
+and an error leaves any previous file untouched.  A run's file may also hold a netCDF group
+``checkpoint`` with the full state needed to continue it (:func:`read_checkpoint`);
+:func:`open_dataset` (``cartan.open``) reads the root group only.
+"""
+
+from __future__ import annotations
+
+import datetime as _dt
+import json
+import os
+import pathlib
+import tempfile
+from collections.abc import Mapping
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+
+if TYPE_CHECKING:  # pragma: no cover
+    import xarray as xr
+
+    from .integrators.base import Integrator
+    from .problem import Problem
+    from .schemes.base import Scheme, State
+
+__all__ = [
+    "build_dataset",
+    "checkpoint_dataset",
+    "frame_record",
+    "history_line",
+    "open_dataset",
+    "read_checkpoint",
+    "source_string",
+    "write_dataset",
+]
+
+CONVENTIONS = "CF-1.11"
+CHECKPOINT_GROUP = "checkpoint"
+UNITS_CONVENTION = (
+    "units attributes name physical dimensions in the unit system of the medium's parameters "
+    "(time, length, energy, 1 = dimensionless); 'mixed' marks Lie-algebra components of "
+    "different dimensions"
+)
+
+#: name -> (long_name, units)
+_META: dict[str, tuple[str, str]] = {
+    "X": ("strain X = Φ⁻¹∂Φ (Lie algebra components, as stored by the scheme)", "mixed"),
+    "N": ("velocity N = Φ⁻¹∂ₜΦ (Lie algebra components)", "mixed"),
+    "S": ("momentum density S = ∂K/∂N (dual components)", "mixed"),
+    "position": ("position of the material point (translation part of Φ)", "length"),
+    "frame": ("frame of the material point (rotation part of Φ; columns are directors)", "1"),
+    "field": ("configuration q = Φ·q_r in the medium's homogeneous space", "1"),
+    "kinetic_energy": ("kinetic energy", "energy"),
+    "potential_energy": ("potential energy (internal plus conservative loads)", "energy"),
+    "dissipated_energy": ("energy dissipated since t = 0", "energy"),
+    "external_work": ("work done by non-conservative external loads since t = 0", "energy"),
+    "integrability_residual": ("temporal integrability residual max|X_stored − X(Φ)|", "mixed"),
+    "closure_residual": ("ring closure residual ‖log ∏ exp(hX)‖ around periodic axes", "1"),
+    "group_defect": ("group membership defect max‖defining relation of Φ‖", "1"),
+    "total_momentum": ("total momentum in the spatial frame (momentum map)", "mixed"),
+}
+
+
+# ---------------------------------------------------------------------------- layout
+def _node_dims(scheme: Scheme) -> tuple[str, ...]:
+    return ("node",) if scheme.grid.d == 1 else tuple(scheme.grid.axis_names)
+
+
+def _strain_location(scheme: Scheme) -> str:
+    """``"edge"`` or ``"node"``: where the scheme stores strains for d = 1."""
+    loc = getattr(scheme, "strain_location", None)
+    if loc in ("edge", "node"):
+        return loc
+    from .schemes.lattice import Lattice
+
+    return "edge" if isinstance(scheme, Lattice) else "node"
+
+
+def _affine(scheme: Scheme) -> bool:
+    return bool(getattr(scheme.group, "affine", False))
+
+
+def _space(scheme: Scheme):
+    return getattr(scheme.medium, "space", None)
+
+
+def frame_record(scheme: Scheme, integrator: Integrator, state: State) -> dict[str, Any]:
+    """The output of one saved frame: fields (copied) and scalar diagnostics.
+
+    Parameters
+    ----------
+    scheme : Scheme
+    integrator : Integrator
+        Supplies N for integrators that prescribe it (``uses_momentum = False``).
+    state : State
+        Not modified.
+
+    Returns
+    -------
+    dict
+        ``{name: ndarray or float}`` with the variables of the module docstring, plus
+        ``"time"`` and ``"step"``.
+    """
+    g = scheme.group
+    d = scheme.grid.d
+    rec: dict[str, Any] = {"time": float(state.t), "step": int(state.scalars.get("nstep", 0))}
+    with np.errstate(all="ignore"):
+        if d == 1:
+            X = np.asarray(scheme.strains(state))
+            rec["X"] = np.array(X[..., 0, :] if X.ndim == 3 else X, dtype=float)
+        else:
+            rec["X"] = np.array(scheme.nodal_strains(state), dtype=float)
+        N = integrator.velocity(scheme, state) if not integrator.uses_momentum else scheme.velocity(state)
+        rec["N"] = np.array(N, dtype=float)
+        rec["S"] = np.array(state.S, dtype=float)
+        Phi = np.asarray(scheme.frames(state))
+        if _affine(scheme):
+            rec["position"] = np.array(Phi[..., 1:, 0], dtype=float)
+            rec["frame"] = np.array(Phi[..., 1:, 1:], dtype=float)
+        elif _space(scheme) is not None:
+            sp = _space(scheme)
+            rec["field"] = np.array(sp.act(Phi, sp.q_r), dtype=float)
+        rec["kinetic_energy"] = float(scheme.kinetic_energy(state))
+        rec["potential_energy"] = float(scheme.potential_energy(state))
+        rec["dissipated_energy"] = float(state.scalars.get("dissipated_energy", 0.0))
+        rec["external_work"] = float(state.scalars.get("external_work", 0.0))
+        rec["integrability_residual"] = float(scheme.integrability_residual(state))
+        closure = getattr(scheme, "closure_residual", None)
+        rec["closure_residual"] = float(closure(state)) if closure is not None else 0.0
+        rec["group_defect"] = float(np.max(g.defect(Phi))) if Phi.size else 0.0
+        rec["total_momentum"] = np.array(scheme.total_momentum(state), dtype=float)
+    return rec
+
+
+def _dims(scheme: Scheme, name: str, value: np.ndarray) -> tuple[str, ...]:
+    nodes = _node_dims(scheme)
+    if name == "X":
+        if scheme.grid.d == 1:
+            return ("edge" if _strain_location(scheme) == "edge" else "node", "component")
+        return (*nodes, "axis", "component")
+    if name in ("N", "S"):
+        return (*nodes, "component")
+    if name == "position":
+        return (*nodes, "row")
+    if name == "frame":
+        return (*nodes, "row", "col")
+    if name == "field":
+        extra = value.ndim - len(nodes)
+        names = {0: (), 1: ("point",), 2: ("point_row", "point_col")}.get(extra)
+        return (*nodes, *(names if names is not None else tuple(f"point_{k}" for k in range(extra))))
+    if name == "total_momentum":
+        return ("component",)
+    return ()
+
+
+def _coords(scheme: Scheme, sizes: Mapping[str, int]) -> dict[str, Any]:
+    grid = scheme.grid
+    coords: dict[str, Any] = {}
+    if grid.d == 1:
+        coords["u"] = ("node", grid.coordinates(0), {"long_name": "material coordinate of the nodes", "units": "length"})
+        if "edge" in sizes:
+            coords["u_edge"] = ("edge", grid.edge_coordinates(0),
+                                {"long_name": "material coordinate of the edge midpoints", "units": "length"})
+    else:
+        for axis, name in enumerate(grid.axis_names):
+            coords[name] = (name, grid.coordinates(axis), {"long_name": f"material coordinate {name}", "units": "length"})
+        if "axis" in sizes:
+            coords["axis"] = ("axis", np.array(grid.axis_names, dtype=object), {"long_name": "material axis"})
+    coords["component"] = ("component", np.arange(scheme.group.dim),
+                           {"long_name": f"basis index of the Lie algebra of {scheme.group.name}", "units": "1"})
+    if "row" in sizes:
+        labels = np.array(["x", "y", "z", "w"][: sizes["row"]] if sizes["row"] <= 4 else
+                          [f"x{k}" for k in range(sizes["row"])], dtype=object)
+        coords["row"] = ("row", labels, {"long_name": "spatial axis"})
+    if "col" in sizes:
+        coords["col"] = ("col", np.array([f"d{k + 1}" for k in range(sizes["col"])], dtype=object),
+                         {"long_name": "director"})
+    return coords
+
+
+def _jsonable(obj: Any) -> Any:
+    if isinstance(obj, np.ndarray):
+        return obj.tolist()
+    if isinstance(obj, np.generic):
+        return obj.item()
+    if isinstance(obj, pathlib.PurePath):
+        return str(obj)
+    if callable(obj):
+        return getattr(obj, "__qualname__", None) or getattr(obj, "__name__", None) or repr(obj)
+    return repr(obj)
+
+
+def to_json(obj: Any) -> str:
+    """JSON text of ``obj`` (numpy arrays and scalars converted, anything else by name/repr)."""
+    return json.dumps(obj, default=_jsonable, sort_keys=True, ensure_ascii=False)
+
+
+def source_string(problem: Problem | None = None) -> str:
+    """``"cartan X.Y; plugins: dist A.B, ..."`` naming the distribution of the medium."""
+    from . import __version__
+    from .plugins import get_registry
+
+    reg = get_registry()
+    dists = sorted({(d, v) for d, v in reg.origin.values() if d != "cartan"})
+    text = f"cartan {__version__}"
+    if dists:
+        text += "; plugins: " + ", ".join(f"{d} {v}".strip() for d, v in dists)
+    if problem is not None:
+        for name, entry in reg.table("media").items():
+            if entry.obj is type(problem.medium):
+                text += f"; medium {name!r} from {entry.distribution} {entry.version}".rstrip()
+                break
+    return text
+
+
+def history_line(command: str) -> str:
+    """One CF ``history`` entry: ISO-8601 UTC timestamp and the command."""
+    now = _dt.datetime.now(_dt.UTC).replace(microsecond=0).isoformat()
+    return f"{now} {command}"
+
+
+def build_dataset(scheme: Scheme, records: Mapping[str, list], *, config: Mapping[str, Any],
+                  history: str, title: str | None = None) -> xr.Dataset:
+    """Assemble the run Dataset from per-frame records.
+
+    Parameters
+    ----------
+    scheme : Scheme
+        Gives the grid, group and layout.
+    records : mapping of str → list
+        ``{name: [value per frame]}`` as produced by :func:`frame_record` (including
+        ``"time"`` and ``"step"``).
+    config : mapping
+        Run configuration, stored as JSON in the ``cartan_config`` attribute.
+    history : str
+        The CF ``history`` attribute (one line per command).
+    title : str, optional
+
+    Returns
+    -------
+    xarray.Dataset
+    """
+    import xarray as xr
+
+    problem = scheme.problem
+    data_vars = {}
+    sizes: dict[str, int] = {}
+    nt = len(records["time"])
+    for name, (long_name, units) in _META.items():
+        if name not in records:
+            continue
+        values = records[name]
+        if nt:
+            arr = np.stack([np.asarray(v, dtype=float) for v in values])
+        else:  # no frame yet: an empty series with the right trailing shape
+            arr = np.zeros((0,))
+        dims = ("time", *_dims(scheme, name, arr[0] if nt else arr))
+        if arr.ndim != len(dims):
+            arr = arr.reshape((0,) * len(dims))
+        for dim, n in zip(dims, arr.shape):
+            sizes[dim] = n
+        attrs = {"long_name": long_name, "units": units}
+        if name == "X" and scheme.grid.d > 1:
+            attrs["comment"] = "averaged onto the nodes from the scheme's storage"
+        data_vars[name] = (dims, arr, attrs)
+    coords = _coords(scheme, sizes)
+    coords["time"] = ("time", np.asarray(records["time"], dtype=float), {"long_name": "time", "units": "time", "axis": "T"})
+    coords["step"] = ("time", np.asarray(records["step"], dtype=np.int64), {"long_name": "time-step index", "units": "1"})
+    g = scheme.group
+    name = problem.name or problem.medium.name
+    attrs = {
+        "Conventions": CONVENTIONS,
+        "title": title or f"{name}: {problem.medium.name} on {g.name}",
+        "institution": "",
+        "source": source_string(problem),
+        "history": history,
+        "references": "Kikuchi & Adhikari, Cartan media: geometric continuum mechanics in homogeneous spaces",
+        "comment": "written by cartan; cartan_config holds the full run configuration as JSON",
+        "units_convention": UNITS_CONVENTION,
+        "cartan_config": to_json(dict(config)),
+    }
+    attrs = {k: v for k, v in attrs.items() if v != ""}
+    return xr.Dataset(data_vars=data_vars, coords=coords, attrs=attrs)
+
+
+# ---------------------------------------------------------------------------- checkpoints
+def checkpoint_dataset(state: State, info: Mapping[str, Any]) -> xr.Dataset:
+    """The netCDF group that lets a run continue exactly from ``state``.
+
+    Arrays (``S`` and every ``state.arrays`` entry) are stored as float64 variables; the time,
+    the scalar accumulators and ``info`` (run settings, counters, step and save indices) as
+    JSON in the attribute ``cartan_checkpoint`` (Python's float repr round-trips exactly).
+    """
+    import xarray as xr
+
+    data_vars = {}
+    for key, arr in [("S", state.S), *((f"array_{k}", v) for k, v in state.arrays.items())]:
+        a = np.asarray(arr)
+        data_vars[key] = ([f"{key}_dim{i}" for i in range(a.ndim)], a)
+    data_vars["t"] = ((), np.float64(state.t))
+    meta = {"t": float(state.t), "scalars": dict(state.scalars), "arrays": list(state.arrays), **info}
+    return xr.Dataset(data_vars, attrs={"cartan_checkpoint": to_json(meta)})
+
+
+def read_checkpoint(path: str | os.PathLike) -> tuple[State, dict[str, Any], dict[str, list], dict[str, Any]]:
+    """Read the last checkpoint of a run file.
+
+    Returns
+    -------
+    state : State
+        Exactly the state that was saved.
+    info : dict
+        The ``info`` given to :func:`checkpoint_dataset` (run settings, counters, indices).
+    records : dict of str → list
+        The frames saved up to the checkpoint, in the form of :func:`frame_record`.
+    attrs : dict
+        The global attributes of the run file (``cartan_config``, ``history``, ...).
+
+    Raises
+    ------
+    ValueError
+        If the file holds no checkpoint.
+    """
+    import xarray as xr
+
+    from .schemes.base import State
+
+    path = pathlib.Path(path)
+    if not path.exists():
+        raise ValueError(f"restart file {str(path)!r} does not exist")
+    try:
+        with xr.open_dataset(path, engine="netcdf4", group=CHECKPOINT_GROUP, mask_and_scale=False,
+                             decode_times=False, decode_timedelta=False) as ck:
+            ck = ck.load()
+    except OSError as exc:
+        raise ValueError(f"{path}: no checkpoint to restart from ({exc})") from None
+    meta = json.loads(ck.attrs["cartan_checkpoint"])
+    arrays = {k: np.array(ck[f"array_{k}"].values, dtype=float) for k in meta.pop("arrays")}
+    state = State(float(meta.pop("t")), np.array(ck["S"].values, dtype=float), arrays, meta.pop("scalars"))
+    root = open_dataset(path)
+    nframes = int(meta.get("nframes", root.sizes.get("time", 0)))
+    records: dict[str, list] = {"time": list(root["time"].values[:nframes]), "step": list(root["step"].values[:nframes])}
+    for name in _META:
+        if name in root:
+            records[name] = [v for v in root[name].values[:nframes]]
+    return state, meta, records, dict(root.attrs)
+
+
+# ---------------------------------------------------------------------------- files
+def _umask() -> int:
+    mask = os.umask(0o022)
+    os.umask(mask)
+    return mask
+
+
+def _encoding(ds: xr.Dataset) -> dict[str, dict]:
+    enc = {}
+    for name, var in ds.variables.items():
+        if var.dtype.kind in "fiu":
+            enc[name] = {"_FillValue": None}
+    return enc
+
+
+def write_dataset(ds: xr.Dataset, path: str | os.PathLike, checkpoint: xr.Dataset | None = None) -> pathlib.Path:
+    """Write ``ds`` (and an optional checkpoint group) to netCDF-4, atomically.
+
+    The data go to a temporary file in the same directory, which is flushed to disk
+    (``fsync``) and renamed over ``path`` (:func:`os.replace`).  On any error the temporary
+    file is removed and an existing ``path`` is left as it was.
+
+    Parameters
+    ----------
+    ds : xarray.Dataset
+    path : path-like
+    checkpoint : xarray.Dataset, optional
+        Written as the netCDF group ``checkpoint`` (see :func:`checkpoint_dataset`).
+
+    Returns
+    -------
+    pathlib.Path
+        ``path``.
+    """
+    path = pathlib.Path(path)
+    directory = path.parent if str(path.parent) else pathlib.Path(".")
+    fd, tmp_name = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=directory)
+    os.close(fd)
+    tmp = pathlib.Path(tmp_name)
+    try:
+        ds.to_netcdf(tmp, mode="w", engine="netcdf4", format="NETCDF4", encoding=_encoding(ds))
+        if checkpoint is not None:
+            checkpoint.to_netcdf(tmp, mode="a", engine="netcdf4", group=CHECKPOINT_GROUP,
+                                 encoding=_encoding(checkpoint))
+        os.chmod(tmp, 0o666 & ~_umask())
+        with open(tmp, "rb+") as fh:
+            os.fsync(fh.fileno())
+        os.replace(tmp, path)
+    except BaseException:
+        tmp.unlink(missing_ok=True)
+        raise
+    try:  # make the rename durable (best effort; not available everywhere)
+        dir_fd = os.open(directory, os.O_RDONLY)
+        try:
+            os.fsync(dir_fd)
+        finally:
+            os.close(dir_fd)
+    except OSError:
+        pass
+    return path
+
+
+def open_dataset(path: str | os.PathLike, lazy: bool = False) -> xr.Dataset:
+    """Open a cartan run file (``cartan.open``).
+
+    Parameters
+    ----------
+    path : path-like
+    lazy : bool
+        False (default): read everything into memory and close the file, so the file may be
+        overwritten (e.g. by a restart) while the Dataset is in use.  True: xarray's lazy
+        loading (the file stays open).
+
+    Returns
+    -------
+    xarray.Dataset
+        The root group: frames, series and attributes (``cartan_config`` is JSON text;
+        ``json.loads(ds.attrs["cartan_config"])`` gives the run configuration).
+    """
+    import xarray as xr
+
+    ds = xr.open_dataset(path, engine="netcdf4", decode_times=False, decode_timedelta=False)
+    if lazy:
+        return ds
+    with ds:
+        return ds.load()

@@ -1,0 +1,236 @@
+"""The :class:`Medium` base: the physics of a Cartan medium (paper §IV), and nothing else.
+
+A medium knows its symmetry group G and homogeneous space X, its reduced kinetic energy
+density K(N), its potential energy density U(X_α) and stresses Q^α = ∂U/∂X_α, and which
+components of N are gauge (adapted media, paper §III.E and §IV.E).  It knows nothing of
+grids, schemes, time steps or output: those are the core's.
+
+Shapes
+------
+``N``, ``S`` : ``[..., r]`` (velocity in 𝔤, momentum in 𝔤*, per point)
+``X``, ``Q`` : ``[..., d, r]`` (one strain / stress per material axis α = u, v, w)
+
+Sign conventions follow the paper: S = ∂K/∂N, Q^α = ∂U/∂X_α, and the momentum balance
+``Ṡ + ad*_N S = ∂_α Q^α + ad*_{X_α} Q^α + T`` with ``ad*_ξ = −ad_ξᵀ`` in components.
+
+Configurational potentials
+--------------------------
+A body force that derives from a potential U(q) of the configuration q = Φ·q_r (gravity,
+a confining field) is written as U(q) and its gradient ∂U/∂q only; :func:`pullback_gradient`
+turns it into the generalised body force in 𝔤* (paper §IV.B, T_i = −Tr[𝒯 Φ b_i]
+with 𝒯 = ∂U/∂q), so a plugin never writes a torque by hand.
+"""
+
+from __future__ import annotations
+
+import abc
+from typing import Any, ClassVar
+
+import numpy as np
+
+from .groups.base import SymmetryGroup
+
+__all__ = ["Medium", "check_positive", "check_finite", "pullback_gradient"]
+
+
+def check_positive(name: str, value: Any, *, allow_zero: bool = False, shape: tuple | None = None) -> np.ndarray:
+    """Validate a physical parameter: finite, > 0 (or ≥ 0), optional shape; return float array.
+
+    Raises
+    ------
+    ValueError
+        naming the parameter and the allowed range.
+    """
+    arr = np.asarray(value, dtype=float)
+    if shape is not None and arr.shape != shape:
+        raise ValueError(f"{name} must have shape {shape}, got {arr.shape}")
+    if not np.all(np.isfinite(arr)):
+        raise ValueError(f"{name} must be finite, got {value!r}")
+    bad = arr < 0 if allow_zero else arr <= 0
+    if np.any(bad):
+        rng = "≥ 0" if allow_zero else "> 0"
+        raise ValueError(f"{name} must be {rng}, got {value!r}")
+    return arr
+
+
+def check_finite(name: str, value: Any, shape: tuple | None = None) -> np.ndarray:
+    """Validate a finite float array (optional exact shape); ValueError naming ``name``."""
+    arr = np.asarray(value, dtype=float)
+    if shape is not None and arr.shape != shape:
+        raise ValueError(f"{name} must have shape {shape}, got {arr.shape}")
+    if not np.all(np.isfinite(arr)):
+        raise ValueError(f"{name} must be finite (no NaN or inf)")
+    return arr
+
+
+def pullback_gradient(group: SymmetryGroup, space, Phi: np.ndarray, grad: np.ndarray) -> np.ndarray:
+    """Generalised body force ``T ∈ 𝔤*`` of a configurational potential (paper §IV.B).
+
+    For ``q = Φ·q_r`` and a potential U(q) with gradient ``∂U/∂q`` (same shape as a point of
+    the space), ``T_i = −d/dε U(Φ exp(ε b_i)·q_r)|₀ = −⟨∂U/∂q, (Φ b_i)·q_r⟩``.  The group
+    action is linear in the matrix of Φ for every space in cartan, so the generator's
+    tangent vector is ``space.act(Φ b_i, q_r)`` (the affine part acting on q_r's linear
+    part only).
+
+    Parameters
+    ----------
+    group : SymmetryGroup
+    space : HomogeneousSpace
+        Provides ``act(g, q)`` (linear in g) and ``q_r``.
+    Phi : array, shape ``[..., m, m]``
+    grad : array, shape ``[..., *point_shape]``
+        ∂U/∂q at q = Φ·q_r.
+
+    Returns
+    -------
+    numpy.ndarray, shape ``[..., r]``
+    """
+    basis = group._basis  # [r, m, m]
+    Phib = Phi[..., None, :, :] @ basis  # [..., r, m, m]
+    tang = _linear_act(space, Phib)  # [..., r, *point_shape]
+    g = np.expand_dims(np.asarray(grad, dtype=float), axis=Phi.ndim - 2)
+    return -np.sum((tang * g).reshape(*tang.shape[: Phi.ndim - 1], -1), axis=-1)
+
+
+def _linear_act(space, M: np.ndarray) -> np.ndarray:
+    """``space.act`` applied to a matrix that need not be a group element (linear part)."""
+    q_r = np.asarray(space.q_r, dtype=float)
+    if getattr(space.group, "affine", False) and q_r.ndim == 1 and q_r.shape[-1] == space.group.space_dim:
+        # affine action on a point: A q_r + a, linear in (a, A); the "1" of the homogeneous
+        # coordinate is not part of the tangent map.
+        return np.einsum("...ij,j->...i", M[..., 1:, 1:], q_r) + M[..., 1:, 0]
+    return space.act(M, q_r) if q_r.ndim != 2 else M @ q_r
+
+
+class Medium(abc.ABC):
+    """Physics of a Cartan medium: energies, stresses and gauge (paper §IV).
+
+    Subclasses set the class attributes ``name`` (kebab-case registry name) and
+    ``material_dim`` (d), create ``self.group`` and ``self.space`` in ``__init__``, validate
+    every parameter there (``ValueError`` naming the parameter and the allowed range), and
+    implement :meth:`inertia`, :meth:`potential`, :meth:`stress` and :meth:`rest_strain`.
+
+    Kinetic energy
+        cartan media have a reduced kinetic energy density quadratic in N with a constant
+        metric, ``K(N) = ½ Σ_k m_k N_k²`` in the group's basis, given by :meth:`inertia`
+        (the ``m_k``).  ``m_k = 0`` marks a gauge direction (paper §III.E): its component of
+        N is held at zero.  A diagonal metric lets ``lie-verlet`` split the free motion into
+        exactly integrable one-parameter flows.
+
+    Potential energy
+        ``U(X)`` per unit reference volume and its gradient ``Q^α = ∂U/∂X_α``.  The stress
+        must be the exact gradient of the potential (the conformance kit checks it by finite
+        differences): the discrete energy balance depends on it.
+
+    Body forces
+        :meth:`body_force` returns a generalised force density ``T ∈ 𝔤*`` that does not derive
+        from U(X) (default: none).  Configurational potentials U(q) are loads given to the
+        problem and pulled back by the core (:func:`pullback_gradient`).
+    """
+
+    name: ClassVar[str] = ""
+    material_dim: ClassVar[int] = 1
+    group: SymmetryGroup
+    space: Any
+
+    # ------------------------------------------------------------------ contract
+    @abc.abstractmethod
+    def inertia(self) -> np.ndarray:
+        """Diagonal kinetic metric ``m_k ≥ 0`` per unit reference volume, shape ``(r,)``."""
+
+    @abc.abstractmethod
+    def potential(self, X: np.ndarray) -> np.ndarray:
+        """Potential energy density U(X), X ``[..., d, r]`` → ``[...]``."""
+
+    @abc.abstractmethod
+    def stress(self, X: np.ndarray) -> np.ndarray:
+        """Stress ``Q^α = ∂U/∂X_α``, X ``[..., d, r]`` → ``[..., d, r]``."""
+
+    @abc.abstractmethod
+    def rest_strain(self) -> np.ndarray:
+        """Strain of the stress-free reference state, shape ``(d, r)``."""
+
+    # ------------------------------------------------------------------ derived
+    def parameters(self) -> dict[str, Any]:
+        """The constructor parameters, JSON-serialisable (recorded in output attributes)."""
+        return {}
+
+    def body_force(self, Phi: np.ndarray | None, N: np.ndarray, t: float) -> np.ndarray | None:
+        """Non-potential generalised force density ``T`` ``[..., r]`` or None (default)."""
+        return None
+
+    #: names accepted by :meth:`make_load` and :meth:`initial_state` (for error messages and docs)
+    load_kinds: ClassVar[tuple[str, ...]] = ()
+    initial_kinds: ClassVar[tuple[str, ...]] = ()
+
+    def make_load(self, kind: str, **params: Any):
+        """Build a medium-specific load from a scene file entry (e.g. ``"gravity"``).
+
+        The core handles the generic kinds (``"damping"``, ``"uniform-force"``); media add
+        theirs here, typically :class:`~cartan.problem.PotentialLoad` subclasses.
+        """
+        raise ValueError(
+            f"medium {self.name!r} has no load kind {kind!r}; available: {', '.join(self.load_kinds) or 'none'}"
+        )
+
+    def initial_state(self, grid, kind: str, **params: Any):
+        """Build an :class:`~cartan.problem.InitialState` on ``grid`` from a named shape
+        (e.g. ``"straight"``, ``"ring"``, ``"helix"``) with the given parameters."""
+        raise ValueError(
+            f"medium {self.name!r} has no initial state kind {kind!r}; "
+            f"available: {', '.join(self.initial_kinds) or 'none'}"
+        )
+
+    def gauge_mask(self) -> np.ndarray:
+        """Boolean ``(r,)``: True for components of N that are gauge (held at zero)."""
+        return self.inertia() == 0
+
+    def kinetic(self, N: np.ndarray) -> np.ndarray:
+        """``K(N) = ½ Σ m_k N_k²``, ``[..., r]`` → ``[...]``."""
+        return 0.5 * np.einsum("...k,k,...k->...", N, self.inertia(), N)
+
+    def momentum(self, N: np.ndarray) -> np.ndarray:
+        """``S = ∂K/∂N``, ``[..., r]`` → ``[..., r]``."""
+        return np.asarray(N) * self.inertia()
+
+    def velocity(self, S: np.ndarray) -> np.ndarray:
+        """Inverse Legendre map N(S) (gauge components zero), ``[..., r]`` → ``[..., r]``."""
+        m = self.inertia()
+        safe = np.where(m > 0, m, 1.0)
+        return np.where(m > 0, np.asarray(S) / safe, 0.0)
+
+    def stiffness(self, X: np.ndarray | None = None, eps: float = 1e-6) -> np.ndarray:
+        """Hessian ``∂Q/∂X`` at X (default: the rest strain), shape ``(d, r, d, r)``.
+
+        Central differences of :meth:`stress`; media with closed forms may override.  Used
+        for wave speeds and stability estimates.
+        """
+        X0 = self.rest_strain() if X is None else np.asarray(X, dtype=float)
+        d, r = X0.shape
+        H = np.empty((d, r, d, r))
+        for a in range(d):
+            for k in range(r):
+                dX = np.zeros_like(X0)
+                dX[a, k] = eps
+                H[:, :, a, k] = (self.stress(X0 + dX) - self.stress(X0 - dX)) / (2 * eps)
+        return H
+
+    def wave_speed(self) -> float:
+        """Fastest characteristic speed of the linearised medium about the rest state.
+
+        For K = ½ NᵀmN and U with stiffness C: along each axis α the waves of
+        ``m N̈ = C_αα ∂²N`` have speeds ``√eig(m⁻¹ C_αα)`` on the non-gauge components.
+        """
+        m = self.inertia()
+        live = m > 0
+        H = self.stiffness()
+        c2 = 0.0
+        for a in range(H.shape[0]):
+            C = H[a, :, a, :][np.ix_(live, live)]
+            Minv = np.diag(1.0 / m[live])
+            c2 = max(c2, float(np.max(np.real(np.linalg.eigvals(Minv @ C)))))
+        return float(np.sqrt(max(c2, 0.0)))
+
+    def __repr__(self) -> str:
+        params = ", ".join(f"{k}={v!r}" for k, v in self.parameters().items())
+        return f"{type(self).__name__}({params})"

@@ -1,0 +1,303 @@
+"""A runnable problem: medium × grid × boundaries × loads × initial state.
+
+Everything here is generic over the group and the medium.  A problem is built in Python::
+
+    problem = cartan.Problem(
+        medium=cartan.medium("cosserat-rod", ...),
+        grid=cartan.Grid(101, length=1.0),
+        boundaries={"start": cartan.Clamped(), "end": cartan.Free(load=[0, 0, -1, 0, 0, 0])},
+        loads=[...],
+        initial=cartan.InitialState(Phi=..., N=...),
+    )
+
+or from a TOML scene file (:func:`cartan.load_scene`).
+
+Boundary conditions (paper §IV.D, ``n_α Q^α = P`` on ∂M) are given per end of each open
+axis: ``"start"``/``"end"`` for d = 1 (or ``"u-start"``, ``"v-end"``, … in general).
+"""
+
+from __future__ import annotations
+
+import abc
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from .grid import Grid
+from .medium import Medium, check_finite, check_positive, pullback_gradient
+
+__all__ = [
+    "Boundary",
+    "Clamped",
+    "Damping",
+    "Free",
+    "InitialState",
+    "Load",
+    "PotentialLoad",
+    "Problem",
+    "UniformForce",
+]
+
+
+# ---------------------------------------------------------------------------- boundaries
+class Boundary(abc.ABC):
+    """Condition at one end of an open material axis."""
+
+    kind: str = ""
+
+    def to_dict(self) -> dict[str, Any]:
+        return {"kind": self.kind}
+
+
+@dataclass
+class Free(Boundary):
+    """Free end with an applied generalised load P ∈ 𝔤* (n_α Q^α = P, paper §IV.D).
+
+    Parameters
+    ----------
+    load : array_like, shape ``(r,)``
+        Components of P in the dual basis (for SE(3): force then moment).
+    follower : bool
+        True: ``load`` is fixed in the body frame (a follower load).  False (default): it
+        is a dead load fixed in the spatial frame at the material point; its body components
+        are ``Ad_{R}ᵀ P`` with R the rotational part of Φ at the end.
+    """
+
+    load: Any = None
+    follower: bool = False
+    kind: str = field(default="free", init=False)
+
+    def to_dict(self) -> dict[str, Any]:
+        return {"kind": "free", "load": None if self.load is None else np.asarray(self.load).tolist(),
+                "follower": self.follower}
+
+
+@dataclass
+class Clamped(Boundary):
+    """Clamped end: Φ held at its initial value (N = 0, S = 0 at the end node)."""
+
+    kind: str = field(default="clamped", init=False)
+
+
+# ---------------------------------------------------------------------------- loads
+class Load(abc.ABC):
+    """An external or dissipative generalised force density.
+
+    ``force(Phi, N, t)`` returns T ``[..., r]`` per unit reference volume; ``Phi`` is None
+    when the load does not need the structure field (:attr:`needs_structure_field`).
+    Each load reports its power contribution so that the energy balance closes:
+    :attr:`conservative` loads contribute :meth:`energy` to the potential energy, dissipative
+    loads (:attr:`dissipative`) to the dissipated energy, the others to the external work.
+    """
+
+    needs_structure_field: bool = False
+    conservative: bool = False
+    dissipative: bool = False
+    velocity_dependent: bool = False
+
+    def bind(self, medium: Medium) -> None:  # noqa: B027 - optional hook
+        """Called once with the medium before a run (validate shapes against its group)."""
+
+    @abc.abstractmethod
+    def force(self, Phi: np.ndarray | None, N: np.ndarray, t: float) -> np.ndarray:
+        """Generalised force density ``[..., r]``."""
+
+    def energy(self, Phi: np.ndarray | None) -> np.ndarray:
+        """Potential energy density ``[...]`` of a conservative load (0 otherwise)."""
+        return np.zeros(np.shape(Phi)[:-2] if Phi is not None else ())
+
+    def to_dict(self) -> dict[str, Any]:
+        return {"kind": type(self).__name__}
+
+
+class PotentialLoad(Load):
+    """A configurational potential U(q), q = Φ·q_r, pulled back to 𝔤* by the core.
+
+    Subclasses implement :meth:`potential_energy` (U per unit reference volume) and
+    :meth:`potential_gradient` (∂U/∂q, the same shape as a point of the medium's space);
+    the force ``T_i = −⟨∂U/∂q, (Φ b_i)·q_r⟩`` follows (paper §IV.B).
+    """
+
+    needs_structure_field = True
+    conservative = True
+
+    def bind(self, medium: Medium) -> None:
+        self._group = medium.group
+        self._space = medium.space
+
+    @abc.abstractmethod
+    def potential_energy(self, q: np.ndarray) -> np.ndarray:
+        """U(q) ``[...]``."""
+
+    @abc.abstractmethod
+    def potential_gradient(self, q: np.ndarray) -> np.ndarray:
+        """∂U/∂q ``[..., *point_shape]``."""
+
+    def _q(self, Phi: np.ndarray) -> np.ndarray:
+        return self._space.act(Phi, self._space.q_r)
+
+    def force(self, Phi, N, t):
+        return pullback_gradient(self._group, self._space, Phi, self.potential_gradient(self._q(Phi)))
+
+    def energy(self, Phi):
+        return self.potential_energy(self._q(Phi))
+
+
+@dataclass
+class UniformForce(Load):
+    """Uniform generalised force density, fixed in the body frame (``frame="body"``) or a
+    dead load fixed in the spatial frame (``frame="spatial"``, rotated like :class:`Free`).
+    Not conservative in general: its power goes to ``external_work``."""
+
+    components: Any
+    frame: str = "body"
+
+    def __post_init__(self):
+        if self.frame not in ("body", "spatial"):
+            raise ValueError(f"frame must be 'body' or 'spatial', got {self.frame!r}")
+        self.needs_structure_field = self.frame == "spatial"
+
+    def bind(self, medium):
+        self._group = medium.group
+        self.components = check_finite("components", self.components, (medium.group.dim,))
+
+    def force(self, Phi, N, t):
+        if self.frame == "body":
+            return np.broadcast_to(self.components, np.shape(N)).copy()
+        return dead_to_body(self._group, Phi, self.components)
+
+    def to_dict(self):
+        return {"kind": "UniformForce", "components": np.asarray(self.components).tolist(), "frame": self.frame}
+
+
+@dataclass
+class Damping(Load):
+    """Linear (Rayleigh) damping ``T = −Γ N`` with ``Γ = diag(coefficients)``; its power
+    ``−NᵀΓN`` is dissipated (tracked as ``dissipated_energy``)."""
+
+    coefficients: Any
+    dissipative: bool = field(default=True, init=False)
+    velocity_dependent: bool = field(default=True, init=False)
+
+    def bind(self, medium):
+        c = np.asarray(self.coefficients, dtype=float)
+        if c.ndim == 0:
+            c = np.full(medium.group.dim, float(c))
+        self.coefficients = check_positive("coefficients", c, allow_zero=True, shape=(medium.group.dim,))
+
+    def force(self, Phi, N, t):
+        return -np.asarray(N) * self.coefficients
+
+    def to_dict(self):
+        return {"kind": "Damping", "coefficients": np.asarray(self.coefficients).tolist()}
+
+
+def rotation_part(group, Phi: np.ndarray) -> np.ndarray:
+    """Φ with its translation removed (affine groups), i.e. the frame at the material point."""
+    if not getattr(group, "affine", False):
+        return Phi
+    R = np.array(Phi, dtype=float, copy=True)
+    R[..., 1:, 0] = 0.0
+    return R
+
+
+def dead_to_body(group, Phi: np.ndarray, P: np.ndarray) -> np.ndarray:
+    """Body components of a dead (spatially fixed) load P applied at the material point:
+    ``Ad_{R}ᵀ P`` with R the rotational part of Φ (for SE(3): (Rᵀf, Rᵀm))."""
+    return np.einsum("...ji,...j->...i", group.Ad(rotation_part(group, Phi)), np.broadcast_to(P, np.shape(Phi)[:-2] + np.shape(P)))
+
+
+# ---------------------------------------------------------------------------- state
+@dataclass
+class InitialState:
+    """Initial structure field and velocity on the nodes.
+
+    Parameters
+    ----------
+    Phi : array, shape ``(*grid.shape, m, m)``
+        Structure field Φ₀ (q₀ = Φ₀·q_r).  For periodic axes Φ₀ must close up: the strain of
+        the closing edge is taken from Φ₀[-1]⁻¹Φ₀[0] (plus ``holonomy`` if given).
+    N : array, shape ``(*grid.shape, r)``, optional
+        Initial velocity N₀ = Φ⁻¹Φ̇ (zero by default).
+    """
+
+    Phi: Any
+    N: Any = None
+
+
+@dataclass
+class Problem:
+    """Medium, grid, boundaries, loads and initial state: what ``cartan.simulate`` runs."""
+
+    medium: Medium
+    grid: Grid
+    initial: InitialState
+    boundaries: dict[str, Boundary] = field(default_factory=dict)
+    loads: list[Load] = field(default_factory=list)
+    name: str = ""
+
+    def __post_init__(self):
+        g = self.medium.group
+        if self.medium.material_dim != self.grid.d:
+            raise ValueError(
+                f"grid has d = {self.grid.d} axes but medium {self.medium.name!r} has material "
+                f"dimension {self.medium.material_dim}"
+            )
+        shape = self.grid.shape
+        Phi = check_finite("initial.Phi", self.initial.Phi, (*shape, g.matrix_size, g.matrix_size))
+        defect = float(np.max(g.defect(Phi)))
+        if defect > 1e-8:
+            raise ValueError(f"initial.Phi is not in {g.name}: defect {defect:.2e} > 1e-8")
+        N = np.zeros((*shape, g.dim)) if self.initial.N is None else self.initial.N
+        N = check_finite("initial.N", N, (*shape, g.dim))
+        self.initial = InitialState(Phi=Phi, N=N)
+        valid = self.boundary_names()
+        for key, b in self.boundaries.items():
+            if key not in valid:
+                raise ValueError(f"boundaries: unknown end {key!r}; this grid has ends {sorted(valid) or 'none'}")
+            if not isinstance(b, Boundary):
+                raise ValueError(f"boundaries[{key!r}] must be Free(...) or Clamped(), got {b!r}")
+            if isinstance(b, Free) and b.load is not None:
+                b.load = check_finite(f"boundaries[{key!r}].load", b.load, (g.dim,))
+        for load in self.loads:
+            if not isinstance(load, Load):
+                raise ValueError(f"loads must be Load instances, got {load!r}")
+            load.bind(self.medium)
+
+    def boundary_names(self) -> set[str]:
+        names = set()
+        for axis, (name, p) in enumerate(zip(self.grid.axis_names, self.grid.periodic)):
+            if p:
+                continue
+            if self.grid.d == 1:
+                names |= {"start", "end"}
+            names |= {f"{name}-start", f"{name}-end"}
+        return names
+
+    def boundary(self, axis: int, side: str) -> Boundary:
+        """The condition at ``side`` ("start"/"end") of ``axis`` (Free() if none given)."""
+        name = self.grid.axis_names[axis]
+        for key in (f"{name}-{side}", side if self.grid.d == 1 else None):
+            if key and key in self.boundaries:
+                return self.boundaries[key]
+        return Free()
+
+    @property
+    def needs_structure_field(self) -> bool:
+        """True when some force depends on Φ: potentials, dead loads, or the medium itself."""
+        if getattr(self.medium, "needs_structure_field", False):
+            return True
+        if any(load.needs_structure_field for load in self.loads):
+            return True
+        return any(isinstance(b, Free) and b.load is not None and not b.follower for b in self.boundaries.values())
+
+    def to_dict(self) -> dict[str, Any]:
+        return {
+            "name": self.name,
+            "medium": self.medium.name,
+            "parameters": self.medium.parameters(),
+            "grid": self.grid.to_dict(),
+            "boundaries": {k: b.to_dict() for k, b in self.boundaries.items()},
+            "loads": [load.to_dict() for load in self.loads],
+        }

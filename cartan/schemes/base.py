@@ -1,0 +1,228 @@
+"""The :class:`Scheme` contract: how a medium's fields live on a grid (ARCHITECTURE.md §3).
+
+A scheme owns the storage of the configuration (strains X, structure field Φ) and
+provides, generically over the group and the medium, the discrete operators the time
+integrators need.  Integrators see only this interface:
+
+``velocity(state)``
+    N ``[*shape, r]`` from the momentum density S (gauge components and clamped ends zero);
+``force(state, N, t)``
+    W ``[*shape, r]``: the generalised force density D*_α Q^α + T, internal stresses, loads
+    and boundary loads included, **excluding** the Lie–Poisson term ad*_N S, so that
+    ``Ṡ = ad_Nᵀ S + W`` (paper §V, W = D*_u Q + T);
+``drift(state, tau, N, exact=True)``
+    advance the configuration along the flow Φ ← Φ exp(τN) with N frozen: exactly on the
+    group (``exact=True``) or by the naive matrix update Φ ← Φ + τΦN̂ (``exact=False``, the
+    paper's "forward Euler", which leaves the group);
+``diagnostics(state)``
+    energies, residuals and the output fields.
+
+The momentum S is a *density* (per unit reference volume), like the paper's S; node masses
+are the grid's quadrature weights times the medium's inertia.
+"""
+
+from __future__ import annotations
+
+import abc
+from dataclasses import dataclass, field
+from typing import Any, ClassVar
+
+import numpy as np
+
+from ..problem import Clamped, Problem
+
+__all__ = ["Scheme", "State"]
+
+
+@dataclass
+class State:
+    """Everything a run needs to continue exactly: time, momentum, configuration arrays.
+
+    Attributes
+    ----------
+    t : float
+    S : array ``[*shape, r]``
+        Momentum density on the nodes.
+    arrays : dict of str → ndarray
+        Scheme-specific configuration (e.g. ``"Phi"`` node frames, ``"G_u"`` edge elements,
+        ``"X"`` nodal strains).  Saved verbatim in checkpoints.
+    scalars : dict of str → float
+        Accumulators (``"dissipated_energy"``, ``"external_work"``) and the step counter.
+    """
+
+    t: float
+    S: np.ndarray
+    arrays: dict[str, np.ndarray] = field(default_factory=dict)
+    scalars: dict[str, float] = field(default_factory=lambda: {"dissipated_energy": 0.0, "external_work": 0.0})
+
+    def copy(self) -> State:
+        return State(self.t, self.S.copy(), {k: v.copy() for k, v in self.arrays.items()}, dict(self.scalars))
+
+    def is_finite(self) -> bool:
+        return bool(np.all(np.isfinite(self.S)) and all(np.all(np.isfinite(a)) for a in self.arrays.values()))
+
+
+class Scheme(abc.ABC):
+    """Discretisation of a :class:`~cartan.Problem` on its grid (generic over group and medium).
+
+    Subclasses set ``name`` and implement the abstract methods; the constructor receives
+    the problem and scheme options (validated, ``ValueError`` naming the option).
+    """
+
+    name: ClassVar[str] = ""
+    #: spatial order of accuracy
+    order: ClassVar[int] = 2
+
+    def __init__(self, problem: Problem, **options: Any):
+        if options:
+            raise ValueError(f"scheme {self.name!r} takes no option(s) {sorted(options)}")
+        self.problem = problem
+        self.medium = problem.medium
+        self.group = problem.medium.group
+        self.grid = problem.grid
+        self.mass = self.medium.inertia()  # (r,)
+        self.live = self.mass > 0
+        self.weights = self.grid.node_weights()  # [*shape]
+        self._clamped = self._clamp_mask()
+
+    # ------------------------------------------------------------------ contract
+    @abc.abstractmethod
+    def initial_state(self) -> State:
+        """State at t = 0 from ``problem.initial``."""
+
+    @abc.abstractmethod
+    def force(self, state: State, N: np.ndarray, t: float) -> np.ndarray:
+        """Generalised force density W ``[*shape, r]`` (see module docstring)."""
+
+    @abc.abstractmethod
+    def drift(self, state: State, tau: float, N: np.ndarray, exact: bool = True) -> None:
+        """Advance the configuration in place along Φ ← Φ exp(τN) (see module docstring)."""
+
+    @abc.abstractmethod
+    def frames(self, state: State) -> np.ndarray:
+        """Structure field Φ ``[*shape, m, m]`` (reconstructed when not stepped)."""
+
+    @abc.abstractmethod
+    def strains(self, state: State) -> np.ndarray:
+        """Strain field as stored by the scheme, ``[*edge-or-node shape, d, r]`` (output)."""
+
+    @abc.abstractmethod
+    def nodal_strains(self, state: State) -> np.ndarray:
+        """Strain field at the nodes ``[*shape, d, r]`` (for prescribed velocities N(t, u, X))."""
+
+    @abc.abstractmethod
+    def potential_energy(self, state: State) -> float:
+        """Discrete internal potential energy plus conservative-load energies."""
+
+    @abc.abstractmethod
+    def integrability_residual(self, state: State) -> float:
+        """Temporal integrability residual: stored X against X recomputed from Φ."""
+
+    # ------------------------------------------------------------------ shared
+    def _clamp_mask(self) -> np.ndarray:
+        mask = np.zeros(self.grid.shape, dtype=bool)
+        for axis in range(self.grid.d):
+            if self.grid.periodic[axis]:
+                continue
+            for side, idx in (("start", 0), ("end", -1)):
+                if isinstance(self.problem.boundary(axis, side), Clamped):
+                    sl = [slice(None)] * self.grid.d
+                    sl[axis] = idx
+                    mask[tuple(sl)] = True
+        return mask
+
+    def velocity(self, state: State) -> np.ndarray:
+        """N = ∂K*/∂S with gauge components and clamped nodes held at zero."""
+        N = self.medium.velocity(state.S)
+        if self._clamped.any():
+            N[self._clamped] = 0.0
+        return N
+
+    def constrain(self, state: State) -> None:
+        """Zero the momentum of clamped nodes and gauge components (after a kick)."""
+        state.S[..., ~self.live] = 0.0
+        if self._clamped.any():
+            state.S[self._clamped] = 0.0
+
+    def kinetic_energy(self, state: State) -> float:
+        N = self.velocity(state)
+        return float(np.sum(self.weights * self.medium.kinetic(N)))
+
+    def powers(self, state: State, N: np.ndarray, t: float) -> dict[str, float]:
+        """Instantaneous dissipated power and external (non-potential) power."""
+        dissipated = 0.0
+        external = 0.0
+        Phi = self.frames(state) if self.problem.needs_structure_field else None
+        for load in self.problem.loads:
+            if load.conservative:
+                continue
+            p = float(np.sum(self.weights * np.einsum("...k,...k->...", load.force(Phi, N, t), N)))
+            if load.dissipative:
+                dissipated -= p
+            else:
+                external += p
+        external += self._boundary_power(state, N, Phi)
+        return {"dissipated": dissipated, "external": external}
+
+    def _boundary_power(self, state: State, N: np.ndarray, Phi: np.ndarray | None) -> float:
+        return 0.0
+
+    def total_momentum(self, state: State) -> np.ndarray:
+        """Total momentum in the spatial frame, ``Σ_i w_i Ad_{Φ_i}⁻ᵀ S_i`` ``(r,)`` — the
+        momentum map of the left action, conserved by free media."""
+        Phi = self.frames(state)
+        Adinv = self.group.Ad(self.group.inverse(Phi))
+        spatial = np.einsum("...ji,...j->...i", Adinv, state.S)
+        return np.tensordot(self.weights, spatial, axes=self.weights.ndim)
+
+    def dt_max(self, state: State, rate: str = "inertial", iterations: int = 40, eps: float = 1e-7) -> float:
+        """Largest eigen-frequency based time-step estimate of the linearised semi-discrete
+        system at ``state`` (power iteration on the force Jacobian; generic over schemes).
+
+        ``rate="inertial"``: returns 1/ω_max with ω_max² = λ_max(M⁻¹K) (multiply by the
+        integrator's stability constant, 2 for leapfrog).  ``rate="overdamped"``: returns
+        1/λ_max(Γ⁻¹K) for the drag matrix Γ given by the problem's damping loads.
+        """
+        shape = (*self.grid.shape, self.group.dim)
+        if rate == "inertial":
+            inv = np.where(self.live, 1.0 / np.where(self.live, self.mass, 1.0), 0.0)
+        else:
+            gam = self.drag()
+            inv = np.where(gam > 0, 1.0 / np.where(gam > 0, gam, 1.0), 0.0)
+        rng = np.random.default_rng(0)
+        v = rng.standard_normal(shape) * (inv > 0)
+        v[self._clamped] = 0.0
+        lam = 0.0
+        zero = np.zeros(shape)
+        for _ in range(iterations):
+            nv = np.linalg.norm(v)
+            if nv == 0:
+                break
+            v /= nv
+            plus, minus = state.copy(), state.copy()
+            self.drift(plus, eps, v)
+            self.drift(minus, -eps, v)
+            Kv = -(self.force(plus, zero, state.t) - self.force(minus, zero, state.t)) / (2 * eps)
+            w = inv * Kv
+            w[self._clamped] = 0.0
+            lam_new = float(np.vdot(v, w))
+            v = w
+            if lam and abs(lam_new - lam) < 1e-3 * abs(lam):
+                lam = lam_new
+                break
+            lam = lam_new
+        lam = max(abs(lam), 1e-300)
+        return 1.0 / np.sqrt(lam) if rate == "inertial" else 1.0 / lam
+
+    def drag(self) -> np.ndarray:
+        """Drag coefficients Γ ``(r,)`` from the problem's :class:`~cartan.problem.Damping` loads."""
+        from ..problem import Damping
+
+        gam = np.zeros(self.group.dim)
+        for load in self.problem.loads:
+            if isinstance(load, Damping):
+                gam = gam + load.coefficients
+        return gam
+
+    def options(self) -> dict[str, Any]:
+        return {}

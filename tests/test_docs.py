@@ -1,0 +1,26 @@
+"""Every ```python block in README.md and docs/*.md runs (blocks of one file share a namespace)."""
+
+from __future__ import annotations
+
+import pathlib
+import re
+
+import matplotlib
+import pytest
+
+matplotlib.use("Agg")
+
+ROOT = pathlib.Path(__file__).resolve().parents[1]
+FILES = [ROOT / "README.md", *sorted((ROOT / "docs").glob("*.md"))]
+BLOCK = re.compile(r"^```python\n(.*?)^```", re.S | re.M)
+
+
+@pytest.mark.parametrize("path", FILES, ids=[p.name for p in FILES])
+def test_snippets_run(path, tmp_path, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    namespace: dict = {"__name__": "__docs__"}
+    for i, block in enumerate(BLOCK.findall(path.read_text())):
+        try:
+            exec(compile(block, f"{path.name}[block {i}]", "exec"), namespace)
+        except Exception as exc:  # pragma: no cover - reported with the snippet
+            pytest.fail(f"{path.name} block {i} failed: {type(exc).__name__}: {exc}\n{block}")
