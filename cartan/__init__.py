@@ -7,6 +7,9 @@ integrators, verification cases and scenes arrive through the ``cartan`` entry p
 
 Public API
 ----------
+``cartan.simulate(problem_or_scene, integrator=..., scheme=..., dt=..., t_end=...)`` → xarray.Dataset
+``cartan.open(path)``, ``cartan.load_scene(path)``, ``cartan.scene(name)``, ``cartan.medium(name, **p)``
+``cartan.Problem``, ``Grid``, ``InitialState``, ``Free``, ``Clamped``, loads; ``InstabilityError``
 ``cartan.group(name, **params)``     a registered :class:`~cartan.groups.SymmetryGroup`
 ``cartan.space(name, **params)``     a registered :class:`~cartan.spaces.HomogeneousSpace`
 ``cartan.registry(kind)``            ``{name: object}`` for ``"groups"``, ``"spaces"``, ...
@@ -21,6 +24,25 @@ from importlib.metadata import version as _version
 from typing import Any
 
 from ._backend import get_backend, set_backend, use_backend
+from .api import (
+    Clamped,
+    Damping,
+    Free,
+    Grid,
+    InitialState,
+    InstabilityError,
+    PotentialLoad,
+    Problem,
+    Scene,
+    SceneError,
+    StabilityWarning,
+    UniformForce,
+    load_scene,
+    medium,
+    open,
+    scene,
+    simulate,
+)
 from .groups import SymmetryGroup
 from .plugins import PluginWarning, RegistryError, hookimpl, registry
 
@@ -30,6 +52,23 @@ except PackageNotFoundError:  # pragma: no cover - running from an uninstalled c
     __version__ = "0+unknown"
 
 __all__ = [
+    "Clamped",
+    "Damping",
+    "Free",
+    "Grid",
+    "InitialState",
+    "InstabilityError",
+    "PotentialLoad",
+    "Problem",
+    "Scene",
+    "SceneError",
+    "StabilityWarning",
+    "UniformForce",
+    "load_scene",
+    "medium",
+    "open",
+    "scene",
+    "simulate",
     "PluginWarning",
     "RegistryError",
     "SymmetryGroup",
@@ -51,7 +90,9 @@ def _construct(kind: str, name: str, params: dict[str, Any]) -> Any:
     try:
         return cls(**params)
     except TypeError as exc:
-        raise TypeError(f"{kind[:-1]} {name!r}: {exc}") from None
+        from .plugins import _SINGULAR
+
+        raise TypeError(f"{_SINGULAR[kind]} {name!r}: {exc}") from None
 
 
 def group(name: str, **params: Any) -> SymmetryGroup:

@@ -3,7 +3,11 @@
 ``cartan --version``
     the package version and the versions of the plugins that were loaded;
 ``cartan list [groups|spaces|media|integrators|schemes|cases|scenes|commands]``
-    every registry entry with the plugin and distribution it came from.
+    every registry entry with the plugin and distribution it came from;
+``cartan run scene.toml -o out.nc`` / ``cartan run --scene NAME``
+    run a scene and write a netCDF file;
+``cartan plot out.nc``
+    centreline snapshots and energies against time, as a PNG.
 
 Plugins add commands through the ``cartan_register_commands`` hook
 (``register("name", click_command)``).
@@ -11,20 +15,32 @@ Plugins add commands through the ``cartan_register_commands`` hook
 
 from __future__ import annotations
 
+import pathlib
 import sys
+import tomllib
 
 import click
 
+from .cli_run import register as _register_run_commands
 from .plugins import KINDS, RegistryError, get_registry
 
 
 def _describe(obj: object) -> str:
+    if isinstance(obj, pathlib.Path):
+        return obj.name
     mod = getattr(obj, "__module__", None) or type(obj).__module__
     qual = getattr(obj, "__qualname__", None) or type(obj).__qualname__
     return f"{mod}:{qual}"
 
 
 def _summary(obj: object) -> str:
+    if isinstance(obj, pathlib.Path):
+        try:
+            with open(obj, "rb") as fh:
+                text = str(tomllib.load(fh).get("description", "")).strip()
+            return text.split(". ")[0].rstrip(".") + "." if text else ""
+        except (OSError, tomllib.TOMLDecodeError, IndexError):
+            return ""
     doc = (getattr(obj, "__doc__", None) or "").strip().splitlines()
     return doc[0] if doc else ""
 
@@ -93,6 +109,9 @@ def list_cmd(kind: str | None) -> None:
             origin = f"{e.distribution} {e.version}".strip()
             summary = _summary(e.obj)
             click.echo(f"  {name:<{width}}  {_describe(e.obj)}  [{origin}]" + (f"  {summary}" if summary else ""))
+
+
+_register_run_commands(main)
 
 
 if __name__ == "__main__":  # pragma: no cover

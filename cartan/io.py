@@ -189,24 +189,45 @@ def _coords(scheme: Scheme, sizes: Mapping[str, int]) -> dict[str, Any]:
     grid = scheme.grid
     coords: dict[str, Any] = {}
     if grid.d == 1:
-        coords["u"] = ("node", grid.coordinates(0), {"long_name": "material coordinate of the nodes", "units": "length"})
+        coords["u"] = (
+            "node",
+            grid.coordinates(0),
+            {"long_name": "material coordinate of the nodes", "units": "length"},
+        )
         if "edge" in sizes:
-            coords["u_edge"] = ("edge", grid.edge_coordinates(0),
-                                {"long_name": "material coordinate of the edge midpoints", "units": "length"})
+            coords["u_edge"] = (
+                "edge",
+                grid.edge_coordinates(0),
+                {"long_name": "material coordinate of the edge midpoints", "units": "length"},
+            )
     else:
         for axis, name in enumerate(grid.axis_names):
-            coords[name] = (name, grid.coordinates(axis), {"long_name": f"material coordinate {name}", "units": "length"})
+            coords[name] = (
+                name,
+                grid.coordinates(axis),
+                {"long_name": f"material coordinate {name}", "units": "length"},
+            )
         if "axis" in sizes:
             coords["axis"] = ("axis", np.array(grid.axis_names, dtype=object), {"long_name": "material axis"})
-    coords["component"] = ("component", np.arange(scheme.group.dim),
-                           {"long_name": f"basis index of the Lie algebra of {scheme.group.name}", "units": "1"})
+    coords["component"] = (
+        "component",
+        np.arange(scheme.group.dim),
+        {"long_name": f"basis index of the Lie algebra of {scheme.group.name}", "units": "1"},
+    )
     if "row" in sizes:
-        labels = np.array(["x", "y", "z", "w"][: sizes["row"]] if sizes["row"] <= 4 else
-                          [f"x{k}" for k in range(sizes["row"])], dtype=object)
+        labels = np.array(
+            ["x", "y", "z", "w"][: sizes["row"]]
+            if sizes["row"] <= 4
+            else [f"x{k}" for k in range(sizes["row"])],
+            dtype=object,
+        )
         coords["row"] = ("row", labels, {"long_name": "spatial axis"})
     if "col" in sizes:
-        coords["col"] = ("col", np.array([f"d{k + 1}" for k in range(sizes["col"])], dtype=object),
-                         {"long_name": "director"})
+        coords["col"] = (
+            "col",
+            np.array([f"d{k + 1}" for k in range(sizes["col"])], dtype=object),
+            {"long_name": "director"},
+        )
     return coords
 
 
@@ -251,8 +272,14 @@ def history_line(command: str) -> str:
     return f"{now} {command}"
 
 
-def build_dataset(scheme: Scheme, records: Mapping[str, list], *, config: Mapping[str, Any],
-                  history: str, title: str | None = None) -> xr.Dataset:
+def build_dataset(
+    scheme: Scheme,
+    records: Mapping[str, list],
+    *,
+    config: Mapping[str, Any],
+    history: str,
+    title: str | None = None,
+) -> xr.Dataset:
     """Assemble the run Dataset from per-frame records.
 
     Parameters
@@ -289,15 +316,23 @@ def build_dataset(scheme: Scheme, records: Mapping[str, list], *, config: Mappin
         dims = ("time", *_dims(scheme, name, arr[0] if nt else arr))
         if arr.ndim != len(dims):
             arr = arr.reshape((0,) * len(dims))
-        for dim, n in zip(dims, arr.shape):
+        for dim, n in zip(dims, arr.shape, strict=True):
             sizes[dim] = n
         attrs = {"long_name": long_name, "units": units}
         if name == "X" and scheme.grid.d > 1:
             attrs["comment"] = "averaged onto the nodes from the scheme's storage"
         data_vars[name] = (dims, arr, attrs)
     coords = _coords(scheme, sizes)
-    coords["time"] = ("time", np.asarray(records["time"], dtype=float), {"long_name": "time", "units": "time", "axis": "T"})
-    coords["step"] = ("time", np.asarray(records["step"], dtype=np.int64), {"long_name": "time-step index", "units": "1"})
+    coords["time"] = (
+        "time",
+        np.asarray(records["time"], dtype=float),
+        {"long_name": "time", "units": "time", "axis": "T"},
+    )
+    coords["step"] = (
+        "time",
+        np.asarray(records["step"], dtype=np.int64),
+        {"long_name": "time-step index", "units": "1"},
+    )
     g = scheme.group
     name = problem.name or problem.medium.name
     attrs = {
@@ -361,8 +396,14 @@ def read_checkpoint(path: str | os.PathLike) -> tuple[State, dict[str, Any], dic
     if not path.exists():
         raise ValueError(f"restart file {str(path)!r} does not exist")
     try:
-        with xr.open_dataset(path, engine="netcdf4", group=CHECKPOINT_GROUP, mask_and_scale=False,
-                             decode_times=False, decode_timedelta=False) as ck:
+        with xr.open_dataset(
+            path,
+            engine="netcdf4",
+            group=CHECKPOINT_GROUP,
+            mask_and_scale=False,
+            decode_times=False,
+            decode_timedelta=False,
+        ) as ck:
             ck = ck.load()
     except OSError as exc:
         raise ValueError(f"{path}: no checkpoint to restart from ({exc})") from None
@@ -371,7 +412,10 @@ def read_checkpoint(path: str | os.PathLike) -> tuple[State, dict[str, Any], dic
     state = State(float(meta.pop("t")), np.array(ck["S"].values, dtype=float), arrays, meta.pop("scalars"))
     root = open_dataset(path)
     nframes = int(meta.get("nframes", root.sizes.get("time", 0)))
-    records: dict[str, list] = {"time": list(root["time"].values[:nframes]), "step": list(root["step"].values[:nframes])}
+    records: dict[str, list] = {
+        "time": list(root["time"].values[:nframes]),
+        "step": list(root["step"].values[:nframes]),
+    }
     for name in _META:
         if name in root:
             records[name] = [v for v in root[name].values[:nframes]]
@@ -393,7 +437,9 @@ def _encoding(ds: xr.Dataset) -> dict[str, dict]:
     return enc
 
 
-def write_dataset(ds: xr.Dataset, path: str | os.PathLike, checkpoint: xr.Dataset | None = None) -> pathlib.Path:
+def write_dataset(
+    ds: xr.Dataset, path: str | os.PathLike, checkpoint: xr.Dataset | None = None
+) -> pathlib.Path:
     """Write ``ds`` (and an optional checkpoint group) to netCDF-4, atomically.
 
     The data go to a temporary file in the same directory, which is flushed to disk
@@ -420,8 +466,9 @@ def write_dataset(ds: xr.Dataset, path: str | os.PathLike, checkpoint: xr.Datase
     try:
         ds.to_netcdf(tmp, mode="w", engine="netcdf4", format="NETCDF4", encoding=_encoding(ds))
         if checkpoint is not None:
-            checkpoint.to_netcdf(tmp, mode="a", engine="netcdf4", group=CHECKPOINT_GROUP,
-                                 encoding=_encoding(checkpoint))
+            checkpoint.to_netcdf(
+                tmp, mode="a", engine="netcdf4", group=CHECKPOINT_GROUP, encoding=_encoding(checkpoint)
+            )
         os.chmod(tmp, 0o666 & ~_umask())
         with open(tmp, "rb+") as fh:
             os.fsync(fh.fileno())

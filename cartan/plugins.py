@@ -109,6 +109,9 @@ class Entry:
     version: str
 
 
+_SINGULAR = {"groups": "group", "spaces": "space", "media": "medium", "schemes": "scheme",
+             "integrators": "integrator", "cases": "case", "scenes": "scene", "commands": "command"}
+
 _NAME = re.compile(r"^[A-Za-z][A-Za-z0-9]*(-[A-Za-z0-9]+)*$")
 
 
@@ -163,7 +166,7 @@ class Registry:
         table = self.table(kind)
         if name not in table:
             known = ", ".join(sorted(table)) or "none"
-            raise RegistryError(f"unknown {kind[:-1]} {name!r}; registered {kind}: {known}")
+            raise RegistryError(f"unknown {_SINGULAR.get(kind, kind)} {name!r}; registered {kind}: {known}")
         return table[name].obj
 
     def table(self, kind: str) -> dict[str, Entry]:

@@ -41,8 +41,8 @@ __all__ = [
 
 
 # ---------------------------------------------------------------------------- boundaries
-class Boundary(abc.ABC):
-    """Condition at one end of an open material axis."""
+class Boundary:
+    """Condition at one end of an open material axis (base of :class:`Free`, :class:`Clamped`)."""
 
     kind: str = ""
 
@@ -205,7 +205,8 @@ def rotation_part(group, Phi: np.ndarray) -> np.ndarray:
 def dead_to_body(group, Phi: np.ndarray, P: np.ndarray) -> np.ndarray:
     """Body components of a dead (spatially fixed) load P applied at the material point:
     ``Ad_{R}ᵀ P`` with R the rotational part of Φ (for SE(3): (Rᵀf, Rᵀm))."""
-    return np.einsum("...ji,...j->...i", group.Ad(rotation_part(group, Phi)), np.broadcast_to(P, np.shape(Phi)[:-2] + np.shape(P)))
+    P = np.broadcast_to(P, np.shape(Phi)[:-2] + np.shape(P))
+    return np.einsum("...ji,...j->...i", group.Ad(rotation_part(group, Phi)), P)
 
 
 # ---------------------------------------------------------------------------- state
@@ -216,14 +217,18 @@ class InitialState:
     Parameters
     ----------
     Phi : array, shape ``(*grid.shape, m, m)``
-        Structure field Φ₀ (q₀ = Φ₀·q_r).  For periodic axes Φ₀ must close up: the strain of
-        the closing edge is taken from Φ₀[-1]⁻¹Φ₀[0] (plus ``holonomy`` if given).
+        Structure field Φ₀ (q₀ = Φ₀·q_r).
     N : array, shape ``(*grid.shape, r)``, optional
         Initial velocity N₀ = Φ⁻¹Φ̇ (zero by default).
+    holonomy : array, shape ``(m, m)``, optional
+        For a periodic axis (d = 1): the group element H with Φ(u + L) = H Φ(u), so that the
+        closing edge is Φ₀[-1]⁻¹ H Φ₀[0].  Identity (a closed rod) by default; a translation
+        by L for a straight rod with periodic boundary conditions, a screw motion for a helix.
     """
 
     Phi: Any
     N: Any = None
+    holonomy: Any = None
 
 
 @dataclass
@@ -251,7 +256,14 @@ class Problem:
             raise ValueError(f"initial.Phi is not in {g.name}: defect {defect:.2e} > 1e-8")
         N = np.zeros((*shape, g.dim)) if self.initial.N is None else self.initial.N
         N = check_finite("initial.N", N, (*shape, g.dim))
-        self.initial = InitialState(Phi=Phi, N=N)
+        H = self.initial.holonomy
+        if H is not None:
+            if not (self.grid.d == 1 and self.grid.periodic[0]):
+                raise ValueError("initial.holonomy is only meaningful on a periodic grid with d = 1")
+            H = check_finite("initial.holonomy", H, (g.matrix_size, g.matrix_size))
+            if float(g.defect(H)) > 1e-8:
+                raise ValueError(f"initial.holonomy is not in {g.name}")
+        self.initial = InitialState(Phi=Phi, N=N, holonomy=H)
         valid = self.boundary_names()
         for key, b in self.boundaries.items():
             if key not in valid:
@@ -267,7 +279,7 @@ class Problem:
 
     def boundary_names(self) -> set[str]:
         names = set()
-        for axis, (name, p) in enumerate(zip(self.grid.axis_names, self.grid.periodic)):
+        for name, p in zip(self.grid.axis_names, self.grid.periodic):
             if p:
                 continue
             if self.grid.d == 1:

@@ -49,15 +49,23 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from .grid import Grid
-from .plugins import RegistryError, get_registry
+from .plugins import get_registry
 from .problem import Clamped, Damping, Free, Problem, UniformForce
 
 __all__ = ["Scene", "SceneError", "load_scene", "scene"]
 
 _TOP_KEYS = {"name", "description", "medium", "parameters", "grid", "boundaries", "loads", "initial", "run"}
 _GRID_KEYS = {"n", "shape", "length", "periodic"}
-_RUN_KEYS = {"integrator", "scheme", "dt", "t_end", "save_every", "checkpoint_every",
-             "integrator_options", "scheme_options"}
+_RUN_KEYS = {
+    "integrator",
+    "scheme",
+    "dt",
+    "t_end",
+    "save_every",
+    "checkpoint_every",
+    "integrator_options",
+    "scheme_options",
+}
 
 
 class SceneError(ValueError):
@@ -144,8 +152,8 @@ class _Reader:
         self.label = label
 
     def fail(self, key: str, message: str) -> SceneError:
-        prefix = f"{self.label}: {key}: " if key else f"{self.label}: "
-        return SceneError(prefix + message)
+        parts = [p for p in (self.label, key) if p]
+        return SceneError(": ".join([*parts, message]))
 
     def table(self, data: Mapping, key: str, where: str, required: bool = False) -> dict:
         if key not in data:
@@ -195,11 +203,15 @@ def _join(where: str, key: str) -> str:
     return f"{where}.{key}" if where else key
 
 
+_SINGULAR = {"media": "medium", "integrators": "integrator", "schemes": "scheme", "scenes": "scene"}
+
+
 def _lookup(reader: _Reader, kind: str, name: str, key: str) -> Any:
-    try:
-        return get_registry().get(kind, name)
-    except RegistryError as exc:
-        raise reader.fail(key, _one_line(exc)) from None
+    table = get_registry().table(kind)
+    if name not in table:
+        known = ", ".join(sorted(table)) or "none"
+        raise reader.fail(key, f"unknown {_SINGULAR.get(kind, kind)} {name!r}; registered {kind}: {known}")
+    return table[name].obj
 
 
 def _check_keywords(reader: _Reader, target: Any, params: Mapping, key: str, what: str) -> None:
@@ -216,7 +228,9 @@ def _check_keywords(reader: _Reader, target: Any, params: Mapping, key: str, wha
             accepted.append(p.name)
     for name in params:
         if name not in accepted:
-            raise reader.fail(_join(key, name), f"unknown parameter of {what}; accepted: {', '.join(accepted) or 'none'}")
+            raise reader.fail(
+                _join(key, name), f"unknown parameter of {what}; accepted: {', '.join(accepted) or 'none'}"
+            )
 
 
 # ---------------------------------------------------------------------------- the parts
@@ -229,7 +243,9 @@ def _grid(reader: _Reader, data: Mapping) -> Grid:
         shape: Any = reader.integer(g, "n", "grid", minimum=2)
     elif "shape" in g:
         shape = g["shape"]
-        if not isinstance(shape, list) or not all(isinstance(v, int) and not isinstance(v, bool) for v in shape):
+        if not isinstance(shape, list) or not all(
+            isinstance(v, int) and not isinstance(v, bool) for v in shape
+        ):
             raise reader.fail("grid.shape", f"must be a list of integers, got {shape!r}")
     else:
         raise reader.fail("grid.n", "missing key (number of nodes; or shape = [...] for d ≥ 2)")
@@ -247,7 +263,7 @@ def _boundaries(reader: _Reader, data: Mapping) -> dict:
     for end, spec in b.items():
         key = f"boundaries.{end}"
         if not isinstance(spec, Mapping):
-            raise reader.fail(key, f"must be a table such as {{ kind = \"clamped\" }}, got {spec!r}")
+            raise reader.fail(key, f'must be a table such as {{ kind = "clamped" }}, got {spec!r}')
         kind = reader.string(spec, "kind", key)
         if kind == "clamped":
             reader.no_extra(spec, {"kind"}, key)
@@ -290,7 +306,9 @@ def _loads(reader: _Reader, data: Mapping, medium) -> list:
             else:
                 available = ["damping", "uniform-force", *getattr(medium, "load_kinds", ())]
                 if getattr(medium, "load_kinds", ()) and kind not in available:
-                    raise reader.fail(f"{key}.kind", f"unknown load kind {kind!r}; available: {', '.join(available)}")
+                    raise reader.fail(
+                        f"{key}.kind", f"unknown load kind {kind!r}; available: {', '.join(available)}"
+                    )
                 load = medium.make_load(kind, **rest)
             load.bind(medium)
         except SceneError:
@@ -307,7 +325,9 @@ def _initial(reader: _Reader, data: Mapping, medium, grid: Grid):
     rest = {k: v for k, v in spec.items() if k != "kind"}
     kinds = getattr(medium, "initial_kinds", ())
     if kinds and kind not in kinds:
-        raise reader.fail("initial.kind", f"unknown initial state kind {kind!r}; available: {', '.join(kinds)}")
+        raise reader.fail(
+            "initial.kind", f"unknown initial state kind {kind!r}; available: {', '.join(kinds)}"
+        )
     try:
         return medium.initial_state(grid, kind, **rest)
     except (ValueError, TypeError) as exc:
@@ -414,10 +434,13 @@ def load_scene(path_or_dict: str | pathlib.Path | Mapping[str, Any]) -> Scene:
     loads = _loads(reader, data, medium)
     initial = _initial(reader, data, medium, grid)
     try:
-        problem = Problem(medium=medium, grid=grid, initial=initial, boundaries=boundaries, loads=loads, name=name)
+        problem = Problem(
+            medium=medium, grid=grid, initial=initial, boundaries=boundaries, loads=loads, name=name
+        )
     except (ValueError, TypeError) as exc:
         msg = _one_line(exc)
-        raise reader.fail(_problem_error_key(msg), msg) from None
+        key = _problem_error_key(msg)
+        raise reader.fail("" if msg.startswith(key) else key, msg) from None
     run = _run(reader, data, problem)
     return Scene(problem=problem, name=name, description=description, source=data, path=path, **run)
 
@@ -428,15 +451,21 @@ def scene(name: str) -> Scene:
     A registered scene is a path to a TOML file, a dict of the same form, a
     :class:`Scene`, or a callable returning any of these or a :class:`~cartan.Problem`.
 
+    Parameters
+    ----------
+    name : str
+        Registered name (``cartan list scenes`` shows them all).
+
+    Returns
+    -------
+    Scene
+
     Raises
     ------
     SceneError
         If no scene of that name is registered, or the scene itself is invalid.
     """
-    try:
-        obj = get_registry().get("scenes", name)
-    except RegistryError as exc:
-        raise SceneError(_one_line(exc)) from None
+    obj = _lookup(_Reader(""), "scenes", name, "")
     if callable(obj) and not isinstance(obj, type):
         try:
             obj = obj()

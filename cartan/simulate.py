@@ -6,13 +6,15 @@ compiled loop will replace), records a frame (:func:`cartan.io.frame_record`), a
 file, so that ``simulate(..., restart=path)`` continues it and reproduces the uninterrupted
 run bit for bit.
 
-Blow-up is detected cheaply after every step (non-finite momentum or configuration; kinetic
-energy beyond ``max_energy_growth`` times the energy scale of the run, once a frame after the
-initial one has set that scale) and fully after every save (non-finite diagnostics; an
-energy-balance error ``|K + V + D − W − E₀|`` beyond ``max_energy_growth`` times the energy
-scale *and* beyond half the frame's own ``|K| + |V| + |D| + |W|``, i.e. energy that the
-physics did not put there).  The energy scale is the largest ``|K| + |V| + |D| + |W|``
-(kinetic, potential, dissipated, external work) of the frames accepted so far.  The run then stops with
+Blow-up is detected cheaply inside each save block and fully at every save.  The tests:
+non-finite momentum or configuration (every step); an energy-balance error
+``|K + V + D − W − E₀|`` beyond ``max_energy_growth`` times the energy scale of the run *and*
+beyond half the state's own ``|K| + |V| + |D| + |W|`` — energy the physics did not put there
+(at steps 1, 2, 4, 8, … of each block and at every save); and, between those, the kinetic
+energy against ``max_energy_growth`` times the energy scale.  The energy scale is the largest
+``|K| + |V| + |D| + |W|`` (kinetic, potential, dissipated, external work) of the states
+checked so far whose energy budget closed (balance error at most half that sum), so that
+energy created by a blow-up never becomes the yardstick.  The run then stops with
 :class:`InstabilityError`, after writing the frames up to the last good state, and that
 state as a checkpoint, to the output file (or to a temporary file when there is none).
 """
@@ -69,14 +71,25 @@ class InstabilityError(RuntimeError):
         continues from it).
     """
 
-    def __init__(self, message: str, *, step: int, time: float, dt: float, dt_max: float,
-                 path: pathlib.Path | None):
+    def __init__(
+        self,
+        message: str,
+        *,
+        step: int = -1,
+        time: float = math.nan,
+        dt: float = math.nan,
+        dt_max: float = math.nan,
+        path: pathlib.Path | None = None,
+    ):
         super().__init__(message)
         self.step = step
         self.time = time
         self.dt = dt
         self.dt_max = dt_max
         self.path = path
+
+    def __reduce__(self):  # picklable (e.g. across dask workers) with its attributes
+        return (type(self), (str(self),), dict(self.__dict__))
 
 
 # ---------------------------------------------------------------------------- resolution
@@ -111,7 +124,9 @@ def _as_scene(obj: Any) -> tuple[Problem, Scene | None]:
     if isinstance(obj, Mapping):
         sc = load_scene(obj)
         return sc.problem, sc
-    raise TypeError(f"simulate needs a Problem, a Scene, a scene file or a registered scene name, got {obj!r}")
+    raise TypeError(
+        f"simulate needs a Problem, a Scene, a scene file or a registered scene name, got {obj!r}"
+    )
 
 
 def _first(*values: Any) -> Any:
@@ -149,68 +164,117 @@ def _show_progress(progress: bool | None) -> bool:
 
 
 # ---------------------------------------------------------------------------- the loop
-def _advance(integrator: Integrator, scheme: Scheme, state: State, dt: float, nsteps: int,
-             guard: Callable[[State], str | None]) -> tuple[int, str | None]:
+def _advance(
+    integrator: Integrator,
+    scheme: Scheme,
+    state: State,
+    dt: float,
+    nsteps: int,
+    guard: Callable[[State, int], str | None],
+) -> tuple[int, str | None]:
     """Advance ``state`` in place by up to ``nsteps`` steps of ``dt``.
 
-    Returns ``(steps done, None)``, or ``(steps done, reason)`` as soon as ``guard(state)``
-    reports a blow-up.  Kept minimal: a compiled loop can replace it.
+    Returns ``(steps done, None)``, or ``(steps done, reason)`` as soon as
+    ``guard(state, steps done)`` reports a blow-up.  Kept minimal: a compiled loop can replace it.
     """
     with np.errstate(over="ignore", invalid="ignore", divide="ignore"):
         for k in range(nsteps):
             integrator.step(scheme, state, dt)
-            reason = guard(state)
+            reason = guard(state, k + 1)
             if reason is not None:
                 return k + 1, reason
     return nsteps, None
 
 
-def _make_guard(scheme: Scheme, integrator: Integrator, growth: float | None, scale: list[float]):
-    """Cheap per-step blow-up test: non-finite state, or kinetic energy ≫ the energy scale.
+def _make_guard(scheme: Scheme, integrator: Integrator, growth: float | None, e0: float, scale: list[float]):
+    """Per-step blow-up test ``guard(state, k)``, k = steps done in the current save block.
 
-    ``scale`` is ``[energy scale, number of frames accepted after the initial one]``, updated
-    by the run loop; the energy test is active once that number is ≥ 1.
+    Every step: non-finite momentum (or configuration, for integrators without momentum).
+    At k = 1, 2, 4, 8, …: the energy-balance test of :func:`_balance` on K and V (two
+    energy evaluations), which also raises the energy scale ``scale[0]`` and marks it
+    established (``scale[1] ≥ 1``).  At the other steps, once the scale is established: the
+    kinetic energy ½Σ w S²/m against ``growth × scale[0]`` (one pass over S).
     """
     inv = np.where(scheme.live, 1.0 / np.where(scheme.live, scheme.mass, 1.0), 0.0)
     w = scheme.weights[..., None]
     momentum = integrator.uses_momentum
 
-    def guard(state: State) -> str | None:
+    def guard(state: State, k: int) -> str | None:
         if momentum:
             if not np.isfinite(np.sum(state.S)):
                 return "non-finite momentum"
-            if growth is not None and scale[1] >= 1 and scale[0] > 0:
-                K = 0.5 * float(np.sum(w * state.S * state.S * inv))
-                if not K <= growth * scale[0]:
-                    return (f"kinetic energy {K:.3g} grew beyond {growth:g} × the energy scale "
-                            f"{scale[0]:.3g} of the run")
         elif not state.is_finite():
             return "non-finite configuration"
+        if growth is None:
+            return None
+        if k & (k - 1) == 0:
+            energies = {
+                "kinetic_energy": float(scheme.kinetic_energy(state)),
+                "potential_energy": float(scheme.potential_energy(state)),
+                "dissipated_energy": float(state.scalars.get("dissipated_energy", 0.0)),
+                "external_work": float(state.scalars.get("external_work", 0.0)),
+            }
+            reason = _balance(energies, e0, growth, scale[0])
+            if reason is None:
+                _raise_scale(scale, energies, e0)
+            return reason
+        if momentum and scale[1] >= 1 and scale[0] > 0:
+            K = 0.5 * float(np.sum(w * state.S * state.S * inv))
+            if not K <= growth * scale[0]:
+                return (
+                    f"kinetic energy {K:.3g} grew beyond {growth:g} × the energy scale "
+                    f"{scale[0]:.3g} of the run"
+                )
         return None
 
     return guard
 
 
-def _check_frame(rec: Mapping[str, Any], e0: float, growth: float | None, scale: float) -> str | None:
-    """Full blow-up test on a saved frame."""
+def _balance(rec: Mapping[str, Any], e0: float, growth: float | None, scale: float) -> str | None:
+    """Energy test: non-finite energies, or a balance error ``|K + V + D − W − E₀|`` beyond
+    both ``growth × scale`` and half of ``|K| + |V| + |D| + |W|``."""
     for name in ("kinetic_energy", "potential_energy", "dissipated_energy", "external_work"):
         if not math.isfinite(rec[name]):
             return f"non-finite {name.replace('_', ' ')}"
-    for name in ("X", "S", "N"):
-        if name in rec and not np.all(np.isfinite(rec[name])):
-            return {"X": "non-finite strain", "S": "non-finite momentum", "N": "non-finite velocity"}[name]
     if growth is not None and scale > 0:
-        err = abs(rec["kinetic_energy"] + rec["potential_energy"] + rec["dissipated_energy"]
-                  - rec["external_work"] - e0)
+        err = _balance_error(rec, e0)
         if err > growth * scale and err > 0.5 * _magnitude(rec):
-            return (f"energy balance error {err:.3g} grew beyond {growth:g} × the energy scale "
-                    f"{scale:.3g} of the run")
+            return (
+                f"energy balance error {err:.3g} grew beyond {growth:g} × the energy scale "
+                f"{scale:.3g} of the run"
+            )
     return None
 
 
+def _check_frame(rec: Mapping[str, Any], e0: float, growth: float | None, scale: float) -> str | None:
+    """Full blow-up test on a saved frame: non-finite fields, then :func:`_balance`."""
+    for name in ("X", "S", "N"):
+        if name in rec and not np.all(np.isfinite(rec[name])):
+            return {"X": "non-finite strain", "S": "non-finite momentum", "N": "non-finite velocity"}[name]
+    return _balance(rec, e0, growth, scale)
+
+
+def _balance_error(rec: Mapping[str, Any], e0: float) -> float:
+    return abs(
+        rec["kinetic_energy"] + rec["potential_energy"] + rec["dissipated_energy"] - rec["external_work"] - e0
+    )
+
+
+def _raise_scale(scale: list[float], rec: Mapping[str, Any], e0: float) -> None:
+    """Raise the energy scale with a state whose energy budget closes (balance error at most
+    half its energy): energy that blow-up created never becomes the yardstick."""
+    if _balance_error(rec, e0) <= 0.5 * _magnitude(rec):
+        scale[0] = max(scale[0], _magnitude(rec))
+        scale[1] = max(scale[1], 1)
+
+
 def _magnitude(rec: Mapping[str, Any]) -> float:
-    return (abs(rec["kinetic_energy"]) + abs(rec["potential_energy"]) + abs(rec["dissipated_energy"])
-            + abs(rec["external_work"]))
+    return (
+        abs(rec["kinetic_energy"])
+        + abs(rec["potential_energy"])
+        + abs(rec["dissipated_energy"])
+        + abs(rec["external_work"])
+    )
 
 
 def _append(records: dict[str, list], rec: Mapping[str, Any]) -> None:
@@ -296,7 +360,9 @@ def simulate(
         environment variable ``CI`` is not set.
     max_energy_growth : float or None
         Blow-up threshold (see the module docstring); None disables the energy tests
-        (non-finite values are always detected).
+        (non-finite values are always detected).  Integrators without a stability limit
+        (``stability = inf``, e.g. ``kinematic``, which prescribes N) have no energy budget to
+        test and get the non-finite test only.
     command : str, optional
         Text recorded in the ``history`` attribute (default: a description of this call).
 
@@ -323,17 +389,25 @@ def simulate(
             output = restart
     if problem_or_scene is None:
         if ck_info is None or not ck_info.get("scene"):
-            raise ValueError("simulate needs a problem or scene (only a restart of a scene run can rebuild it)")
+            raise ValueError(
+                "simulate needs a problem or scene (only a restart of a scene run can rebuild it)"
+            )
         problem_or_scene = ck_info["scene"]
     problem, sc = _as_scene(problem_or_scene)
     run_defaults = sc.run_settings() if sc is not None else {}
     ck_run = ck_info["run"] if ck_info else {}
 
-    integ_spec = _first(integrator, ck_run.get("integrator"), run_defaults.get("integrator"), DEFAULT_INTEGRATOR)
+    integ_spec = _first(
+        integrator, ck_run.get("integrator"), run_defaults.get("integrator"), DEFAULT_INTEGRATOR
+    )
     scheme_spec = _first(scheme, ck_run.get("scheme"), run_defaults.get("scheme"), DEFAULT_SCHEME)
-    same_integ = _name_of(integ_spec) == (ck_run.get("integrator") if ck_info else run_defaults.get("integrator"))
+    same_integ = _name_of(integ_spec) == (
+        ck_run.get("integrator") if ck_info else run_defaults.get("integrator")
+    )
     same_scheme = _name_of(scheme_spec) == (ck_run.get("scheme") if ck_info else run_defaults.get("scheme"))
-    base_iopts = (ck_run.get("integrator_options") if ck_info else run_defaults.get("integrator_options")) or {}
+    base_iopts = (
+        ck_run.get("integrator_options") if ck_info else run_defaults.get("integrator_options")
+    ) or {}
     base_sopts = (ck_run.get("scheme_options") if ck_info else run_defaults.get("scheme_options")) or {}
     iopts = {**(base_iopts if same_integ else {}), **(integrator_options or {})}
     sopts = {**(base_sopts if same_scheme else {}), **(scheme_options or {})}
@@ -350,8 +424,16 @@ def simulate(
     problem_dict = problem.to_dict()
     if ck_info is not None:
         if io.to_json(problem_dict) != io.to_json(ck_info.get("problem")):
-            raise ValueError(f"restart file {str(restart)!r} was written for a different problem "
-                             f"({ck_info.get('problem', {}).get('medium')!r}, {ck_info.get('problem', {}).get('grid')})")
+            raise ValueError(
+                f"restart file {str(restart)!r} was written for a different problem "
+                f"({ck_info.get('problem', {}).get('medium')!r}, {ck_info.get('problem', {}).get('grid')})"
+            )
+        expected = set(scheme_obj.initial_state().arrays)
+        if set(ck_state.arrays) != expected:
+            raise ValueError(
+                f"restart file {str(restart)!r} holds a {sorted(ck_state.arrays)} state but scheme "
+                f"{scheme_obj.name!r} with options {scheme_obj.options()} stores {sorted(expected)}"
+            )
         state = ck_state
         integ_obj.nstep = int(ck_info["counters"]["nstep"])
         integ_obj.nforce = int(ck_info["counters"]["nforce"])
@@ -387,10 +469,16 @@ def simulate(
             StabilityWarning,
             stacklevel=2,
         )
-    total = _nsteps(t_end, dt)
-    save_every = _first(save_every, ck_run.get("save_every"), run_defaults.get("save_every"),
-                        max(1, total // DEFAULT_FRAMES))
-    checkpoint_every = _first(checkpoint_every, ck_run.get("checkpoint_every"), run_defaults.get("checkpoint_every"))
+    if ck_info is not None and dt != ck_run.get("dt"):  # a new Δt counts the remaining time only
+        total = int(ck_info["step"]) + _nsteps(max(t_end - ck_state.t, 0.0), dt)
+    else:
+        total = _nsteps(t_end, dt)
+    save_every = _first(
+        save_every, ck_run.get("save_every"), run_defaults.get("save_every"), max(1, total // DEFAULT_FRAMES)
+    )
+    checkpoint_every = _first(
+        checkpoint_every, ck_run.get("checkpoint_every"), run_defaults.get("checkpoint_every")
+    )
     for name, value in (("save_every", save_every), ("checkpoint_every", checkpoint_every)):
         if value is not None and (isinstance(value, bool) or int(value) != value or value < 1):
             raise ValueError(f"{name} must be an integer ≥ 1, got {value!r}")
@@ -399,7 +487,9 @@ def simulate(
     if checkpoint_every is not None and output is None:
         raise ValueError("checkpoint_every needs an output file (output=path)")
     output = None if output is None else pathlib.Path(output)
-    growth = None if max_energy_growth is None else float(max_energy_growth)
+    # integrators without a stability limit prescribe N (kinematic): no energy budget to test
+    no_budget = max_energy_growth is None or integ_obj.stability == math.inf
+    growth = None if no_budget else float(max_energy_growth)
 
     run_config = {
         "integrator": integ_obj.name,
@@ -416,9 +506,12 @@ def simulate(
     }
     if command is None:
         what = f"scene {sc.name!r}" if sc is not None else f"problem {problem.name or problem.medium.name!r}"
-        command = (f"cartan.simulate({what}, integrator={integ_obj.name!r}, scheme={scheme_obj.name!r}, "
-                   f"dt={dt!r}, t_end={t_end!r}, save_every={save_every}"
-                   + (f", restart={str(restart)!r}" if restart is not None else "") + ")")
+        command = (
+            f"cartan.simulate({what}, integrator={integ_obj.name!r}, scheme={scheme_obj.name!r}, "
+            f"dt={dt!r}, t_end={t_end!r}, save_every={save_every}"
+            + (f", restart={str(restart)!r}" if restart is not None else "")
+            + ")"
+        )
     history = io.history_line(command)
     if ck_attrs is not None and ck_attrs.get("history"):
         history = f"{ck_attrs['history']}\n{history}"
@@ -428,7 +521,11 @@ def simulate(
         return {
             "problem": problem_dict,
             "run": run_config,
-            "counters": {"nstep": integ_obj.nstep, "nforce": integ_obj.nforce, "wall_time": integ_obj.wall_time},
+            "counters": {
+                "nstep": integ_obj.nstep,
+                "nforce": integ_obj.nforce,
+                "wall_time": integ_obj.wall_time,
+            },
             "scene": scene_source,
             "scene_path": str(sc.path) if sc is not None and sc.path else None,
         }
@@ -442,7 +539,7 @@ def simulate(
         step = int(ck_info["step"])
         nsaves = int(ck_info["nsaves"])
         e0 = float(ck_info["e0"])
-        scale = [float(ck_info["scale"]), nsaves]
+        scale = [float(ck_info["scale"]), int(ck_info.get("scale_set", nsaves > 0))]
     else:
         records = {}
         rec = io.frame_record(scheme_obj, integ_obj, state)
@@ -459,28 +556,40 @@ def simulate(
         info = {
             "problem": problem_dict,
             "run": run_config,
-            "counters": {"nstep": integ_obj.nstep, "nforce": integ_obj.nforce, "wall_time": integ_obj.wall_time},
+            "counters": {
+                "nstep": integ_obj.nstep,
+                "nforce": integ_obj.nforce,
+                "wall_time": integ_obj.wall_time,
+            },
             "scene": scene_source,
             "step": at_step,
             "nsaves": at_saves,
             "nframes": nframes,
             "e0": e0,
             "scale": scale[0],
+            "scale_set": scale[1],
         }
         return io.checkpoint_dataset(st, info)
 
-    guard = _make_guard(scheme_obj, integ_obj, growth, scale)
+    guard = _make_guard(scheme_obj, integ_obj, growth, e0, scale)
     bar = None
     if _show_progress(progress) and step < total:
         from tqdm.auto import tqdm
 
-        bar = tqdm(total=total, initial=step, unit="step", file=sys.stderr, dynamic_ncols=True,
-                   desc=problem.name or problem.medium.name, leave=False)
+        bar = tqdm(
+            total=total,
+            initial=step,
+            unit="step",
+            file=sys.stderr,
+            dynamic_ncols=True,
+            desc=problem.name or problem.medium.name,
+            leave=False,
+        )
     try:
         while step < total:
             n = min(save_every - step % save_every, total - step)
             good = state.copy()
-            good_info = (len(records["time"]), step, nsaves, scale[0])
+            good_info = (len(records["time"]), step, nsaves, list(scale))
             done, reason = _advance(integ_obj, scheme_obj, state, dt, n, guard)
             step += done
             if reason is None:
@@ -488,23 +597,32 @@ def simulate(
                 reason = _check_frame(rec, e0, growth, scale[0])
             if reason is not None:
                 nframes, good_step, good_saves, good_scale = good_info
-                scale[0] = good_scale
-                path = _unstable_path(output)
+                scale[:] = good_scale
                 kept = _truncate(records, nframes)
-                io.write_dataset(dataset(kept), path, checkpoint(good, nframes, good_step, good_saves))
+                try:
+                    path = _unstable_path(output)
+                    io.write_dataset(dataset(kept), path, checkpoint(good, nframes, good_step, good_saves))
+                    where = f"saved to {path}"
+                except OSError as exc:
+                    path, where = None, f"could not be saved ({exc})"
                 raise InstabilityError(
                     f"unstable at step {step} (t = {state.t:.6g}): {reason}; {_describe_dt(dt, dt_max)}; "
-                    f"last good state (t = {good.t:.6g}) saved to {path}",
-                    step=step, time=float(state.t), dt=dt, dt_max=dt_max, path=path,
+                    f"last good state (t = {good.t:.6g}) {where}",
+                    step=step,
+                    time=float(state.t),
+                    dt=dt,
+                    dt_max=dt_max,
+                    path=path,
                 )
             _append(records, rec)
             nsaves += 1
-            scale[0] = max(scale[0], _magnitude(rec))
-            scale[1] = nsaves
+            _raise_scale(scale, rec, e0)
             if bar is not None:
                 bar.update(done)
             if checkpoint_every is not None and nsaves % checkpoint_every == 0 and step < total:
-                io.write_dataset(dataset(records), output, checkpoint(state, len(records["time"]), step, nsaves))
+                io.write_dataset(
+                    dataset(records), output, checkpoint(state, len(records["time"]), step, nsaves)
+                )
     finally:
         if bar is not None:
             bar.close()

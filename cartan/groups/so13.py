@@ -22,7 +22,9 @@ eigenvalues of ``Z`` are ``±a`` (boost-like) and ``±ib`` (rotation-like).  *Nu
 have ``θ² = 0`` with ``w ≠ 0`` (``|c| = |d|``, ``c ⊥ d``): ``Z`` is nilpotent there.
 
 * ``exp``: the spinor ``A = exp(−i w·σ/2) = cos(θ/2) I − i (sin(θ/2)/θ) w·σ ∈ SL(2, C)``
-  and ``Λ^μ_ν = ½ tr(σ_μ A σ_ν A†)`` (``σ₀ = I``).  Both coefficients are entire functions
+  and ``Λ^μ_ν = ½ tr(σ_μ A σ_ν A†)`` (``σ₀ = I``), written through the products
+  ``p_a p̄_b`` of ``A = Σ p_a σ_a`` like the quaternion form of a rotation matrix, so entries
+  that vanish with ``w`` carry no cancellation.  Both coefficients are entire functions
   of ``θ²``; they are summed from their Taylor series when ``|θ²| < 1``, so null and
   near-null generators keep full accuracy (an eigen-projector form divides by differences of
   eigenvalues and fails there).

@@ -719,12 +719,13 @@ class SO(SymmetryGroup):
             self._impl = SO3()
         else:
             self._impl = None
+
+    @property
+    def _kernels(self) -> dict:
+        """The numba batch kernels for this n (those of SO2 and SO3 for n = 2, 3)."""
         if self._impl is not None:
-            self._kernels = dict(self._impl._kernels)
-        elif n == 4:
-            self._kernels = dict(_SO4_KERNELS)
-        else:
-            self._kernels = dict(_GENERIC_KERNELS)
+            return self._impl._kernels
+        return _SO4_KERNELS if self.n == 4 else _GENERIC_KERNELS
 
     def __repr__(self) -> str:
         return f"SO(n={self.n})"

@@ -89,7 +89,7 @@ class Integrator(abc.ABC):
         self.wall_time += time.perf_counter() - t0
 
     def _powers(self, scheme: Scheme, state: State) -> dict[str, float]:
-        if not scheme.problem.loads and not getattr(scheme, "_end_loads", None):
+        if not scheme.has_external_power():
             return {"dissipated": 0.0, "external": 0.0}
         return scheme.powers(state, self.velocity(scheme, state), state.t)
 

@@ -130,8 +130,12 @@ class LieVerlet(Integrator):
         self._fsal = None
 
     def _sequence(self, scheme: Scheme) -> list[tuple[np.ndarray, float]]:
+        key = (scheme.group, tuple(scheme.live))
+        if getattr(self, "_seq_key", None) == key:
+            return self._seq
         pieces = _abelian_pieces(scheme.group, scheme.live)
         seq = [(p, 0.5) for p in pieces[:-1]] + [(pieces[-1], 1.0)] + [(p, 0.5) for p in reversed(pieces[:-1])]
+        self._seq_key, self._seq = key, seq
         return seq
 
     def _kick_force(self, scheme: Scheme, state: State) -> np.ndarray:
@@ -151,6 +155,8 @@ class LieVerlet(Integrator):
             N = scheme.velocity(state)
             Np = np.zeros_like(N)
             Np[..., piece] = N[..., piece]
+            if not Np.any():  # exp(0) = I: nothing moves
+                continue
             tau = frac * dt
             state.S = _coAd_exp(g, tau, Np, state.S)
             scheme.drift(state, tau, Np, exact=True)

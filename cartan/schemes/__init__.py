@@ -1,6 +1,7 @@
-"""Discretisation schemes: the :class:`Scheme` contract and the built-in ``lattice`` scheme."""
+"""Discretisation schemes: the :class:`Scheme` contract and the built-in ``lattice`` and ``collocation`` schemes."""
 
 from .base import Scheme, State
+from .collocation import Collocation
 from .lattice import Lattice
 
-__all__ = ["Lattice", "Scheme", "State"]
+__all__ = ["Collocation", "Lattice", "Scheme", "State"]

@@ -7,6 +7,8 @@ from ..plugins import hookimpl
 
 @hookimpl
 def cartan_register_schemes(register):
+    from .collocation import Collocation
     from .lattice import Lattice
 
     register("lattice", Lattice)
+    register("collocation", Collocation)

@@ -29,9 +29,26 @@ from typing import Any, ClassVar
 
 import numpy as np
 
+from ..medium import Medium
 from ..problem import Clamped, Problem
 
-__all__ = ["Scheme", "State"]
+__all__ = ["Scheme", "State", "prefix_products"]
+
+
+def prefix_products(first: np.ndarray, steps: np.ndarray) -> np.ndarray:
+    """Prefix products ``P_0 = first, P_{k+1} = P_k steps_k`` along axis 0 by doubling.
+
+    ``first`` ``[..., m, m]``, ``steps`` ``[n−1, ..., m, m]`` → ``[n, ..., m, m]``
+    (Hillis–Steele scan: ⌈log₂ n⌉ batched matrix products instead of n sequential ones);
+    used to rebuild frames from a root frame and edge or midpoint increments.
+    """
+    acc = np.concatenate([np.asarray(first)[None], steps], axis=0)
+    n = acc.shape[0]
+    shift = 1
+    while shift < n:
+        acc[shift:] = acc[:-shift] @ acc[shift:]
+        shift *= 2
+    return acc
 
 
 @dataclass
@@ -70,8 +87,10 @@ class Scheme(abc.ABC):
     """
 
     name: ClassVar[str] = ""
-    #: spatial order of accuracy
-    order: ClassVar[int] = 2
+    #: spatial order of accuracy (``math.inf`` for spectral differentiation)
+    order: ClassVar[float] = 2
+    #: where :meth:`strains` lives: ``"edge"`` (between nodes) or ``"node"``
+    strain_location: ClassVar[str] = "node"
 
     def __init__(self, problem: Problem, **options: Any):
         if options:
@@ -161,11 +180,21 @@ class Scheme(abc.ABC):
                 dissipated -= p
             else:
                 external += p
+        T = self.medium.body_force(Phi, N, t)
+        if T is not None:
+            external += float(np.sum(self.weights * np.einsum("...k,...k->...", T, N)))
         external += self._boundary_power(state, N, Phi)
         return {"dissipated": dissipated, "external": external}
 
     def _boundary_power(self, state: State, N: np.ndarray, Phi: np.ndarray | None) -> float:
         return 0.0
+
+    def has_external_power(self) -> bool:
+        """True when loads, boundary loads or the medium's body force can do work (the
+        integrator then books their power every step)."""
+        return bool(self.problem.loads) or bool(getattr(self, "_end_loads", ())) or (
+            type(self.medium).body_force is not Medium.body_force
+        )
 
     def total_momentum(self, state: State) -> np.ndarray:
         """Total momentum in the spatial frame, ``Σ_i w_i Ad_{Φ_i}⁻ᵀ S_i`` ``(r,)`` — the

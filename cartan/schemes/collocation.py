@@ -3,8 +3,7 @@
 The strains X_α, the velocity N and the momentum density S live on the same nodes, and the
 material derivative ∂_α is a linear difference operator along each axis: central finite
 differences of second (``"fd2"``) or fourth (``"fd4"``) order, or the Fourier spectral
-derivative (``"fourier"``, periodic axes only).  Open axes close the finite-difference
-stencils with one-sided stencils of the same order at the two ends.
+derivative (``"fourier"``, periodic axes only).
 
 Drift (paper §V, "Geometric integrators for dynamical motion")
     For a velocity field N frozen over the sub-step τ, the strains follow the paper's Lie
@@ -21,12 +20,19 @@ Forces (paper §IV, balance law; §V, W = D*_u Q + T)
     ``W = Σ_α (∂_α Q^α − ad_{X_α}ᵀ Q^α) + T`` with Q^α = ∂U/∂X_α evaluated at the nodes
     (``ad*_X = −ad_Xᵀ``).  The stress is a function of all the nodal strains, so media whose
     potential couples the axes (``separable_axes = False``) are handled directly.
-Boundary conditions (paper §IV.D, n_α Q^α = P on ∂M)
-    At a free end of an open axis the stress component normal to the end is replaced by its
-    boundary value before ∂_α is taken: Q^α = +P at the end (u = L), Q^α = −P at the start
-    (u = 0), P in body components (a dead load is rotated by the frame at that node,
-    :func:`~cartan.problem.dead_to_body`); P = 0 for an unloaded free end.  For d ≥ 2, P
-    is a traction per unit reference area of the face.  At a clamped end N = 0 and W = 0.
+Open axes and boundary conditions (paper §IV.D, n_α Q^α = P on ∂M)
+    The central stencils are closed at the ends by diagonal-norm *summation-by-parts*
+    (SBP) rows — boundary rows of order p/2, quadrature weights H (trapezoidal for fd2) —
+    and the natural condition enters as a penalty (simultaneous-approximation term) at the
+    end node, ``W_end += (P − n_α Q^α_end)/H_end``, with P in body components (a dead load
+    is rotated by the frame there, :func:`~cartan.problem.dead_to_body`) and P = 0 for an
+    unloaded free end; for d ≥ 2, P is a traction per unit reference area.  Summation by
+    parts makes the semi-discrete energy balance exact, ``d/dt Σ H (K + U) = Σ_ends P·N``,
+    which is what keeps the explicit time stepping stable.  (Closing with one-sided stencils
+    of the interior order and replacing the end stress by n_α P before differencing is
+    stable for fd2 but not for fd4: the semi-discrete wave operator then has eigenvalues
+    with Re λ ≈ 0.05 c/h.)  At a clamped end N = 0 and W = 0.  Solutions converge with
+    order 2 (fd2) and about 3 (fd4, boundary rows of order 2) on open axes.
 Frames
     Stepped at every node when a force needs them (``problem.needs_structure_field``) or
     when ``track_frames=True``.  Otherwise only the root node's frame is stepped and the
@@ -34,18 +40,20 @@ Frames
     ``Φ_{i+1} = Φ_i exp(h (X_i + X_{i+1})/2)`` along each axis in turn (second order in h,
     whatever the derivative operator).
 Initial strains
-    ``X_α(0) = Φ₀⁻¹ ∂_αΦ₀`` computed by the scheme's own difference operator (see
-    :meth:`Collocation.strain_from_frames`), so the integrability residual starts at
-    round-off.
+    ``X_α(0) = Φ₀⁻¹ ∂_αΦ₀`` by :meth:`Collocation.strain_from_frames`: the same interior
+    stencils, closed on open axes by one-sided stencils of the full order p, so X(0) is
+    O(hᵖ) accurate at every node and the integrability residual starts at round-off.
 
 What is exact and what is not
     Unlike the ``lattice`` scheme, the stored strains are independent unknowns: temporal
     integrability (stored X = Φ⁻¹∂_uΦ) holds only to the accuracy of the difference
     operator, and the residual grows by O(Δt·hᵖ) per step (a rate O(hᵖ) in time: the
     discrete ∂_u has no exact product rule).  Group membership of Φ is exact (round-off)
-    for the geometric integrators.  On periodic axes the central and spectral operators are
-    skew-symmetric, so the semi-discrete energy Σ_i w_i (K(N_i) + U(X_i)) is an exact
-    invariant of the semi-discrete system and ``lie-verlet`` keeps its error O(Δt²).
+    for the geometric integrators, and a spatially constant N is integrated exactly.  On
+    periodic axes the central and spectral operators are skew-symmetric, so the
+    semi-discrete energy Σ_i w_i (K(N_i) + U(X_i)) is an exact invariant of the
+    semi-discrete system (on open axes: with the SBP weights, up to the boundary power) and
+    ``lie-verlet`` keeps its error O(Δt²).
 """
 
 from __future__ import annotations
@@ -56,28 +64,45 @@ from typing import Any
 import numpy as np
 
 from ..problem import Clamped, Free, dead_to_body
-from .base import Scheme, State
-from .lattice import _scan_products
+from .base import Scheme, State, prefix_products
 
 __all__ = ["Collocation", "DerivativeOperator"]
 
 DERIVATIVES = ("fd2", "fd4", "fourier")
+_Row = tuple[int, tuple[int, ...], np.ndarray]  # (node, offsets, coefficients)
 
 # Finite-difference rows: (offsets relative to the node, coefficients × h).
 _INTERIOR = {
     "fd2": ((-1, 1), (-0.5, 0.5)),
     "fd4": ((-2, -1, 1, 2), (1 / 12, -8 / 12, 8 / 12, -1 / 12)),
 }
-# One-sided closures of the same order at the start of an open axis, one row per boundary
-# node; the end rows are their mirror images (offsets and coefficients negated).
-_START_ROWS = {
+# Rows at the start of an open axis, one per boundary node; the rows at the end are their
+# mirror images (offsets and coefficients negated).
+#
+# "one-sided": closures of the same order as the interior (accurate, but not stable in time:
+# with them the semi-discrete wave operator has eigenvalues with Re λ ≈ 0.05 c/h for fd4).
+# Used to compute strains from frames.
+_ONE_SIDED = {
     "fd2": [((0, 1, 2), (-1.5, 2.0, -0.5))],
     "fd4": [
         ((0, 1, 2, 3, 4), (-25 / 12, 48 / 12, -36 / 12, 16 / 12, -3 / 12)),
         ((-1, 0, 1, 2, 3), (-3 / 12, -10 / 12, 18 / 12, -6 / 12, 1 / 12)),
     ],
 }
-_MIN_NODES = {"fd2": (3, 3), "fd4": (5, 5), "fourier": (3, 0)}  # (periodic, open)
+# "sbp": diagonal-norm summation-by-parts closures (Kreiss & Scherer 1974; Strand 1994;
+# Mattsson & Nordström 2004), H D + (H D)ᵀ = diag(−1, 0, …, 0, 1) with the norm H below;
+# boundary rows of order p/2.  Used for the dynamics.
+_SBP = {
+    "fd2": [((0, 1), (-1.0, 1.0))],
+    "fd4": [
+        ((0, 1, 2, 3), (-24 / 17, 59 / 34, -4 / 17, -3 / 34)),
+        ((-1, 1), (-1 / 2, 1 / 2)),
+        ((-2, -1, 1, 2), (4 / 43, -59 / 86, 59 / 86, -4 / 43)),
+        ((-3, -1, 1, 2), (3 / 98, -59 / 98, 32 / 49, -4 / 49)),
+    ],
+}
+_SBP_NORM = {"fd2": (0.5,), "fd4": (17 / 48, 59 / 48, 43 / 48, 49 / 48)}
+_MIN_NODES = {"fd2": (3, 3), "fd4": (5, 8), "fourier": (3, 0)}  # (periodic, open)
 
 
 class DerivativeOperator:
@@ -91,8 +116,13 @@ class DerivativeOperator:
     h : float
         Node spacing.
     periodic : bool
-        Periodic axes wrap the central stencils around (or use the FFT); open axes use
-        one-sided stencils of the same order at the first and last ``order/2`` nodes.
+        Periodic axes wrap the central stencils around (or use the FFT).
+    closure : {"sbp", "one-sided"}
+        Rows at the ends of an open axis.  ``"one-sided"``: one-sided stencils of the
+        interior order p (the most accurate derivative of given data).  ``"sbp"``: the
+        diagonal-norm summation-by-parts closure, ``H D + (H D)ᵀ = diag(−1, 0, …, 0, 1)``
+        with the norm ``H`` of :meth:`norm` (boundary rows of order p/2); the discrete
+        integration by parts it provides is what makes the time evolution stable.
 
     Notes
     -----
@@ -103,9 +133,11 @@ class DerivativeOperator:
     (:meth:`Collocation.strain_from_frames`).
     """
 
-    def __init__(self, kind: str, n: int, h: float, periodic: bool):
+    def __init__(self, kind: str, n: int, h: float, periodic: bool, closure: str = "sbp"):
         if kind not in DERIVATIVES:
             raise ValueError(f"derivative must be one of {DERIVATIVES}, got {kind!r}")
+        if closure not in ("sbp", "one-sided"):
+            raise ValueError(f"closure must be 'sbp' or 'one-sided', got {closure!r}")
         if kind == "fourier" and not periodic:
             raise ValueError("derivative='fourier' needs periodic axes; use 'fd2' or 'fd4' on open axes")
         need = _MIN_NODES[kind][0 if periodic else 1]
@@ -114,7 +146,8 @@ class DerivativeOperator:
                 f"derivative={kind!r} needs at least {need} nodes on a {'periodic' if periodic else 'open'} "
                 f"axis, got {n}"
             )
-        self.kind, self.n, self.h, self.periodic = kind, int(n), float(h), bool(periodic)
+        self.kind, self.n, self.h = kind, int(n), float(h)
+        self.periodic, self.closure = bool(periodic), closure
         if kind == "fourier":
             k = 2.0 * np.pi * np.fft.rfftfreq(n, d=h)
             if n % 2 == 0:
@@ -123,10 +156,20 @@ class DerivativeOperator:
 
     @property
     def order(self) -> float:
-        """Order of accuracy (``math.inf`` for the spectral operator)."""
+        """Interior order of accuracy (``math.inf`` for the spectral operator)."""
         return {"fd2": 2, "fd4": 4}.get(self.kind, math.inf)
 
-    def rows(self) -> tuple[tuple[tuple[int, ...], np.ndarray], list[tuple[int, tuple[int, ...], np.ndarray]]]:
+    def _start_rows(self):
+        return (_SBP if self.closure == "sbp" else _ONE_SIDED)[self.kind]
+
+    @property
+    def halfwidth(self) -> int:
+        """Number of boundary rows at each end of an open axis (0 when periodic)."""
+        if self.periodic:
+            return 0
+        return len(self._start_rows())
+
+    def rows(self) -> tuple[tuple[tuple[int, ...], np.ndarray], list[_Row]]:
         """The finite-difference stencils, scaled by 1/h.
 
         Returns
@@ -134,7 +177,7 @@ class DerivativeOperator:
         interior : (offsets, coefficients)
             The central stencil (every node of a periodic axis).
         boundary : list of (node, offsets, coefficients)
-            One-sided rows of an open axis, ``node`` a non-negative index (empty when
+            The closure rows of an open axis, ``node`` a non-negative index (empty when
             periodic).
         """
         if self.kind == "fourier":
@@ -143,14 +186,20 @@ class DerivativeOperator:
         interior = (off, np.asarray(c) / self.h)
         boundary = []
         if not self.periodic:
-            for i, (o, cc) in enumerate(_START_ROWS[self.kind]):
+            for i, (o, cc) in enumerate(self._start_rows()):
                 boundary.append((i, o, np.asarray(cc) / self.h))
                 boundary.append((self.n - 1 - i, tuple(-x for x in o), -np.asarray(cc) / self.h))
         return interior, boundary
 
-    @property
-    def halfwidth(self) -> int:
-        return len(_START_ROWS[self.kind]) if self.kind in _START_ROWS else 0
+    def norm(self) -> np.ndarray:
+        """Quadrature weights along the axis ``(n,)``: h on periodic axes; on open axes the
+        SBP norm H (trapezoidal for fd2; (17, 59, 43, 49)/48·h at the ends for fd4)."""
+        w = np.full(self.n, self.h)
+        if not self.periodic:
+            ends = np.asarray(_SBP_NORM[self.kind]) * self.h
+            w[: len(ends)] = ends
+            w[self.n - len(ends):] = ends[::-1]
+        return w
 
     def __call__(self, a: np.ndarray, axis: int = 0) -> np.ndarray:
         """∂a along ``axis`` of ``a`` (same shape)."""
@@ -163,13 +212,13 @@ class DerivativeOperator:
         (off, c), boundary = self.rows()
         n = self.n
         if self.periodic:
-            out = sum(ck * np.roll(A, -o, axis=0) for o, ck in zip(off, c))
+            out = sum(ck * np.roll(A, -o, axis=0) for o, ck in zip(off, c, strict=True))
         else:
             b = self.halfwidth
             out = np.empty_like(A)
-            out[b : n - b] = sum(ck * A[b + o : n - b + o] for o, ck in zip(off, c))
+            out[b : n - b] = sum(ck * A[b + o : n - b + o] for o, ck in zip(off, c, strict=True))
             for i, o_row, c_row in boundary:
-                out[i] = sum(ck * A[i + o] for o, ck in zip(o_row, c_row))
+                out[i] = sum(ck * A[i + o] for o, ck in zip(o_row, c_row, strict=True))
         return np.moveaxis(out, 0, axis)
 
     def matrix(self) -> np.ndarray:
@@ -190,11 +239,21 @@ class Collocation(Scheme):
         Step Φ at every node (default: only when a force needs it).  Needed to measure the
         temporal integrability residual.
 
+    Attributes
+    ----------
+    D : list of DerivativeOperator
+        Per axis, the operator of the dynamics (SBP closures on open axes).
+    D_strain : list of DerivativeOperator
+        Per axis, the operator of :meth:`strain_from_frames` (one-sided closures of full
+        order on open axes; the same as ``D`` on periodic axes).
+    order : float
+        Interior order p of the derivative (``math.inf`` for Fourier).
+
     Raises
     ------
     ValueError
         For an unknown ``derivative``, ``"fourier"`` on an open axis, or too few nodes for
-        the stencil.
+        the stencil (fd2: 3; fd4: 5 periodic, 8 open).
     """
 
     name = "collocation"
@@ -202,20 +261,38 @@ class Collocation(Scheme):
 
     def __init__(self, problem, derivative: str = "fd2", track_frames: bool | None = None):
         super().__init__(problem)
+        if problem.initial.holonomy is not None:
+            raise ValueError(
+                "the collocation scheme supports closed periodic axes only (no initial.holonomy); "
+                "use the lattice scheme for a periodic axis with a non-trivial holonomy"
+            )
         if not isinstance(derivative, str) or derivative not in DERIVATIVES:
             raise ValueError(f"derivative must be one of {DERIVATIVES}, got {derivative!r}")
         self.derivative = derivative
         self.track = problem.needs_structure_field if track_frames is None else bool(track_frames)
-        self.h = self.grid.spacing
-        self.D = [DerivativeOperator(derivative, n, h, p)
-                  for n, h, p in zip(self.grid.shape, self.h, self.grid.periodic)]
+        grid = self.grid
+        d = grid.d
+        self.h = grid.spacing
+        axes = list(zip(grid.shape, self.h, grid.periodic, strict=True))
+        self.D = [DerivativeOperator(derivative, n, h, p, closure="sbp") for n, h, p in axes]
+        self.D_strain = [D if D.periodic else DerivativeOperator(derivative, n, h, p, closure="one-sided")
+                         for D, (n, h, p) in zip(self.D, axes, strict=True)]
         self.order = self.D[0].order
-        d = self.grid.d
-        # Natural boundary conditions: (axis, node index, sign n_α, Free) for every free end.
-        self._free_ends: list[tuple[int, tuple, float, Free]] = []
-        self._end_loads: list[tuple[tuple, Free, float]] = []  # (index, Free, face weight)
+        # quadrature weights: tensor product of the per-axis norms (the SBP norm H on open
+        # axes, so that Σ w (K + U) is the energy the semi-discrete system conserves)
+        norms = [D.norm() for D in self.D]
+        w = np.ones(grid.shape)
+        for axis, wa in enumerate(norms):
+            shape = [1] * d
+            shape[axis] = grid.shape[axis]
+            w = w * wa.reshape(shape)
+        self.weights = w
+        # natural boundary conditions n_α Q^α = P: (axis, node index, n_α, H_α at the end,
+        # Free, face weight) for every free end; the face weight integrates a traction over
+        # the other axes (1 for d = 1).
+        self._free_ends: list[tuple[int, tuple, float, float, Free, np.ndarray]] = []
         for axis in range(d):
-            if self.grid.periodic[axis]:
+            if grid.periodic[axis]:
                 continue
             for side, idx, sign in (("start", 0, -1.0), ("end", -1, 1.0)):
                 b = problem.boundary(axis, side)
@@ -223,26 +300,28 @@ class Collocation(Scheme):
                     continue
                 sl = [slice(None)] * d
                 sl[axis] = idx
-                self._free_ends.append((axis, tuple(sl), sign, b))
-                if b.load is not None:
-                    face = self.weights[tuple(sl)] / (0.5 * self.h[axis])
-                    self._end_loads.append((tuple(sl), b, face))
+                H_end = float(norms[axis][idx])
+                face = w[tuple(sl)] / H_end
+                self._free_ends.append((axis, tuple(sl), sign, H_end, b, face))
+        # loaded ends, the attribute the integrators look for to book external work
+        self._end_loads = [e for e in self._free_ends if e[4].load is not None]
 
     def options(self) -> dict[str, Any]:
         return {"derivative": self.derivative, "track_frames": self.track}
 
     # ------------------------------------------------------------------ strains from frames
     def strain_from_frames(self, Phi: np.ndarray, check: bool = False) -> np.ndarray:
-        """Nodal strains ``X_α = Φ⁻¹∂_αΦ`` of a frame field by the scheme's operator.
+        """Nodal strains ``X_α = Φ⁻¹∂_αΦ`` of a frame field, O(hᵖ) at every node.
 
-        Finite differences act in the local logarithmic chart of each node: with the
-        stencil ``(o_k, c_k)`` of node i, ``X_i = Σ_k c_k log(Φ_i⁻¹Φ_{i+o_k})`` — the
-        stencil applied to the smooth curve s ↦ log(Φ(u_i)⁻¹Φ(u_i + s)), whose derivative
-        at s = 0 is X(u_i).  The result lies in 𝔤 exactly and is equivariant under rigid
-        motions on either side (Φ → gΦ and Φ → Φg for constant g) to round-off; its error
-        is O(hᵖ).  The spectral operator is global, so it acts on the matrix entries
-        instead, and the result is projected to the algebra by ``vee``:
-        ``X = vee(Φ⁻¹ D Φ)`` (spectrally accurate for smooth periodic frames).
+        Uses :attr:`D_strain`: on open axes the finite-difference stencils are closed by
+        one-sided stencils of the interior order p.  Finite differences act in the local
+        logarithmic chart of each node: with the stencil ``(o_k, c_k)`` of node i,
+        ``X_i = Σ_k c_k log(Φ_i⁻¹Φ_{i+o_k})`` — the stencil applied to the smooth curve
+        s ↦ log(Φ(u_i)⁻¹Φ(u_i + s)), whose derivative at s = 0 is X(u_i).  The result lies
+        in 𝔤 exactly and is equivariant under rigid motions on either side (Φ → gΦ and
+        Φ → Φg for constant g) to round-off.  The spectral operator is global, so it acts
+        on the matrix entries instead and the result is projected to the algebra by
+        ``vee``: ``X = vee(Φ⁻¹ D Φ)`` (spectrally accurate for smooth periodic frames).
 
         Parameters
         ----------
@@ -260,10 +339,9 @@ class Collocation(Scheme):
         Phi_inv = g.inverse(Phi)
         out = np.empty((*self.grid.shape, self.grid.d, g.dim))
         worst = 0.0
-        for axis, D in enumerate(self.D):
+        for axis, D in enumerate(self.D_strain):
             if D.kind == "fourier":
-                dPhi = D(Phi, axis=axis)
-                out[..., axis, :] = g.vee(Phi_inv @ dPhi)
+                out[..., axis, :] = g.vee(Phi_inv @ D(Phi, axis=axis))
                 if check:
                     nxt = np.roll(Phi, -1, axis=axis)
                     worst = max(worst, float(np.max(g.log_domain_norm(g.log(g.compose(Phi_inv, nxt))))))
@@ -273,29 +351,21 @@ class Collocation(Scheme):
             X = np.zeros((*P.shape[:-2], g.dim))
             (off, c), boundary = D.rows()
             n = D.n
-
-            def rel(i_sl, j_sl, _P=P, _Pi=Pi):
-                xi = g.log(g.compose(_Pi[i_sl], _P[j_sl]))
-                return xi, float(np.max(g.log_domain_norm(xi))) if xi.size else 0.0
-
+            terms = []  # (target rows, coefficient, source rows i, source rows i + o)
             if D.periodic:
-                for o, ck in zip(off, c):
-                    xi, w = rel(slice(None), np.roll(np.arange(n), -o))
-                    X += ck * xi
-                    worst = max(worst, w)
+                for o, ck in zip(off, c, strict=True):
+                    terms.append((slice(None), ck, slice(None), np.roll(np.arange(n), -o)))
             else:
                 b = D.halfwidth
-                for o, ck in zip(off, c):
-                    xi, w = rel(slice(b, n - b), slice(b + o, n - b + o))
-                    X[b : n - b] += ck * xi
-                    worst = max(worst, w)
+                for o, ck in zip(off, c, strict=True):
+                    terms.append((slice(b, n - b), ck, slice(b, n - b), slice(b + o, n - b + o)))
                 for i, o_row, c_row in boundary:
-                    for o, ck in zip(o_row, c_row):
-                        if o == 0:
-                            continue
-                        xi, w = rel(i, i + o)
-                        X[i] += ck * xi
-                        worst = max(worst, w)
+                    terms.extend((i, ck, i, i + o) for o, ck in zip(o_row, c_row, strict=True) if o != 0)
+            for target, ck, i_sl, j_sl in terms:
+                xi = g.log(g.compose(Pi[i_sl], P[j_sl]))
+                X[target] += ck * xi
+                if check and xi.size:
+                    worst = max(worst, float(np.max(g.log_domain_norm(xi))))
             out[..., axis, :] = np.moveaxis(X, 0, axis)
         if check and worst > 0.9 * g.injectivity_radius:
             raise ValueError(
@@ -306,6 +376,7 @@ class Collocation(Scheme):
 
     # ------------------------------------------------------------------ state
     def initial_state(self) -> State:
+        """X₀ = Φ₀⁻¹∂Φ₀ by :meth:`strain_from_frames`, S₀ = ∂K/∂N(N₀), frames as configured."""
         Phi = self.problem.initial.Phi
         arrays: dict[str, np.ndarray] = {"X": self.strain_from_frames(Phi, check=True)}
         if self.track:
@@ -322,36 +393,36 @@ class Collocation(Scheme):
         return state.arrays["X"]
 
     def nodal_strains(self, state: State) -> np.ndarray:
+        """The stored nodal strains ``[*shape, d, r]`` (the scheme's unknowns)."""
         return state.arrays["X"]
 
     # ------------------------------------------------------------------ forces
-    def _boundary_loads(self, Phi: np.ndarray | None, b: Free, idx: tuple) -> np.ndarray:
+    def _end_load(self, Phi: np.ndarray | None, b: Free, idx: tuple) -> np.ndarray:
+        """Body components of the load P of a free end (dead loads rotated by Φ there)."""
+        shape = (*self.weights[idx].shape, self.group.dim)
+        if b.load is None:
+            return np.zeros(shape)
         if b.follower:
-            return np.broadcast_to(b.load, (*self.weights[idx].shape, self.group.dim))
+            return np.broadcast_to(b.load, shape)
         return dead_to_body(self.group, Phi[idx], b.load)
 
-    def boundary_stress(self, state: State, Phi: np.ndarray | None = None) -> np.ndarray:
-        """Nodal stresses Q^α ``[*shape, d, r]`` with the natural boundary values imposed:
-        at a free end of axis α the component Q^α is replaced by n_α P (paper §IV.D)."""
-        Q = np.array(self.medium.stress(state.arrays["X"]), dtype=float)
-        for axis, idx, sign, b in self._free_ends:
-            Qa = Q[..., axis, :]
-            if b.load is None:
-                Qa[idx] = 0.0
-            else:
-                Qa[idx] = sign * self._boundary_loads(Phi, b, idx)
-        return Q
-
     def internal_force(self, state: State, Phi: np.ndarray | None = None) -> np.ndarray:
-        """``D*_α Q^α = Σ_α ∂_αQ^α − ad_{X_α}ᵀ Q^α`` at the nodes ``[*shape, r]`` (a density)."""
+        """``D*_α Q^α = Σ_α ∂_αQ^α − ad_{X_α}ᵀ Q^α`` plus the boundary terms ``[*shape, r]``.
+
+        At a free end of axis α the natural condition n_α Q^α = P enters as the
+        simultaneous-approximation term ``(P − n_α Q^α)/H_end`` (H_end the end weight of
+        the axis); ``Phi`` is needed only for dead end loads.
+        """
         g = self.group
         X = state.arrays["X"]
-        Q = self.boundary_stress(state, Phi)
+        Q = self.medium.stress(X)
         W = np.zeros((*self.grid.shape, g.dim))
         for axis, D in enumerate(self.D):
             Qa = Q[..., axis, :]
             W += D(Qa, axis=axis)
             W -= np.einsum("...ji,...j->...i", g.ad(X[..., axis, :]), Qa)
+        for axis, idx, sign, H_end, b, _ in self._free_ends:
+            W[idx] += (self._end_load(Phi, b, idx) - sign * Q[idx][..., axis, :]) / H_end
         return W
 
     def force(self, state: State, N: np.ndarray, t: float) -> np.ndarray:
@@ -368,8 +439,8 @@ class Collocation(Scheme):
 
     def _boundary_power(self, state, N, Phi):
         p = 0.0
-        for idx, b, face in self._end_loads:
-            P = self._boundary_loads(Phi, b, idx)
+        for _, idx, _, _, b, face in self._end_loads:
+            P = self._end_load(Phi, b, idx)
             p += float(np.sum(face * np.einsum("...k,...k->...", P, N[idx])))
         return p
 
@@ -381,26 +452,25 @@ class Collocation(Scheme):
         N = np.asarray(N, dtype=float)
         if exact:
             # paper §V: X⁺ = Ad_{exp(−τN)} X + 𝓔(τ, −N) ∂N, Φ⁺ = Φ exp(τN)
-            D = g.exp(tau * N)
-            Ad = g.Ad(g.inverse(D))
+            expN = g.exp(tau * N)
+            Ad = g.Ad(g.inverse(expN))
             E = g.E(tau, -N)
             Xn = np.empty_like(X)
-            for axis, Dop in enumerate(self.D):
-                dN = Dop(N, axis=axis)
+            for axis, D in enumerate(self.D):
                 Xn[..., axis, :] = (np.einsum("...ij,...j->...i", Ad, X[..., axis, :])
-                                    + np.einsum("...ij,...j->...i", E, dN))
+                                    + np.einsum("...ij,...j->...i", E, D(N, axis=axis)))
             arr["X"] = Xn
             if "Phi" in arr:
-                arr["Phi"] = g.compose(arr["Phi"], D)
+                arr["Phi"] = g.compose(arr["Phi"], expN)
             else:
                 root = (0,) * self.grid.d
-                arr["Phi_root"] = g.compose(arr["Phi_root"], D[root])
+                arr["Phi_root"] = g.compose(arr["Phi_root"], expN[root])
             return
         # naive Euler: X ← X + τ(∂N − ad_N X), Φ ← Φ + τΦN̂ (leaves the group)
         Xn = np.empty_like(X)
-        for axis, Dop in enumerate(self.D):
+        for axis, D in enumerate(self.D):
             Xa = X[..., axis, :]
-            Xn[..., axis, :] = Xa + tau * (Dop(N, axis=axis) - g.bracket(N, Xa))
+            Xn[..., axis, :] = Xa + tau * (D(N, axis=axis) - g.bracket(N, Xa))
         arr["X"] = Xn
         Nh = g.hat(tau * N)
         if "Phi" in arr:
@@ -413,7 +483,7 @@ class Collocation(Scheme):
     def frames(self, state: State) -> np.ndarray:
         """Φ ``[*shape, m, m]``: the stepped frames, or the trapezoidal reconstruction
         ``Φ_{i+1} = Φ_i exp(h(X_i + X_{i+1})/2)`` from the root node, axis by axis
-        (second order in h)."""
+        (second order in h whatever the derivative operator)."""
         if "Phi" in state.arrays:
             return state.arrays["Phi"]
         g = self.group
@@ -425,11 +495,12 @@ class Collocation(Scheme):
             sl = tuple([slice(None)] * (axis + 1) + [0] * (d - axis - 1))
             Xa = np.moveaxis(X[sl][..., axis, :], axis, 0)
             steps = g.exp(0.5 * self.h[axis] * (Xa[:-1] + Xa[1:]))
-            P = np.moveaxis(_scan_products(g, P, steps), 0, axis)
+            P = np.moveaxis(prefix_products(P, steps), 0, axis)
         return P
 
     def potential_energy(self, state: State) -> float:
-        """``Σ_i w_i U(X_i)`` (trapezoidal weights) plus conservative-load energies."""
+        """``Σ_i w_i U(X_i)`` plus conservative-load energies; w the scheme's quadrature
+        weights (:attr:`weights`: trapezoidal, except the SBP norm on open fd4 axes)."""
         V = float(np.sum(self.weights * self.medium.potential(state.arrays["X"])))
         conservative = [load for load in self.problem.loads if load.conservative]
         if conservative:
@@ -441,13 +512,14 @@ class Collocation(Scheme):
     def integrability_residual(self, state: State) -> float:
         """Temporal integrability residual (VERIFICATION.md §1).
 
-        With stepped frames: ``max |X(stored) − X(Φ)|`` with X(Φ) from
-        :meth:`strain_from_frames` (the same difference operator).  It is round-off at
-        t = 0 (the initial strains are computed that way) and grows by O(Δt·hᵖ) per step —
-        O(hᵖ) per unit time — because the discrete ∂ has no exact product rule; the growth is
-        the quantity of interest (``lattice``: round-off).  Without stepped frames the field
-        is rebuilt from X, so the only check left is the ring closure of periodic axes
-        (:meth:`closure_residual`).
+        With stepped frames: ``max_i |X_i(stored) − X_i(Φ)|`` with X(Φ) from
+        :meth:`strain_from_frames`.  It is round-off at t = 0 (the initial strains are
+        computed that way) and grows by O(Δt·hᵖ) per step — a rate O(hᵖ) per unit time,
+        independent of Δt — because the discrete ∂ has no exact product rule (near open
+        ends the rate is set by the order p/2 of the boundary rows of the dynamics).  The
+        growth is the quantity of interest; ``lattice`` keeps it at round-off.  Without
+        stepped frames Φ is rebuilt from X, so the only check left is the ring closure of
+        periodic axes (:meth:`closure_residual`).
         """
         if "Phi" not in state.arrays:
             return self.closure_residual(state)

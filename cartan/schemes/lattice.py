@@ -33,24 +33,9 @@ from typing import Any
 import numpy as np
 
 from ..problem import Free, dead_to_body
-from .base import Scheme, State
+from .base import Scheme, State, prefix_products
 
 __all__ = ["Lattice"]
-
-
-def _scan_products(group, first: np.ndarray, steps: np.ndarray) -> np.ndarray:
-    """Prefix products ``P_0 = first, P_{k+1} = P_k steps_k`` along axis 0 by doubling.
-
-    ``first`` ``[..., m, m]``, ``steps`` ``[n−1, ..., m, m]`` → ``[n, ..., m, m]``
-    (Hillis–Steele scan: ⌈log₂ n⌉ batched products instead of n sequential ones).
-    """
-    acc = np.concatenate([first[None], steps], axis=0)
-    n = acc.shape[0]
-    shift = 1
-    while shift < n:
-        acc[shift:] = acc[:-shift] @ acc[shift:]
-        shift *= 2
-    return acc
 
 
 class Lattice(Scheme):
@@ -58,6 +43,7 @@ class Lattice(Scheme):
 
     name = "lattice"
     order = 2
+    strain_location = "edge"
 
     def __init__(self, problem, track_frames: bool | None = None):
         super().__init__(problem)
@@ -114,9 +100,13 @@ class Lattice(Scheme):
         Phi = self.problem.initial.Phi
         arrays: dict[str, np.ndarray] = {}
         Phi_inv = g.inverse(Phi)
+        H = self.problem.initial.holonomy
         for axis in range(self.grid.d):
             inv_tail, _ = self._ends(Phi_inv, axis)
             _, head = self._ends(Phi, axis)
+            if H is not None and self.grid.periodic[axis]:
+                head = head.copy()
+                head[-1] = g.compose(H, head[-1])
             G = g.compose(inv_tail, head)
             arrays[self._key(axis)] = G
             xi = g.log(G)
@@ -238,7 +228,7 @@ class Lattice(Scheme):
         G = state.arrays[self._key(0)]
         if self.grid.periodic[0]:
             G = G[:-1]
-        return _scan_products(self.group, state.arrays["Phi_root"], G)
+        return prefix_products(state.arrays["Phi_root"], G)
 
     def potential_energy(self, state: State) -> float:
         V = 0.0
@@ -270,9 +260,15 @@ class Lattice(Scheme):
         return res
 
     def closure_residual(self, state: State) -> float:
-        """Ring closure ‖log ∏_e G_e‖ around every periodic axis (0 when none is periodic)."""
+        """Ring closure ‖log(B⁻¹ ∏_e G_e)‖ around every periodic axis, with B = Φ₀⁻¹HΦ₀ the
+        body holonomy (identity for a closed rod); 0 when no axis is periodic."""
         g = self.group
         res = 0.0
+        H = self.problem.initial.holonomy
+        B = None
+        if H is not None:
+            root = self.frames(state)[0] if "Phi" in state.arrays else state.arrays["Phi_root"]
+            B = g.compose(g.inverse(root), g.compose(H, root))
         for axis in range(self.grid.d):
             if not self.grid.periodic[axis]:
                 continue
@@ -280,5 +276,7 @@ class Lattice(Scheme):
             prod = G[0]
             for k in range(1, G.shape[0]):
                 prod = prod @ G[k]
+            if B is not None:
+                prod = g.compose(g.inverse(B), prod)
             res = max(res, float(np.max(np.abs(g.log(prod)))))
         return res

@@ -35,8 +35,9 @@ Constitutive law (quadratic, uncoupled)
 
 For the circular cross-section of radius a: ``A = πa²``, ``I = πa⁴/4``, ``J = 2I``.  The
 shear correction coefficient α_c defaults to 27/28, the value PyElastica uses for a
-circular cross-section (Timoshenko's 6(1+ν)/(7+6ν) at ν = 1/2 equals 9/10; 27/28 is the
-Cowper-style value adopted by PyElastica's examples).  The stress is the exact gradient
+circular cross-section (Kaneko's 1975 best fit for Poisson ratio 1/2); pass
+``shear_coefficient`` for another choice (e.g. 4/3 or Cowper's 6(1+ν)/(7+6ν)).  The stress
+is the exact gradient
 ``F = 𝕊(θ − θ₀)``, ``M = 𝔹(π − π₀)``.
 
 Planar rods
@@ -57,12 +58,14 @@ Loads
 
 from __future__ import annotations
 
+import inspect
 import math
 from typing import Any, ClassVar
 
 import numpy as np
 
 import cartan
+from cartan.grid import Grid
 from cartan.groups.se2 import SE2
 from cartan.medium import Medium, check_finite, check_positive
 from cartan.problem import InitialState, PotentialLoad
@@ -84,6 +87,26 @@ DEFAULT_SHEAR_COEFFICIENT = 27.0 / 28.0
 PLANAR_COMPONENTS = (0, 1, 5)
 
 _MATERIAL_KEYS = ("E", "G", "poisson", "radius", "density", "shear_coefficient")
+
+
+def _positive(name: str, value: Any, **kw: Any) -> np.ndarray:
+    """:func:`cartan.medium.check_positive` that also names ``name`` for non-numeric input."""
+    try:
+        return check_positive(name, value, **kw)
+    except (TypeError, ValueError) as exc:
+        if name in str(exc):
+            raise
+        raise ValueError(f"{name} must be a real number or array, got {value!r}") from None
+
+
+def _finite(name: str, value: Any, shape: tuple | None = None) -> np.ndarray:
+    """:func:`cartan.medium.check_finite` that also names ``name`` for non-numeric input."""
+    try:
+        return check_finite(name, value, shape)
+    except (TypeError, ValueError) as exc:
+        if name in str(exc):
+            raise
+        raise ValueError(f"{name} must be a real number or array, got {value!r}") from None
 
 
 # ====================================================================== planar frame space
@@ -158,10 +181,10 @@ class Gravity(PotentialLoad):
     """
 
     def __init__(self, g: Any, mass: float):
-        self.g = check_finite("g", g)
+        self.g = _finite("g", g)
         if self.g.ndim != 1 or self.g.shape[0] not in (2, 3):
             raise ValueError(f"g must be a vector of 2 or 3 components, got shape {self.g.shape}")
-        self.mass = float(check_positive("mass", mass))
+        self.mass = float(_positive("mass", mass))
 
     def bind(self, medium: Medium) -> None:
         super().bind(medium)
@@ -210,7 +233,7 @@ class _Rod(Medium):
     material_dim: ClassVar[int] = 1
     load_kinds: ClassVar[tuple[str, ...]] = ("gravity",)
     #: True for the SE(2) rod (2-vectors for positions, directions, g)
-    planar: ClassVar[bool] = False
+    _is_planar: ClassVar[bool] = False
 
     # per-class layout: names and shapes of the direct form
     _direct_shapes: ClassVar[dict[str, tuple]] = {}
@@ -221,8 +244,9 @@ class _Rod(Medium):
         direct = [k for k in given if k in self._direct_shapes]
         if material and direct:
             raise ValueError(
-                f"{self.name}: give either the material form ({', '.join(_MATERIAL_KEYS)}) or the direct "
-                f"stiffness form ({', '.join(self._direct_shapes)}), not both (got {sorted(material + direct)})"
+                f"{self.name}: give either the material form ({', '.join(_MATERIAL_KEYS)}) or the "
+                f"direct stiffness form ({', '.join(self._direct_shapes)}), not both "
+                f"(got {sorted(material + direct)})"
             )
         if material:
             stiff, inertia = self._material(given)
@@ -235,9 +259,7 @@ class _Rod(Medium):
             )
         r = self.group.dim
         kappa_shape = (3,) if r == 6 else ()
-        kappa = check_finite(
-            "rest_curvature", given.get("rest_curvature", np.zeros(kappa_shape)), kappa_shape
-        )
+        kappa = _finite("rest_curvature", given.get("rest_curvature", np.zeros(kappa_shape)), kappa_shape)
         X0 = np.zeros((1, r))
         X0[0, 0] = 1.0
         X0[0, (3 if r == 6 else 2) :] = kappa
@@ -250,21 +272,24 @@ class _Rod(Medium):
     def _material(self, p: dict[str, Any]) -> tuple[np.ndarray, np.ndarray]:
         for key in ("E", "radius", "density"):
             if key not in p:
-                raise ValueError(f"{self.name}: the material form needs {key!r} (E, G or poisson, radius, density)")
-        E = float(check_positive("E", p["E"], shape=()))
-        a = float(check_positive("radius", p["radius"], shape=()))
-        rho = float(check_positive("density", p["density"], shape=()))
+                raise ValueError(
+                    f"{self.name}: the material form needs {key!r} (E, G or poisson, radius, density)"
+                )
+        E = float(_positive("E", p["E"], shape=()))
+        a = float(_positive("radius", p["radius"], shape=()))
+        rho = float(_positive("density", p["density"], shape=()))
         if ("G" in p) == ("poisson" in p):
             raise ValueError(f"{self.name}: give exactly one of 'G' (shear modulus) and 'poisson'")
         if "G" in p:
-            G = float(check_positive("G", p["G"], shape=()))
+            G = float(_positive("G", p["G"], shape=()))
         else:
-            nu = float(check_finite("poisson", p["poisson"], ()))
+            nu = float(_finite("poisson", p["poisson"], ()))
             if not -1.0 < nu <= 0.5:
                 raise ValueError(f"poisson must be in (−1, 0.5], got {p['poisson']!r}")
             G = E / (2.0 * (1.0 + nu))
-        alpha = float(check_positive("shear_coefficient", p.get("shear_coefficient", DEFAULT_SHEAR_COEFFICIENT),
-                                     shape=()))
+        alpha = float(
+            _positive("shear_coefficient", p.get("shear_coefficient", DEFAULT_SHEAR_COEFFICIENT), shape=())
+        )
         A = math.pi * a * a
         I = math.pi * a**4 / 4.0
         J = 2.0 * I
@@ -278,11 +303,13 @@ class _Rod(Medium):
     def _direct(self, p: dict[str, Any]) -> tuple[np.ndarray, np.ndarray]:
         missing = [k for k in self._direct_shapes if k not in p]
         if missing:
-            raise ValueError(f"{self.name}: the direct stiffness form also needs {', '.join(map(repr, missing))}")
+            raise ValueError(
+                f"{self.name}: the direct stiffness form also needs {', '.join(map(repr, missing))}"
+            )
         vals = {}
         for key, shape in self._direct_shapes.items():
             positive_only = key in ("mass", "rotational_inertia")
-            vals[key] = check_positive(key, p[key], allow_zero=not positive_only, shape=shape)
+            vals[key] = _positive(key, p[key], allow_zero=not positive_only, shape=shape)
         return self._assemble_direct(vals)
 
     def _assemble_direct(self, v: dict[str, np.ndarray]) -> tuple[np.ndarray, np.ndarray]:
@@ -373,23 +400,33 @@ class _Rod(Medium):
             "helix": self._helix,
             "arrays": self._arrays,
         }
-        if kind not in builders or (kind == "helix" and self.planar):
+        if kind not in builders or (kind == "helix" and self._is_planar):
             return super().initial_state(grid, kind, **params)
         periodic = grid.periodic[0]
         if kind == "ring" and not periodic:
             raise ValueError("initial kind 'ring' needs a periodic grid (a closed rod)")
-        if kind in ("straight", "arc", "helix") and periodic:
+        build = builders[kind]
+        accepted = [p for p in inspect.signature(build).parameters if p != "grid"]
+        unknown = sorted(set(params) - set(accepted))
+        if unknown:
             raise ValueError(
-                f"initial kind {kind!r} does not close up, and a periodic grid needs a closed shape "
-                "('ring', or 'arrays' that close): InitialState carries no holonomy for the closing edge"
+                f"initial kind {kind!r} takes no parameter(s) {', '.join(map(repr, unknown))}; accepted: "
+                f"{', '.join([*accepted, 'velocity', 'rigid_velocity', 'center'])}"
             )
-        try:
-            pos, frames = builders[kind](grid, **params)
-        except TypeError as exc:
-            raise ValueError(f"initial kind {kind!r}: {exc}") from None
-        Phi = self._assemble(pos, frames)
+        holonomy = None
+        if periodic and kind in ("straight", "arc", "helix"):
+            # an open shape on a periodic grid: build one more node at u = L on an open grid of
+            # the same spacing; the holonomy H = Φ(L)Φ(0)⁻¹ closes the last edge (Φ(u+L) = HΦ(u))
+            n, L = grid.shape[0], grid.length[0]
+            pos, frames = build(Grid(n + 1, length=L), **params)  # open, same spacing L/n
+            ext = self._assemble(pos, frames)
+            holonomy = ext[-1] @ self.group.inverse(ext[0])
+            Phi = ext[:-1].copy()
+        else:
+            pos, frames = build(grid, **params)
+            Phi = self._assemble(pos, frames)
         N = self._velocities(grid, Phi, velocity, rigid, center)
-        return InitialState(Phi=Phi, N=N)
+        return InitialState(Phi=Phi, N=N, holonomy=holonomy)
 
     # geometry builders: positions (n, 3), frames (n, 3, 3) with directors as columns
     def _straight(self, grid, direction=None, normal=None, origin=None, stretch=1.0):
@@ -397,7 +434,7 @@ class _Rod(Medium):
         d = self._vec3("direction", direction, (1.0, 0.0, 0.0))
         d = d / _norm_checked("direction", d)
         o = self._vec3("origin", origin, (0.0, 0.0, 0.0))
-        lam = float(check_positive("stretch", stretch, shape=()))
+        lam = float(_positive("stretch", stretch, shape=()))
         nrm = _perpendicular(d) if normal is None else self._vec3("normal", normal, None)
         pos = o + lam * s[:, None] * d
         frames = _frames_from(np.broadcast_to(d, pos.shape), np.broadcast_to(nrm, pos.shape))
@@ -405,16 +442,16 @@ class _Rod(Medium):
 
     def _ring(self, grid, radius=None, origin=None, amplitude=0.0, mode=2, out_of_plane=0.0, phase=0.0):
         n, L = grid.shape[0], grid.length[0]
-        R = L / (2 * math.pi) if radius is None else float(check_positive("radius", radius, shape=()))
+        R = L / (2 * math.pi) if radius is None else float(_positive("radius", radius, shape=()))
         o = self._vec3("origin", origin, (0.0, 0.0, 0.0))
-        eps = float(check_finite("amplitude", amplitude, ()))
-        zeta = float(check_finite("out_of_plane", out_of_plane, ()))
-        if self.planar and zeta != 0.0:
+        eps = float(_finite("amplitude", amplitude, ()))
+        zeta = float(_finite("out_of_plane", out_of_plane, ()))
+        if self._is_planar and zeta != 0.0:
             raise ValueError("out_of_plane must be 0 for a planar rod")
         if int(mode) != mode or mode < 1:
             raise ValueError(f"mode must be an integer ≥ 1, got {mode!r}")
         m = int(mode)
-        ph = float(check_finite("phase", phase, ()))
+        ph = float(_finite("phase", phase, ()))
         phi = 2 * math.pi * np.arange(n) / n
         c, s = np.cos(phi), np.sin(phi)
         rho = R * (1.0 + eps * np.cos(m * phi + ph))
@@ -428,8 +465,8 @@ class _Rod(Medium):
 
     def _arc(self, grid, curvature=0.0, origin=None, angle=0.0, centered=False):
         s = grid.coordinates(0)
-        k = float(check_finite("curvature", curvature, ()))
-        a0 = float(check_finite("angle", angle, ()))
+        k = float(_finite("curvature", curvature, ()))
+        a0 = float(_finite("angle", angle, ()))
         o = self._vec3("origin", origin, (0.0, 0.0, 0.0))
         if centered:
             s = s - 0.5 * grid.length[0]
@@ -447,8 +484,8 @@ class _Rod(Medium):
     def _helix(self, grid, radius=None, pitch=None, origin=None):
         if radius is None or pitch is None:
             raise ValueError("initial kind 'helix' needs 'radius' and 'pitch'")
-        a = float(check_positive("radius", radius, shape=()))
-        b = float(check_finite("pitch", pitch, ())) / (2 * math.pi)
+        a = float(_positive("radius", radius, shape=()))
+        b = float(_finite("pitch", pitch, ())) / (2 * math.pi)
         o = self._vec3("origin", origin, (0.0, 0.0, 0.0))
         c = math.hypot(a, b)
         t = grid.coordinates(0) / c
@@ -460,11 +497,11 @@ class _Rod(Medium):
 
     def _arrays(self, grid, positions=None, frames=None):
         n = grid.shape[0]
-        k = 2 if self.planar else 3
+        k = 2 if self._is_planar else 3
         if positions is None or frames is None:
             raise ValueError("initial kind 'arrays' needs 'positions' and 'frames'")
-        pos = check_finite("positions", positions, (n, k))
-        E = check_finite("frames", frames, (n, k, k))
+        pos = _finite("positions", positions, (n, k))
+        E = _finite("frames", frames, (n, k, k))
         defect = np.linalg.norm(np.swapaxes(E, -1, -2) @ E - np.eye(k), axis=(-2, -1))
         det = np.linalg.det(E)
         if np.any(defect > 1e-8) or np.any(np.abs(det - 1.0) > 1e-8):
@@ -481,8 +518,8 @@ class _Rod(Medium):
         """A spatial vector parameter; planar rods accept 2 components (z = 0)."""
         if value is None:
             return np.array(default, dtype=float)
-        k = 2 if self.planar else 3
-        v = check_finite(name, value, (k,))
+        k = 2 if self._is_planar else 3
+        v = _finite(name, value, (k,))
         return np.append(v, 0.0) if k == 2 else v
 
     # ------------------------------------------------------------------ assembly
@@ -493,12 +530,12 @@ class _Rod(Medium):
         n, r = grid.shape[0], self.group.dim
         N = np.zeros((n, r))
         if velocity is not None:
-            v = check_finite("velocity", velocity)
+            v = _finite("velocity", velocity)
             if v.shape not in ((r,), (n, r)):
                 raise ValueError(f"velocity must have shape ({r},) or ({n}, {r}), got {v.shape}")
             N = N + v
         if rigid is not None:
-            N = N + self._rigid_body_velocity(Phi, check_finite("rigid_velocity", rigid, (r,)), center)
+            N = N + self._rigid_body_velocity(Phi, _finite("rigid_velocity", rigid, (r,)), center)
         elif center is not None:
             raise ValueError("'center' is only used with 'rigid_velocity'")
         return N
@@ -518,10 +555,13 @@ def _norm_checked(name: str, v: np.ndarray) -> float:
 class CosseratRod(_Rod):
     """Cosserat rod on SE(3), configuration space F(E³) (paper §VI.C).
 
-    Parameters (one of two forms; every value validated, ``ValueError`` naming it)
-    ------------------------------------------------------------------------------
-    Material form, circular cross-section of radius a:
+    Give either the material form (``E``, ``G`` or ``poisson``, ``radius``, ``density``,
+    optional ``shear_coefficient``; circular cross-section) or the direct stiffness form
+    (``stretch_shear``, ``bend_twist``, ``mass``, ``rotational_inertia``).  Every value is
+    validated: ``ValueError`` naming the parameter and its range.
 
+    Parameters
+    ----------
     E : float
         Young's modulus, > 0.
     G : float, optional
@@ -534,9 +574,6 @@ class CosseratRod(_Rod):
         Mass density ρ > 0 (per unit volume).
     shear_coefficient : float, default 27/28
         α_c > 0 (PyElastica's value for a circular section).
-
-    Direct stiffness form:
-
     stretch_shear : array_like, shape ``(3,)``
         diag 𝕊 = (EA, α_cGA₂, α_cGA₃), ≥ 0 (zero decouples that strain).
     bend_twist : array_like, shape ``(3,)``
@@ -545,9 +582,6 @@ class CosseratRod(_Rod):
         ρA > 0, mass per unit reference length.
     rotational_inertia : array_like, shape ``(3,)``
         diag 𝕀 = (ρJ, ρI₂, ρI₃) > 0, per unit reference length.
-
-    Either form:
-
     rest_curvature : array_like, shape ``(3,)``, default 0
         Intrinsic π₀ = (twist, κ₂, κ₃).
 
@@ -584,15 +618,25 @@ class CosseratRod(_Rod):
         self.group = cartan.group("SE3")
         self.space = cartan.space("frame-E3")
         super().__init__(
-            E=E, G=G, poisson=poisson, radius=radius, density=density, shear_coefficient=shear_coefficient,
-            stretch_shear=stretch_shear, bend_twist=bend_twist, mass=mass, rotational_inertia=rotational_inertia,
+            E=E,
+            G=G,
+            poisson=poisson,
+            radius=radius,
+            density=density,
+            shear_coefficient=shear_coefficient,
+            stretch_shear=stretch_shear,
+            bend_twist=bend_twist,
+            mass=mass,
+            rotational_inertia=rotational_inertia,
             rest_curvature=rest_curvature,
         )
 
     def _assemble_direct(self, v):
         m = float(v["mass"])
-        return (np.concatenate([v["stretch_shear"], v["bend_twist"]]),
-                np.concatenate([[m, m, m], v["rotational_inertia"]]))
+        return (
+            np.concatenate([v["stretch_shear"], v["bend_twist"]]),
+            np.concatenate([[m, m, m], v["rotational_inertia"]]),
+        )
 
     def _assemble(self, pos, frames):
         n = pos.shape[0]
@@ -604,11 +648,13 @@ class CosseratRod(_Rod):
 
     def _rigid_body_velocity(self, Phi, twist, center):
         pos, R = Phi[:, 1:, 0], Phi[:, 1:, 1:]
-        c = pos.mean(axis=0) if center is None else check_finite("center", center, (3,))
+        c = pos.mean(axis=0) if center is None else _finite("center", center, (3,))
         v, w = twist[:3], twist[3:]
         vs = v + np.cross(w, pos - c)
         Rt = np.swapaxes(R, -1, -2)
-        return np.concatenate([Rt @ vs[..., None], Rt @ np.broadcast_to(w, vs.shape)[..., None]], axis=-2)[..., 0]
+        return np.concatenate([Rt @ vs[..., None], Rt @ np.broadcast_to(w, vs.shape)[..., None]], axis=-2)[
+            ..., 0
+        ]
 
     def planar(self) -> PlanarCosseratRod:
         """The planar rod with this rod's in-plane data (motion in e₁–e₂, bending about e₃).
@@ -626,8 +672,9 @@ class CosseratRod(_Rod):
         extra = {"rest_curvature": float(kappa[2])} if kappa[2] != 0.0 else {}
         if "mass" in p:
             S, B, Ir = p["stretch_shear"], p["bend_twist"], p["rotational_inertia"]
-            return PlanarCosseratRod(stretch_shear=S[:2], bending=B[2], mass=p["mass"],
-                                     rotational_inertia=Ir[2], **extra)
+            return PlanarCosseratRod(
+                stretch_shear=S[:2], bending=B[2], mass=p["mass"], rotational_inertia=Ir[2], **extra
+            )
         return PlanarCosseratRod(**p, **extra)
 
 
@@ -656,7 +703,7 @@ class PlanarCosseratRod(_Rod):
     """
 
     name: ClassVar[str] = "planar-cosserat-rod"
-    planar: ClassVar[bool] = True
+    _is_planar: ClassVar[bool] = True
     initial_kinds: ClassVar[tuple[str, ...]] = ("straight", "ring", "arc", "arrays")
     _direct_shapes: ClassVar[dict[str, tuple]] = {
         "stretch_shear": (2,),
@@ -683,8 +730,16 @@ class PlanarCosseratRod(_Rod):
         self.space = FrameBundleE2()
         self.group = self.space.group
         super().__init__(
-            E=E, G=G, poisson=poisson, radius=radius, density=density, shear_coefficient=shear_coefficient,
-            stretch_shear=stretch_shear, bending=bending, mass=mass, rotational_inertia=rotational_inertia,
+            E=E,
+            G=G,
+            poisson=poisson,
+            radius=radius,
+            density=density,
+            shear_coefficient=shear_coefficient,
+            stretch_shear=stretch_shear,
+            bending=bending,
+            mass=mass,
+            rotational_inertia=rotational_inertia,
             rest_curvature=rest_curvature,
         )
 
@@ -694,8 +749,10 @@ class PlanarCosseratRod(_Rod):
 
     def _assemble_direct(self, v):
         m = float(v["mass"])
-        return (np.array([*v["stretch_shear"], float(v["bending"])]),
-                np.array([m, m, float(v["rotational_inertia"])]))
+        return (
+            np.array([*v["stretch_shear"], float(v["bending"])]),
+            np.array([m, m, float(v["rotational_inertia"])]),
+        )
 
     def _straight(self, grid, direction=None, normal=None, origin=None, stretch=1.0):
         if normal is not None:
@@ -704,7 +761,9 @@ class PlanarCosseratRod(_Rod):
 
     def _assemble(self, pos, frames):
         if np.any(np.abs(pos[:, 2]) > 0.0) or np.any(np.abs(frames[:, 2, 2] - 1.0) > 1e-12):
-            raise ValueError("the initial shape of a planar rod must lie in the e₁–e₂ plane with e₃ normal to it")
+            raise ValueError(
+                "the initial shape of a planar rod must lie in the e₁–e₂ plane with e₃ normal to it"
+            )
         n = pos.shape[0]
         Phi = np.zeros((n, 3, 3))
         Phi[:, 0, 0] = 1.0
@@ -714,7 +773,7 @@ class PlanarCosseratRod(_Rod):
 
     def _rigid_body_velocity(self, Phi, twist, center):
         pos, R = Phi[:, 1:, 0], Phi[:, 1:, 1:]
-        c = pos.mean(axis=0) if center is None else check_finite("center", center, (2,))
+        c = pos.mean(axis=0) if center is None else _finite("center", center, (2,))
         v, w = twist[:2], float(twist[2])
         d = pos - c
         vs = v + w * np.stack([-d[:, 1], d[:, 0]], axis=-1)

@@ -257,7 +257,7 @@ def test_numba_and_numpy_agree(name, params):
 @pytest.mark.parametrize(("name", "params"), GROUPS, ids=IDS)
 def test_bad_shapes_are_clear_errors(name, params):
     g = _group(name, params)
-    with pytest.raises(ValueError, match=r"xi must have shape \[\.\.\., %d\]" % g.dim):
+    with pytest.raises(ValueError, match=rf"xi must have shape \[\.\.\., {g.dim}\]"):
         g.exp(np.zeros(g.dim + 1))
     with pytest.raises(ValueError, match="g must have shape"):
         g.log(np.zeros((g.matrix_size + 1, g.matrix_size + 1)))

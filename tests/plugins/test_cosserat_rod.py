@@ -15,14 +15,14 @@ import tomllib
 
 import numpy as np
 import pytest
+from cartan_cosserat import PLANAR_COMPONENTS, CosseratRod, Gravity, PlanarCosseratRod
+from cartan_cosserat.plugin import SCENES
 
 import cartan
 from cartan.grid import Grid
 from cartan.integrators import ForwardEuler, LieEuler, LieVerlet, Overdamped
 from cartan.problem import Clamped, Damping, Free, InitialState, Problem
 from cartan.schemes.lattice import Lattice
-from cartan_cosserat import PLANAR_COMPONENTS, CosseratRod, Gravity, PlanarCosseratRod
-from cartan_cosserat.plugin import SCENES
 
 # PyElastica's butterfly material (E, ν, radius, density), a soft rod that moves a lot
 BUTTERFLY = {"E": 1e4, "poisson": 0.5, "radius": 0.25, "density": 5000.0}
@@ -59,6 +59,7 @@ def test_registered():
     [
         ({"E": -1.0}, "E"),
         ({"E": float("nan")}, "E"),
+        ({"E": "stiff"}, "E"),
         ({"radius": 0.0}, "radius"),
         ({"density": -5.0}, "density"),
         ({"poisson": 0.7}, "poisson"),
@@ -84,8 +85,12 @@ def test_material_parameters_validated(kwargs, name):
     ],
 )
 def test_direct_parameters_validated(kwargs, name):
-    base = {"stretch_shear": [1.0, 1.0, 1.0], "bend_twist": [1.0, 1.0, 1.0], "mass": 1.0,
-            "rotational_inertia": [1.0, 1.0, 1.0]}
+    base = {
+        "stretch_shear": [1.0, 1.0, 1.0],
+        "bend_twist": [1.0, 1.0, 1.0],
+        "mass": 1.0,
+        "rotational_inertia": [1.0, 1.0, 1.0],
+    }
     with pytest.raises(ValueError, match=name):
         CosseratRod(**{**base, **kwargs})
 
@@ -109,7 +114,9 @@ def test_material_constants_and_parameters_roundtrip():
     G = E / (2 * (1 + nu))
     A, I = math.pi * a**2, math.pi * a**4 / 4
     alpha = 27.0 / 28.0
-    np.testing.assert_allclose(rod.stiffness_diagonal(), [E * A, alpha * G * A, alpha * G * A, G * 2 * I, E * I, E * I])
+    np.testing.assert_allclose(
+        rod.stiffness_diagonal(), [E * A, alpha * G * A, alpha * G * A, G * 2 * I, E * I, E * I]
+    )
     np.testing.assert_allclose(rod.inertia(), [rho * A] * 3 + [rho * 2 * I, rho * I, rho * I])
     np.testing.assert_array_equal(rod.rest_strain(), [[1, 0, 0, 0, 0, 0]])
     params = json.loads(json.dumps(rod.parameters()))
@@ -141,44 +148,35 @@ def test_stress_is_gradient_of_potential(medium):
 
 # ---------------------------------------------------------------------------- initial states
 def test_initial_shapes_have_their_strains():
-    """Each shape's lattice strain matches its analytic strain (edge chord: O(h²) for curved shapes)."""
+    """Straight, arc, ring and helix are orbits of one-parameter subgroups (constant strain), so
+    their lattice edge strains equal the continuum strain to round-off."""
     rod = _rod()
-    n, L = 201, 2.0
-    grid = Grid(n, length=L)
-    cases = {
-        "straight": ({"direction": [0, 1, 1], "stretch": 1.1}, [1.1, 0, 0, 0, 0, 0]),
-        "arc": ({"curvature": 1.5, "centered": True}, [1, 0, 0, 0, 0, 1.5]),
-    }
+    L = 2.0
     a, pitch = 0.3, 0.5
     b = pitch / (2 * math.pi)
     c2 = a * a + b * b
-    cases["helix"] = ({"radius": a, "pitch": pitch}, [1, 0, 0, b / c2, 0, a / c2])  # π = (τ, 0, κ)
-    for kind, (params, X) in cases.items():
-        prob = Problem(rod, grid, rod.initial_state(grid, kind, **params))
-        scheme = Lattice(prob)
-        strains = scheme.strains(scheme.initial_state())[:, 0, :]
-        np.testing.assert_allclose(strains, np.broadcast_to(X, strains.shape), atol=5e-5, err_msg=kind)
-    ring_grid = Grid(64, length=L, periodic=True)
-    prob = Problem(rod, ring_grid, rod.initial_state(ring_grid, "ring"))
-    scheme = Lattice(prob)
-    state = scheme.initial_state()
-    strains = scheme.strains(state)[:, 0, :]
-    h = L / 64
-    kappa = 2 * math.pi / L
-    # exact discrete strain of the ring: chord length and turning angle per edge
-    chord = 2 * math.sin(kappa * h / 2) / kappa
-    Xe = np.array([chord / h * (kappa * h / 2) / math.tan(kappa * h / 2), 0, 0, 0, 0, kappa])
-    Xe[1] = -chord / h * (kappa * h / 2)  # log of SE(3) mixes the chord into θ₂
-    np.testing.assert_allclose(strains[:, [0, 5]], np.broadcast_to(Xe[[0, 5]], (64, 2)), atol=1e-12)
-    assert scheme.closure_residual(state) < 1e-13
+    cases = {
+        "straight": (Grid(21, length=L), {"direction": [0, 1, 1], "stretch": 1.1}, [1.1, 0, 0, 0, 0, 0]),
+        "arc": (Grid(21, length=L), {"curvature": 1.5, "centered": True}, [1, 0, 0, 0, 0, 1.5]),
+        # Frenet frame (tangent, principal normal, binormal): π = (τ, 0, κ)
+        "helix": (Grid(21, length=L), {"radius": a, "pitch": pitch}, [1, 0, 0, b / c2, 0, a / c2]),
+        "ring": (Grid(16, length=L, periodic=True), {}, [1, 0, 0, 0, 0, 2 * math.pi / L]),
+    }
+    for kind, (grid, params, X) in cases.items():
+        scheme = Lattice(Problem(rod, grid, rod.initial_state(grid, kind, **params)))
+        state = scheme.initial_state()
+        strains = scheme.strains(state)[:, 0, :]
+        np.testing.assert_allclose(strains, np.broadcast_to(X, strains.shape), atol=1e-12, err_msg=kind)
+        if kind == "ring":
+            assert scheme.closure_residual(state) < 1e-13
 
 
 def test_initial_state_errors():
     rod = _rod()
     with pytest.raises(ValueError, match="periodic"):
         rod.initial_state(Grid(10), "ring")
-    with pytest.raises(ValueError, match="holonomy"):
-        rod.initial_state(Grid(10, periodic=True), "straight")
+    straight = rod.initial_state(Grid(10, length=2.0, periodic=True), "straight")
+    assert np.allclose(straight.holonomy[1:, 0], [2.0, 0.0, 0.0]) and np.allclose(straight.holonomy[1:, 1:], np.eye(3))
     with pytest.raises(ValueError, match="no initial state kind 'spiral'"):
         rod.initial_state(Grid(10), "spiral")
     with pytest.raises(ValueError, match="velocity"):
@@ -195,11 +193,13 @@ def test_rigid_velocity_is_rigid():
     """A rigid twist gives body velocities that leave every edge element unchanged."""
     rod = _rod()
     grid = Grid(9, length=1.0)
-    init = rod.initial_state(grid, "helix", radius=0.2, pitch=0.3, rigid_velocity=[0.1, -0.2, 0.3, 1.0, 2.0, -0.5])
+    init = rod.initial_state(
+        grid, "helix", radius=0.2, pitch=0.3, rigid_velocity=[0.1, -0.2, 0.3, 1.0, 2.0, -0.5]
+    )
     g = rod.group
     Phi, N = init.Phi, init.N
     G = g.compose(g.inverse(Phi[:-1]), Phi[1:])
-    # Ṅ-free drift: Φ ← Φ exp(τN) is a rigid motion, edges fixed
+    # the drift Φ ← Φ exp(τN) with these N is a rigid motion: edges unchanged
     tau = 0.01
     Phi1 = g.compose(Phi, g.exp(tau * N))
     G1 = g.compose(g.inverse(Phi1[:-1]), Phi1[1:])
@@ -211,10 +211,30 @@ def _wobbly_ring(n=8, L=2.0):
     rod = _rod()
     grid = Grid(n, length=L, periodic=True)
     u = 2 * math.pi * np.arange(n) / n
-    vel = np.stack([0.3 * np.cos(2 * u), 0.2 * np.sin(u), 0.4 * np.sin(2 * u),
-                    1.0 * np.cos(u), 0.5 * np.sin(3 * u), 0.7 + 0 * u], axis=-1)
-    init = rod.initial_state(grid, "ring", amplitude=0.2, mode=2, out_of_plane=0.15, velocity=vel,
-                             rigid_velocity=[0, 0, 0, 0.5, 1.0, 2.0])
+    vel = np.stack(
+        [
+            0.3 * np.cos(2 * u),
+            0.2 * np.sin(u),
+            0.4 * np.sin(2 * u),
+            1.0 * np.cos(u),
+            0.5 * np.sin(3 * u),
+            0.7 + 0 * u,
+        ],
+        axis=-1,
+    )
+    init = rod.initial_state(
+        grid,
+        "ring",
+        amplitude=0.2,
+        mode=2,
+        out_of_plane=0.15,
+        velocity=vel,
+        rigid_velocity=[0, 0, 0, 0.5, 1.0, 2.0],
+    )
+    # remove the net linear momentum so that the ring stays near the origin
+    R = init.Phi[:, 1:, 1:]
+    v_mean = np.einsum("nij,nj->i", R, init.N[:, :3]) / n
+    init.N[:, :3] -= np.einsum("nji,j->ni", R, v_mean)
     return Problem(rod, grid, init)
 
 
@@ -261,7 +281,10 @@ def test_forward_euler_leaves_the_group_lie_euler_does_not():
         prod = G[0]
         for k in range(1, len(G)):
             prod = prod @ G[k]
-        results[integ.name] = (float(np.max(prob.medium.group.defect(Phi))), float(np.abs(prod - np.eye(4)).max()))
+        results[integ.name] = (
+            float(np.max(prob.medium.group.defect(Phi))),
+            float(np.abs(prod - np.eye(4)).max()),
+        )
     fe_defect, fe_closure = results["forward-euler"]
     le_defect, le_closure = results["lie-euler"]
     assert fe_defect > 1e-6 and fe_closure > 1e-6
@@ -321,9 +344,12 @@ def test_planar_scene_se3_equals_se2():
     b3 = {"start": Clamped(), "end": Free(load=[0.2, -0.5, 0.0, 0.0, 0.0, 0.1])}
     b2 = {"start": Clamped(), "end": Free(load=[0.2, -0.5, 0.1])}
     idx = list(PLANAR_COMPONENTS)
-    p3 = Problem(rod3, grid, rod3.initial_state(grid, "arc", curvature=0.7, angle=0.3, velocity=v3), b3, loads3)
-    p2 = Problem(rod2, grid, rod2.initial_state(grid, "arc", curvature=0.7, angle=0.3, velocity=v3[:, idx]),
-                 b2, loads2)
+    p3 = Problem(
+        rod3, grid, rod3.initial_state(grid, "arc", curvature=0.7, angle=0.3, velocity=v3), b3, loads3
+    )
+    p2 = Problem(
+        rod2, grid, rod2.initial_state(grid, "arc", curvature=0.7, angle=0.3, velocity=v3[:, idx]), b2, loads2
+    )
     s3, s2 = Lattice(p3), Lattice(p2)
     st3, st2 = s3.initial_state(), s2.initial_state()
     i3, i2 = LieVerlet(), LieVerlet()
@@ -332,10 +358,11 @@ def test_planar_scene_se3_equals_se2():
     P3, P2 = s3.frames(st3), s2.frames(st2)
     assert np.abs(P3[:, 1:3, 0] - P2[:, 1:, 0]).max() <= 1e-12
     assert np.abs(P3[:, 1:3, 1:3] - P2[:, 1:, 1:]).max() <= 1e-12
-    assert np.abs(P3[:, 3, :]).max() == 0.0 and np.abs(P3[:, 1:, 3] - [0, 0, 1]).max() == 0.0
+    # the motion stays exactly in the plane: z, e₁·ẑ, e₂·ẑ, e₃ − ẑ are zero, not just small
+    assert np.all(P3[:, 3, :] == [0, 0, 0, 1]) and np.all(P3[:, :, 3] == [0, 0, 0, 1])
     X3, X2 = s3.strains(st3)[..., 0, :], s2.strains(st2)[..., 0, :]
     assert np.abs(X3[:, idx] - X2).max() <= 1e-12
-    assert np.abs(st3.S[:, idx] - st2.S).max() <= 1e-12
+    assert np.abs(st3.S[:, idx] - st2.S).max() <= 1e-12 * np.abs(st2.S).max()  # S ~ 5e3 here
     assert abs(s3.potential_energy(st3) - s2.potential_energy(st2)) <= 1e-12 * abs(s2.potential_energy(st2))
     # the run moved: clearly away from the initial arc
     assert np.abs(P2[:, 1:, 0] - p2.initial.Phi[:, 1:, 0]).max() > 1e-2
@@ -398,11 +425,11 @@ def test_axial_wave_speed():
     s = grid.coordinates()
     Phi = np.broadcast_to(np.eye(4), (n, 4, 4)).copy()
     Phi[:, 1, 0] = s + eps * np.sin(k * s)
-    scheme = Lattice(Problem(rod, grid, InitialState(Phi=Phi)))
+    # a straight periodic rod: Φ(u + L) = HΦ(u) with H the translation by L along e₁
+    H = rod.group.exp(np.array([L, 0, 0, 0, 0, 0]))
+    scheme = Lattice(Problem(rod, grid, InitialState(Phi=Phi, holonomy=H)))
     state = scheme.initial_state()
-    # the closing edge of a straight periodic rod is a translation by +h (plus the perturbation),
-    # a holonomy InitialState cannot express: set it on the lattice directly
-    state.arrays["G_u"][-1] = rod.group.exp(np.array([h + Phi[0, 1, 0] - Phi[-1, 1, 0] + 0.0, 0, 0, 0, 0, 0]))
+    assert scheme.closure_residual(state) < 1e-13
     omega = c * k
     dt = 0.05 / omega
     steps = round(2 * (2 * math.pi / omega) / dt)  # two periods
@@ -459,28 +486,40 @@ def test_gravity_pullback_at_rest():
         rod.make_load("wind")
 
 
-@pytest.mark.slow
-def test_cantilever_under_gravity_relaxes_to_linear_deflection():
-    """Overdamped clamped–free cantilever under a small gravity load: tip deflection
-    q L⁴/(8EI) + q L²/(2α_cGA) (Timoshenko beam, q = ρA g) within the O(h²) + nonlinearity error."""
-    rod = CosseratRod(E=1e6, G=1e4 * 27 / 28 * 0 + 1e4, radius=0.25, density=5000.0)
-    L, n = 3.0, 31
+def test_cantilever_under_gravity_settles_at_timoshenko_deflection():
+    """Clamped–free cantilever under a small gravity load q = ρAg, relaxed by damped Lie–Verlet
+    dynamics (Rayleigh damping Γ = 2ω₁·mass, every mode decays as e^{−ω₁t}, ω₁ = 1.875²√(EI/ρAL⁴)):
+    the tip settles at the Timoshenko deflection qL⁴/(8EI) + qL²/(2α_cGA).  The lattice with
+    trapezoidal node loads reproduces it at the nodes up to the geometric nonlinearity (w/L ~ 1e-4)."""
+    EI, GA, rhoA = 1.0, 100.0, 1.0
+    rod = CosseratRod(
+        stretch_shear=[100.0, GA, GA],
+        bend_twist=[1.0, EI, EI],
+        mass=rhoA,
+        rotational_inertia=[0.02, 0.01, 0.01],
+    )
+    L, n = 1.0, 11
     grid = Grid(n, length=L)
     g = np.array([0.0, 0.0, -1e-3])
-    drag = [1.0, 1.0, 1.0, 0.02, 0.02, 0.02]
-    prob = Problem(rod, grid, rod.initial_state(grid, "straight"), {"start": Clamped()},
-                   [rod.make_load("gravity", g=g), Damping(drag)])
+    omega1 = 1.875**2 * math.sqrt(EI / (rhoA * L**4))
+    drag = 2 * omega1 * rod.inertia()
+    prob = Problem(
+        rod,
+        grid,
+        rod.initial_state(grid, "straight"),
+        {"start": Clamped()},
+        [rod.make_load("gravity", g=g), Damping(drag)],
+    )
     scheme = Lattice(prob)
     state = scheme.initial_state()
-    integ = Overdamped()
-    dt = 0.9 * integ.dt_max(scheme, state)
-    for _ in range(40):
-        _run(scheme, integ, state, dt, 500)
-    q = rod.inertia()[0] * abs(g[2])
-    EA, GAs, _, _, EI, _ = rod.stiffness_diagonal()
-    w = q * L**4 / (8 * EI) + q * L**2 / (2 * GAs)
+    integ = LieVerlet()
+    dt = 0.5 * integ.dt_max(scheme, state)
+    _run(scheme, integ, state, dt, round(6.0 / dt))  # e^{−ω₁·6} ≈ 1e-9
+    q = rhoA * abs(g[2])
+    w = q * L**4 / (8 * EI) + q * L**2 / (2 * GA)
     tip = -scheme.frames(state)[-1, 3, 0]
-    assert tip == pytest.approx(w, rel=5e-3)
+    assert tip == pytest.approx(w, rel=1e-5)
+    assert np.abs(scheme.velocity(state)).max() < 1e-8
 
 
 # ---------------------------------------------------------------------------- scenes
@@ -499,7 +538,9 @@ def test_scene_files(name):
         assert end["kind"] in ("free", "clamped")
     # the medium, loads and initial state build from the file's own data
     medium = cartan.registry("media")[data["medium"]](**data["parameters"])
-    grid = Grid(data["grid"]["n"], length=data["grid"]["length"], periodic=data["grid"].get("periodic", False))
+    grid = Grid(
+        data["grid"]["n"], length=data["grid"]["length"], periodic=data["grid"].get("periodic", False)
+    )
     init_params = {k: v for k, v in data["initial"].items() if k != "kind"}
     init = medium.initial_state(grid, data["initial"]["kind"], **init_params)
     loads = []

@@ -1,0 +1,344 @@
+"""Scenes: TOML schema, one-line errors, registered scenes, and the ``cartan run`` CLI.
+
+The small ``toy-rod`` medium below (a quadratic-energy SE(3) rod with a gravity load) is
+shared with ``test_simulate.py`` and ``test_io.py`` through :func:`toy_registry`.
+"""
+
+from __future__ import annotations
+
+import pathlib
+import textwrap
+import types
+
+import click
+import numpy as np
+import pytest
+from click.testing import CliRunner
+
+import cartan
+from cartan.api import Scene, SceneError, load_scene, scene
+from cartan.cli_run import register
+from cartan.medium import Medium, check_positive
+from cartan.plugins import reset_registry
+from cartan.problem import InitialState, PotentialLoad
+
+
+# ---------------------------------------------------------------------------- toy plugin
+class ToyGravity(PotentialLoad):
+    """U(x) = −ρ g·x per unit length (a uniform gravity field)."""
+
+    def __init__(self, g, density=1.0):
+        self.g = np.asarray(g, dtype=float)
+        if self.g.shape != (3,):
+            raise ValueError(f"g must have 3 components, got {self.g.shape}")
+        self.density = float(density)
+
+    def potential_energy(self, q):
+        return -self.density * (q[..., 1:, 0] @ self.g)
+
+    def potential_gradient(self, q):
+        grad = np.zeros(q.shape)
+        grad[..., 1:, 0] = -self.density * self.g
+        return grad
+
+    def to_dict(self):
+        return {"kind": "gravity", "g": self.g.tolist(), "density": self.density}
+
+
+class ToyRod(Medium):
+    """Quadratic SE(3) rod: K = ½Σ m_k N_k², U = ½Σ C_k (X_k − X0_k)², X0 = (1, 0, 0, 0, 0, 0)."""
+
+    name = "toy-rod"
+    material_dim = 1
+    load_kinds = ("gravity",)
+    initial_kinds = ("straight", "arc")
+
+    def __init__(self, stiffness=(10.0, 10.0, 10.0, 1.0, 1.0, 1.0), inertia=(1.0, 1.0, 1.0, 0.1, 0.1, 0.2)):
+        self.space = cartan.space("frame-E3")
+        self.group = self.space.group
+        self.C = check_positive("stiffness", stiffness, shape=(6,))
+        self.m = check_positive("inertia", inertia, shape=(6,))
+        self.X0 = np.array([1.0, 0, 0, 0, 0, 0])
+
+    def parameters(self):
+        return {"stiffness": self.C.tolist(), "inertia": self.m.tolist()}
+
+    def inertia(self):
+        return self.m
+
+    def rest_strain(self):
+        return self.X0[None, :]
+
+    def potential(self, X):
+        d = X - self.X0
+        return 0.5 * np.einsum("...ak,k,...ak->...", d, self.C, d)
+
+    def stress(self, X):
+        return (X - self.X0) * self.C
+
+    def make_load(self, kind, **params):
+        if kind == "gravity":
+            return ToyGravity(**params)
+        return super().make_load(kind, **params)
+
+    def initial_state(self, grid, kind, curvature=0.0, twist=0.0, velocity=None):
+        if kind not in self.initial_kinds:
+            return super().initial_state(grid, kind)
+        u = grid.coordinates(0)
+        xi = np.array([1.0, 0, 0, twist, 0, curvature if kind == "arc" else 0.0])
+        Phi = self.group.exp(u[:, None] * xi)
+        N = (
+            None
+            if velocity is None
+            else np.broadcast_to(np.asarray(velocity, float), (grid.shape[0], 6)).copy()
+        )
+        return InitialState(Phi=Phi, N=N)
+
+
+SCENE = textwrap.dedent(
+    """
+    name = "toy-butterfly"
+    description = "free bent toy rod"
+    medium = "toy-rod"
+    [parameters]
+    stiffness = [10.0, 10.0, 10.0, 1.0, 1.0, 1.0]
+    [grid]
+    n = 11
+    length = 1.0
+    [initial]
+    kind = "arc"
+    curvature = 2.0
+    [run]
+    integrator = "lie-verlet"
+    scheme = "lattice"
+    dt = 0.01
+    t_end = 0.2
+    save_every = 5
+    """
+)
+
+CANTILEVER = {
+    "name": "toy-cantilever",
+    "medium": "toy-rod",
+    "grid": {"n": 9, "length": 1.0},
+    "boundaries": {"start": {"kind": "clamped"}, "end": {"kind": "free", "load": [0, 0, -0.1, 0, 0, 0]}},
+    "loads": [{"kind": "gravity", "g": [0, 0, -1.0]}, {"kind": "damping", "coefficients": 0.5}],
+    "initial": {"kind": "straight"},
+    "run": {"dt": 0.01, "t_end": 0.1, "save_every": 2},
+}
+
+
+def toy_registry(tmp_dir: pathlib.Path | None = None):
+    """Rebuild the registries with the toy plugin (medium ``toy-rod``, scenes
+    ``toy-butterfly`` (a TOML file, written to ``tmp_dir``) and ``toy-cantilever`` (a dict))."""
+    hooks = types.SimpleNamespace()
+
+    @cartan.hookimpl
+    def cartan_register_media(register):
+        register("toy-rod", ToyRod)
+
+    @cartan.hookimpl
+    def cartan_register_scenes(register):
+        if tmp_dir is not None:
+            path = pathlib.Path(tmp_dir) / "toy-butterfly.toml"
+            path.write_text(SCENE)
+            register("toy-butterfly", path)
+        register("toy-cantilever", dict(CANTILEVER))
+
+    hooks.cartan_register_media = cartan_register_media
+    hooks.cartan_register_scenes = cartan_register_scenes
+    return reset_registry([("toy", hooks)])
+
+
+@pytest.fixture
+def toy(tmp_path):
+    toy_registry(tmp_path)
+    yield tmp_path
+    reset_registry()
+
+
+def cli():
+    """A fresh CLI group with the run and plot commands registered."""
+
+    @click.group()
+    def main():
+        pass
+
+    register(main)
+    return main
+
+
+def write(tmp_path, text, name="scene.toml"):
+    path = tmp_path / name
+    path.write_text(text)
+    return path
+
+
+# ---------------------------------------------------------------------------- loading
+def test_load_scene_file(toy):
+    sc = load_scene(write(toy, SCENE))
+    assert isinstance(sc, Scene)
+    assert sc.name == "toy-butterfly" and sc.description == "free bent toy rod"
+    assert sc.problem.medium.name == "toy-rod" and sc.problem.grid.shape == (11,)
+    assert sc.run_settings() == {
+        "integrator": "lie-verlet",
+        "scheme": "lattice",
+        "dt": 0.01,
+        "t_end": 0.2,
+        "save_every": 5,
+    }
+    assert sc.source["medium"] == "toy-rod" and sc.path.name == "scene.toml"
+
+
+def test_load_scene_dict_with_boundaries_and_loads(toy):
+    sc = load_scene(CANTILEVER)
+    p = sc.problem
+    assert type(p.boundaries["start"]).__name__ == "Clamped"
+    assert p.boundaries["end"].follower is False
+    np.testing.assert_array_equal(p.boundaries["end"].load, [0, 0, -0.1, 0, 0, 0])
+    assert [type(ld).__name__ for ld in p.loads] == ["ToyGravity", "Damping"]
+    np.testing.assert_array_equal(p.loads[1].coefficients, np.full(6, 0.5))
+    assert p.needs_structure_field
+
+
+def test_registered_scenes(toy):
+    assert scene("toy-butterfly").name == "toy-butterfly"
+    assert scene("toy-cantilever").problem.grid.shape == (9,)
+    with pytest.raises(SceneError, match="unknown scene 'nope'"):
+        scene("nope")
+
+
+@pytest.mark.parametrize(
+    ("edit", "expected"),
+    [
+        (lambda s: s.replace('medium = "toy-rod"', 'medium = "jelly"'), "medium: unknown medium 'jelly'"),
+        (
+            lambda s: s.replace("stiffness = [10.0,", "stiffness = [-10.0,"),
+            "parameters: stiffness must be > 0",
+        ),
+        (lambda s: s.replace("[parameters]", "[parameters]\nfoo = 1"), "parameters.foo: unknown parameter"),
+        (lambda s: s.replace("n = 11", "n = 1"), "grid.n: must be an integer ≥ 2"),
+        (lambda s: s.replace("n = 11", "nn = 11"), "grid.nn: unknown key"),
+        (
+            lambda s: s.replace('kind = "arc"', 'kind = "knot"'),
+            "initial.kind: unknown initial state kind 'knot'",
+        ),
+        (
+            lambda s: s.replace('integrator = "lie-verlet"', 'integrator = "magic"'),
+            "run.integrator: unknown integrator 'magic'",
+        ),
+        (lambda s: s.replace('scheme = "lattice"', 'scheme = "fem"'), "run.scheme: unknown scheme 'fem'"),
+        (lambda s: s.replace("dt = 0.01", "dt = -0.01"), "run.dt: must be > 0"),
+        (lambda s: s.replace("save_every = 5", "save_every = 0.5"), "run.save_every: must be an integer"),
+        (lambda s: s.replace("[initial]", "[initial_state]"), "initial_state: unknown key"),
+        (lambda s: s.replace("[initial]\nkind", "[initial]\nkindd"), "initial.kind: missing key"),
+        (lambda s: s + '[[loads]]\nkind = "wind"\n', "loads[0].kind: unknown load kind 'wind'"),
+        (lambda s: s + '[[loads]]\nkind = "gravity"\ng = [0, 1]\n', "loads[0] (gravity): g must have 3"),
+        (
+            lambda s: s + '[[loads]]\nkind = "damping"\ncoefficients = -1\n',
+            "loads[0] (damping): coefficients must be ≥ 0",
+        ),
+        (
+            lambda s: s + '[boundaries]\nmiddle = { kind = "clamped" }\n',
+            "scene.toml: boundaries: unknown end 'middle'",
+        ),
+        (
+            lambda s: s + '[boundaries]\nend = { kind = "glued" }\n',
+            "boundaries.end.kind: unknown boundary kind",
+        ),
+        (
+            lambda s: s.replace("t_end = 0.2", "t_end = 0.2\n[run.integrator_options]\nfoo = 1"),
+            "run.integrator_options: lie-verlet: integrator 'lie-verlet' takes no option",
+        ),
+        (lambda s: s.replace("[grid]", "[grid\n"), "invalid TOML"),
+    ],
+)
+def test_scene_errors_are_one_line(toy, edit, expected):
+    path = write(toy, edit(SCENE))
+    with pytest.raises(SceneError) as info:
+        load_scene(path)
+    msg = str(info.value)
+    assert "\n" not in msg
+    assert msg.startswith(f"{path}: "), msg
+    assert expected in msg, msg
+
+
+def test_missing_file():
+    with pytest.raises(SceneError, match=r"nowhere\.toml: no such file"):
+        load_scene("nowhere.toml")
+
+
+def test_dict_errors_name_the_scene(toy):
+    bad = {**CANTILEVER, "grid": {"n": 9, "length": -1.0}}
+    with pytest.raises(
+        SceneError, match=r"^scene 'toy-cantilever': grid: length\[0\] must be finite and > 0"
+    ):
+        load_scene(bad)
+
+
+# ---------------------------------------------------------------------------- CLI
+@pytest.mark.parametrize(
+    ("edit", "expected"),
+    [
+        (lambda s: s.replace("[grid]", "[grid"), "invalid TOML"),
+        (lambda s: s.replace('medium = "toy-rod"', 'medium = "jelly"'), "unknown medium 'jelly'"),
+        (lambda s: s.replace("stiffness = [10.0,", "stiffness = [-10.0,"), "stiffness must be > 0"),
+    ],
+)
+def test_cli_run_scene_errors(toy, edit, expected):
+    path = write(toy, edit(SCENE))
+    out = toy / "out.nc"
+    res = CliRunner().invoke(cli(), ["run", str(path), "-o", str(out)])
+    assert res.exit_code == 2, res.output
+    lines = res.output.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith("cartan: error: "), res.output
+    assert expected in lines[0]
+    assert "Traceback" not in res.output
+    assert not out.exists()
+    assert sorted(p.name for p in toy.iterdir()) == sorted(["scene.toml", "toy-butterfly.toml"])
+
+
+def test_cli_run_unknown_names(toy):
+    out = toy / "out.nc"
+    for args in (
+        ["--scene", "nope"],
+        [str(write(toy, SCENE)), "--integrator", "magic"],
+        [str(write(toy, SCENE)), "--dt", "-1"],
+    ):
+        res = CliRunner().invoke(cli(), ["run", *args, "-o", str(out)])
+        assert res.exit_code == 2, res.output
+        assert res.output.count("\n") == 1 and res.output.startswith("cartan: error: "), res.output
+        assert not out.exists()
+
+
+def test_cli_run_and_plot(toy):
+    out = toy / "run.nc"
+    res = CliRunner().invoke(cli(), ["run", str(write(toy, SCENE)), "-o", str(out), "--t-end", "0.1"])
+    assert res.exit_code == 0, res.output
+    assert str(out) in res.output
+    ds = cartan.api.open(out)
+    assert ds.sizes["time"] == 3 and float(ds.time[-1]) == pytest.approx(0.1)
+    png = toy / "run.png"
+    res = CliRunner().invoke(cli(), ["plot", str(out), "-o", str(png)])
+    assert res.exit_code == 0, res.output
+    assert png.stat().st_size > 1000 and str(png) in res.output
+
+
+def test_cli_run_registered_scene_and_restart(toy):
+    out = toy / "cant.nc"
+    res = CliRunner().invoke(
+        cli(), ["run", "--scene", "toy-cantilever", "-o", str(out), "--checkpoint-every", "1"]
+    )
+    assert res.exit_code == 0, res.output
+    first = cartan.api.open(out)
+    res = CliRunner().invoke(cli(), ["run", "--restart", str(out), "--t-end", "0.2"])
+    assert res.exit_code == 0, res.output
+    longer = cartan.api.open(out)
+    assert float(longer.time[-1]) == pytest.approx(0.2)
+    np.testing.assert_array_equal(longer.position.values[: first.sizes["time"]], first.position.values)
+
+
+def test_cli_plot_missing_file(tmp_path):
+    res = CliRunner().invoke(cli(), ["plot", str(tmp_path / "nothing.nc")])
+    assert res.exit_code == 2
+    assert res.output.startswith("cartan: error: ") and res.output.count("\n") == 1
