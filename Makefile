@@ -6,12 +6,13 @@ VENV   ?= .venv
 PY     := $(VENV)/bin/python
 STAMP  := $(VENV)/.cartan-installed
 OUT    ?= out
-PYTEST_ARGS ?=
+PYTEST_ARGS ?= -n auto
 
-.PHONY: install test test-slow test-all demo bench lint clean clean-cache help
+.PHONY: install test test-slow test-all demo demo-rigid-body bench lint clean clean-cache help
 
 help:
-	@echo "make demo       run the demo simulation (writes a netCDF file and a PNG to $(OUT)/)"
+	@echo "make demo       run the demo scene $(DEMO_SCENE) (writes a netCDF file and a PNG to $(OUT)/)"
+	@echo "make demo-rigid-body  free rigid body on SO(3) against its exact Jacobi solution"
 	@echo "make test       run the test suite (fast cases; < 10 min)"
 	@echo "make test-slow  run the long cases marked 'slow'"
 	@echo "make bench      run the asv benchmarks once on this machine (offline)"
@@ -35,7 +36,14 @@ test-slow: $(STAMP)
 test-all: $(STAMP)
 	$(PY) -m pytest $(PYTEST_ARGS)
 
+DEMO_SCENE ?= rod-cantilever-gravity
+
 demo: $(STAMP)
+	@mkdir -p $(OUT)
+	$(VENV)/bin/cartan run --scene $(DEMO_SCENE) -o $(OUT)/$(DEMO_SCENE).nc
+	$(VENV)/bin/cartan plot $(OUT)/$(DEMO_SCENE).nc -o $(OUT)/$(DEMO_SCENE).png
+
+demo-rigid-body: $(STAMP)
 	$(PY) examples/rigid_body_demo.py --outdir $(OUT)
 
 bench: $(STAMP)

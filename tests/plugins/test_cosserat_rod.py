@@ -10,7 +10,6 @@ from __future__ import annotations
 import json
 import math
 import pathlib
-import re
 import tomllib
 
 import numpy as np
@@ -564,15 +563,3 @@ def test_scene_files(name):
     assert state.is_finite()
     if integ.name == "overdamped":
         assert _energy(scheme, state) < E0
-
-
-# ---------------------------------------------------------------------------- docs
-def test_docs_examples_run(tmp_path, monkeypatch):
-    """Every ```python block of docs/media/cosserat-rod.md runs (blocks share a namespace)."""
-    doc = pathlib.Path(__file__).resolve().parents[2] / "docs" / "media" / "cosserat-rod.md"
-    blocks = re.findall(r"^```python\n(.*?)^```", doc.read_text(), re.S | re.M)
-    assert blocks
-    monkeypatch.chdir(tmp_path)
-    ns: dict = {"__name__": "__docs__"}
-    for i, block in enumerate(blocks):
-        exec(compile(block, f"cosserat-rod.md[block {i}]", "exec"), ns)

@@ -1,0 +1,665 @@
+"""cartan against PyElastica on the same rod scenes, in one process, alternating.
+
+Run it as a script::
+
+    python benchmarks/compare.py [--quick] [--out DIR]
+
+Targets (PERFORMANCE.md §2):
+
+T1  free straight rod, PyElastica's Timoshenko-beam material (L = 3, radius 0.25, E = 1e6,
+    G = 1e4, ρ = 5000), n = 100 and 1000 elements, 2000 steps of the same Δt = 0.5·dx/c
+    (c = √(E/ρ), dx = L/n): cartan ``lie-verlet`` on the ``lattice`` scheme against
+    PyElastica's ``PositionVerlet``.  Wall time per step and per element-step (medians over
+    alternating repetitions, after a warm-up so that no compilation is timed), the fixed
+    per-step overhead a and the cost per element b of the fit t = a + b·n, and the ratio
+    cartan / PyElastica.  The rod starts straight with a small smooth velocity field (axial
+    and both transverse directions), the same in both codes, so that neither steps a
+    trivial rest state; the final centrelines of the two codes are compared as a check
+    that the scenes agree.
+
+T5  work-precision: the first free–free axial mode of the same rod at small amplitude
+    (strain 1e-7, linear regime), against the continuum solution
+    u(s, t) = (A/ω) cos(πs/L) sin(ωt), ω = πc/L, after one period.  Error = max of the
+    nodal displacement and velocity errors, relative to their amplitudes; n is refined at
+    a fixed Courant number 0.5.  Wall time to reach a relative error of 1e-4 is
+    interpolated for each method.
+
+cartan is timed along every path it offers: ``cartan.simulate`` (what a user calls;
+including its setup and the blow-up guard), ``cartan.simulate(compiled=False)`` when
+``simulate`` accepts that option, and a bare loop of ``LieVerlet.step`` on a ``Lattice``
+(``step loop``).  Results go to ``DIR/compare.nc`` (every sample, CF attributes) and
+``DIR/compare.png``; a table of medians and ratios is printed.
+
+PyElastica is the optional extra ``compare`` (``pip install 'cartan[compare]'``); without it
+only cartan is timed.
+"""
+
+from __future__ import annotations
+
+import argparse
+import datetime
+import gc
+import inspect
+import json
+import math
+import pathlib
+import platform
+import sys
+import time
+import warnings
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+# ---------------------------------------------------------------------------- the scene
+#: PyElastica's Timoshenko beam example: L = 3, radius 0.25, E = 1e6, density 5000 and a
+#: Poisson ratio of 99, i.e. G = E/(1 + ν) = 1e4 (its convention); α_c = 27/28 in both codes.
+LENGTH = 3.0
+RADIUS = 0.25
+YOUNG = 1e6
+SHEAR = 1e4
+DENSITY = 5000.0
+WAVE_SPEED = math.sqrt(YOUNG / DENSITY)
+COURANT = 0.5
+
+#: T1 initial velocity amplitude (m/s); strains ~ 1e-3·(amplitude / c)
+T1_AMPLITUDE = 1e-2
+#: T5 axial velocity amplitude: strain A/c = 1e-7 (PyElastica's axial force carries a 1/e
+#: factor that is nonlinear at O(strain); 1e-7 keeps it far below the errors measured)
+T5_STRAIN = 1e-7
+T5_TARGET = 1e-4
+
+PEER = "PyElastica PositionVerlet"
+NO_PEER = "PyElastica is not installed: pip install 'cartan[compare]'; timing cartan only"
+
+
+def step_size(n: int, courant: float = COURANT) -> float:
+    """Δt = courant · dx / c for n elements."""
+    return courant * (LENGTH / n) / WAVE_SPEED
+
+
+def node_coordinates(n: int) -> np.ndarray:
+    return np.linspace(0.0, LENGTH, n + 1)
+
+
+def t1_velocity(n: int) -> np.ndarray:
+    """Lab-frame nodal velocity ``(n + 1, 3)`` of T1: one smooth mode per direction, each of
+    zero mean (the rod barely drifts)."""
+    s = node_coordinates(n) / LENGTH
+    return T1_AMPLITUDE * np.stack(
+        [np.cos(np.pi * s), 0.5 * np.cos(2 * np.pi * s), 0.25 * np.cos(3 * np.pi * s)], axis=-1
+    )
+
+
+def t5_velocity(n: int) -> np.ndarray:
+    """Lab-frame nodal velocity of T5: the first free–free axial mode, amplitude c·strain."""
+    s = node_coordinates(n) / LENGTH
+    v = np.zeros((n + 1, 3))
+    v[:, 0] = T5_STRAIN * WAVE_SPEED * np.cos(np.pi * s)
+    return v
+
+
+def t5_exact(n: int, t: float) -> tuple[np.ndarray, np.ndarray, float, float]:
+    """Continuum axial displacement and velocity at the nodes at time t, and their amplitudes."""
+    s = node_coordinates(n)
+    A = T5_STRAIN * WAVE_SPEED
+    omega = np.pi * WAVE_SPEED / LENGTH
+    shape = np.cos(np.pi * s / LENGTH)
+    u = np.zeros((n + 1, 3))
+    v = np.zeros((n + 1, 3))
+    u[:, 0] = A / omega * shape * math.sin(omega * t)
+    v[:, 0] = A * shape * math.cos(omega * t)
+    return u, v, A / omega, A
+
+
+def t5_period() -> float:
+    return 2.0 * LENGTH / WAVE_SPEED
+
+
+# ---------------------------------------------------------------------------- cartan
+def cartan_problem(n: int, velocity: np.ndarray):
+    """Straight rod along x with n elements (n + 1 nodes) and the lab-frame nodal velocity."""
+    import cartan
+
+    rod = cartan.medium("cosserat-rod", E=YOUNG, G=SHEAR, radius=RADIUS, density=DENSITY)
+    grid = cartan.Grid(n + 1, length=LENGTH)
+    straight = rod.initial_state(grid, "straight")
+    Phi = np.asarray(straight.Phi)
+    R = Phi[:, 1:, 1:]
+    N = np.zeros((n + 1, rod.group.dim))
+    N[:, :3] = np.einsum("nji,nj->ni", R, velocity)  # body components V = Rᵀv
+    return cartan.Problem(medium=rod, grid=grid, initial=cartan.InitialState(Phi=Phi, N=N),
+                          name=f"straight rod n={n}")
+
+
+def simulate_options() -> dict[str, Any]:
+    import cartan
+
+    return dict(inspect.signature(cartan.simulate).parameters)
+
+
+@dataclass
+class Outcome:
+    """One timed run: wall time of the timed part, final node positions and velocities."""
+
+    seconds: float
+    position: np.ndarray
+    velocity: np.ndarray
+    info: dict[str, Any] = field(default_factory=dict)
+
+
+def run_cartan_simulate(problem, dt: float, nsteps: int, integrator: str = "lie-verlet",
+                        **options: Any) -> Outcome:
+    """``cartan.simulate`` from t = 0 to nsteps·Δt, one saved frame at the end; the whole call is timed."""
+    import cartan
+
+    gc.collect()
+    t0 = time.perf_counter()
+    ds = cartan.simulate(problem, integrator=integrator, scheme="lattice", dt=dt, t_end=nsteps * dt,
+                         save_every=nsteps, progress=False, **options)
+    seconds = time.perf_counter() - t0
+    steps = int(ds["step"].values[-1])
+    if steps != nsteps:
+        raise RuntimeError(f"cartan.simulate took {steps} steps, expected {nsteps}")
+    R = ds["frame"].values[-1]
+    V = ds["N"].values[-1][:, :3]
+    info = {}
+    try:
+        run = json.loads(ds.attrs.get("cartan_config", "{}")).get("run", {})
+        info = {k: v for k, v in run.items() if "compil" in k or k in ("loop", "engine", "path", "backend")}
+    except (TypeError, ValueError):
+        pass
+    return Outcome(seconds, ds["position"].values[-1].copy(), np.einsum("nij,nj->ni", R, V), info)
+
+
+def run_cartan_loop(problem, dt: float, nsteps: int, integrator: str = "lie-verlet") -> Outcome:
+    """A bare loop of ``Integrator.step`` on a ``Lattice``; only the loop is timed."""
+    import cartan
+
+    scheme = cartan.registry("schemes")["lattice"](problem)
+    integ = cartan.registry("integrators")[integrator]()
+    state = scheme.initial_state()
+    step = integ.step
+    gc.collect()
+    t0 = time.perf_counter()
+    for _ in range(nsteps):
+        step(scheme, state, dt)
+    seconds = time.perf_counter() - t0
+    Phi = scheme.frames(state)
+    R = Phi[:, 1:, 1:]
+    V = scheme.velocity(state)[:, :3]
+    return Outcome(seconds, Phi[:, 1:, 0].copy(), np.einsum("nij,nj->ni", R, V))
+
+
+# ---------------------------------------------------------------------------- PyElastica
+def import_elastica():
+    """The ``elastica`` module, or None when PyElastica is not installed."""
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            import elastica
+    except ImportError:
+        return None
+    return elastica
+
+
+def elastica_version(ea) -> str:
+    try:
+        from elastica.version import VERSION
+
+        return str(VERSION)
+    except ImportError:  # pragma: no cover - older layouts
+        return str(getattr(ea, "__version__", "unknown"))
+
+
+def elastica_system(ea, n: int, velocity: np.ndarray):
+    """A finalised PyElastica system holding the straight rod along x, and its rod."""
+
+    class RodSimulator(ea.BaseSystemCollection, ea.Constraints, ea.Forcing, ea.Damping, ea.CallBacks):
+        pass
+
+    sim = RodSimulator()
+    rod = ea.CosseratRod.straight_rod(
+        n,
+        np.zeros(3),
+        np.array([1.0, 0.0, 0.0]),
+        np.array([0.0, 1.0, 0.0]),
+        LENGTH,
+        RADIUS,
+        DENSITY,
+        youngs_modulus=YOUNG,
+        shear_modulus=SHEAR,
+    )
+    rod.velocity_collection[...] = velocity.T
+    sim.append(rod)
+    sim.finalize()
+    return sim, rod
+
+
+def run_elastica(ea, n: int, velocity: np.ndarray, dt: float, nsteps: int) -> Outcome:
+    """PositionVerlet stepped by hand (no ``integrate`` progress bar or callbacks); only the loop is timed."""
+    sim, rod = elastica_system(ea, n, velocity)
+    stepper = ea.PositionVerlet()
+    step = stepper.step
+    t = np.float64(0.0)
+    h = np.float64(dt)
+    gc.collect()
+    t0 = time.perf_counter()
+    for _ in range(nsteps):
+        t = step(sim, t, h)
+    seconds = time.perf_counter() - t0
+    return Outcome(seconds, rod.position_collection.T.copy(), rod.velocity_collection.T.copy())
+
+
+def warm_elastica(ea) -> float:
+    """Compile PyElastica's numba kernels (or load them from its cache); returns the seconds taken."""
+    t0 = time.perf_counter()
+    run_elastica(ea, 8, np.zeros((9, 3)), step_size(8), 3)
+    return time.perf_counter() - t0
+
+
+# ---------------------------------------------------------------------------- measuring
+@dataclass
+class Path:
+    """One timed way of running a scene."""
+
+    name: str
+    code: str  # "cartan" or "PyElastica"
+    run: Callable[[int, np.ndarray, float, int], Outcome]
+
+
+def t1_paths(ea) -> list[Path]:
+    opts = simulate_options()
+    paths = [
+        Path("cartan.simulate", "cartan",
+             lambda n, v, dt, k: run_cartan_simulate(cartan_problem(n, v), dt, k)),
+    ]
+    if "compiled" in opts:
+        paths.append(Path("cartan.simulate(compiled=False)", "cartan",
+                          lambda n, v, dt, k: run_cartan_simulate(cartan_problem(n, v), dt, k, compiled=False)))
+    paths.append(Path("cartan step loop", "cartan",
+                      lambda n, v, dt, k: run_cartan_loop(cartan_problem(n, v), dt, k)))
+    if ea is not None:
+        paths.append(Path(PEER, "PyElastica", lambda n, v, dt, k: run_elastica(ea, n, v, dt, k)))
+    return paths
+
+
+def alternate(paths: Sequence[Path], rep: int) -> list[Path]:
+    """Forward order on even repetitions, reversed on odd ones (no path always runs first)."""
+    return list(paths) if rep % 2 == 0 else list(reversed(paths))
+
+
+def measure_t1(paths: list[Path], sizes: Sequence[int], nsteps: int, reps: int, log=print) -> dict[str, Any]:
+    """Seconds per step ``[path, n, rep]`` and the final states of the last repetition."""
+    seconds = np.full((len(paths), len(sizes), reps), np.nan)
+    finals: dict[tuple[str, int], Outcome] = {}
+    infos: dict[str, dict] = {}
+    log(f"T1 warm-up ({', '.join(p.name for p in paths)})")
+    for n in sizes:
+        for p in paths:  # compile or load every kernel at every size before timing
+            out = p.run(n, t1_velocity(n), step_size(n), 3)
+            infos.setdefault(p.name, out.info)
+    for rep in range(reps):
+        for j, n in enumerate(sizes):
+            v, dt = t1_velocity(n), step_size(n)
+            for p in alternate(paths, rep + j):
+                i = paths.index(p)
+                out = p.run(n, v, dt, nsteps)
+                seconds[i, j, rep] = out.seconds / nsteps
+                finals[(p.name, n)] = out
+        med = np.median(seconds[:, :, : rep + 1], axis=-1)
+        log(f"  repetition {rep + 1}/{reps}: " + "; ".join(
+            f"{p.name} " + "/".join(f"{1e6 * med[i, j]:.0f}" for j in range(len(sizes))) + " µs"
+            for i, p in enumerate(paths)))
+    return {"seconds": seconds, "finals": finals, "infos": infos}
+
+
+def fit_overhead(sizes: Sequence[int], per_step: np.ndarray) -> tuple[float, float]:
+    """Least-squares t = a + b·n over the sizes: (a seconds per step, b seconds per element-step)."""
+    if len(sizes) < 2 or not np.all(np.isfinite(per_step)):
+        return math.nan, math.nan
+    b, a = np.polyfit(np.asarray(sizes, dtype=float), per_step, 1)
+    return float(a), float(b)
+
+
+def scene_agreement(finals: dict[tuple[str, int], Outcome], sizes: Sequence[int], ref: str) -> dict[int, float]:
+    """max |r_cartan − r_PyElastica| / max |r_PyElastica − r₀| at the end of T1, per n."""
+    out = {}
+    for n in sizes:
+        a, b = finals.get((ref, n)), finals.get((PEER, n))
+        if a is None or b is None:
+            continue
+        r0 = np.zeros((n + 1, 3))
+        r0[:, 0] = node_coordinates(n)
+        disp = float(np.max(np.linalg.norm(b.position - r0, axis=-1)))
+        out[n] = float(np.max(np.linalg.norm(a.position - b.position, axis=-1))) / disp
+    return out
+
+
+def t5_methods(ea) -> list[Path]:
+    methods = [
+        Path("cartan lie-verlet", "cartan",
+             lambda n, v, dt, k: run_cartan_simulate(cartan_problem(n, v), dt, k, "lie-verlet")),
+        Path("cartan rkmk4", "cartan",
+             lambda n, v, dt, k: run_cartan_simulate(cartan_problem(n, v), dt, k, "rkmk4")),
+    ]
+    if ea is not None:
+        methods.append(Path(PEER, "PyElastica", lambda n, v, dt, k: run_elastica(ea, n, v, dt, k)))
+    return methods
+
+
+def t5_error(n: int, out: Outcome, t: float) -> float:
+    u_ex, v_ex, u_amp, v_amp = t5_exact(n, t)
+    r0 = np.zeros((n + 1, 3))
+    r0[:, 0] = node_coordinates(n)
+    eu = np.max(np.abs(out.position - r0 - u_ex)) / u_amp
+    ev = np.max(np.abs(out.velocity - v_ex)) / v_amp
+    return float(max(eu, ev))
+
+
+def measure_t5(methods: list[Path], sizes: Sequence[int], reps: int, log=print,
+               budget: float = math.inf) -> dict[str, Any]:
+    """Wall time (whole run) and relative error ``[method, n, rep]`` after one period."""
+    T = t5_period()
+    seconds = np.full((len(methods), len(sizes), reps), np.nan)
+    error = np.full((len(methods), len(sizes)), np.nan)
+    dts = np.full(len(sizes), np.nan)
+    steps = np.zeros(len(sizes), dtype=int)
+    for j, n in enumerate(sizes):
+        steps[j] = math.ceil(T / step_size(n) - 1e-9)
+        dts[j] = T / steps[j]
+    for m in methods:  # warm-up
+        m.run(8, t5_velocity(8), T / 40, 2)
+    start = time.perf_counter()
+    for rep in range(reps):
+        for j, n in enumerate(sizes):
+            v = t5_velocity(n)
+            for m in alternate(methods, rep + j):
+                i = methods.index(m)
+                out = m.run(n, v, float(dts[j]), int(steps[j]))
+                seconds[i, j, rep] = out.seconds
+                error[i, j] = t5_error(n, out, steps[j] * dts[j])
+        log(f"  repetition {rep + 1}/{reps} done ({time.perf_counter() - start:.0f} s)")
+        if time.perf_counter() - start > budget and rep + 1 < reps:
+            log(f"  T5 time budget of {budget:.0f} s reached: {rep + 1} repetition(s) kept")
+            seconds = seconds[:, :, : rep + 1]
+            break
+    return {"seconds": seconds, "error": error, "dt": dts, "steps": steps}
+
+
+def seconds_at_error(seconds: np.ndarray, error: np.ndarray, target: float) -> float:
+    """Wall time at ``target`` error, log–log interpolated between the bracketing runs (nan if
+    the runs do not bracket it)."""
+    order = np.argsort(seconds)
+    s, e = np.log(seconds[order]), np.log(error[order])
+    lt = math.log(target)
+    for k in range(len(s) - 1):
+        if (e[k] - lt) * (e[k + 1] - lt) <= 0 and e[k] != e[k + 1]:
+            return float(math.exp(s[k] + (lt - e[k]) * (s[k + 1] - s[k]) / (e[k + 1] - e[k])))
+    return math.nan
+
+
+def observed_order(sizes: Sequence[int], error: np.ndarray) -> float:
+    """Least-squares slope of −log(error) against log(n)."""
+    ok = np.isfinite(error) & (error > 0)
+    if ok.sum() < 2:
+        return math.nan
+    return float(-np.polyfit(np.log(np.asarray(sizes)[ok]), np.log(error[ok]), 1)[0])
+
+
+# ---------------------------------------------------------------------------- output
+def build_dataset(t1: dict[str, Any], paths: list[Path], sizes: Sequence[int], nsteps: int,
+                  t5: dict[str, Any] | None, methods: list[Path], t5_sizes: Sequence[int],
+                  meta: dict[str, Any]):
+    import xarray as xr
+
+    sec = t1["seconds"]
+    med = np.median(sec, axis=-1)
+    names = [p.name for p in paths]
+    n_arr = np.asarray(sizes)
+    peer = names.index(PEER) if PEER in names else None
+    ratio = med / med[peer] if peer is not None else np.full_like(med, np.nan)
+    fits = np.array([fit_overhead(sizes, med[i]) for i in range(len(paths))]).reshape(len(paths), 2)
+    ds = xr.Dataset(
+        coords={
+            "path": ("path", np.array(names, dtype=object), {"long_name": "timed code path"}),
+            "n": ("n", n_arr, {"long_name": "number of rod elements", "units": "1"}),
+            "rep": ("rep", np.arange(sec.shape[-1]), {"long_name": "repetition (alternating order)"}),
+        }
+    )
+    ds["code"] = ("path", np.array([p.code for p in paths], dtype=object), {"long_name": "code"})
+    ds["dt"] = ("n", np.array([step_size(n) for n in sizes]),
+                {"long_name": "time step, Courant number 0.5 of the axial wave", "units": "s"})
+    ds["step_time"] = (("path", "n", "rep"), sec, {"long_name": "wall time per step", "units": "s"})
+    ds["step_time_median"] = (("path", "n"), med, {"long_name": "median wall time per step", "units": "s"})
+    ds["element_step_time_median"] = (
+        ("path", "n"), med / n_arr, {"long_name": "median wall time per element and step", "units": "s"})
+    ds["ratio_to_peer"] = (("path", "n"), ratio, {
+        "long_name": f"median wall time per step relative to {PEER}", "units": "1"})
+    ds["fixed_overhead"] = ("path", fits[:, 0], {
+        "long_name": "per-step overhead a of the fit t = a + b·n", "units": "s"})
+    ds["element_cost"] = ("path", fits[:, 1], {
+        "long_name": "per-element cost b of the fit t = a + b·n", "units": "s"})
+    agree = meta.pop("agreement", {})
+    ds["scene_agreement"] = ("n", np.array([agree.get(n, np.nan) for n in sizes]), {
+        "long_name": "max |r_cartan - r_PyElastica| / max |r_PyElastica - r0| at the end of T1",
+        "units": "1"})
+    if t5 is not None:
+        ds = ds.assign_coords(
+            method=("method", np.array([m.name for m in methods], dtype=object), {"long_name": "T5 method"}),
+            wp_n=("wp_n", np.asarray(t5_sizes), {"long_name": "T5 number of rod elements", "units": "1"}),
+            wp_rep=("wp_rep", np.arange(t5["seconds"].shape[-1]), {"long_name": "T5 repetition"}),
+        )
+        ds["wp_seconds"] = (("method", "wp_n", "wp_rep"), t5["seconds"], {
+            "long_name": "T5 wall time of the whole run (one period of the axial mode)", "units": "s"})
+        ds["wp_seconds_median"] = (("method", "wp_n"), np.median(t5["seconds"], axis=-1), {
+            "long_name": "T5 median wall time of the whole run", "units": "s"})
+        ds["wp_error"] = (("method", "wp_n"), t5["error"], {
+            "long_name": "T5 max relative error of nodal displacement and velocity after one period",
+            "units": "1"})
+        ds["wp_dt"] = ("wp_n", t5["dt"], {"long_name": "T5 time step", "units": "s"})
+        ds["wp_steps"] = ("wp_n", t5["steps"], {"long_name": "T5 number of steps", "units": "1"})
+    ds.attrs.update({
+        "Conventions": "CF-1.11",
+        "title": "cartan vs PyElastica: wall time per step of a free Cosserat rod (T1) and work-precision (T5)",
+        "institution": "cartan benchmarks",
+        "source": meta["source"],
+        "history": meta["history"],
+        "references": "PERFORMANCE.md targets T1 and T5; PyElastica's Timoshenko beam example for the material",
+        "comment": meta["comment"],
+        "scene": json.dumps(meta["scene"]),
+        "cartan_paths": json.dumps(meta["paths"]),
+    })
+    return ds
+
+
+def plot(ds, path: pathlib.Path) -> None:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    has_wp = "method" in ds.coords
+    fig, axes = plt.subplots(1, 2 if has_wp else 1, figsize=(11 if has_wp else 6, 4.5), squeeze=False)
+    ax = axes[0, 0]
+    n = ds["n"].values
+    for name in ds["path"].values:
+        per = ds["step_time"].sel(path=name).values / n[:, None] * 1e9
+        med = np.median(per, axis=-1)
+        style = "s--" if name == PEER else "o-"
+        ax.errorbar(n, med, yerr=[med - per.min(-1), per.max(-1) - med], fmt=style, capsize=3, label=name)
+    ax.set_xscale("log")
+    ax.set_yscale("log")
+    ax.set_xlabel("elements n")
+    ax.set_ylabel("wall time per element-step [ns]")
+    ax.set_title("T1: free straight rod, same Δt = 0.5·dx/c")
+    ax.grid(True, which="both", alpha=0.3)
+    ax.legend(fontsize=8)
+    if has_wp:
+        ax = axes[0, 1]
+        for name in ds["method"].values:
+            t = ds["wp_seconds_median"].sel(method=name).values
+            e = ds["wp_error"].sel(method=name).values
+            ax.loglog(t, e, "s--" if name == PEER else "o-", label=name)
+            for tk, ek, nk in zip(t, e, ds["wp_n"].values):
+                ax.annotate(str(nk), (tk, ek), fontsize=6, textcoords="offset points", xytext=(3, 3))
+        ax.axhline(T5_TARGET, color="grey", lw=0.8, ls=":")
+        ax.set_xlabel("wall time of the run [s]")
+        ax.set_ylabel("relative error after one period")
+        ax.set_title("T5: axial mode of the free rod (labels: n)")
+        ax.grid(True, which="both", alpha=0.3)
+        ax.legend(fontsize=8)
+    fig.tight_layout()
+    fig.savefig(path, dpi=120)
+    plt.close(fig)
+
+
+def fmt(x: float, scale: float, digits: int = 1) -> str:
+    return "—" if not math.isfinite(x) else f"{x * scale:.{digits}f}"
+
+
+def print_t1_table(ds, log=print) -> None:
+    n = ds["n"].values
+    head = "| path | " + " | ".join(f"µs/step n={k}" for k in n) + " | " + " | ".join(
+        f"ns/elem-step n={k}" for k in n) + " | " + " | ".join(f"ratio n={k}" for k in n) + \
+        " | overhead a [µs] | per element b [ns] |"
+    log(head)
+    log("|" + "---|" * (head.count("|") - 1))
+    for name in ds["path"].values:
+        med = ds["step_time_median"].sel(path=name).values
+        rat = ds["ratio_to_peer"].sel(path=name).values
+        log(f"| {name} | " + " | ".join(fmt(x, 1e6) for x in med) + " | "
+            + " | ".join(fmt(x / k, 1e9) for x, k in zip(med, n)) + " | "
+            + " | ".join(fmt(x, 1.0, 2) for x in rat) + " | "
+            + fmt(float(ds["fixed_overhead"].sel(path=name)), 1e6) + " | "
+            + fmt(float(ds["element_cost"].sel(path=name)), 1e9, 2) + " |")
+
+
+def print_t5_table(ds, log=print) -> None:
+    sizes = ds["wp_n"].values
+    log("| method | " + " | ".join(f"n={k}: error / s" for k in sizes) + " | order | s at 1e-4 |")
+    log("|" + "---|" * (len(sizes) + 3))
+    for name in ds["method"].values:
+        e = ds["wp_error"].sel(method=name).values
+        t = ds["wp_seconds_median"].sel(method=name).values
+        cells = " | ".join(f"{ek:.2e} / {tk:.3g}" for ek, tk in zip(e, t))
+        log(f"| {name} | {cells} | {observed_order(sizes, e):.2f} | "
+            f"{fmt(seconds_at_error(t, e, T5_TARGET), 1.0, 3)} |")
+
+
+# ---------------------------------------------------------------------------- main
+def main(argv: Sequence[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0],
+                                 formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--quick", action="store_true", help="fewer steps and repetitions (< 60 s)")
+    ap.add_argument("--out", default="out/compare", help="output directory (default: out/compare)")
+    ap.add_argument("--steps", type=int, default=None, help="T1 steps per run (default 2000; --quick 200)")
+    ap.add_argument("--reps", type=int, default=None, help="repetitions (default 3; --quick 3)")
+    ap.add_argument("--sizes", type=int, nargs="+", default=[100, 1000], help="T1 element counts")
+    ap.add_argument("--skip-t5", action="store_true", help="skip the work-precision comparison")
+    ap.add_argument("--t5-budget", type=float, default=None,
+                    help="stop T5 repetitions after this many seconds (default 300; --quick 15)")
+    ap.add_argument("--cartan-only", action="store_true", help="do not time PyElastica")
+    args = ap.parse_args(argv)
+
+    nsteps = args.steps or (200 if args.quick else 2000)
+    reps = args.reps or 3
+    sizes = sorted(set(args.sizes))
+    t5_sizes = [25, 50, 100] if args.quick else [25, 50, 100, 200, 400]
+    t5_reps = 1 if args.quick else 3
+    t5_budget = args.t5_budget if args.t5_budget is not None else (15.0 if args.quick else 300.0)
+    outdir = pathlib.Path(args.out)
+    outdir.mkdir(parents=True, exist_ok=True)
+    log = print
+    wall0 = time.perf_counter()
+
+    import cartan
+
+    ea = None if args.cartan_only else import_elastica()
+    if ea is None:
+        log(NO_PEER if not args.cartan_only else "--cartan-only: timing cartan only")
+        peer_version = "not installed" if not args.cartan_only else "not timed"
+    else:
+        peer_version = elastica_version(ea)
+        log(f"PyElastica {peer_version}: warming its numba kernels ...", end=" ", flush=True)
+        log(f"{warm_elastica(ea):.1f} s (compilation or cache load, not timed)")
+    has_compiled = "compiled" in simulate_options()
+
+    log(f"cartan {cartan.__version__}, numpy {np.__version__}, Python {platform.python_version()}, "
+        f"{platform.machine()}")
+    log(f"scene: L = {LENGTH}, radius = {RADIUS}, E = {YOUNG:g}, G = {SHEAR:g}, ρ = {DENSITY:g}; "
+        f"c = {WAVE_SPEED:.4g} m/s; Δt = {COURANT}·dx/c = "
+        + ", ".join(f"{step_size(n):.3e} s (n = {n})" for n in sizes))
+    log(f"T1: {nsteps} steps per run, {reps} alternating repetitions, sizes {sizes}")
+    if not has_compiled:
+        log("cartan.simulate takes no 'compiled' option: timing simulate as it is and a bare step loop")
+
+    paths = t1_paths(ea)
+    t1 = measure_t1(paths, sizes, nsteps, reps, log)
+    agreement = scene_agreement(t1["finals"], sizes, "cartan step loop")
+
+    t5 = None
+    methods: list[Path] = []
+    if not args.skip_t5:
+        methods = t5_methods(ea)
+        log(f"T5: axial mode, n = {t5_sizes}, one period ({t5_period():.4f} s) at Courant number {COURANT}, "
+            f"{t5_reps} repetition(s), budget {t5_budget:.0f} s")
+        t5 = measure_t5(methods, t5_sizes, t5_reps, log, budget=t5_budget)
+    else:
+        log("T5: skipped (--skip-t5)")
+
+    cmd = " ".join([pathlib.Path(sys.argv[0]).name if argv is None else "compare.main", *(
+        sys.argv[1:] if argv is None else list(argv))])
+    stamp = datetime.datetime.now(datetime.UTC).isoformat(timespec="seconds")
+    meta = {
+        "source": f"cartan {cartan.__version__}; PyElastica {peer_version}; numpy {np.__version__}; "
+                  f"Python {platform.python_version()}; {platform.platform()}",
+        "history": f"{stamp} python benchmarks/{cmd}",
+        "comment": (
+            "Medians over alternating repetitions in one process after a warm-up (no compilation timed). "
+            "cartan.simulate is timed whole (setup, guard, one saved frame); 'cartan step loop' and "
+            "PyElastica time the stepping loop only. Compare ratios, not absolute times."),
+        "scene": {"length": LENGTH, "radius": RADIUS, "E": YOUNG, "G": SHEAR, "density": DENSITY,
+                  "courant": COURANT, "steps": nsteps, "t1_velocity_amplitude": T1_AMPLITUDE,
+                  "t5_strain": T5_STRAIN},
+        "paths": {"simulate_accepts_compiled": has_compiled, "simulate_run_config": t1["infos"].get(
+            "cartan.simulate", {})},
+        "agreement": agreement,
+    }
+    ds = build_dataset(t1, paths, sizes, nsteps, t5, methods, t5_sizes, meta)
+    nc = outdir / "compare.nc"
+    png = outdir / "compare.png"
+    ds.to_netcdf(nc)
+    plot(ds, png)
+
+    log("")
+    log(f"T1 — free straight rod, {nsteps} steps, medians of {reps} (ratio = path / {PEER}):")
+    print_t1_table(ds, log)
+    if agreement:
+        log("scene check, max |r_cartan − r_PyElastica| / max displacement at the end: "
+            + ", ".join(f"{v:.2e} (n = {k})" for k, v in agreement.items()))
+    info = t1["infos"].get("cartan.simulate")
+    log("cartan paths timed: " + ", ".join(p.name for p in paths if p.code == "cartan")
+        + ("" if has_compiled else " (simulate has no 'compiled' option yet)")
+        + (f"; simulate run config {info}" if info else ""))
+    if t5 is not None:
+        log("")
+        log("T5 — work-precision, first axial mode after one period (error / wall-time seconds):")
+        print_t5_table(ds, log)
+        if ea is not None:
+            peer_t = seconds_at_error(ds["wp_seconds_median"].sel(method=PEER).values,
+                                   ds["wp_error"].sel(method=PEER).values, T5_TARGET)
+            best = min((seconds_at_error(ds["wp_seconds_median"].sel(method=m.name).values,
+                                      ds["wp_error"].sel(method=m.name).values, T5_TARGET)
+                        for m in methods if m.code == "cartan"), key=lambda x: x if math.isfinite(x) else math.inf)
+            log(f"wall time at error {T5_TARGET:g}: PyElastica / best cartan = {fmt(peer_t / best, 1.0, 2)}"
+                + ("" if math.isfinite(peer_t / best) else " (a method's runs do not bracket the target)"))
+    log("")
+    log(f"wrote {nc} and {png} ({time.perf_counter() - wall0:.0f} s in all)")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
