@@ -51,7 +51,7 @@ bench: $(STAMP)
 	$(VENV)/bin/asv run --python=same --quick --show-stderr
 
 lint: $(STAMP)
-	$(VENV)/bin/ruff check cartan tests benchmarks examples
+	$(VENV)/bin/ruff check cartan plugins tests benchmarks examples
 
 clean:
 	rm -rf $(OUT) .asv .pytest_cache .hypothesis

@@ -159,6 +159,18 @@ class Medium(abc.ABC):
         """Non-potential generalised force density ``T`` ``[..., r]`` or None (default)."""
         return None
 
+    def quadratic_energy(self) -> tuple[np.ndarray, np.ndarray] | None:
+        """The potential as data, when it is quadratic: ``(X0, C)`` or None (default).
+
+        A medium of material dimension d = 1 whose potential is
+        ``U(X) = ½ (X − X₀)ᵀ C (X − X₀)`` with a constant symmetric ``C`` may return
+        ``X0`` of shape ``(r,)`` and ``C`` of shape ``(r, r)``; :meth:`potential` and
+        :meth:`stress` must agree with them (``Q = C (X − X₀)``).  Schemes use the data to
+        run whole step loops in compiled code (``docs/performance.md``); None means "not
+        quadratic" and keeps the medium on the generic path, which calls :meth:`stress`.
+        """
+        return None
+
     #: names accepted by :meth:`make_load` and :meth:`initial_state` (for error messages and docs)
     load_kinds: ClassVar[tuple[str, ...]] = ()
     initial_kinds: ClassVar[tuple[str, ...]] = ()

@@ -30,6 +30,7 @@ from .medium import Medium, check_finite, check_positive, pullback_gradient
 __all__ = [
     "Boundary",
     "Clamped",
+    "ConstantFieldPotential",
     "Damping",
     "Free",
     "InitialState",
@@ -142,6 +143,80 @@ class PotentialLoad(Load):
 
     def energy(self, Phi):
         return self.potential_energy(self._q(Phi))
+
+
+class ConstantFieldPotential(PotentialLoad):
+    """A uniform field acting on position: ``U(q) = −density·(f · x)`` per unit reference volume.
+
+    ``x`` is the position of the configuration q = Φ·q_r in the space the (affine) group acts
+    on — the translation part of Φ, for spaces whose reference point has zero translation
+    (frame bundles with ``q_r = I``, E³ with ``q_r = 0``, point-director spaces).  Gravity is
+    the example: ``f = g``, ``density = ρA``.  The core's pull-back gives the generalised force
+    ``T = (Rᵀ density f, 0)``: a force density ``density·f`` fixed in space, expressed in the
+    body frame (R the rotational part of Φ), and no moment.
+
+    Parameters
+    ----------
+    field : array_like, shape ``(k,)``
+        The field f in the spatial frame, k the dimension of the space the group acts on
+        (3 for SE(3), 2 for SE(2)).
+    density : float
+        The density it acts on (mass per unit reference volume for gravity).
+    """
+
+    def __init__(self, field: Any, density: float):
+        self.field = check_finite("field", field)
+        if self.field.ndim != 1:
+            raise ValueError(f"field must be a vector, got shape {self.field.shape}")
+        self.density = float(check_finite("density", density, ()))
+
+    def bind(self, medium: Medium) -> None:
+        super().bind(medium)
+        g = medium.group
+        if not getattr(g, "affine", False):
+            raise ValueError(f"{type(self).__name__} needs an affine group (positions), not {g.name}")
+        k = g.space_dim
+        if self.field.shape != (k,):
+            raise ValueError(f"field must have shape ({k},) for medium {medium.name!r}, got {self.field.shape}")
+        space = medium.space
+        q_r = None if space is None else np.asarray(space.q_r, dtype=float)
+        if q_r is None or not (q_r.shape == (k + 1, k + 1) or (q_r.ndim == 1 and q_r.shape[0] >= k)):
+            raise ValueError(f"{type(self).__name__} needs a space whose points carry a position")
+        self._matrix_points = q_r.ndim == 2
+        # the position of Φ·q_r must be the translation of Φ (reference point at the origin)
+        Phi = g.exp(np.linspace(0.3, 0.9, g.dim))
+        if not np.allclose(self.position(space.act(Phi, q_r)), Phi[1:, 0], rtol=1e-12, atol=1e-12):
+            raise ValueError(
+                f"{type(self).__name__} needs a reference point at the origin: the position of Φ·q_r "
+                f"must be the translation of Φ (space {getattr(space, 'name', '')!r})"
+            )
+
+    def _matrix(self, q: np.ndarray) -> bool:
+        """True when points are (k+1) × (k+1) matrices (frame bundles), False for vectors."""
+        k = self.field.shape[0]
+        return getattr(self, "_matrix_points", q.ndim >= 2 and q.shape[-2:] == (k + 1, k + 1))
+
+    def position(self, q: np.ndarray) -> np.ndarray:
+        """Position ``x`` ``[..., k]`` of points q ``[..., *point_shape]``."""
+        q = np.asarray(q, dtype=float)
+        return q[..., 1:, 0] if self._matrix(q) else q[..., : self.field.shape[0]]
+
+    def potential_energy(self, q: np.ndarray) -> np.ndarray:
+        """``U = −density f·x``, ``[..., *point_shape]`` → ``[...]``."""
+        return -self.density * np.einsum("...i,i->...", self.position(q), self.field)
+
+    def potential_gradient(self, q: np.ndarray) -> np.ndarray:
+        """``∂U/∂q``: ``−density f`` in the position slots, zero elsewhere."""
+        q = np.asarray(q, dtype=float)
+        grad = np.zeros(q.shape)
+        if self._matrix(q):
+            grad[..., 1:, 0] = -self.density * self.field
+        else:
+            grad[..., : self.field.shape[0]] = -self.density * self.field
+        return grad
+
+    def to_dict(self) -> dict[str, Any]:
+        return {"kind": "ConstantFieldPotential", "field": self.field.tolist(), "density": self.density}
 
 
 @dataclass

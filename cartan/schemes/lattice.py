@@ -24,14 +24,23 @@ Frames
 
 Material dimension d = 1 is supported for every medium; d ≥ 2 requires a potential that is
 additive over the axes (``medium.separable_axes = True``).
+
+Compiled loops
+    :meth:`Lattice.compiled_advance` runs whole blocks of steps in numba
+    (:mod:`cartan.schemes._lattice_compiled`) for d = 1 on SO(2), SE(2), SO(3), SE(3) when the
+    medium's potential is quadratic and the loads are data (damping, body-frame uniform force,
+    constant-field potentials, end loads, clamps); everything else stays on this module's
+    numpy path, the reference the compiled loops are tested against (``docs/performance.md``).
 """
 
 from __future__ import annotations
 
+import math
 from typing import Any
 
 import numpy as np
 
+from .._backend import get_backend
 from ..problem import Free, dead_to_body
 from .base import Scheme, State, prefix_products
 
@@ -68,6 +77,39 @@ class Lattice(Scheme):
 
     def options(self) -> dict[str, Any]:
         return {"track_frames": self.track}
+
+    # ------------------------------------------------------------------ compiled loops
+    def compiled_advance(self, integrator, state: State, dt: float, nsteps: int, *,
+                         kinetic_limit: float = math.inf) -> bool:
+        """Advance ``state`` in place by up to ``nsteps`` steps of ``integrator`` in compiled code.
+
+        Returns False, leaving everything untouched, when the combination is not supported
+        (the caller then runs ``integrator.step`` in Python): see ``docs/performance.md`` for
+        what qualifies (d = 1; SO(2), SE(2), SO(3), SE(3); a medium with
+        ``quadratic_energy()``; damping, body-frame uniform forces, constant-field potentials,
+        free and clamped ends; ``lie-verlet``, ``lie-euler``, ``forward-euler``, ``rkmk4``,
+        ``overdamped``), and the numpy backend always declines.
+
+        When it returns True the steps were taken exactly as ``integrator.step`` takes them
+        (same formulas, agreement to round-off): ``state.t``, ``state.scalars`` (energy
+        accumulators by the trapezoidal rule, ``"nstep"``) and the integrator's counters
+        (``nstep``, ``nforce``, ``wall_time``) and caches are updated as the Python loop would.
+        The loop stops early after the first step whose momentum (or, for integrators without
+        momentum, configuration) is not finite, or whose kinetic energy ``½Σ w S²/m`` exceeds
+        ``kinetic_limit``; the number of steps done is the increase of ``state.scalars["nstep"]``.
+        """
+        if get_backend() != "numba":
+            return False
+        plan = self.__dict__.get("_compiled_plan", False)
+        if plan is False:
+            from ._lattice_compiled import build_plan
+
+            plan = self._compiled_plan = build_plan(self)
+        if plan is None:
+            return False
+        from ._lattice_compiled import advance
+
+        return advance(self, plan, integrator, state, dt, nsteps, kinetic_limit)
 
     # ------------------------------------------------------------------ layout helpers
     def _key(self, axis: int) -> str:

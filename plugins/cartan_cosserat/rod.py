@@ -68,7 +68,7 @@ import cartan
 from cartan.grid import Grid
 from cartan.groups.se2 import SE2
 from cartan.medium import Medium, check_finite, check_positive
-from cartan.problem import InitialState, PotentialLoad
+from cartan.problem import ConstantFieldPotential, InitialState
 from cartan.spaces import HomogeneousSpace
 
 __all__ = [
@@ -161,8 +161,11 @@ class FrameBundleE2(HomogeneousSpace):
 
 
 # ====================================================================== gravity
-class Gravity(PotentialLoad):
+class Gravity(ConstantFieldPotential):
     """Uniform gravity as the configurational potential ``U(q) = −μ g·r`` (paper §IV.B).
+
+    The core's :class:`~cartan.problem.ConstantFieldPotential` with field ``g`` and density
+    ``μ``, validated with this rod's names.
 
     Parameters
     ----------
@@ -181,26 +184,26 @@ class Gravity(PotentialLoad):
     """
 
     def __init__(self, g: Any, mass: float):
-        self.g = _finite("g", g)
-        if self.g.ndim != 1 or self.g.shape[0] not in (2, 3):
-            raise ValueError(f"g must be a vector of 2 or 3 components, got shape {self.g.shape}")
-        self.mass = float(_positive("mass", mass))
+        g = _finite("g", g)
+        if g.ndim != 1 or g.shape[0] not in (2, 3):
+            raise ValueError(f"g must be a vector of 2 or 3 components, got shape {g.shape}")
+        super().__init__(g, float(_positive("mass", mass)))
+
+    @property
+    def g(self) -> np.ndarray:
+        """Gravitational acceleration (the field f), shape ``(k,)``."""
+        return self.field
+
+    @property
+    def mass(self) -> float:
+        """Mass per unit reference length μ (the density)."""
+        return self.density
 
     def bind(self, medium: Medium) -> None:
-        super().bind(medium)
         k = medium.group.matrix_size - 1
         if self.g.shape != (k,):
             raise ValueError(f"g must have shape ({k},) for medium {medium.name!r}, got {self.g.shape}")
-
-    def potential_energy(self, q: np.ndarray) -> np.ndarray:
-        """``U = −μ g·r`` per unit reference length, ``[..., m, m]`` → ``[...]``."""
-        return -self.mass * np.einsum("...i,i->...", np.asarray(q)[..., 1:, 0], self.g)
-
-    def potential_gradient(self, q: np.ndarray) -> np.ndarray:
-        """``∂U/∂q``: ``−μ g`` in the position slots, ``[..., m, m]``."""
-        grad = np.zeros(np.shape(q))
-        grad[..., 1:, 0] = -self.mass * self.g
-        return grad
+        super().bind(medium)
 
     def to_dict(self) -> dict[str, Any]:
         return {"kind": "gravity", "g": self.g.tolist(), "mass": self.mass}
@@ -346,6 +349,10 @@ class _Rod(Medium):
         """Hessian ``∂Q/∂X`` (constant): ``diag(𝕊, 𝔹)`` as ``(1, r, 1, r)``."""
         r = self.group.dim
         return np.diag(self._stiff).reshape(1, r, 1, r)
+
+    def quadratic_energy(self) -> tuple[np.ndarray, np.ndarray]:
+        """The quadratic potential as data: ``(X₀, diag(𝕊, 𝔹))``, shapes ``(r,)`` and ``(r, r)``."""
+        return self._X0[0].copy(), np.diag(self._stiff)
 
     @property
     def linear_density(self) -> float:
