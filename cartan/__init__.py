@@ -23,26 +23,9 @@ from importlib.metadata import PackageNotFoundError
 from importlib.metadata import version as _version
 from typing import Any
 
+from . import api as _api
 from ._backend import get_backend, set_backend, use_backend
-from .api import (
-    Clamped,
-    Damping,
-    Free,
-    Grid,
-    InitialState,
-    InstabilityError,
-    PotentialLoad,
-    Problem,
-    Scene,
-    SceneError,
-    StabilityWarning,
-    UniformForce,
-    load_scene,
-    medium,
-    open,
-    scene,
-    simulate,
-)
+from .api import *  # noqa: F403 - the run-level API; its __all__ is the single list of names
 from .groups import SymmetryGroup
 from .plugins import PluginWarning, RegistryError, hookimpl, registry
 
@@ -52,23 +35,6 @@ except PackageNotFoundError:  # pragma: no cover - running from an uninstalled c
     __version__ = "0+unknown"
 
 __all__ = [
-    "Clamped",
-    "Damping",
-    "Free",
-    "Grid",
-    "InitialState",
-    "InstabilityError",
-    "PotentialLoad",
-    "Problem",
-    "Scene",
-    "SceneError",
-    "StabilityWarning",
-    "UniformForce",
-    "load_scene",
-    "medium",
-    "open",
-    "scene",
-    "simulate",
     "PluginWarning",
     "RegistryError",
     "SymmetryGroup",
@@ -80,6 +46,7 @@ __all__ = [
     "set_backend",
     "space",
     "use_backend",
+    *_api.__all__,
 ]
 
 

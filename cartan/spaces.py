@@ -36,6 +36,7 @@ from .groups.base import SymmetryGroup
 from .plugins import hookimpl
 
 __all__ = [
+    "FrameBundleE2",
     "HomogeneousSpace",
     "Sphere",
     "Euclidean3",
@@ -651,7 +652,36 @@ class _GroupAsSpace(HomogeneousSpace):
         return q.copy()
 
 
-class FrameBundleE3(_GroupAsSpace):
+class _EuclideanFrameBundle(_GroupAsSpace):
+    """F(Eᵏ) ≅ SE(k): trihedrons ``(r, E)`` as ``[[1, 0ᵀ], [r, E]]`` (homogeneous coordinate
+    first), acted on by matrix product; ``q_r = I``, ``Φ = q``."""
+
+    def defect(self, q: Any) -> np.ndarray:
+        a = self._points(q)
+        row = a[..., 0, :] - np.eye(self.group.matrix_size)[0]
+        return _rotation_defect(a[..., 1:, 1:]) + np.linalg.norm(row, axis=-1)
+
+    def _defect_meaning(self) -> str:
+        return "the frame [[1, 0], [r, E]] (E a rotation)"
+
+    def project(self, q: Any) -> np.ndarray:
+        a = self._points(q).copy()
+        a[..., 0, :] = np.eye(self.group.matrix_size)[0]
+        a[..., 1:, 1:] = _nearest_rotation(a[..., 1:, 1:])
+        return a
+
+    @staticmethod
+    def position(q: Any) -> np.ndarray:
+        """Position ``r = q[..., 1:, 0]``."""
+        return np.asarray(q, dtype=float)[..., 1:, 0]
+
+    @staticmethod
+    def frame(q: Any) -> np.ndarray:
+        """Frame ``E = (e₁ … e_k) = q[..., 1:, 1:]`` (directors as columns)."""
+        return np.asarray(q, dtype=float)[..., 1:, 1:]
+
+
+class FrameBundleE3(_EuclideanFrameBundle):
     """The frame bundle F(E³) ≅ SE(3) (paper §VI.A Cosserat solids, §VI.C rods).
 
     Notes
@@ -669,29 +699,22 @@ class FrameBundleE3(_GroupAsSpace):
         self.group = _se3()
         super().__init__()
 
-    def defect(self, q: Any) -> np.ndarray:
-        a = self._points(q)
-        row = a[..., 0, :] - np.array([1.0, 0.0, 0.0, 0.0])
-        return _rotation_defect(a[..., 1:, 1:]) + np.linalg.norm(row, axis=-1)
 
-    def _defect_meaning(self) -> str:
-        return "the frame [[1, 0], [r, E]] (E a rotation)"
+class FrameBundleE2(_EuclideanFrameBundle):
+    """The frame bundle F(E²) ≅ SE(2) of the plane (planar rods; the r → ∞ limit of F(S²_r)).
 
-    def project(self, q: Any) -> np.ndarray:
-        a = self._points(q).copy()
-        a[..., 0, :] = [1.0, 0.0, 0.0, 0.0]
-        a[..., 1:, 1:] = _nearest_rotation(a[..., 1:, 1:])
-        return a
+    Points are the 3×3 matrices ``[[1, 0, 0], [r₁, c, −s], [r₂, s, c]]`` (position r and
+    directors ``e₁ = (c, s)``, ``e₂ = (−s, c)`` as columns), homogeneous coordinate first as
+    in :mod:`cartan.groups.se2`; the action is the matrix product, ``q_r = I₃``, ``Φ = q``.
+    """
 
-    @staticmethod
-    def position(q: Any) -> np.ndarray:
-        """Position ``r = q[..., 1:, 0]``."""
-        return np.asarray(q, dtype=float)[..., 1:, 0]
+    name: ClassVar[str] = "frame-E2"
 
-    @staticmethod
-    def frame(q: Any) -> np.ndarray:
-        """Frame ``E = (e₁ e₂ e₃) = q[..., 1:, 1:]``."""
-        return np.asarray(q, dtype=float)[..., 1:, 1:]
+    def __init__(self) -> None:
+        from .groups.se2 import SE2
+
+        self.group = SE2()
+        super().__init__()
 
 
 class SphereFrameBundle(_GroupAsSpace):
@@ -805,5 +828,6 @@ def cartan_register_spaces(register):
     register("E3", Euclidean3)
     register("E3xS2", PointDirector)
     register("frame-E3", FrameBundleE3)
+    register("frame-E2", FrameBundleE2)
     register("frame-S2", SphereFrameBundle)
     register("frame-M13", MinkowskiFrameBundle)

@@ -14,11 +14,12 @@ import click
 import numpy as np
 import pytest
 from click.testing import CliRunner
+from toys import QuadraticMedium
 
 import cartan
 from cartan.api import Scene, SceneError, load_scene, scene
 from cartan.cli_run import register
-from cartan.medium import Medium, check_positive
+from cartan.medium import check_positive
 from cartan.plugins import reset_registry
 from cartan.problem import InitialState, PotentialLoad
 
@@ -45,7 +46,7 @@ class ToyGravity(PotentialLoad):
         return {"kind": "gravity", "g": self.g.tolist(), "density": self.density}
 
 
-class ToyRod(Medium):
+class ToyRod(QuadraticMedium):
     """Quadratic SE(3) rod: K = ½Σ m_k N_k², U = ½Σ C_k (X_k − X0_k)², X0 = (1, 0, 0, 0, 0, 0)."""
 
     name = "toy-rod"
@@ -54,27 +55,15 @@ class ToyRod(Medium):
     initial_kinds = ("straight", "arc")
 
     def __init__(self, stiffness=(10.0, 10.0, 10.0, 1.0, 1.0, 1.0), inertia=(1.0, 1.0, 1.0, 0.1, 0.1, 0.2)):
+        super().__init__(
+            "SE3",
+            mass=check_positive("inertia", inertia, shape=(6,)),
+            stiffness=check_positive("stiffness", stiffness, shape=(6,)),
+        )
         self.space = cartan.space("frame-E3")
-        self.group = self.space.group
-        self.C = check_positive("stiffness", stiffness, shape=(6,))
-        self.m = check_positive("inertia", inertia, shape=(6,))
-        self.X0 = np.array([1.0, 0, 0, 0, 0, 0])
 
     def parameters(self):
         return {"stiffness": self.C.tolist(), "inertia": self.m.tolist()}
-
-    def inertia(self):
-        return self.m
-
-    def rest_strain(self):
-        return self.X0[None, :]
-
-    def potential(self, X):
-        d = X - self.X0
-        return 0.5 * np.einsum("...ak,k,...ak->...", d, self.C, d)
-
-    def stress(self, X):
-        return (X - self.X0) * self.C
 
     def make_load(self, kind, **params):
         if kind == "gravity":

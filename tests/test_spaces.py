@@ -10,6 +10,7 @@ import pytest
 from cartan import plugins, spaces
 from cartan.spaces import (
     Euclidean3,
+    FrameBundleE2,
     FrameBundleE3,
     HomogeneousSpace,
     MinkowskiFrameBundle,
@@ -29,6 +30,7 @@ SPACES = {
     "E3": Euclidean3,
     "E3xS2": PointDirector,
     "frame-E3": FrameBundleE3,
+    "frame-E2": FrameBundleE2,
     "frame-S2": lambda: SphereFrameBundle(radius=2.0),
     "frame-M13": MinkowskiFrameBundle,
 }
@@ -351,7 +353,7 @@ def test_point_director_drill_gauge():
 
 # ---------------------------------------------------------------------- frame bundles
 def test_frame_bundles_lift_is_identity_map():
-    for space in (FrameBundleE3(), SphereFrameBundle(radius=3.0), MinkowskiFrameBundle()):
+    for space in (FrameBundleE3(), FrameBundleE2(), SphereFrameBundle(radius=3.0), MinkowskiFrameBundle()):
         q = _points(space, (4,), seed=27)
         _close(space.lift(q), q, 0.0)
         assert space.gauge_dim == 0
@@ -419,6 +421,8 @@ def test_registered_through_the_hook(monkeypatch):
         "E3": Euclidean3,
         "E3xS2": PointDirector,
         "frame-E3": FrameBundleE3,
+    "frame-E2": FrameBundleE2,
+        "frame-E2": FrameBundleE2,
         "frame-S2": SphereFrameBundle,
         "frame-M13": MinkowskiFrameBundle,
     }

@@ -51,3 +51,14 @@ def run_kernel(
     out = np.empty((npts, *out_core))
     kernel(*flat, out)
     return out.reshape(lead + tuple(out_core))
+
+
+#: the operations a group module may provide batch kernels for, as ``_<op>_batch``
+KERNEL_OPS = ("hat", "vee", "compose", "inverse", "act", "exp", "log", "Ad", "ad", "bracket", "dexp",
+              "dexp_inv", "E")
+
+
+def kernel_table(namespace: dict) -> dict[str, Callable[..., None]]:
+    """``{op: kernel}`` for every ``_<op>_batch`` function defined in a module's namespace
+    (pass ``globals()``); the result is a group class's ``_kernels`` table."""
+    return {op: namespace[f"_{op}_batch"] for op in KERNEL_OPS if f"_{op}_batch" in namespace}

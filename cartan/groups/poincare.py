@@ -58,6 +58,7 @@ import scipy.linalg
 from numba import njit
 from numba.extending import register_jitable
 
+from ._batch import kernel_table
 from .base import SymmetryGroup
 from .so13 import (
     Ad_np,
@@ -536,18 +537,7 @@ class Poincare(SymmetryGroup):
     matrix_size = 5
     affine = True
     injectivity_radius = np.pi
-    _kernels = {
-        "hat": _hat_batch,
-        "vee": _vee_batch,
-        "compose": _compose_batch,
-        "inverse": _inverse_batch,
-        "act": _act_batch,
-        "exp": _exp_batch,
-        "log": _log_batch,
-        "Ad": _Ad_batch,
-        "ad": _ad_batch,
-        "bracket": _bracket_batch,
-    }
+    _kernels = kernel_table(globals())
 
     def basis(self) -> np.ndarray:
         """Generators: 4 translations ``{e_μ; 0}``, then ``{0; K_k}``, ``{0; J_k}``; ``(10, 5, 5)``."""

@@ -44,6 +44,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
+from ._batch import kernel_table
 from .base import SymmetryGroup
 from .so3 import (
     dexp_coeffs_np,
@@ -361,21 +362,7 @@ class SE2(SymmetryGroup):
     dim = 3
     matrix_size = 3
     affine = True
-    _kernels = {
-        "hat": _hat_batch,
-        "vee": _vee_batch,
-        "compose": _compose_batch,
-        "inverse": _inverse_batch,
-        "act": _act_batch,
-        "exp": _exp_batch,
-        "log": _log_batch,
-        "Ad": _Ad_batch,
-        "ad": _ad_batch,
-        "bracket": _bracket_batch,
-        "dexp": _dexp_batch,
-        "dexp_inv": _dexp_inv_batch,
-        "E": _E_batch,
-    }
+    _kernels = kernel_table(globals())
 
     def basis(self) -> np.ndarray:
         """Generators ``(E₂₁, E₃₁, E₃₂ − E₂₃)``, shape ``(3, 3, 3)``."""

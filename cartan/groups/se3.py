@@ -33,6 +33,7 @@ import numpy as np
 from numba import njit
 from numba.extending import register_jitable
 
+from ._batch import kernel_table
 from .base import SymmetryGroup
 from .so3 import (
     SMALL_THETA2,
@@ -502,21 +503,7 @@ class SE3(SymmetryGroup):
     dim = 6
     matrix_size = 4
     affine = True
-    _kernels = {
-        "hat": _hat_batch,
-        "vee": _vee_batch,
-        "compose": _compose_batch,
-        "inverse": _inverse_batch,
-        "act": _act_batch,
-        "exp": _exp_batch,
-        "log": _log_batch,
-        "Ad": _Ad_batch,
-        "ad": _ad_batch,
-        "bracket": _bracket_batch,
-        "dexp": _dexp_batch,
-        "dexp_inv": _dexp_inv_batch,
-        "E": _E_batch,
-    }
+    _kernels = kernel_table(globals())
 
     def basis(self) -> np.ndarray:
         """Generators ``b_i = {(δ_i1, δ_i2, δ_i3); (δ_i4, δ_i5, δ_i6)}``, shape ``(6, 4, 4)``."""

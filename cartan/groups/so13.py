@@ -74,6 +74,7 @@ import numpy as np
 from numba import njit
 from numba.extending import register_jitable
 
+from ._batch import kernel_table
 from .base import SymmetryGroup
 
 __all__ = [
@@ -802,21 +803,7 @@ class SO13(SymmetryGroup):
     matrix_size = 4
     affine = False
     injectivity_radius = np.pi
-    _kernels = {
-        "hat": _hat_batch,
-        "vee": _vee_batch,
-        "compose": _compose_batch,
-        "inverse": _inverse_batch,
-        "act": _act_batch,
-        "exp": _exp_batch,
-        "log": _log_batch,
-        "Ad": _Ad_batch,
-        "ad": _ad_batch,
-        "bracket": _bracket_batch,
-        "dexp": _dexp_batch,
-        "dexp_inv": _dexp_inv_batch,
-        "E": _E_batch,
-    }
+    _kernels = kernel_table(globals())
 
     def basis(self) -> np.ndarray:
         """Generators ``(K₁, K₂, K₃, J₁, J₂, J₃)``, shape ``(6, 4, 4)``."""

@@ -23,6 +23,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
+from ._batch import kernel_table
 from .base import SymmetryGroup
 
 __all__ = [
@@ -238,21 +239,7 @@ class SO2(SymmetryGroup):
     name = "SO2"
     dim = 1
     matrix_size = 2
-    _kernels = {
-        "hat": _hat_batch,
-        "vee": _vee_batch,
-        "compose": _compose_batch,
-        "inverse": _inverse_batch,
-        "act": _act_batch,
-        "exp": _exp_batch,
-        "log": _log_batch,
-        "Ad": _Ad_batch,
-        "ad": _ad_batch,
-        "bracket": _bracket_batch,
-        "dexp": _dexp_batch,
-        "dexp_inv": _dexp_inv_batch,
-        "E": _E_batch,
-    }
+    _kernels = kernel_table(globals())
 
     def basis(self) -> np.ndarray:
         """The generator ``b = [[0, −1], [1, 0]]``, shape ``(1, 2, 2)``."""

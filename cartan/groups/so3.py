@@ -35,6 +35,7 @@ import numpy as np
 from numba import njit
 from numba.extending import register_jitable
 
+from ._batch import kernel_table
 from .base import SymmetryGroup
 
 __all__ = [
@@ -515,21 +516,7 @@ class SO3(SymmetryGroup):
     name = "SO3"
     dim = 3
     matrix_size = 3
-    _kernels = {
-        "hat": _hat_batch,
-        "vee": _vee_batch,
-        "compose": _compose_batch,
-        "inverse": _inverse_batch,
-        "act": _act_batch,
-        "exp": _exp_batch,
-        "log": _log_batch,
-        "Ad": _Ad_batch,
-        "ad": _ad_batch,
-        "bracket": _bracket_batch,
-        "dexp": _dexp_batch,
-        "dexp_inv": _dexp_inv_batch,
-        "E": _E_batch,
-    }
+    _kernels = kernel_table(globals())
 
     def basis(self) -> np.ndarray:
         """Generators ``b_i = ê_i``, shape ``(3, 3, 3)``."""

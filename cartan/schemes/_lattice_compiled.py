@@ -44,6 +44,7 @@ import time
 
 import numpy as np
 from numba import njit
+from numba.extending import register_jitable
 
 from ..groups.se2 import (
     se2_Ad_point,
@@ -57,11 +58,13 @@ from ..groups.se2 import (
     se2_log_point,
 )
 from ..groups.se3 import (
+    _dexp_coeffs_direct,
+    _dexp_coeffs_series,
     _Q_apply,
+    _V_apply,
     se3_Ad_point,
     se3_ad_point,
     se3_compose_point,
-    se3_dexp_coeffs,
     se3_dexp_inv_point,
     se3_E_point,
     se3_exp_point,
@@ -81,11 +84,19 @@ from ..groups.so2 import (
     so2_log_point,
 )
 from ..groups.so3 import (
+    LOG_SMALL_RATIO,
+    SMALL_THETA2,
+    TAYLOR_CINV,
+    _cinv_direct,
+    _exp_coeffs_direct,
+    _exp_coeffs_series,
+    _log_factor_direct,
+    _quat_from_matrix,
     cross3,
+    horner,
     so3_Ad_point,
     so3_ad_point,
     so3_compose_point,
-    so3_dexp_inv_coeff,
     so3_dexp_inv_point,
     so3_E_point,
     so3_exp_coeffs,
@@ -295,7 +306,148 @@ def _edge_nodes(e, n):
 
 
 # ---------------------------------------------------------------------------- forces
+#: atan(x)/x = Σ (−1)ᵏ x²ᵏ/(2k+1), highest power first: below x² = 1/400 nine terms reach 1e-19
+ATAN_SERIES = (1.0 / 17.0, -1.0 / 15.0, 1.0 / 13.0, -1.0 / 11.0, 1.0 / 9.0, -1.0 / 7.0, 1.0 / 5.0, -1.0 / 3.0, 1.0)
+ATAN_SERIES_X2 = 1.0 / 400.0
+
+
+@register_jitable
+def _cinv(t2):
+    """``so3_dexp_inv_coeff`` (same branches), inlined into the callers."""
+    if t2 < SMALL_THETA2:
+        return horner(t2, TAYLOR_CINV)
+    return _cinv_direct(t2)
+
+
+@register_jitable
+def _rot_coeffs(t2):
+    """``so3_exp_coeffs`` (same branches), inlined into the callers."""
+    if t2 < SMALL_THETA2:
+        return _exp_coeffs_series(t2)
+    return _exp_coeffs_direct(t2)
+
+
+@register_jitable
+def _q_coeffs(t2):
+    """``se3_dexp_coeffs`` without B: the coefficients (C, D, E) of the Q block."""
+    if t2 < SMALL_THETA2:
+        _, c, d, e = _dexp_coeffs_series(t2)
+    else:
+        _, c, d, e = _dexp_coeffs_direct(t2)
+    return c, d, e
+
+
+@register_jitable
+def _se3_log_at(G, e):
+    """``log G[e]`` as 6 scalars ``(a1; a2)`` and the coefficient ``c`` of ``J⁻¹(a2)``:
+    :func:`cartan.groups.se3.se3_log_point` read straight from the batch (no per-edge array
+    views), with the quaternion factor ``θ/|q_v| = (2/q_w) atan(x)/x`` from its series for
+    ``x = |q_v|/q_w < 1/20`` (θ ≲ 0.1)."""
+    r00, r01, r02 = G[e, 1, 1], G[e, 1, 2], G[e, 1, 3]
+    r10, r11, r12 = G[e, 2, 1], G[e, 2, 2], G[e, 2, 3]
+    r20, r21, r22 = G[e, 3, 1], G[e, 3, 2], G[e, 3, 3]
+    case = 0
+    best = r00 + r11 + r22
+    if r00 > best:
+        case = 1
+        best = r00
+    if r11 > best:
+        case = 2
+        best = r11
+    if r22 > best:
+        case = 3
+    qw, qx, qy, qz = _quat_from_matrix(r00, r01, r02, r10, r11, r12, r20, r21, r22, case)
+    if qw < 0.0:
+        qw, qx, qy, qz = -qw, -qx, -qy, -qz
+    v2 = qx * qx + qy * qy + qz * qz
+    if v2 < ATAN_SERIES_X2 * (qw * qw):
+        f = (2.0 / qw) * horner(v2 / (qw * qw), ATAN_SERIES)
+    else:
+        sv = np.sqrt(v2)
+        f = _log_factor_direct(sv, qw) if sv > LOG_SMALL_RATIO * qw else (2.0 / qw)
+    w0, w1, w2 = f * qx, f * qy, f * qz
+    c = _cinv(w0 * w0 + w1 * w1 + w2 * w2)
+    t = _V_apply(w0, w1, w2, -0.5, c, G[e, 1, 0], G[e, 2, 0], G[e, 3, 0])
+    return t[0], t[1], t[2], w0, w1, w2, c
+
+
 @njit(cache=True)
+def _se3_internal_force(G, X0, C, h, F, d):
+    """``F`` ← internal forces of every SE(3) edge (tail ``+dexp⁻¹(ξ)ᵀQ``, head
+    ``−dexp⁻¹(−ξ)ᵀQ``, ``ξ = log G_e``, ``Q = C(ξ/h − X₀)``; valid off the group too)."""
+    n = F.shape[0]
+    for i in range(n):
+        for k in range(6):
+            F[i, k] = 0.0
+    for e in range(G.shape[0]):
+        i, j = _edge_nodes(e, n)
+        r0, r1, r2, p0, p1, p2, cinv = _se3_log_at(G, e)
+        d[0] = r0 / h - X0[0]
+        d[1] = r1 / h - X0[1]
+        d[2] = r2 / h - X0[2]
+        d[3] = p0 / h - X0[3]
+        d[4] = p1 / h - X0[4]
+        d[5] = p2 / h - X0[5]
+        q0 = C[0, 0] * d[0] + C[0, 1] * d[1] + C[0, 2] * d[2] + C[0, 3] * d[3] + C[0, 4] * d[4] + C[0, 5] * d[5]
+        q1 = C[1, 0] * d[0] + C[1, 1] * d[1] + C[1, 2] * d[2] + C[1, 3] * d[3] + C[1, 4] * d[4] + C[1, 5] * d[5]
+        q2 = C[2, 0] * d[0] + C[2, 1] * d[1] + C[2, 2] * d[2] + C[2, 3] * d[3] + C[2, 4] * d[4] + C[2, 5] * d[5]
+        q3 = C[3, 0] * d[0] + C[3, 1] * d[1] + C[3, 2] * d[2] + C[3, 3] * d[3] + C[3, 4] * d[4] + C[3, 5] * d[5]
+        q4 = C[4, 0] * d[0] + C[4, 1] * d[1] + C[4, 2] * d[2] + C[4, 3] * d[3] + C[4, 4] * d[4] + C[4, 5] * d[5]
+        q5 = C[5, 0] * d[0] + C[5, 1] * d[1] + C[5, 2] * d[2] + C[5, 3] * d[3] + C[5, 4] * d[4] + C[5, 5] * d[5]
+        c, dd, ee = _q_coeffs(p0 * p0 + p1 * p1 + p2 * p2)
+        o = _se3_dexp_inv_T(r0, r1, r2, p0, p1, p2, cinv, c, dd, ee, q0, q1, q2, q3, q4, q5)
+        F[i, 0] += o[0]
+        F[i, 1] += o[1]
+        F[i, 2] += o[2]
+        F[i, 3] += o[3]
+        F[i, 4] += o[4]
+        F[i, 5] += o[5]
+        o = _se3_dexp_inv_T(-r0, -r1, -r2, -p0, -p1, -p2, cinv, c, dd, ee, q0, q1, q2, q3, q4, q5)
+        F[j, 0] += -o[0]
+        F[j, 1] += -o[1]
+        F[j, 2] += -o[2]
+        F[j, 3] += -o[3]
+        F[j, 4] += -o[4]
+        F[j, 5] += -o[5]
+
+
+@njit(cache=True)
+def _se3_conjugate(G, Phi, track, D):
+    """SE(3) drift by per-node elements ``D = (t; R)``: ``G_e ← D_i⁻¹ G_e D_j`` as
+    ``(R_iᵀ(B t_j + b − t_i); R_iᵀ B R_j)`` for ``G_e = (b; B)``; ``Φ_i ← Φ_i D_i``."""
+    n = D.shape[0]
+    for e in range(G.shape[0]):
+        i, j = _edge_nodes(e, n)
+        # G D_j = (B t_j + b; B R_j)
+        u0 = G[e, 1, 1] * D[j, 1, 0] + G[e, 1, 2] * D[j, 2, 0] + G[e, 1, 3] * D[j, 3, 0] + G[e, 1, 0] - D[i, 1, 0]
+        u1 = G[e, 2, 1] * D[j, 1, 0] + G[e, 2, 2] * D[j, 2, 0] + G[e, 2, 3] * D[j, 3, 0] + G[e, 2, 0] - D[i, 2, 0]
+        u2 = G[e, 3, 1] * D[j, 1, 0] + G[e, 3, 2] * D[j, 2, 0] + G[e, 3, 3] * D[j, 3, 0] + G[e, 3, 0] - D[i, 3, 0]
+        for a in range(1, 4):
+            b0 = G[e, a, 1] * D[j, 1, 1] + G[e, a, 2] * D[j, 2, 1] + G[e, a, 3] * D[j, 3, 1]
+            b1 = G[e, a, 1] * D[j, 1, 2] + G[e, a, 2] * D[j, 2, 2] + G[e, a, 3] * D[j, 3, 2]
+            b2 = G[e, a, 1] * D[j, 1, 3] + G[e, a, 2] * D[j, 2, 3] + G[e, a, 3] * D[j, 3, 3]
+            G[e, a, 1] = b0
+            G[e, a, 2] = b1
+            G[e, a, 3] = b2
+        for b in range(1, 4):
+            m0, m1, m2 = G[e, 1, b], G[e, 2, b], G[e, 3, b]
+            G[e, 1, b] = D[i, 1, 1] * m0 + D[i, 2, 1] * m1 + D[i, 3, 1] * m2
+            G[e, 2, b] = D[i, 1, 2] * m0 + D[i, 2, 2] * m1 + D[i, 3, 2] * m2
+            G[e, 3, b] = D[i, 1, 3] * m0 + D[i, 2, 3] * m1 + D[i, 3, 3] * m2
+        G[e, 1, 0] = D[i, 1, 1] * u0 + D[i, 2, 1] * u1 + D[i, 3, 1] * u2
+        G[e, 2, 0] = D[i, 1, 2] * u0 + D[i, 2, 2] * u1 + D[i, 3, 2] * u2
+        G[e, 3, 0] = D[i, 1, 3] * u0 + D[i, 2, 3] * u1 + D[i, 3, 3] * u2
+    nf = n if track else 1
+    for i in range(nf):
+        for a in range(1, 4):
+            x0, x1, x2, x3 = Phi[i, a, 0], Phi[i, a, 1], Phi[i, a, 2], Phi[i, a, 3]
+            Phi[i, a, 0] = x1 * D[i, 1, 0] + x2 * D[i, 2, 0] + x3 * D[i, 3, 0] + x0
+            Phi[i, a, 1] = x1 * D[i, 1, 1] + x2 * D[i, 2, 1] + x3 * D[i, 3, 1]
+            Phi[i, a, 2] = x1 * D[i, 1, 2] + x2 * D[i, 2, 2] + x3 * D[i, 3, 2]
+            Phi[i, a, 3] = x1 * D[i, 1, 3] + x2 * D[i, 2, 3] + x3 * D[i, 3, 3]
+
+
+@register_jitable
 def _se3_dexp_inv_T(r0, r1, r2, p0, p1, p2, cinv, c, d, e, F0, F1, F2, M0, M1, M2):
     """``dexp⁻¹(ξ)ᵀ (F; M)`` for ``ξ = (r; p)`` without forming the 6 × 6 matrix.
 
@@ -317,30 +469,6 @@ def _se3_dexp_inv_T(r0, r1, r2, p0, p1, p2, cinv, c, d, e, F0, F1, F2, M0, M1, M
 
 
 @njit(cache=True)
-def _se3_edge_force(Ge, X0, C, h, Fi, Fj, xi, Q, tr):
-    """Internal force of one SE(3) edge: ``Fi += dexp⁻¹(ξ)ᵀQ``, ``Fj −= dexp⁻¹(−ξ)ᵀQ`` with
-    ``ξ = log G_e`` and ``Q = C(ξ/h − X₀)`` (valid off the group too, for forward-euler)."""
-    se3_log_point(Ge, xi)
-    for k in range(6):
-        tr[k] = xi[k] / h - X0[k]
-    for k in range(6):
-        acc = 0.0
-        for b in range(6):
-            acc += C[k, b] * tr[b]
-        Q[k] = acc
-    r0, r1, r2, p0, p1, p2 = xi[0], xi[1], xi[2], xi[3], xi[4], xi[5]
-    t2 = p0 * p0 + p1 * p1 + p2 * p2
-    cinv = so3_dexp_inv_coeff(t2)
-    _, c, d, e = se3_dexp_coeffs(t2)
-    o = _se3_dexp_inv_T(r0, r1, r2, p0, p1, p2, cinv, c, d, e, Q[0], Q[1], Q[2], Q[3], Q[4], Q[5])
-    for k in range(6):
-        Fi[k] += o[k]
-    o = _se3_dexp_inv_T(-r0, -r1, -r2, -p0, -p1, -p2, cinv, c, d, e, Q[0], Q[1], Q[2], Q[3], Q[4], Q[5])
-    for k in range(6):
-        Fj[k] += -o[k]
-
-
-@njit(cache=True)
 def _force(P, G, Phi, N, W, F, scr):
     """``W = Lattice.force(state, N, t)`` for the loads of the plan ``P``."""
     (gid, track, affine, h, X0, C, w, mass, live, clamped, damp, has_damp, ubody, has_ubody,
@@ -348,14 +476,15 @@ def _force(P, G, Phi, N, W, F, scr):
     xi, nxi, tr, M, M2, A1, A2, A3 = scr
     n, r = W.shape
     ne = G.shape[0]
-    for i in range(n):
-        for k in range(r):
-            F[i, k] = 0.0
+    if gid == GID_SE3:
+        _se3_internal_force(G, X0, C, h, F, tr)
+        ne = 0
+    else:
+        for i in range(n):
+            for k in range(r):
+                F[i, k] = 0.0
     for e in range(ne):
         i, j = _edge_nodes(e, n)
-        if gid == GID_SE3:
-            _se3_edge_force(G[e], X0, C, h, F[i], F[j], xi, nxi, tr)
-            continue
         g_log(gid, G[e], xi)
         for k in range(r):
             tr[k] = xi[k] / h - X0[k]
@@ -467,6 +596,9 @@ def _powers(P, N, Phi, scr):
 @njit(cache=True)
 def _conjugate(gid, G, Phi, track, D, A1, A2):
     """Drift by per-node elements D: ``G_e ← D_i⁻¹ G_e D_j``; ``Φ_i ← Φ_i D_i`` (or the root)."""
+    if gid == GID_SE3:
+        _se3_conjugate(G, Phi, track, D)
+        return
     n = D.shape[0]
     for e in range(G.shape[0]):
         i, j = _edge_nodes(e, n)
@@ -538,8 +670,9 @@ def _free_flow(P, S, D, dt, seq_mask, seq_frac, seq_kind, seq_axis, scr):
     n, r = S.shape
     nseq = seq_frac.shape[0]
     for i in range(n):
-        Di = D[i]
-        _set_identity(Di)
+        for a in range(D.shape[1]):
+            for b in range(D.shape[2]):
+                D[i, a, b] = 1.0 if a == b else 0.0
         if clamped[i]:
             continue  # N = 0: every piece is the identity
         for p in range(nseq):
@@ -554,7 +687,7 @@ def _free_flow(P, S, D, dt, seq_mask, seq_frac, seq_kind, seq_axis, scr):
                 S[i, 4] -= c[1]
                 S[i, 5] -= c[2]
                 for row in range(1, 4):
-                    Di[row, 0] += Di[row, 1] * a0 + Di[row, 2] * a1 + Di[row, 3] * a2
+                    D[i, row, 0] += D[i, row, 1] * a0 + D[i, row, 2] * a1 + D[i, row, 3] * a2
             elif kind == KIND_SE3_ROTATION:
                 k = seq_axis[p]
                 th = tau * (S[i, 3 + k] / mass[3 + k])
@@ -562,18 +695,21 @@ def _free_flow(P, S, D, dt, seq_mask, seq_frac, seq_kind, seq_axis, scr):
                 a, b = so3_exp_coeffs(t2)
                 cs = 1.0 - b * t2
                 sn = a * th
-                pp = (k + 1) % 3
-                qq = (k + 2) % 3
-                for off in (0, 3):
-                    x = S[i, off + pp]
-                    y = S[i, off + qq]
-                    S[i, off + pp] = cs * x + sn * y
-                    S[i, off + qq] = -sn * x + cs * y
+                pp = k + 1 if k < 2 else 0
+                qq = k + 2 if k < 1 else k - 1
+                x = S[i, pp]
+                y = S[i, qq]
+                S[i, pp] = cs * x + sn * y
+                S[i, qq] = -sn * x + cs * y
+                x = S[i, 3 + pp]
+                y = S[i, 3 + qq]
+                S[i, 3 + pp] = cs * x + sn * y
+                S[i, 3 + qq] = -sn * x + cs * y
                 for row in range(1, 4):
-                    x = Di[row, pp + 1]
-                    y = Di[row, qq + 1]
-                    Di[row, pp + 1] = x * cs + y * sn
-                    Di[row, qq + 1] = -x * sn + y * cs
+                    x = D[i, row, pp + 1]
+                    y = D[i, row, qq + 1]
+                    D[i, row, pp + 1] = x * cs + y * sn
+                    D[i, row, qq + 1] = -x * sn + y * cs
             else:
                 for k in range(r):
                     xi[k] = tau * (S[i, k] / mass[k]) if seq_mask[p, k] else 0.0
@@ -586,8 +722,81 @@ def _free_flow(P, S, D, dt, seq_mask, seq_frac, seq_kind, seq_axis, scr):
                     tr[a] = acc
                 for a in range(r):
                     S[i, a] = tr[a]
-                g_compose(gid, Di, A1, A2)
-                _copy_matrix(A2, Di)
+                g_compose(gid, D[i], A1, A2)
+                _copy_matrix(A2, D[i])
+
+
+@register_jitable
+def _turn(cs, sn, x, y):
+    """Components of ``Rᵀ(x, y)`` for a plane rotation by (cos, sin) = (cs, sn)."""
+    return cs * x + sn * y, -sn * x + cs * y
+
+
+@njit(cache=True)
+def _se3_free_flow(P, S, D, dt, seq_frac, seq_kind, seq_axis):
+    """:func:`_free_flow` when every piece is an SE(3) translation block or a single body
+    axis, node state held in registers: per piece ``S ← Ad*_{exp(τN_p)}S``, ``D ← D exp(τN_p)``
+    with ``exp`` a translation ``(a; I)`` (``L ← L − a × P``) or a rotation about ``e_k``
+    whose cosine and sine are ``1 − Bθ²`` and ``Aθ`` (the coefficients of the SO(3) exp)."""
+    mass = P[7]
+    clamped = P[9]
+    n = S.shape[0]
+    nseq = seq_frac.shape[0]
+    for i in range(n):
+        t0 = t1 = t2 = 0.0
+        r00, r01, r02 = 1.0, 0.0, 0.0
+        r10, r11, r12 = 0.0, 1.0, 0.0
+        r20, r21, r22 = 0.0, 0.0, 1.0
+        if not clamped[i]:
+            s0, s1, s2, s3, s4, s5 = S[i, 0], S[i, 1], S[i, 2], S[i, 3], S[i, 4], S[i, 5]
+            for p in range(nseq):
+                tau = seq_frac[p] * dt
+                if seq_kind[p] == KIND_SE3_TRANSLATION:
+                    a0 = tau * (s0 / mass[0])
+                    a1 = tau * (s1 / mass[1])
+                    a2 = tau * (s2 / mass[2])
+                    c = cross3(a0, a1, a2, s0, s1, s2)
+                    s3 -= c[0]
+                    s4 -= c[1]
+                    s5 -= c[2]
+                    t0 += r00 * a0 + r01 * a1 + r02 * a2
+                    t1 += r10 * a0 + r11 * a1 + r12 * a2
+                    t2 += r20 * a0 + r21 * a1 + r22 * a2
+                    continue
+                k = seq_axis[p]
+                if k == 0:
+                    th = tau * (s3 / mass[3])
+                elif k == 1:
+                    th = tau * (s4 / mass[4])
+                else:
+                    th = tau * (s5 / mass[5])
+                q2 = th * th
+                a, b = _rot_coeffs(q2)
+                cs = 1.0 - b * q2
+                sn = a * th
+                if k == 0:  # plane (e2, e3)
+                    s1, s2 = _turn(cs, sn, s1, s2)
+                    s4, s5 = _turn(cs, sn, s4, s5)
+                    r01, r02 = _turn(cs, sn, r01, r02)
+                    r11, r12 = _turn(cs, sn, r11, r12)
+                    r21, r22 = _turn(cs, sn, r21, r22)
+                elif k == 1:  # plane (e3, e1)
+                    s2, s0 = _turn(cs, sn, s2, s0)
+                    s5, s3 = _turn(cs, sn, s5, s3)
+                    r02, r00 = _turn(cs, sn, r02, r00)
+                    r12, r10 = _turn(cs, sn, r12, r10)
+                    r22, r20 = _turn(cs, sn, r22, r20)
+                else:  # plane (e1, e2)
+                    s0, s1 = _turn(cs, sn, s0, s1)
+                    s3, s4 = _turn(cs, sn, s3, s4)
+                    r00, r01 = _turn(cs, sn, r00, r01)
+                    r10, r11 = _turn(cs, sn, r10, r11)
+                    r20, r21 = _turn(cs, sn, r20, r21)
+            S[i, 0], S[i, 1], S[i, 2], S[i, 3], S[i, 4], S[i, 5] = s0, s1, s2, s3, s4, s5
+        D[i, 0, 0], D[i, 0, 1], D[i, 0, 2], D[i, 0, 3] = 1.0, 0.0, 0.0, 0.0
+        D[i, 1, 0], D[i, 1, 1], D[i, 1, 2], D[i, 1, 3] = t0, r00, r01, r02
+        D[i, 2, 0], D[i, 2, 1], D[i, 2, 2], D[i, 2, 3] = t1, r10, r11, r12
+        D[i, 3, 0], D[i, 3, 1], D[i, 3, 2], D[i, 3, 3] = t2, r20, r21, r22
 
 
 @njit(cache=True)
@@ -606,6 +815,10 @@ def lie_verlet_loop(P, S, G, Phi, W, have_force, velocity_free, seq_mask, seq_fr
     D = np.empty((n, m, m))
     scr = _scratch(r, m)
     w = P[6]
+    se3_flow = P[0] == GID_SE3
+    for p in range(seq_kind.shape[0]):
+        if seq_kind[p] == KIND_GENERIC:
+            se3_flow = False
     nforce = 0
     half = 0.5 * dt
     _velocity(P, S, N)
@@ -619,7 +832,10 @@ def lie_verlet_loop(P, S, G, Phi, W, have_force, velocity_free, seq_mask, seq_fr
             for k in range(r):
                 S[i, k] = S[i, k] + half * W[i, k]
         _constrain(P, S)
-        _free_flow(P, S, D, dt, seq_mask, seq_frac, seq_kind, seq_axis, scr)
+        if se3_flow:
+            _se3_free_flow(P, S, D, dt, seq_frac, seq_kind, seq_axis)
+        else:
+            _free_flow(P, S, D, dt, seq_mask, seq_frac, seq_kind, seq_axis, scr)
         _conjugate(P[0], G, Phi, P[1], D, scr[5], scr[6])
         _constrain(P, S)
         _velocity(P, S, N)
@@ -1095,7 +1311,7 @@ def advance(scheme, plan: tuple, integrator, state, dt: float, nsteps: int, kine
     """Run up to ``nsteps`` steps of ``integrator`` on ``state`` in compiled code (see
     :meth:`cartan.schemes.lattice.Lattice.compiled_advance`); False when the integrator is
     not supported (nothing is touched)."""
-    from ..integrators.explicit import RKMK4, _TABLEAUX, ForwardEuler, LieEuler, LieVerlet, Overdamped
+    from ..integrators.explicit import _TABLEAUX, RKMK4, ForwardEuler, LieEuler, LieVerlet, Overdamped
 
     kind = type(integrator)
     if kind not in (LieVerlet, LieEuler, ForwardEuler, Overdamped, RKMK4):

@@ -150,6 +150,19 @@ class Scheme(abc.ABC):
                     mask[tuple(sl)] = True
         return mask
 
+    def _new_state(self, arrays: dict[str, np.ndarray]) -> State:
+        """State at t = 0 with the scheme's configuration ``arrays``: adds the frames (all of
+        them when ``self.track`` is set, else the root node's), S₀ = ∂K/∂N(N₀), constraints."""
+        Phi = self.problem.initial.Phi
+        if getattr(self, "track", True):
+            arrays["Phi"] = Phi.copy()
+        else:
+            arrays["Phi_root"] = Phi[(0,) * self.grid.d].copy()
+        S = self.medium.momentum(self.problem.initial.N)
+        state = State(0.0, np.ascontiguousarray(S, dtype=float), arrays)
+        self.constrain(state)
+        return state
+
     def velocity(self, state: State) -> np.ndarray:
         """N = ∂K*/∂S with gauge components and clamped nodes held at zero."""
         N = self.medium.velocity(state.S)

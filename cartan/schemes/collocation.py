@@ -378,15 +378,7 @@ class Collocation(Scheme):
     def initial_state(self) -> State:
         """X₀ = Φ₀⁻¹∂Φ₀ by :meth:`strain_from_frames`, S₀ = ∂K/∂N(N₀), frames as configured."""
         Phi = self.problem.initial.Phi
-        arrays: dict[str, np.ndarray] = {"X": self.strain_from_frames(Phi, check=True)}
-        if self.track:
-            arrays["Phi"] = Phi.copy()
-        else:
-            arrays["Phi_root"] = Phi[(0,) * self.grid.d].copy()
-        S = self.medium.momentum(self.problem.initial.N)
-        state = State(0.0, np.ascontiguousarray(S, dtype=float), arrays)
-        self.constrain(state)
-        return state
+        return self._new_state({"X": self.strain_from_frames(Phi, check=True)})
 
     def strains(self, state: State) -> np.ndarray:
         """The stored nodal strains ``[*shape, d, r]``."""

@@ -157,14 +157,7 @@ class Lattice(Scheme):
                     "initial.Phi changes too fast between neighbouring nodes: an edge rotates by "
                     f"more than 0.9·{g.injectivity_radius:.3g}; refine the grid"
                 )
-        if self.track:
-            arrays["Phi"] = Phi.copy()
-        else:
-            arrays["Phi_root"] = Phi[(0,) * self.grid.d].copy()
-        S = self.medium.momentum(self.problem.initial.N)
-        state = State(0.0, np.ascontiguousarray(S, dtype=float), arrays)
-        self.constrain(state)
-        return state
+        return self._new_state(arrays)
 
     # ------------------------------------------------------------------ strains and forces
     def edge_strains(self, state: State) -> list[np.ndarray]:

@@ -66,10 +66,9 @@ import numpy as np
 
 import cartan
 from cartan.grid import Grid
-from cartan.groups.se2 import SE2
 from cartan.medium import Medium, check_finite, check_positive
 from cartan.problem import ConstantFieldPotential, InitialState
-from cartan.spaces import HomogeneousSpace
+from cartan.spaces import FrameBundleE2
 
 __all__ = [
     "DEFAULT_SHEAR_COEFFICIENT",
@@ -110,54 +109,6 @@ def _finite(name: str, value: Any, shape: tuple | None = None) -> np.ndarray:
 
 
 # ====================================================================== planar frame space
-class FrameBundleE2(HomogeneousSpace):
-    """The frame bundle F(E²) ≅ SE(2) of the plane: the configuration space of planar rods.
-
-    Points are the 3 × 3 matrices ``[[1, 0, 0], [r₁, c, −s], [r₂, s, c]]`` (position r and
-    directors ``e₁ = (c, s)``, ``e₂ = (−s, c)`` as columns), homogeneous coordinate first as
-    in :mod:`cartan.groups.se2`; the action is the matrix product, ``q_r = I₃``, so Φ = q and
-    there is no gauge.  The planar analogue of the core's ``"frame-E3"``.
-    """
-
-    name: ClassVar[str] = "frame-E2"
-
-    def __init__(self) -> None:
-        self.group = SE2()
-        self.dim = 3
-        self.point_shape = (3, 3)
-
-    def _apply(self, M: np.ndarray, q: np.ndarray) -> np.ndarray:
-        return M @ q
-
-    def _reference(self) -> np.ndarray:
-        return np.eye(3)
-
-    def _section(self, q: np.ndarray) -> np.ndarray:
-        return q.copy()
-
-    def defect(self, q: Any) -> np.ndarray:
-        return self.group.defect(self._points(q))
-
-    def _defect_meaning(self) -> str:
-        return "the frame [[1, 0], [r, E]] (E a rotation)"
-
-    def project(self, q: Any) -> np.ndarray:
-        a = self._points(q).copy()
-        a[..., 0, :] = [1.0, 0.0, 0.0]
-        ang = np.arctan2(a[..., 2, 1] - a[..., 1, 2], a[..., 1, 1] + a[..., 2, 2])
-        c, s = np.cos(ang), np.sin(ang)
-        a[..., 1, 1], a[..., 1, 2], a[..., 2, 1], a[..., 2, 2] = c, -s, s, c
-        return a
-
-    @staticmethod
-    def position(q: Any) -> np.ndarray:
-        """Position ``r = q[..., 1:, 0]``, shape ``[..., 2]``."""
-        return np.asarray(q, dtype=float)[..., 1:, 0]
-
-    @staticmethod
-    def frame(q: Any) -> np.ndarray:
-        """Directors ``E = (e₁ e₂) = q[..., 1:, 1:]``, shape ``[..., 2, 2]``."""
-        return np.asarray(q, dtype=float)[..., 1:, 1:]
 
 
 # ====================================================================== gravity
