@@ -24,6 +24,10 @@ class QuadraticMedium(Medium):
         self.C = np.asarray(stiffness if stiffness is not None else np.linspace(10.0, 2.0, r), dtype=float)
         self.X0 = np.asarray(rest if rest is not None else np.eye(r)[0], dtype=float)
 
+    def parameters(self):
+        return {"group": self.group.name, "mass": self.m.tolist(), "stiffness": self.C.tolist(),
+                "rest": self.X0.tolist()}
+
     def inertia(self):
         return self.m
 
