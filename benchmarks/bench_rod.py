@@ -8,7 +8,10 @@ per sample, along each path cartan offers:
 * ``simulate`` — ``cartan.simulate`` whole (setup, blow-up guard, one saved frame);
 * ``simulate-uncompiled`` — ``cartan.simulate(..., compiled=False)``, skipped (n/a) while
   ``simulate`` has no ``compiled`` option;
-* ``step-loop`` — a bare loop of ``LieVerlet.step`` on a ``Lattice``.
+* ``step-loop`` — a bare loop of ``LieVerlet.step`` on a ``Lattice``;
+* ``compiled-advance`` — ``Lattice.compiled_advance`` over all the steps (the scheme's
+  compiled loop without ``simulate`` around it), skipped (n/a) when the scheme has none or
+  declines the problem.
 
 ``setup`` runs every path once on the same rod, so that numba compilation (or loading its
 on-disk cache) never lands inside a timing.
@@ -28,7 +31,7 @@ from .compare import cartan_problem, step_size, t1_velocity
 
 STEPS = 20
 
-PATHS = ["simulate", "simulate-uncompiled", "step-loop"]
+PATHS = ["simulate", "simulate-uncompiled", "step-loop", "compiled-advance"]
 
 #: PyElastica's butterfly material (E, ν, radius, density)
 BUTTERFLY = {"E": 1e4, "poisson": 0.5, "radius": 0.25, "density": 5000.0}
@@ -58,12 +61,19 @@ class RodStep:
         self.problem = cartan_problem(n, t1_velocity(n))
         self.dt = step_size(n)
         self.options = options
-        if path == "step-loop":
+        if path in ("step-loop", "compiled-advance"):
             self.scheme = cartan.registry("schemes")["lattice"](self.problem)
             self.integrator = cartan.registry("integrators")["lie-verlet"]()
             self.state = self.scheme.initial_state()
-            for _ in range(2):  # compile or load every kernel
-                self.integrator.step(self.scheme, self.state, self.dt)
+            if path == "compiled-advance":
+                advance = getattr(self.scheme, "compiled_advance", None)
+                if advance is None:
+                    raise NotImplementedError("the lattice scheme has no compiled_advance")
+                if not advance(self.integrator, self.state, self.dt, 2):  # compile or load the loop
+                    raise NotImplementedError("Lattice.compiled_advance declines this problem")
+            else:
+                for _ in range(2):  # compile or load every kernel
+                    self.integrator.step(self.scheme, self.state, self.dt)
         else:
             _simulate(self.problem, self.dt, 2, **options)
 
@@ -72,6 +82,8 @@ class RodStep:
             step, scheme, state, dt = self.integrator.step, self.scheme, self.state, self.dt
             for _ in range(STEPS):
                 step(scheme, state, dt)
+        elif path == "compiled-advance":
+            self.scheme.compiled_advance(self.integrator, self.state, self.dt, STEPS)
         else:
             _simulate(self.problem, self.dt, STEPS, **self.options)
 

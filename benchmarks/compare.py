@@ -649,7 +649,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     ap.add_argument("--quick", action="store_true", help="fewer steps and repetitions (< 60 s)")
     ap.add_argument("--out", default="out/compare", help="output directory (default: out/compare)")
     ap.add_argument("--steps", type=int, default=None, help="T1 steps per run (default 2000; --quick 200)")
-    ap.add_argument("--reps", type=int, default=None, help="repetitions (default 3; --quick 3)")
+    ap.add_argument("--reps", type=int, default=None, help="T1 repetitions (default 5; --quick 3)")
     ap.add_argument("--sizes", type=int, nargs="+", default=[100, 1000], help="T1 element counts")
     ap.add_argument("--skip-t5", action="store_true", help="skip the work-precision comparison")
     ap.add_argument("--t5-budget", type=float, default=None,
@@ -658,10 +658,10 @@ def main(argv: Sequence[str] | None = None) -> int:
     args = ap.parse_args(argv)
 
     nsteps = args.steps or (200 if args.quick else 2000)
-    reps = args.reps or 3
+    reps = args.reps or (3 if args.quick else 5)
     sizes = sorted(set(args.sizes))
     t5_sizes = [25, 50, 100] if args.quick else [25, 50, 100, 200, 400]
-    t5_reps = 1 if args.quick else 3
+    t5_reps = 1 if args.quick else 5
     t5_budget = args.t5_budget if args.t5_budget is not None else (15.0 if args.quick else 300.0)
     outdir = pathlib.Path(args.out)
     outdir.mkdir(parents=True, exist_ok=True)

@@ -88,6 +88,7 @@ _META: dict[str, tuple[str, str]] = {
     "external_work": ("work done by non-conservative external loads since t = 0", "energy"),
     "integrability_residual": ("temporal integrability residual max|X_stored − X(Φ)|", "mixed"),
     "closure_residual": ("ring closure residual ‖log ∏ exp(hX)‖ around periodic axes", "1"),
+    "plaquette_residual": ("spatial integrability residual: max plaquette holonomy ‖log‖ (d ≥ 2)", "1"),
     "group_defect": ("group membership defect max‖defining relation of Φ‖", "1"),
     "total_momentum": ("total momentum in the spatial frame (momentum map)", "mixed"),
 }
@@ -151,7 +152,12 @@ def frame_record(scheme: Scheme, integrator: Integrator, state: State) -> dict[s
             rec["frame"] = np.array(Phi[..., 1:, 1:], dtype=float)
         elif _space(scheme) is not None:
             sp = _space(scheme)
-            rec["field"] = np.array(sp.act(Phi, sp.q_r), dtype=float)
+            q = sp.act(Phi, sp.q_r)
+            if hasattr(sp, "position") and hasattr(sp, "frame"):  # a frame bundle embedded in E³
+                rec["position"] = np.array(sp.position(q), dtype=float)
+                rec["frame"] = np.array(sp.frame(q), dtype=float)
+            else:
+                rec["field"] = np.array(q, dtype=float)
         rec["kinetic_energy"] = float(scheme.kinetic_energy(state))
         rec["potential_energy"] = float(scheme.potential_energy(state))
         rec["dissipated_energy"] = float(state.scalars.get("dissipated_energy", 0.0))
@@ -159,6 +165,8 @@ def frame_record(scheme: Scheme, integrator: Integrator, state: State) -> dict[s
         rec["integrability_residual"] = float(scheme.integrability_residual(state))
         closure = getattr(scheme, "closure_residual", None)
         rec["closure_residual"] = float(closure(state)) if closure is not None else 0.0
+        if scheme.grid.d > 1 and hasattr(scheme, "plaquette_residual"):
+            rec["plaquette_residual"] = float(scheme.plaquette_residual(state))
         rec["group_defect"] = float(np.max(g.defect(Phi))) if Phi.size else 0.0
         rec["total_momentum"] = np.array(scheme.total_momentum(state), dtype=float)
     return rec

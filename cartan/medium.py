@@ -129,7 +129,8 @@ class Medium(abc.ABC):
     """
 
     name: ClassVar[str] = ""
-    material_dim: ClassVar[int] = 1
+    #: material dimension d (a class attribute, or set per instance for media of any d)
+    material_dim: int = 1
     group: SymmetryGroup
     space: Any
 

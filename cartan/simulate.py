@@ -1,10 +1,24 @@
 """``cartan.simulate``: run a problem or scene, save frames, checkpoint, detect blow-up.
 
-The run loop advances the state between saves (:func:`_advance`, the one function a
-compiled loop will replace), records a frame (:func:`cartan.io.frame_record`), and every
-``checkpoint_every`` saves writes the whole run so far plus the exact state to the output
-file, so that ``simulate(..., restart=path)`` continues it and reproduces the uninterrupted
-run bit for bit.
+The run loop advances the state between saves (:func:`_advance`), records a frame
+(:func:`cartan.io.frame_record`), and every ``checkpoint_every`` saves writes the whole run
+so far plus the exact state to the output file, so that ``simulate(..., restart=path)``
+continues it and reproduces the uninterrupted run bit for bit.
+
+Compiled loops
+--------------
+:func:`_advance` first offers the steps to the scheme's ``compiled_advance`` (the lattice
+scheme runs qualifying problems — d = 1, quadratic media, data-like loads — in numba; see
+``docs/performance.md``) and falls back to the Python loop of ``integrator.step`` when it
+declines; ``simulate(..., compiled=False)`` forces the Python loop, the reference path.  The
+compiled loop applies the per-step part of the blow-up test itself (finite momentum or
+configuration, kinetic energy against the current bound) and stops after the first failing
+step, and it runs in sub-blocks that end at the steps 1, 2, 4, 8, … of the save block where
+the guard runs its energy-balance test; so the guard sees the same states at the same steps
+as with the Python loop, the failing step is named exactly, and the last good state is the
+copy taken at the start of the save block, as before.  Each step depends only on the state,
+so the result does not depend on the sub-blocks and a restart is bit for bit (with the same
+path on both sides: the compiled and Python paths agree to round-off, not bit for bit).
 
 Blow-up is detected cheaply inside each save block and fully at every save.  The tests:
 non-finite momentum or configuration (every step); an energy-balance error
@@ -171,18 +185,35 @@ def _advance(
     dt: float,
     nsteps: int,
     guard: Callable[[State, int], str | None],
+    compiled: bool = True,
 ) -> tuple[int, str | None]:
     """Advance ``state`` in place by up to ``nsteps`` steps of ``dt``.
 
     Returns ``(steps done, None)``, or ``(steps done, reason)`` as soon as
-    ``guard(state, steps done)`` reports a blow-up.  Kept minimal: a compiled loop can replace it.
+    ``guard(state, steps done)`` reports a blow-up.  With ``compiled``, the steps go to
+    ``scheme.compiled_advance`` when the scheme has it and accepts the combination (see the
+    module docstring), in sub-blocks ending where the guard runs its energy test; otherwise,
+    or for what it declines, to ``integrator.step`` one by one.
     """
+    k = 0
     with np.errstate(over="ignore", invalid="ignore", divide="ignore"):
-        for k in range(nsteps):
-            integrator.step(scheme, state, dt)
-            reason = guard(state, k + 1)
+        fast = getattr(scheme, "compiled_advance", None) if compiled else None
+        energy_checks = getattr(guard, "energy_checks", True)
+        kinetic_limit = getattr(guard, "kinetic_limit", lambda: math.inf)
+        while fast is not None and k < nsteps:
+            stop = min(nsteps, 1 << k.bit_length()) if energy_checks else nsteps
+            before = state.scalars.get("nstep", 0)
+            if not fast(integrator, state, dt, stop - k, kinetic_limit=kinetic_limit()):
+                break
+            k += state.scalars.get("nstep", 0) - before
+            reason = guard(state, k)
             if reason is not None:
-                return k + 1, reason
+                return k, reason
+        for j in range(k, nsteps):
+            integrator.step(scheme, state, dt)
+            reason = guard(state, j + 1)
+            if reason is not None:
+                return j + 1, reason
     return nsteps, None
 
 
@@ -198,6 +229,13 @@ def _make_guard(scheme: Scheme, integrator: Integrator, growth: float | None, e0
     inv = np.where(scheme.live, 1.0 / np.where(scheme.live, scheme.mass, 1.0), 0.0)
     w = scheme.weights[..., None]
     momentum = integrator.uses_momentum
+
+    def kinetic_limit() -> float:
+        """The bound the kinetic test applies now (inf while it is off): for compiled loops,
+        which apply the per-step tests themselves between the guard's energy tests."""
+        if growth is not None and momentum and scale[1] >= 1 and scale[0] > 0:
+            return growth * scale[0]
+        return math.inf
 
     def guard(state: State, k: int) -> str | None:
         if momentum:
@@ -227,6 +265,8 @@ def _make_guard(scheme: Scheme, integrator: Integrator, growth: float | None, e0
                 )
         return None
 
+    guard.kinetic_limit = kinetic_limit
+    guard.energy_checks = growth is not None
     return guard
 
 
@@ -318,6 +358,7 @@ def simulate(
     progress: bool | None = None,
     max_energy_growth: float | None = 1e3,
     *,
+    compiled: bool = True,
     command: str | None = None,
 ) -> xr.Dataset:
     """Run a problem and return its frames and diagnostics as an :class:`xarray.Dataset`.
@@ -363,6 +404,12 @@ def simulate(
         (non-finite values are always detected).  Integrators without a stability limit
         (``stability = inf``, e.g. ``kinematic``, which prescribes N) have no energy budget to
         test and get the non-finite test only.
+    compiled : bool, default True
+        Run the steps between saves in the scheme's compiled loop when it supports the
+        combination (the lattice scheme for d = 1 with a quadratic medium and data-like loads,
+        ``docs/performance.md``), else in Python.  False forces the Python loop, the reference
+        path; the two agree to round-off.  A restart reproduces a run bit for bit when both
+        parts use the same setting.
     command : str, optional
         Text recorded in the ``history`` attribute (default: a description of this call).
 
@@ -590,7 +637,7 @@ def simulate(
             n = min(save_every - step % save_every, total - step)
             good = state.copy()
             good_info = (len(records["time"]), step, nsaves, list(scale))
-            done, reason = _advance(integ_obj, scheme_obj, state, dt, n, guard)
+            done, reason = _advance(integ_obj, scheme_obj, state, dt, n, guard, compiled=compiled)
             step += done
             if reason is None:
                 rec = io.frame_record(scheme_obj, integ_obj, state)

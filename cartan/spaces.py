@@ -757,6 +757,15 @@ class SphereFrameBundle(_GroupAsSpace):
         """Centreline points ``r·e₃ = r·R[..., :, 2]``, shape ``[..., 3]``."""
         return self.radius * self._points(R, "R")[..., :, 2]
 
+    def position(self, q: Any) -> np.ndarray:
+        """Position of the material point in E³: the centreline ``r·e₃`` (output and plots)."""
+        return self.centreline(q)
+
+    @staticmethod
+    def frame(q: Any) -> np.ndarray:
+        """Directors ``(e₁ e₂ e₃) = R`` as columns."""
+        return np.asarray(q, dtype=float)
+
 
 class MinkowskiFrameBundle(_GroupAsSpace):
     """The frame bundle F(M^{1,3}) of Minkowski space, acted on by the Poincaré group (§VIII.C).

@@ -172,14 +172,25 @@ class SO3Medium(QuadraticMedium):
         self.space = cartan.space("frame-S2")
 
 
-def test_non_affine_group_gives_field():
+def test_frame_bundle_of_the_sphere_gives_position_and_frame():
     medium = SO3Medium()
     grid = Grid(7, 1.0)
     Phi = medium.group.exp(grid.coordinates(0)[:, None] * np.array([0.3, 0.0, 1.0]))
     ds = simulate(Problem(medium, grid, InitialState(Phi=Phi)), dt=0.01, t_end=0.02, save_every=1)
+    np.testing.assert_allclose(ds.frame.isel(time=0), Phi, atol=1e-14)
+    np.testing.assert_allclose(ds.position.isel(time=0), Phi[:, :, 2], atol=1e-14)  # r·e₃ with r = 1
+    assert "field" not in ds
+
+
+def test_field_valued_space_gives_field():
+    medium = SO3Medium()
+    medium.space = cartan.space("sphere", n=2)
+    grid = Grid(7, 1.0)
+    Phi = medium.group.exp(grid.coordinates(0)[:, None] * np.array([0.3, 0.0, 1.0]))
+    ds = simulate(Problem(medium, grid, InitialState(Phi=Phi)), dt=0.01, t_end=0.02, save_every=1)
     assert "position" not in ds and "frame" not in ds
-    assert ds["field"].dims == ("time", "node", "point_row", "point_col")
-    np.testing.assert_allclose(ds.field.isel(time=0), Phi, atol=1e-14)
+    assert ds["field"].dims[:2] == ("time", "node")
+    np.testing.assert_allclose(ds.field.isel(time=0), Phi[:, :, 2], atol=1e-14)  # Φ·e₃
 
 
 class PlateMedium(QuadraticMedium):

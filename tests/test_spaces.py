@@ -421,7 +421,6 @@ def test_registered_through_the_hook(monkeypatch):
         "E3": Euclidean3,
         "E3xS2": PointDirector,
         "frame-E3": FrameBundleE3,
-    "frame-E2": FrameBundleE2,
         "frame-E2": FrameBundleE2,
         "frame-S2": SphereFrameBundle,
         "frame-M13": MinkowskiFrameBundle,

@@ -1,8 +1,8 @@
 """Compiled step loops of the ``lattice`` scheme for d = 1 (ARCHITECTURE.md §7).
 
 Whole multi-step loops between saves run here, in numba, instead of a Python loop of numpy
-calls (:meth:`cartan.schemes.lattice.Lattice.compiled_advance` is the entry point and
-decides what qualifies; ``docs/performance.md`` is the user-facing description).
+calls.  :meth:`cartan.schemes.lattice.Lattice.compiled_advance` is the entry point;
+``docs/performance.md`` describes what qualifies and what it gains.
 
 Design
 ------
@@ -10,32 +10,36 @@ Design
   functions as arguments, so the group is a static integer ``gid`` and the ``g_*`` functions
   below dispatch to the per-point kernels of :mod:`cartan.groups` (SO(2), SE(2), SO(3),
   SE(3)).  Everything is ``@njit(cache=True)``: a second process loads the machine code from
-  the cache instead of compiling it.
+  numba's cache instead of compiling it.
 * **Media and loads as data.**  A qualifying medium has a quadratic potential
   ``U = ½(X − X₀)ᵀC(X − X₀)`` (``Medium.quadratic_energy``); loads are reduced to damping
   coefficients, a uniform body-frame force, a constant spatial field acting on positions
   (``ConstantFieldPotential``: ``T = (Rᵀ ρf, 0)``), end loads (follower or dead) and clamps.
-  They travel as the tuple ``P`` built by :func:`build_plan`.
+  They travel as the tuple ``P`` built by :func:`build_plan` (indices ``I_*``).
 * **Same formulas as the reference path.**  Every step performs the operations of
   ``Integrator.step`` with ``Lattice.force``/``drift``/``velocity``/``constrain``/``powers``,
   including the trapezoidal booking of dissipated power and external work, in the same
-  order, so that the compiled and the Python paths agree to round-off.  Two algebraic
-  shortcuts change only round-off: on SE(3) the internal force of an edge applies
-  ``dexp⁻¹(±ξ)ᵀ`` to the stress in closed form without forming the 6 × 6 matrices, and
-  ``lie-verlet`` composes the palindromic free-flow pieces of each node into one element ``D_i`` before
-  conjugating the edges once (``G_e ← D_i⁻¹ G_e D_j`` with ``D = D₁⋯D_k``), with the
-  single-axis SE(3) pieces in closed form.
+  order, so that the compiled and the Python paths agree to round-off.  What differs changes
+  round-off only: products by ``1/w`` and ``τ/m`` instead of quotients; Taylor series with
+  four terms below θ² = 10⁻⁴ (truncation < 10⁻²¹); and, on SE(3), hand-written scalar code
+  read straight from the state arrays — the edge logarithm with the series of atan(x)/x for
+  small angles, ``dexp⁻¹(ξ)ᵀQ`` applied without forming 6 × 6 matrices (Barfoot–Furgale's
+  block by seven cross products), the head term of an edge from
+  ``dexp⁻¹(−ξ)ᵀ = Ad_Gᵀ dexp⁻¹(ξ)ᵀ`` for the integrators that keep G on the group (all but
+  ``forward-euler``), and ``lie-verlet``'s palindromic free-flow pieces composed per node
+  into one element ``D_i = D₁⋯D_k`` (translations and single-axis rotations in closed form)
+  before the edges are conjugated once, ``G_e ← D_i⁻¹ G_e D_j``.
 * **No per-step allocation.**  Work arrays are allocated once per call; the state arrays
   (``S [n, r]``, ``G [ne, m, m]``, ``Phi [n, m, m]`` or the root frame as ``[1, m, m]``) are
   updated in place.
-* **Per-step blow-up test.**  After every step the loop tests what the run's guard tests
+* **Per-step blow-up test.**  After every step a loop tests what the run's guard tests
   (``cartan.simulate``): finite momentum and ``½Σ w S²/m ≤ kinetic_limit`` (or, for
-  integrators without momentum, a finite configuration) and stops after the first failing
-  step, so that the caller can name it.
+  integrators without momentum, a finite configuration), and stops after the first failing
+  step so that the caller can name it.
 
-The loops are serial.  A ``prange`` variant (``CARTAN_THREADS``) is not provided: the per-node
-work of a rod is a few hundred floating-point operations, and the force, drift and kick
-passes would each need a parallel region per step.
+The loops are serial; there is no ``prange`` variant (``CARTAN_THREADS`` is not read): a
+rod step is a handful of passes of a few hundred operations per node, each of which would
+need its own parallel region.
 """
 
 from __future__ import annotations
@@ -58,9 +62,10 @@ from ..groups.se2 import (
     se2_log_point,
 )
 from ..groups.se3 import (
+    TAYLOR_D,
+    TAYLOR_E,
     _dexp_coeffs_direct,
-    _dexp_coeffs_series,
-    _Q_apply,
+    _exp_coeffs3_direct,
     _V_apply,
     se3_Ad_point,
     se3_ad_point,
@@ -84,13 +89,15 @@ from ..groups.so2 import (
     so2_log_point,
 )
 from ..groups.so3 import (
-    LOG_SMALL_RATIO,
     SMALL_THETA2,
+    TAYLOR_A,
+    TAYLOR_B,
+    TAYLOR_C,
     TAYLOR_CINV,
     _cinv_direct,
     _exp_coeffs_direct,
-    _exp_coeffs_series,
     _log_factor_direct,
+    _poly_entries,
     _quat_from_matrix,
     cross3,
     horner,
@@ -99,7 +106,6 @@ from ..groups.so3 import (
     so3_compose_point,
     so3_dexp_inv_point,
     so3_E_point,
-    so3_exp_coeffs,
     so3_exp_point,
     so3_hat_point,
     so3_inverse_point,
@@ -108,6 +114,8 @@ from ..groups.so3 import (
 
 __all__ = [
     "GROUP_IDS",
+    "advance",
+    "build_plan",
     "forward_euler_loop",
     "lie_euler_loop",
     "lie_verlet_loop",
@@ -133,6 +141,21 @@ KIND_SE3_ROTATION = 2
 CHECK_NONE = 0
 CHECK_MOMENTUM = 1
 CHECK_CONFIGURATION = 2
+
+#: layout of the plan tuple P (see :func:`build_plan`)
+(I_GID, I_TRACK, I_AFFINE, I_H, I_X0, I_C, I_DIAG, I_W, I_WINV, I_MASS, I_LIVE, I_CLAMPED, I_CONSTRAINED,
+ I_DAMP, I_HAS_DAMP, I_UBODY, I_HAS_UBODY, I_FIELD, I_HAS_FIELD, I_END_IDX, I_END_LOAD, I_END_FOLLOW,
+ I_HAS_POWER) = range(23)
+
+#: below this θ², four Taylor terms of the SO(3)/SE(3) coefficients are exact to < 1e-21
+SERIES4_THETA2 = 1e-4
+_A4, _B4, _C4, _D4, _E4, _CINV4 = (c[-4:] for c in (TAYLOR_A, TAYLOR_B, TAYLOR_C, TAYLOR_D, TAYLOR_E, TAYLOR_CINV))
+#: atan(x)/x = Σ (−1)ᵏ x²ᵏ/(2k+1), highest power first: below x² = 1/400 nine terms reach 1e-19
+ATAN_SERIES = (1.0 / 17.0, -1.0 / 15.0, 1.0 / 13.0, -1.0 / 11.0, 1.0 / 9.0, -1.0 / 7.0, 1.0 / 5.0, -1.0 / 3.0, 1.0)
+ATAN_SERIES_X2 = 1.0 / 400.0
+#: below x² = 1e-5 the first five terms suffice (truncation < 1e-21)
+ATAN_SERIES5 = ATAN_SERIES[-5:]
+ATAN_SERIES5_X2 = 1e-5
 
 
 # ---------------------------------------------------------------------------- group dispatch
@@ -246,18 +269,11 @@ def g_E(gid, dt, xi, out):
 
 # ---------------------------------------------------------------------------- small helpers
 @njit(cache=True)
-def _scratch(r, m):
-    """Per-call work arrays: three r-vectors, two r×r and three m×m matrices."""
+def _scratch(r, m, ne):
+    """Per-call work arrays: three r-vectors, two r×r and three m×m matrices, and the edge
+    logarithms ``[ne, 7]`` of the SE(3) force."""
     return (np.empty(r), np.empty(r), np.empty(r), np.empty((r, r)), np.empty((r, r)),
-            np.empty((m, m)), np.empty((m, m)), np.empty((m, m)))
-
-
-@njit(cache=True)
-def _set_identity(A):
-    m = A.shape[0]
-    for a in range(m):
-        for b in range(m):
-            A[a, b] = 1.0 if a == b else 0.0
+            np.empty((m, m)), np.empty((m, m)), np.empty((m, m)), np.empty((ne, 7)))
 
 
 @njit(cache=True)
@@ -268,12 +284,21 @@ def _copy_matrix(src, dst):
             dst[a, b] = src[a, b]
 
 
+@register_jitable
+def _edge_nodes(e, n):
+    """Tail and head node of edge ``e`` (the last edge of a ring closes onto node 0)."""
+    j = e + 1
+    if j == n:
+        j = 0
+    return e, j
+
+
 @njit(cache=True)
 def _velocity(P, S, N):
     """``N = ∂K*/∂S``: ``S/m`` on live components, zero on gauge components and clamped nodes."""
-    mass = P[7]
-    live = P[8]
-    clamped = P[9]
+    mass = P[I_MASS]
+    live = P[I_LIVE]
+    clamped = P[I_CLAMPED]
     n, r = S.shape
     for i in range(n):
         if clamped[i]:
@@ -287,8 +312,10 @@ def _velocity(P, S, N):
 @njit(cache=True)
 def _constrain(P, S):
     """Zero the momentum of gauge components and clamped nodes."""
-    live = P[8]
-    clamped = P[9]
+    if not P[I_CONSTRAINED]:
+        return
+    live = P[I_LIVE]
+    clamped = P[I_CLAMPED]
     n, r = S.shape
     for i in range(n):
         for k in range(r):
@@ -297,23 +324,19 @@ def _constrain(P, S):
 
 
 @njit(cache=True)
-def _edge_nodes(e, n):
-    """Tail and head node of edge ``e`` (the last edge of a ring closes onto node 0)."""
-    j = e + 1
-    if j == n:
-        j = 0
-    return e, j
+def _kick(S, W, half):
+    n, r = S.shape
+    for i in range(n):
+        for k in range(r):
+            S[i, k] = S[i, k] + half * W[i, k]
 
 
-# ---------------------------------------------------------------------------- forces
-#: atan(x)/x = Σ (−1)ᵏ x²ᵏ/(2k+1), highest power first: below x² = 1/400 nine terms reach 1e-19
-ATAN_SERIES = (1.0 / 17.0, -1.0 / 15.0, 1.0 / 13.0, -1.0 / 11.0, 1.0 / 9.0, -1.0 / 7.0, 1.0 / 5.0, -1.0 / 3.0, 1.0)
-ATAN_SERIES_X2 = 1.0 / 400.0
-
-
+# ---------------------------------------------------------------------------- SE(3) scalar code
 @register_jitable
 def _cinv(t2):
-    """``so3_dexp_inv_coeff`` (same branches), inlined into the callers."""
+    """``so3_dexp_inv_coeff``: ``c = (1 − (θ/2)cot(θ/2))/θ²``."""
+    if t2 < SERIES4_THETA2:
+        return horner(t2, _CINV4)
     if t2 < SMALL_THETA2:
         return horner(t2, TAYLOR_CINV)
     return _cinv_direct(t2)
@@ -321,28 +344,79 @@ def _cinv(t2):
 
 @register_jitable
 def _rot_coeffs(t2):
-    """``so3_exp_coeffs`` (same branches), inlined into the callers."""
+    """``so3_exp_coeffs``: ``(A, B) = (sin θ/θ, (1 − cos θ)/θ²)``."""
+    if t2 < SERIES4_THETA2:
+        return horner(t2, _A4), horner(t2, _B4)
     if t2 < SMALL_THETA2:
-        return _exp_coeffs_series(t2)
+        return horner(t2, TAYLOR_A), horner(t2, TAYLOR_B)
     return _exp_coeffs_direct(t2)
 
 
 @register_jitable
-def _q_coeffs(t2):
-    """``se3_dexp_coeffs`` without B: the coefficients (C, D, E) of the Q block."""
+def _exp3_coeffs(t2):
+    """``se3_exp_coeffs``: ``(A, B, C)``, ``C = (θ − sin θ)/θ³``."""
+    if t2 < SERIES4_THETA2:
+        return horner(t2, _A4), horner(t2, _B4), horner(t2, _C4)
     if t2 < SMALL_THETA2:
-        _, c, d, e = _dexp_coeffs_series(t2)
-    else:
-        _, c, d, e = _dexp_coeffs_direct(t2)
+        return horner(t2, TAYLOR_A), horner(t2, TAYLOR_B), horner(t2, TAYLOR_C)
+    return _exp_coeffs3_direct(t2)
+
+
+@register_jitable
+def _q_coeffs(t2):
+    """The coefficients ``(C, D, E)`` of Barfoot–Furgale's block (``se3_dexp_coeffs`` without B)."""
+    if t2 < SERIES4_THETA2:
+        return horner(t2, _C4), horner(t2, _D4), horner(t2, _E4)
+    if t2 < SMALL_THETA2:
+        return horner(t2, TAYLOR_C), horner(t2, TAYLOR_D), horner(t2, TAYLOR_E)
+    _, c, d, e = _dexp_coeffs_direct(t2)
     return c, d, e
+
+
+@register_jitable
+def _q_block(r0, r1, r2, p0, p1, p2, c, d, e, v0, v1, v2):
+    """``Q v`` for Barfoot–Furgale's block ``Q = ½P + C(KP + PK + KPK) + D(K²P + PK² − 3KPK)
+    + E(KPK² + K²PK)`` (``P = r̂``, ``K = p̂``), grouped as
+    ``½u₁ + Cu₂ + Du₃ + K(y + Kz)`` with ``u_k = P Kᵏ⁻¹v``, ``y = Cu₁ + (C − 3D)u₂ + Eu₃``,
+    ``z = Du₁ + Eu₂``: seven cross products."""
+    b0, b1, b2 = cross3(p0, p1, p2, v0, v1, v2)
+    k0, k1, k2 = cross3(p0, p1, p2, b0, b1, b2)
+    u0, u1, u2 = cross3(r0, r1, r2, v0, v1, v2)
+    w0, w1, w2 = cross3(r0, r1, r2, b0, b1, b2)
+    x0, x1, x2 = cross3(r0, r1, r2, k0, k1, k2)
+    c3 = c - 3.0 * d
+    z = cross3(p0, p1, p2, d * u0 + e * w0, d * u1 + e * w1, d * u2 + e * w2)
+    y0 = c * u0 + c3 * w0 + e * x0 + z[0]
+    y1 = c * u1 + c3 * w1 + e * x1 + z[1]
+    y2 = c * u2 + c3 * w2 + e * x2 + z[2]
+    t = cross3(p0, p1, p2, y0, y1, y2)
+    return (0.5 * u0 + c * w0 + d * x0 + t[0], 0.5 * u1 + c * w1 + d * x1 + t[1],
+            0.5 * u2 + c * w2 + d * x2 + t[2])
+
+
+@register_jitable
+def _jinv_T(p0, p1, p2, cinv, v0, v1, v2):
+    """``J⁻¹(p)ᵀ v = v + ½ p × v + c p × (p × v)``."""
+    u = cross3(p0, p1, p2, v0, v1, v2)
+    z = cross3(p0, p1, p2, u[0], u[1], u[2])
+    return v0 + 0.5 * u[0] + cinv * z[0], v1 + 0.5 * u[1] + cinv * z[1], v2 + 0.5 * u[2] + cinv * z[2]
+
+
+@register_jitable
+def _se3_dexp_inv_T(r0, r1, r2, p0, p1, p2, cinv, c, d, e, F0, F1, F2, M0, M1, M2):
+    """``dexp⁻¹(ξ)ᵀ (F; M)`` for ``ξ = (r; p)``: with ``dexp⁻¹ = [[J⁻¹, −J⁻¹QJ⁻¹], [0, J⁻¹]]``
+    and ``Q(ξ)ᵀ = Q(−ξ)``, it is ``(J⁻ᵀF; J⁻ᵀ(M − Q(−ξ) J⁻ᵀF))``."""
+    o0, o1, o2 = _jinv_T(p0, p1, p2, cinv, F0, F1, F2)
+    q = _q_block(-r0, -r1, -r2, -p0, -p1, -p2, c, d, e, o0, o1, o2)
+    o3, o4, o5 = _jinv_T(p0, p1, p2, cinv, M0 - q[0], M1 - q[1], M2 - q[2])
+    return o0, o1, o2, o3, o4, o5
 
 
 @register_jitable
 def _se3_log_at(G, e):
     """``log G[e]`` as 6 scalars ``(a1; a2)`` and the coefficient ``c`` of ``J⁻¹(a2)``:
-    :func:`cartan.groups.se3.se3_log_point` read straight from the batch (no per-edge array
-    views), with the quaternion factor ``θ/|q_v| = (2/q_w) atan(x)/x`` from its series for
-    ``x = |q_v|/q_w < 1/20`` (θ ≲ 0.1)."""
+    :func:`cartan.groups.se3.se3_log_point` read straight from the batch, with the quaternion
+    factor ``θ/|q_v| = (2/q_w) atan(x)/x`` from its series for ``x = |q_v|/q_w < 1/20``."""
     r00, r01, r02 = G[e, 1, 1], G[e, 1, 2], G[e, 1, 3]
     r10, r11, r12 = G[e, 2, 1], G[e, 2, 2], G[e, 2, 3]
     r20, r21, r22 = G[e, 3, 1], G[e, 3, 2], G[e, 3, 3]
@@ -360,11 +434,13 @@ def _se3_log_at(G, e):
     if qw < 0.0:
         qw, qx, qy, qz = -qw, -qx, -qy, -qz
     v2 = qx * qx + qy * qy + qz * qz
-    if v2 < ATAN_SERIES_X2 * (qw * qw):
-        f = (2.0 / qw) * horner(v2 / (qw * qw), ATAN_SERIES)
+    w2 = qw * qw
+    if v2 < ATAN_SERIES5_X2 * w2:
+        f = (2.0 / qw) * horner(v2 / w2, ATAN_SERIES5)
+    elif v2 < ATAN_SERIES_X2 * w2:
+        f = (2.0 / qw) * horner(v2 / w2, ATAN_SERIES)
     else:
-        sv = np.sqrt(v2)
-        f = _log_factor_direct(sv, qw) if sv > LOG_SMALL_RATIO * qw else (2.0 / qw)
+        f = _log_factor_direct(np.sqrt(v2), qw)
     w0, w1, w2 = f * qx, f * qy, f * qz
     c = _cinv(w0 * w0 + w1 * w1 + w2 * w2)
     t = _V_apply(w0, w1, w2, -0.5, c, G[e, 1, 0], G[e, 2, 0], G[e, 3, 0])
@@ -372,43 +448,79 @@ def _se3_log_at(G, e):
 
 
 @njit(cache=True)
-def _se3_internal_force(G, X0, C, h, F, d):
-    """``F`` ← internal forces of every SE(3) edge (tail ``+dexp⁻¹(ξ)ᵀQ``, head
-    ``−dexp⁻¹(−ξ)ᵀQ``, ``ξ = log G_e``, ``Q = C(ξ/h − X₀)``; valid off the group too)."""
+def _se3_internal_force(P, G, F, XI, on_group):
+    """``F`` ← internal forces of every SE(3) edge divided by the node weights: tail
+    ``+dexp⁻¹(ξ)ᵀQ``, head ``−dexp⁻¹(−ξ)ᵀQ`` with ``ξ = log G_e``, ``Q = C(ξ/h − X₀)``; the
+    head term is ``Ad_Gᵀ`` of the tail term when ``on_group``, else evaluated directly.  Two
+    passes (the logarithms into ``XI``, then the Jacobians): short loop bodies overlap better."""
+    X0 = P[I_X0]
+    C = P[I_C]
+    diag = P[I_DIAG]
+    winv = P[I_WINV]
+    hinv = 1.0 / P[I_H]
     n = F.shape[0]
+    ne = G.shape[0]
+    for e in range(ne):
+        XI[e, 0], XI[e, 1], XI[e, 2], XI[e, 3], XI[e, 4], XI[e, 5], XI[e, 6] = _se3_log_at(G, e)
     for i in range(n):
         for k in range(6):
             F[i, k] = 0.0
-    for e in range(G.shape[0]):
+    for e in range(ne):
         i, j = _edge_nodes(e, n)
-        r0, r1, r2, p0, p1, p2, cinv = _se3_log_at(G, e)
-        d[0] = r0 / h - X0[0]
-        d[1] = r1 / h - X0[1]
-        d[2] = r2 / h - X0[2]
-        d[3] = p0 / h - X0[3]
-        d[4] = p1 / h - X0[4]
-        d[5] = p2 / h - X0[5]
-        q0 = C[0, 0] * d[0] + C[0, 1] * d[1] + C[0, 2] * d[2] + C[0, 3] * d[3] + C[0, 4] * d[4] + C[0, 5] * d[5]
-        q1 = C[1, 0] * d[0] + C[1, 1] * d[1] + C[1, 2] * d[2] + C[1, 3] * d[3] + C[1, 4] * d[4] + C[1, 5] * d[5]
-        q2 = C[2, 0] * d[0] + C[2, 1] * d[1] + C[2, 2] * d[2] + C[2, 3] * d[3] + C[2, 4] * d[4] + C[2, 5] * d[5]
-        q3 = C[3, 0] * d[0] + C[3, 1] * d[1] + C[3, 2] * d[2] + C[3, 3] * d[3] + C[3, 4] * d[4] + C[3, 5] * d[5]
-        q4 = C[4, 0] * d[0] + C[4, 1] * d[1] + C[4, 2] * d[2] + C[4, 3] * d[3] + C[4, 4] * d[4] + C[4, 5] * d[5]
-        q5 = C[5, 0] * d[0] + C[5, 1] * d[1] + C[5, 2] * d[2] + C[5, 3] * d[3] + C[5, 4] * d[4] + C[5, 5] * d[5]
+        r0, r1, r2, p0, p1, p2, cinv = XI[e, 0], XI[e, 1], XI[e, 2], XI[e, 3], XI[e, 4], XI[e, 5], XI[e, 6]
+        d0, d1, d2 = r0 * hinv - X0[0], r1 * hinv - X0[1], r2 * hinv - X0[2]
+        d3, d4, d5 = p0 * hinv - X0[3], p1 * hinv - X0[4], p2 * hinv - X0[5]
+        if diag:
+            q0, q1, q2 = C[0, 0] * d0, C[1, 1] * d1, C[2, 2] * d2
+            q3, q4, q5 = C[3, 3] * d3, C[4, 4] * d4, C[5, 5] * d5
+        else:
+            q0 = C[0, 0] * d0 + C[0, 1] * d1 + C[0, 2] * d2 + C[0, 3] * d3 + C[0, 4] * d4 + C[0, 5] * d5
+            q1 = C[1, 0] * d0 + C[1, 1] * d1 + C[1, 2] * d2 + C[1, 3] * d3 + C[1, 4] * d4 + C[1, 5] * d5
+            q2 = C[2, 0] * d0 + C[2, 1] * d1 + C[2, 2] * d2 + C[2, 3] * d3 + C[2, 4] * d4 + C[2, 5] * d5
+            q3 = C[3, 0] * d0 + C[3, 1] * d1 + C[3, 2] * d2 + C[3, 3] * d3 + C[3, 4] * d4 + C[3, 5] * d5
+            q4 = C[4, 0] * d0 + C[4, 1] * d1 + C[4, 2] * d2 + C[4, 3] * d3 + C[4, 4] * d4 + C[4, 5] * d5
+            q5 = C[5, 0] * d0 + C[5, 1] * d1 + C[5, 2] * d2 + C[5, 3] * d3 + C[5, 4] * d4 + C[5, 5] * d5
         c, dd, ee = _q_coeffs(p0 * p0 + p1 * p1 + p2 * p2)
-        o = _se3_dexp_inv_T(r0, r1, r2, p0, p1, p2, cinv, c, dd, ee, q0, q1, q2, q3, q4, q5)
-        F[i, 0] += o[0]
-        F[i, 1] += o[1]
-        F[i, 2] += o[2]
-        F[i, 3] += o[3]
-        F[i, 4] += o[4]
-        F[i, 5] += o[5]
-        o = _se3_dexp_inv_T(-r0, -r1, -r2, -p0, -p1, -p2, cinv, c, dd, ee, q0, q1, q2, q3, q4, q5)
-        F[j, 0] += -o[0]
-        F[j, 1] += -o[1]
-        F[j, 2] += -o[2]
-        F[j, 3] += -o[3]
-        F[j, 4] += -o[4]
-        F[j, 5] += -o[5]
+        o0, o1, o2, o3, o4, o5 = _se3_dexp_inv_T(r0, r1, r2, p0, p1, p2, cinv, c, dd, ee, q0, q1, q2, q3, q4, q5)
+        wi = winv[i]
+        F[i, 0] += o0 * wi
+        F[i, 1] += o1 * wi
+        F[i, 2] += o2 * wi
+        F[i, 3] += o3 * wi
+        F[i, 4] += o4 * wi
+        F[i, 5] += o5 * wi
+        wj = winv[j]
+        if on_group:
+            # Ad_Gᵀ (o_t; o_r) = (Rᵀo_t; Rᵀ(o_r − a × o_t)) for G = (a; R)
+            w = cross3(G[e, 1, 0], G[e, 2, 0], G[e, 3, 0], o0, o1, o2)
+            v0, v1, v2 = o3 - w[0], o4 - w[1], o5 - w[2]
+            for k in range(3):
+                F[j, k] += -(G[e, 1, k + 1] * o0 + G[e, 2, k + 1] * o1 + G[e, 3, k + 1] * o2) * wj
+                F[j, k + 3] += -(G[e, 1, k + 1] * v0 + G[e, 2, k + 1] * v1 + G[e, 3, k + 1] * v2) * wj
+        else:
+            o0, o1, o2, o3, o4, o5 = _se3_dexp_inv_T(-r0, -r1, -r2, -p0, -p1, -p2, cinv, c, dd, ee,
+                                                     q0, q1, q2, q3, q4, q5)
+            F[j, 0] += -o0 * wj
+            F[j, 1] += -o1 * wj
+            F[j, 2] += -o2 * wj
+            F[j, 3] += -o3 * wj
+            F[j, 4] += -o4 * wj
+            F[j, 5] += -o5 * wj
+
+
+@njit(cache=True)
+def _se3_exp_nodes(N, tau, D):
+    """``D_i = exp(τN_i)`` on SE(3) (``se3_exp_point`` written into the batch)."""
+    for i in range(N.shape[0]):
+        x0, x1, x2 = tau * N[i, 0], tau * N[i, 1], tau * N[i, 2]
+        w0, w1, w2 = tau * N[i, 3], tau * N[i, 4], tau * N[i, 5]
+        a, b, c = _exp3_coeffs(w0 * w0 + w1 * w1 + w2 * w2)
+        R = _poly_entries(w0, w1, w2, a, b, 1.0)
+        t = _V_apply(w0, w1, w2, b, c, x0, x1, x2)
+        D[i, 0, 0], D[i, 0, 1], D[i, 0, 2], D[i, 0, 3] = 1.0, 0.0, 0.0, 0.0
+        D[i, 1, 0], D[i, 1, 1], D[i, 1, 2], D[i, 1, 3] = t[0], R[0], R[1], R[2]
+        D[i, 2, 0], D[i, 2, 1], D[i, 2, 2], D[i, 2, 3] = t[1], R[3], R[4], R[5]
+        D[i, 3, 0], D[i, 3, 1], D[i, 3, 2], D[i, 3, 3] = t[2], R[6], R[7], R[8]
 
 
 @njit(cache=True)
@@ -418,7 +530,6 @@ def _se3_conjugate(G, Phi, track, D):
     n = D.shape[0]
     for e in range(G.shape[0]):
         i, j = _edge_nodes(e, n)
-        # G D_j = (B t_j + b; B R_j)
         u0 = G[e, 1, 1] * D[j, 1, 0] + G[e, 1, 2] * D[j, 2, 0] + G[e, 1, 3] * D[j, 3, 0] + G[e, 1, 0] - D[i, 1, 0]
         u1 = G[e, 2, 1] * D[j, 1, 0] + G[e, 2, 2] * D[j, 2, 0] + G[e, 2, 3] * D[j, 3, 0] + G[e, 2, 0] - D[i, 2, 0]
         u2 = G[e, 3, 1] * D[j, 1, 0] + G[e, 3, 2] * D[j, 2, 0] + G[e, 3, 3] * D[j, 3, 0] + G[e, 3, 0] - D[i, 3, 0]
@@ -448,96 +559,58 @@ def _se3_conjugate(G, Phi, track, D):
 
 
 @register_jitable
-def _se3_dexp_inv_T(r0, r1, r2, p0, p1, p2, cinv, c, d, e, F0, F1, F2, M0, M1, M2):
-    """``dexp⁻¹(ξ)ᵀ (F; M)`` for ``ξ = (r; p)`` without forming the 6 × 6 matrix.
-
-    With ``dexp⁻¹(ξ) = [[J⁻¹, −J⁻¹QJ⁻¹], [0, J⁻¹]]`` (``J⁻¹ = I − ½K + cK²``, ``Q`` the
-    Barfoot–Furgale block, whose transpose is the block of ``−ξ``) the product is
-    ``(J⁻ᵀF; J⁻ᵀ(M − Q(−ξ) J⁻ᵀF))``; ``cinv, c, d, e`` are the coefficients at ``θ = |p|``.
-    """
-    u = cross3(p0, p1, p2, F0, F1, F2)
-    z = cross3(p0, p1, p2, u[0], u[1], u[2])
-    o0 = F0 + 0.5 * u[0] + cinv * z[0]
-    o1 = F1 + 0.5 * u[1] + cinv * z[1]
-    o2 = F2 + 0.5 * u[2] + cinv * z[2]
-    q = _Q_apply(-r0, -r1, -r2, -p0, -p1, -p2, c, d, e, o0, o1, o2)
-    y0, y1, y2 = M0 - q[0], M1 - q[1], M2 - q[2]
-    u = cross3(p0, p1, p2, y0, y1, y2)
-    z = cross3(p0, p1, p2, u[0], u[1], u[2])
-    return (o0, o1, o2, y0 + 0.5 * u[0] + cinv * z[0], y1 + 0.5 * u[1] + cinv * z[1],
-            y2 + 0.5 * u[2] + cinv * z[2])
+def _turn(cs, sn, x, y):
+    """Components of ``Rᵀ(x, y)`` for a plane rotation R by (cos, sin) = (cs, sn)."""
+    return cs * x + sn * y, -sn * x + cs * y
 
 
 @njit(cache=True)
-def _force(P, G, Phi, N, W, F, scr):
-    """``W = Lattice.force(state, N, t)`` for the loads of the plan ``P``."""
-    (gid, track, affine, h, X0, C, w, mass, live, clamped, damp, has_damp, ubody, has_ubody,
-     field, has_field, end_idx, end_load, end_follow, has_power) = P
-    xi, nxi, tr, M, M2, A1, A2, A3 = scr
-    n, r = W.shape
-    ne = G.shape[0]
-    if gid == GID_SE3:
-        _se3_internal_force(G, X0, C, h, F, tr)
-        ne = 0
-    else:
-        for i in range(n):
-            for k in range(r):
-                F[i, k] = 0.0
-    for e in range(ne):
-        i, j = _edge_nodes(e, n)
-        g_log(gid, G[e], xi)
-        for k in range(r):
-            tr[k] = xi[k] / h - X0[k]
-        for k in range(r):
-            acc = 0.0
-            for b in range(r):
-                acc += C[k, b] * tr[b]
-            nxi[k] = acc  # the stress Q
-        g_dexp_inv(gid, xi, M)
-        for k in range(r):
-            tr[k] = -xi[k]
-        g_dexp_inv(gid, tr, M2)
-        for a in range(r):
-            out = 0.0
-            inc = 0.0
-            for b in range(r):
-                out += M[b, a] * nxi[b]
-                inc += M2[b, a] * nxi[b]
-            F[i, a] += out
-            F[j, a] += -inc
+def _se3_free_flow(S, D, fac, seq_kind, seq_axis):
+    """:func:`_free_flow` when every piece is the SE(3) translation block or a single body
+    axis, piece by piece over all nodes (independent iterations).  Per piece,
+    ``S ← Ad*_{exp(τN_p)}S`` and ``D ← D exp(τN_p)`` with ``exp(τN_p)`` a translation
+    ``(a; I)`` (``L ← L − a × P``) or a rotation about ``e_k`` of cosine ``1 − Bθ²`` and sine
+    ``Aθ`` (the SO(3) exp coefficients); ``fac[p, k] = τ_p/m_k``.  Clamped nodes need no test:
+    their momentum is zero, so every piece is exactly the identity there."""
+    n = S.shape[0]
     for i in range(n):
-        for k in range(r):
-            W[i, k] = F[i, k] / w[i]
-    if has_damp:
+        for a in range(4):
+            for b in range(4):
+                D[i, a, b] = 1.0 if a == b else 0.0
+    for p in range(seq_kind.shape[0]):
+        if seq_kind[p] == KIND_SE3_TRANSLATION:
+            f0, f1, f2 = fac[p, 0], fac[p, 1], fac[p, 2]
+            for i in range(n):
+                s0, s1, s2 = S[i, 0], S[i, 1], S[i, 2]
+                a0, a1, a2 = f0 * s0, f1 * s1, f2 * s2
+                c = cross3(a0, a1, a2, s0, s1, s2)
+                S[i, 3] -= c[0]
+                S[i, 4] -= c[1]
+                S[i, 5] -= c[2]
+                for row in range(1, 4):
+                    D[i, row, 0] += D[i, row, 1] * a0 + D[i, row, 2] * a1 + D[i, row, 3] * a2
+            continue
+        k = seq_axis[p]
+        pp = k + 1 if k < 2 else 0  # the plane (e_pp, e_qq) turned about e_k
+        qq = k + 2 if k < 1 else k - 1
+        f = fac[p, 3 + k]
         for i in range(n):
-            for k in range(r):
-                W[i, k] += -N[i, k] * damp[k]
-    if has_ubody:
-        for i in range(n):
-            for k in range(r):
-                W[i, k] += ubody[k]
-    if has_field:
-        ks = field.shape[0]
-        for i in range(n):
-            for k in range(ks):
-                acc = 0.0
-                for b in range(ks):
-                    acc += Phi[i, b + 1, k + 1] * field[b]
-                W[i, k] += acc
-    for q in range(end_idx.shape[0]):
-        idx = end_idx[q]
-        _end_load(gid, affine, Phi, idx, end_load[q], end_follow[q], tr, M, A1)
-        for a in range(r):
-            W[idx, a] += tr[a] / w[idx]
-    for i in range(n):
-        for k in range(r):
-            if clamped[i] or not live[k]:
-                W[i, k] = 0.0
+            th = f * S[i, 3 + k]
+            q2 = th * th
+            a, b = _rot_coeffs(q2)
+            cs = 1.0 - b * q2
+            sn = a * th
+            S[i, pp], S[i, qq] = _turn(cs, sn, S[i, pp], S[i, qq])
+            S[i, 3 + pp], S[i, 3 + qq] = _turn(cs, sn, S[i, 3 + pp], S[i, 3 + qq])
+            for row in range(1, 4):
+                D[i, row, pp + 1], D[i, row, qq + 1] = _turn(cs, sn, D[i, row, pp + 1], D[i, row, qq + 1])
 
 
+# ---------------------------------------------------------------------------- forces
 @njit(cache=True)
 def _end_load(gid, affine, Phi, idx, load, follower, out, M, A):
-    """Body components of an end load: ``load`` (follower) or ``Ad_Rᵀ load`` (dead)."""
+    """Body components of an end load: ``load`` (follower) or ``Ad_Rᵀ load`` (dead), R the
+    rotational part of the end frame."""
     r = load.shape[0]
     if follower:
         for a in range(r):
@@ -556,17 +629,92 @@ def _end_load(gid, affine, Phi, idx, load, follower, out, M, A):
 
 
 @njit(cache=True)
+def _force(P, G, Phi, N, W, F, scr, on_group):
+    """``W = Lattice.force(state, N, t)`` for the problem of the plan ``P``."""
+    gid = P[I_GID]
+    live = P[I_LIVE]
+    clamped = P[I_CLAMPED]
+    xi, Q, tr, M, M2, A1, A2, A3, XI = scr
+    n, r = W.shape
+    winv = P[I_WINV]
+    if gid == GID_SE3:
+        _se3_internal_force(P, G, W, XI, on_group)
+    else:
+        X0 = P[I_X0]
+        C = P[I_C]
+        h = P[I_H]
+        for i in range(n):
+            for k in range(r):
+                F[i, k] = 0.0
+        for e in range(G.shape[0]):
+            i, j = _edge_nodes(e, n)
+            g_log(gid, G[e], xi)
+            for k in range(r):
+                tr[k] = xi[k] / h - X0[k]
+            for k in range(r):
+                acc = 0.0
+                for b in range(r):
+                    acc += C[k, b] * tr[b]
+                Q[k] = acc
+            g_dexp_inv(gid, xi, M)
+            for k in range(r):
+                tr[k] = -xi[k]
+            g_dexp_inv(gid, tr, M2)
+            for a in range(r):
+                out = 0.0
+                inc = 0.0
+                for b in range(r):
+                    out += M[b, a] * Q[b]
+                    inc += M2[b, a] * Q[b]
+                F[i, a] += out
+                F[j, a] += -inc
+        for i in range(n):
+            for k in range(r):
+                W[i, k] = F[i, k] * winv[i]
+    if P[I_HAS_DAMP]:
+        damp = P[I_DAMP]
+        for i in range(n):
+            for k in range(r):
+                W[i, k] += -N[i, k] * damp[k]
+    if P[I_HAS_UBODY]:
+        ubody = P[I_UBODY]
+        for i in range(n):
+            for k in range(r):
+                W[i, k] += ubody[k]
+    if P[I_HAS_FIELD]:
+        field = P[I_FIELD]
+        ks = field.shape[0]
+        for i in range(n):
+            for k in range(ks):
+                acc = 0.0
+                for b in range(ks):
+                    acc += Phi[i, b + 1, k + 1] * field[b]
+                W[i, k] += acc
+    end_idx = P[I_END_IDX]
+    for q in range(end_idx.shape[0]):
+        idx = end_idx[q]
+        _end_load(gid, P[I_AFFINE], Phi, idx, P[I_END_LOAD][q], P[I_END_FOLLOW][q], tr, M, A1)
+        for a in range(r):
+            W[idx, a] += tr[a] * winv[idx]
+    if P[I_CONSTRAINED]:
+        for i in range(n):
+            for k in range(r):
+                if clamped[i] or not live[k]:
+                    W[i, k] = 0.0
+
+
+@njit(cache=True)
 def _powers(P, N, Phi, scr):
     """(dissipated, external) power of the loads at velocity N (``Scheme.powers``)."""
-    (gid, track, affine, h, X0, C, w, mass, live, clamped, damp, has_damp, ubody, has_ubody,
-     field, has_field, end_idx, end_load, end_follow, has_power) = P
-    if not has_power:
+    if not P[I_HAS_POWER]:
         return 0.0, 0.0
-    xi, nxi, tr, M, M2, A1, A2, A3 = scr
+    xi, Q, tr, M, M2, A1, A2, A3, XI = scr
+    w = P[I_W]
     n, r = N.shape
     dissipated = 0.0
     external = 0.0
-    if has_damp:
+    if P[I_HAS_DAMP]:
+        damp = P[I_DAMP]
         p = 0.0
         for i in range(n):
             s = 0.0
@@ -574,7 +722,8 @@ def _powers(P, N, Phi, scr):
                 s += (-N[i, k] * damp[k]) * N[i, k]
             p += w[i] * s
         dissipated -= p
-    if has_ubody:
+    if P[I_HAS_UBODY]:
+        ubody = P[I_UBODY]
         p = 0.0
         for i in range(n):
             s = 0.0
@@ -582,10 +731,11 @@ def _powers(P, N, Phi, scr):
                 s += ubody[k] * N[i, k]
             p += w[i] * s
         external += p
+    end_idx = P[I_END_IDX]
     p = 0.0
     for q in range(end_idx.shape[0]):
         idx = end_idx[q]
-        _end_load(gid, affine, Phi, idx, end_load[q], end_follow[q], tr, M, A1)
+        _end_load(P[I_GID], P[I_AFFINE], Phi, idx, P[I_END_LOAD][q], P[I_END_FOLLOW][q], tr, M, A1)
         for a in range(r):
             p += tr[a] * N[idx, a]
     external += p
@@ -594,8 +744,10 @@ def _powers(P, N, Phi, scr):
 
 # ---------------------------------------------------------------------------- drifts
 @njit(cache=True)
-def _conjugate(gid, G, Phi, track, D, A1, A2):
+def _conjugate(P, G, Phi, D, A1, A2):
     """Drift by per-node elements D: ``G_e ← D_i⁻¹ G_e D_j``; ``Φ_i ← Φ_i D_i`` (or the root)."""
+    gid = P[I_GID]
+    track = P[I_TRACK]
     if gid == GID_SE3:
         _se3_conjugate(G, Phi, track, D)
         return
@@ -614,15 +766,50 @@ def _conjugate(gid, G, Phi, track, D, A1, A2):
 @njit(cache=True)
 def _exp_drift(P, G, Phi, N, tau, D, scr):
     """Exact drift ``Φ ← Φ exp(τN)`` (``Lattice.drift(exact=True)``)."""
-    gid = P[0]
-    track = P[1]
-    xi, nxi, tr, M, M2, A1, A2, A3 = scr
-    n, r = N.shape
+    gid = P[I_GID]
+    xi = scr[0]
+    if gid == GID_SE3:
+        _se3_exp_nodes(N, tau, D)
+    else:
+        n, r = N.shape
+        for i in range(n):
+            for k in range(r):
+                xi[k] = tau * N[i, k]
+            g_exp(gid, xi, D[i])
+    _conjugate(P, G, Phi, D, scr[5], scr[6])
+
+
+@njit(cache=True)
+def _free_flow(P, S, D, dt, seq_mask, seq_frac, scr):
+    """Palindromic exact free flow of every node, composed into one element ``D_i`` per node:
+    for each piece p, ``S_i ← Ad*_{exp(τN_p)} S_i`` and ``D_i ← D_i exp(τN_p)``."""
+    gid = P[I_GID]
+    mass = P[I_MASS]
+    clamped = P[I_CLAMPED]
+    xi, Q, tr, M, M2, A1, A2, A3, XI = scr
+    n, r = S.shape
+    m = D.shape[1]
     for i in range(n):
-        for k in range(r):
-            xi[k] = tau * N[i, k]
-        g_exp(gid, xi, D[i])
-    _conjugate(gid, G, Phi, track, D, A1, A2)
+        for a in range(m):
+            for b in range(m):
+                D[i, a, b] = 1.0 if a == b else 0.0
+        if clamped[i]:
+            continue  # N = 0: every piece is the identity
+        for p in range(seq_frac.shape[0]):
+            tau = seq_frac[p] * dt
+            for k in range(r):
+                xi[k] = tau * (S[i, k] / mass[k]) if seq_mask[p, k] else 0.0
+            g_exp(gid, xi, A1)
+            g_Ad(gid, A1, M)
+            for a in range(r):
+                acc = 0.0
+                for b in range(r):
+                    acc += M[b, a] * S[i, b]
+                tr[a] = acc
+            for a in range(r):
+                S[i, a] = tr[a]
+            g_compose(gid, D[i], A1, A2)
+            _copy_matrix(A2, D[i])
 
 
 # ---------------------------------------------------------------------------- blow-up test
@@ -660,194 +847,59 @@ def _unstable(check, kinetic_limit, S, G, Phi, w, inv):
 
 # ---------------------------------------------------------------------------- lie-verlet
 @njit(cache=True)
-def _free_flow(P, S, D, dt, seq_mask, seq_frac, seq_kind, seq_axis, scr):
-    """Palindromic exact free flow of every node, composed into one element ``D_i`` per node
-    (``S_i ← Ad*_{exp(τN_p)} S_i`` and ``D_i ← D_i exp(τN_p)`` for each piece p)."""
-    gid = P[0]
-    mass = P[7]
-    clamped = P[9]
-    xi, nxi, tr, M, M2, A1, A2, A3 = scr
-    n, r = S.shape
-    nseq = seq_frac.shape[0]
-    for i in range(n):
-        for a in range(D.shape[1]):
-            for b in range(D.shape[2]):
-                D[i, a, b] = 1.0 if a == b else 0.0
-        if clamped[i]:
-            continue  # N = 0: every piece is the identity
-        for p in range(nseq):
-            tau = seq_frac[p] * dt
-            kind = seq_kind[p]
-            if kind == KIND_SE3_TRANSLATION:
-                a0 = tau * (S[i, 0] / mass[0])
-                a1 = tau * (S[i, 1] / mass[1])
-                a2 = tau * (S[i, 2] / mass[2])
-                c = cross3(a0, a1, a2, S[i, 0], S[i, 1], S[i, 2])
-                S[i, 3] -= c[0]
-                S[i, 4] -= c[1]
-                S[i, 5] -= c[2]
-                for row in range(1, 4):
-                    D[i, row, 0] += D[i, row, 1] * a0 + D[i, row, 2] * a1 + D[i, row, 3] * a2
-            elif kind == KIND_SE3_ROTATION:
-                k = seq_axis[p]
-                th = tau * (S[i, 3 + k] / mass[3 + k])
-                t2 = th * th
-                a, b = so3_exp_coeffs(t2)
-                cs = 1.0 - b * t2
-                sn = a * th
-                pp = k + 1 if k < 2 else 0
-                qq = k + 2 if k < 1 else k - 1
-                x = S[i, pp]
-                y = S[i, qq]
-                S[i, pp] = cs * x + sn * y
-                S[i, qq] = -sn * x + cs * y
-                x = S[i, 3 + pp]
-                y = S[i, 3 + qq]
-                S[i, 3 + pp] = cs * x + sn * y
-                S[i, 3 + qq] = -sn * x + cs * y
-                for row in range(1, 4):
-                    x = D[i, row, pp + 1]
-                    y = D[i, row, qq + 1]
-                    D[i, row, pp + 1] = x * cs + y * sn
-                    D[i, row, qq + 1] = -x * sn + y * cs
-            else:
-                for k in range(r):
-                    xi[k] = tau * (S[i, k] / mass[k]) if seq_mask[p, k] else 0.0
-                g_exp(gid, xi, A1)
-                g_Ad(gid, A1, M)
-                for a in range(r):
-                    acc = 0.0
-                    for b in range(r):
-                        acc += M[b, a] * S[i, b]
-                    tr[a] = acc
-                for a in range(r):
-                    S[i, a] = tr[a]
-                g_compose(gid, D[i], A1, A2)
-                _copy_matrix(A2, D[i])
-
-
-@register_jitable
-def _turn(cs, sn, x, y):
-    """Components of ``Rᵀ(x, y)`` for a plane rotation by (cos, sin) = (cs, sn)."""
-    return cs * x + sn * y, -sn * x + cs * y
-
-
-@njit(cache=True)
-def _se3_free_flow(P, S, D, dt, seq_frac, seq_kind, seq_axis):
-    """:func:`_free_flow` when every piece is an SE(3) translation block or a single body
-    axis, node state held in registers: per piece ``S ← Ad*_{exp(τN_p)}S``, ``D ← D exp(τN_p)``
-    with ``exp`` a translation ``(a; I)`` (``L ← L − a × P``) or a rotation about ``e_k``
-    whose cosine and sine are ``1 − Bθ²`` and ``Aθ`` (the coefficients of the SO(3) exp)."""
-    mass = P[7]
-    clamped = P[9]
-    n = S.shape[0]
-    nseq = seq_frac.shape[0]
-    for i in range(n):
-        t0 = t1 = t2 = 0.0
-        r00, r01, r02 = 1.0, 0.0, 0.0
-        r10, r11, r12 = 0.0, 1.0, 0.0
-        r20, r21, r22 = 0.0, 0.0, 1.0
-        if not clamped[i]:
-            s0, s1, s2, s3, s4, s5 = S[i, 0], S[i, 1], S[i, 2], S[i, 3], S[i, 4], S[i, 5]
-            for p in range(nseq):
-                tau = seq_frac[p] * dt
-                if seq_kind[p] == KIND_SE3_TRANSLATION:
-                    a0 = tau * (s0 / mass[0])
-                    a1 = tau * (s1 / mass[1])
-                    a2 = tau * (s2 / mass[2])
-                    c = cross3(a0, a1, a2, s0, s1, s2)
-                    s3 -= c[0]
-                    s4 -= c[1]
-                    s5 -= c[2]
-                    t0 += r00 * a0 + r01 * a1 + r02 * a2
-                    t1 += r10 * a0 + r11 * a1 + r12 * a2
-                    t2 += r20 * a0 + r21 * a1 + r22 * a2
-                    continue
-                k = seq_axis[p]
-                if k == 0:
-                    th = tau * (s3 / mass[3])
-                elif k == 1:
-                    th = tau * (s4 / mass[4])
-                else:
-                    th = tau * (s5 / mass[5])
-                q2 = th * th
-                a, b = _rot_coeffs(q2)
-                cs = 1.0 - b * q2
-                sn = a * th
-                if k == 0:  # plane (e2, e3)
-                    s1, s2 = _turn(cs, sn, s1, s2)
-                    s4, s5 = _turn(cs, sn, s4, s5)
-                    r01, r02 = _turn(cs, sn, r01, r02)
-                    r11, r12 = _turn(cs, sn, r11, r12)
-                    r21, r22 = _turn(cs, sn, r21, r22)
-                elif k == 1:  # plane (e3, e1)
-                    s2, s0 = _turn(cs, sn, s2, s0)
-                    s5, s3 = _turn(cs, sn, s5, s3)
-                    r02, r00 = _turn(cs, sn, r02, r00)
-                    r12, r10 = _turn(cs, sn, r12, r10)
-                    r22, r20 = _turn(cs, sn, r22, r20)
-                else:  # plane (e1, e2)
-                    s0, s1 = _turn(cs, sn, s0, s1)
-                    s3, s4 = _turn(cs, sn, s3, s4)
-                    r00, r01 = _turn(cs, sn, r00, r01)
-                    r10, r11 = _turn(cs, sn, r10, r11)
-                    r20, r21 = _turn(cs, sn, r20, r21)
-            S[i, 0], S[i, 1], S[i, 2], S[i, 3], S[i, 4], S[i, 5] = s0, s1, s2, s3, s4, s5
-        D[i, 0, 0], D[i, 0, 1], D[i, 0, 2], D[i, 0, 3] = 1.0, 0.0, 0.0, 0.0
-        D[i, 1, 0], D[i, 1, 1], D[i, 1, 2], D[i, 1, 3] = t0, r00, r01, r02
-        D[i, 2, 0], D[i, 2, 1], D[i, 2, 2], D[i, 2, 3] = t1, r10, r11, r12
-        D[i, 3, 0], D[i, 3, 1], D[i, 3, 2], D[i, 3, 3] = t2, r20, r21, r22
-
-
-@njit(cache=True)
-def lie_verlet_loop(P, S, G, Phi, W, have_force, velocity_free, seq_mask, seq_frac, seq_kind, seq_axis,
+def lie_verlet_loop(P, S, G, Phi, W, have_force, velocity_free, seq_mask, seq_frac, seq_fac, seq_kind,
                     t, dt, nsteps, dissipated, external, check, kinetic_limit, inv):
     """``nsteps`` steps of ``LieVerlet`` (half kick, exact split free flow, half kick).
 
     ``W`` holds the force at the current state when ``have_force`` (first-same-as-last) and
-    the force at the final state on return.  Returns
+    the force at the final state on return.  ``seq_*`` describe the palindromic pieces
+    (mask of components, fraction of Δt, ``τ/m`` per component, kind, with the rotation axis
+    of SE(3) single-axis pieces in ``seq_kind[:, 1]``).  Returns
     ``(steps done, force evaluations, t, dissipated, external)``.
     """
     n, r = S.shape
     m = G.shape[1]
-    N = np.empty((n, r))
+    N = np.zeros((n, r))
     F = np.empty((n, r))
     D = np.empty((n, m, m))
-    scr = _scratch(r, m)
-    w = P[6]
-    se3_flow = P[0] == GID_SE3
-    for p in range(seq_kind.shape[0]):
-        if seq_kind[p] == KIND_GENERIC:
+    scr = _scratch(r, m, G.shape[0])
+    w = P[I_W]
+    kinds = seq_kind[:, 0].copy()
+    axes = seq_kind[:, 1].copy()
+    se3_flow = P[I_GID] == GID_SE3
+    for p in range(kinds.shape[0]):
+        if kinds[p] == KIND_GENERIC:
             se3_flow = False
+    # N enters the force only through damping, and the bookkeeping only through the powers
+    need_N = P[I_HAS_DAMP] or P[I_HAS_POWER]
     nforce = 0
     half = 0.5 * dt
-    _velocity(P, S, N)
+    if need_N:
+        _velocity(P, S, N)
     p0d, p0e = _powers(P, N, Phi, scr)
     done = 0
     for _ in range(nsteps):
         if not (have_force and velocity_free):
-            _force(P, G, Phi, N, W, F, scr)
+            _force(P, G, Phi, N, W, F, scr, True)
             nforce += 1
-        for i in range(n):
-            for k in range(r):
-                S[i, k] = S[i, k] + half * W[i, k]
+        _kick(S, W, half)
         _constrain(P, S)
         if se3_flow:
-            _se3_free_flow(P, S, D, dt, seq_frac, seq_kind, seq_axis)
+            _se3_free_flow(S, D, seq_fac, kinds, axes)
         else:
-            _free_flow(P, S, D, dt, seq_mask, seq_frac, seq_kind, seq_axis, scr)
-        _conjugate(P[0], G, Phi, P[1], D, scr[5], scr[6])
+            _free_flow(P, S, D, dt, seq_mask, seq_frac, scr)
+        _conjugate(P, G, Phi, D, scr[5], scr[6])
         _constrain(P, S)
-        _velocity(P, S, N)
-        _force(P, G, Phi, N, W, F, scr)
+        if need_N:
+            _velocity(P, S, N)
+        _force(P, G, Phi, N, W, F, scr, True)
         nforce += 1
         have_force = True
-        for i in range(n):
-            for k in range(r):
-                S[i, k] = S[i, k] + half * W[i, k]
+        _kick(S, W, half)
         _constrain(P, S)
         t = t + dt
-        _velocity(P, S, N)
+        if need_N:
+            _velocity(P, S, N)
         p1d, p1e = _powers(P, N, Phi, scr)
         dissipated = dissipated + 0.5 * dt * (p0d + p1d)
         external = external + 0.5 * dt * (p0e + p1e)
@@ -861,26 +913,30 @@ def lie_verlet_loop(P, S, G, Phi, W, have_force, velocity_free, seq_mask, seq_fr
 # ---------------------------------------------------------------------------- lie-euler
 @njit(cache=True)
 def lie_euler_loop(P, S, G, Phi, t, dt, nsteps, dissipated, external, check, kinetic_limit, inv):
-    """``nsteps`` steps of ``LieEuler``: ``S⁺ = Ad*_{exp ΔtN}S + 𝓔(Δt,N)ᵀW``, ``Φ⁺ = Φ exp(ΔtN)``."""
-    gid = P[0]
+    """``nsteps`` steps of ``LieEuler``: ``S⁺ = Ad*_{exp ΔtN}S + 𝓔(Δt,N)ᵀW``, ``Φ⁺ = Φ exp(ΔtN)``.
+    Returns ``(steps done, t, dissipated, external)``."""
+    gid = P[I_GID]
     n, r = S.shape
     m = G.shape[1]
     N = np.empty((n, r))
     F = np.empty((n, r))
     W = np.empty((n, r))
     D = np.empty((n, m, m))
-    scr = _scratch(r, m)
-    xi, nxi, tr, M, M2, A1, A2, A3 = scr
-    w = P[6]
+    scr = _scratch(r, m, G.shape[0])
+    xi, Q, tr, M, M2, A1, A2, A3, XI = scr
+    w = P[I_W]
     _velocity(P, S, N)
     p0d, p0e = _powers(P, N, Phi, scr)
     done = 0
     for _ in range(nsteps):
-        _force(P, G, Phi, N, W, F, scr)
+        _force(P, G, Phi, N, W, F, scr, True)
+        if gid == GID_SE3:
+            _se3_exp_nodes(N, dt, D)
         for i in range(n):
-            for k in range(r):
-                xi[k] = dt * N[i, k]
-            g_exp(gid, xi, D[i])
+            if gid != GID_SE3:
+                for k in range(r):
+                    xi[k] = dt * N[i, k]
+                g_exp(gid, xi, D[i])
             g_Ad(gid, D[i], M)
             g_E(gid, dt, N[i], M2)
             for a in range(r):
@@ -892,7 +948,7 @@ def lie_euler_loop(P, S, G, Phi, t, dt, nsteps, dissipated, external, check, kin
                 tr[a] = u + v
             for a in range(r):
                 S[i, a] = tr[a]
-        _conjugate(gid, G, Phi, P[1], D, A1, A2)
+        _conjugate(P, G, Phi, D, A1, A2)
         _constrain(P, S)
         t = t + dt
         _velocity(P, S, N)
@@ -903,16 +959,16 @@ def lie_euler_loop(P, S, G, Phi, t, dt, nsteps, dissipated, external, check, kin
         done += 1
         if _unstable(check, kinetic_limit, S, G, Phi, w, inv):
             break
-    return done, done, t, dissipated, external
+    return done, t, dissipated, external
 
 
 # ---------------------------------------------------------------------------- forward-euler
 @njit(cache=True)
 def forward_euler_loop(P, S, G, Phi, t, dt, nsteps, dissipated, external, check, kinetic_limit, inv):
     """``nsteps`` steps of ``ForwardEuler``: ``Φ += ΔtΦN̂`` (edges ``G += Δt(−N̂_iG + GN̂_j)``),
-    ``S += Δt(ad_NᵀS + W)``."""
-    gid = P[0]
-    track = P[1]
+    ``S += Δt(ad_NᵀS + W)``.  Returns ``(steps done, t, dissipated, external)``."""
+    gid = P[I_GID]
+    track = P[I_TRACK]
     n, r = S.shape
     m = G.shape[1]
     N = np.empty((n, r))
@@ -920,14 +976,14 @@ def forward_euler_loop(P, S, G, Phi, t, dt, nsteps, dissipated, external, check,
     W = np.empty((n, r))
     Sd = np.empty((n, r))
     D = np.empty((n, m, m))
-    scr = _scratch(r, m)
-    xi, nxi, tr, M, M2, A1, A2, A3 = scr
-    w = P[6]
+    scr = _scratch(r, m, G.shape[0])
+    xi, Q, tr, M, M2, A1, A2, A3, XI = scr
+    w = P[I_W]
     _velocity(P, S, N)
     p0d, p0e = _powers(P, N, Phi, scr)
     done = 0
     for _ in range(nsteps):
-        _force(P, G, Phi, N, W, F, scr)
+        _force(P, G, Phi, N, W, F, scr, False)
         for i in range(n):
             g_ad(gid, N[i], M)
             for a in range(r):
@@ -940,29 +996,24 @@ def forward_euler_loop(P, S, G, Phi, t, dt, nsteps, dissipated, external, check,
             g_hat(gid, xi, D[i])
         for e in range(G.shape[0]):
             i, j = _edge_nodes(e, n)
-            Ge = G[e]
-            Ni = D[i]
-            Nj = D[j]
             for a in range(m):
                 for b in range(m):
                     left = 0.0
                     right = 0.0
                     for c in range(m):
-                        left += Ni[a, c] * Ge[c, b]
-                        right += Ge[a, c] * Nj[c, b]
-                    A1[a, b] = Ge[a, b] - left + right
-            _copy_matrix(A1, Ge)
+                        left += D[i, a, c] * G[e, c, b]
+                        right += G[e, a, c] * D[j, c, b]
+                    A1[a, b] = G[e, a, b] - left + right
+            _copy_matrix(A1, G[e])
         nf = n if track else 1
         for i in range(nf):
-            Pi = Phi[i]
-            Ni = D[i]
             for a in range(m):
                 for b in range(m):
                     acc = 0.0
                     for c in range(m):
-                        acc += Pi[a, c] * Ni[c, b]
-                    A1[a, b] = Pi[a, b] + acc
-            _copy_matrix(A1, Pi)
+                        acc += Phi[i, a, c] * D[i, c, b]
+                    A1[a, b] = Phi[i, a, b] + acc
+            _copy_matrix(A1, Phi[i])
         for i in range(n):
             for k in range(r):
                 S[i, k] = S[i, k] + dt * Sd[i, k]
@@ -976,16 +1027,16 @@ def forward_euler_loop(P, S, G, Phi, t, dt, nsteps, dissipated, external, check,
         done += 1
         if _unstable(check, kinetic_limit, S, G, Phi, w, inv):
             break
-    return done, done, t, dissipated, external
+    return done, t, dissipated, external
 
 
-# ---------------------------------------------------------------------------- RKMK family
+# ---------------------------------------------------------------------------- overdamped, RKMK
 @njit(cache=True)
 def _drift_velocity(P, G, Phi, Z, W, F, N, gam, scr):
     """Overdamped velocity ``N = Γ⁻¹ W(N = 0)`` (live components; zero at clamped nodes)."""
-    live = P[8]
-    clamped = P[9]
-    _force(P, G, Phi, Z, W, F, scr)
+    live = P[I_LIVE]
+    clamped = P[I_CLAMPED]
+    _force(P, G, Phi, Z, W, F, scr, True)
     n, r = N.shape
     for i in range(n):
         for k in range(r):
@@ -1002,7 +1053,7 @@ def overdamped_velocity(P, G, Phi, N, gam):
     Z = np.zeros((n, r))
     F = np.empty((n, r))
     W = np.empty((n, r))
-    _drift_velocity(P, G, Phi, Z, W, F, N, gam, _scratch(r, G.shape[1]))
+    _drift_velocity(P, G, Phi, Z, W, F, N, gam, _scratch(r, G.shape[1], G.shape[0]))
 
 
 @njit(cache=True)
@@ -1010,6 +1061,7 @@ def overdamped_loop(P, S, G, Phi, N, gam, t, dt, nsteps, dissipated, external, c
     """``nsteps`` steps of ``Overdamped(order=1)``: ``Φ ← Φ exp(ΔtN)``, ``N = Γ⁻¹W(N = 0)``.
 
     ``N`` holds the velocity of the current state on entry and of the final state on return.
+    Returns ``(steps done, t, dissipated, external)``.
     """
     n, r = S.shape
     m = G.shape[1]
@@ -1017,8 +1069,8 @@ def overdamped_loop(P, S, G, Phi, N, gam, t, dt, nsteps, dissipated, external, c
     F = np.empty((n, r))
     W = np.empty((n, r))
     D = np.empty((n, m, m))
-    scr = _scratch(r, m)
-    w = P[6]
+    scr = _scratch(r, m, G.shape[0])
+    w = P[I_W]
     p0d, p0e = _powers(P, N, Phi, scr)
     done = 0
     for _ in range(nsteps):
@@ -1046,8 +1098,9 @@ def rkmk_loop(P, S, G, Phi, N, gam, dynamics, A, b, t, dt, nsteps, dissipated, e
     ``dynamics``: ``rkmk4`` (S by the same tableau on ``Ṡ = ad_NᵀS + W``, N = velocity(S));
     otherwise the overdamped flow of order 2 (N = Γ⁻¹W(N = 0), S = 0), with ``N`` the drift
     velocity of the current state on entry and of the final state on return.
+    Returns ``(steps done, t, dissipated, external)``.
     """
-    gid = P[0]
+    gid = P[I_GID]
     n, r = S.shape
     m = G.shape[1]
     s = b.shape[0]
@@ -1062,9 +1115,9 @@ def rkmk_loop(P, S, G, Phi, N, gam, dynamics, A, b, t, dt, nsteps, dissipated, e
     D = np.empty((n, m, m))
     Gst = np.empty_like(G)
     Phist = np.empty_like(Phi)
-    scr = _scratch(r, m)
-    xi, nxi, tr, M, M2, A1, A2, A3 = scr
-    w = P[6]
+    scr = _scratch(r, m, G.shape[0])
+    xi, Q, tr, M, M2, A1, A2, A3, XI = scr
+    w = P[I_W]
     if dynamics:
         _velocity(P, S, N)
     p0d, p0e = _powers(P, N, Phi, scr)
@@ -1109,7 +1162,7 @@ def rkmk_loop(P, S, G, Phi, N, gam, dynamics, A, b, t, dt, nsteps, dissipated, e
                         acc += M[a, c] * Nst[i, c]
                     ksig[st, i, a] = acc
             if dynamics:
-                _force(P, Gst, Phist, Nst, W, F, scr)
+                _force(P, Gst, Phist, Nst, W, F, scr, True)
                 for i in range(n):
                     g_ad(gid, Nst[i], M)
                     for a in range(r):
@@ -1151,19 +1204,13 @@ def rkmk_loop(P, S, G, Phi, N, gam, dynamics, A, b, t, dt, nsteps, dissipated, e
     return done, t, dissipated, external
 
 
-# ---------------------------------------------------------------------------- force probe
 @njit(cache=True)
-def force_once(P, G, Phi, N, W):
-    """One force evaluation (tests compare it with ``Lattice.force``)."""
+def force_once(P, G, Phi, N, W, on_group):
+    """One force evaluation ``W`` at ``(G, Phi, N)`` (compared with ``Lattice.force`` by the tests)."""
     n, r = W.shape
     F = np.empty((n, r))
-    scr = _scratch(r, G.shape[1])
-    _force(P, G, Phi, N, W, F, scr)
+    _force(P, G, Phi, N, W, F, _scratch(r, G.shape[1], G.shape[0]), on_group)
 
-
-def kinetic_inverse(mass: np.ndarray, live: np.ndarray) -> np.ndarray:
-    """``1/m`` on live components, 0 on gauge components (the guard's kinetic-energy weights)."""
-    return np.where(live, 1.0 / np.where(live, mass, 1.0), 0.0)
 
 # ---------------------------------------------------------------------------- Python glue
 def _writable(a: np.ndarray) -> np.ndarray:
@@ -1183,19 +1230,20 @@ def _group_id(group) -> int | None:
 
 
 def _same_methods(obj, base, names) -> bool:
-    return all(getattr(type(obj), name) is getattr(base, name) for name in names)
+    return all(getattr(type(obj), name, None) is getattr(base, name) for name in names)
 
 
 def build_plan(scheme) -> tuple | None:
-    """The problem of a lattice scheme as compiled-loop data ``P``, or None when it does not
-    qualify (see ``docs/performance.md``: d = 1; SO(2), SE(2), SO(3), SE(3); a medium with
-    :meth:`~cartan.medium.Medium.quadratic_energy`; damping, body-frame uniform forces and
-    constant-field potentials; free (loaded or not) and clamped ends).
+    """The problem of a lattice scheme as compiled-loop data ``P`` (layout ``I_*``), or None
+    when it does not qualify: d = 1; SO(2), SE(2), SO(3), SE(3); a medium with
+    :meth:`~cartan.medium.Medium.quadratic_energy` and the base kinetic energy and body force;
+    ``Damping``, body-frame ``UniformForce`` and ``ConstantFieldPotential`` loads; free
+    (loaded or not) and clamped ends; frames stepped when a load needs them.
 
     Raises
     ------
     ValueError
-        When the medium's ``quadratic_energy`` disagrees with its ``stress``.
+        When the medium's ``quadratic_energy`` is malformed or disagrees with its ``stress``.
     """
     from ..medium import Medium
     from ..problem import Clamped, ConstantFieldPotential, Damping, Free, PotentialLoad, UniformForce
@@ -1223,47 +1271,41 @@ def build_plan(scheme) -> tuple | None:
     C = np.array(quad[1], dtype=float)
     if X0.shape != (r,) or C.shape != (r, r) or not (np.all(np.isfinite(X0)) and np.all(np.isfinite(C))):
         raise ValueError(
-            f"medium {medium.name!r}: quadratic_energy() must return X0 of shape ({r},) and C of shape "
-            f"({r}, {r}), finite; got {X0.shape} and {C.shape}"
+            f"medium {medium.name!r}: quadratic_energy() must return finite X0 of shape ({r},) and C of "
+            f"shape ({r}, {r}); got shapes {X0.shape} and {C.shape}"
         )
     delta = 1e-2 * np.sin(np.arange(1.0, r + 1.0))
     Q = np.asarray(medium.stress((X0 + delta)[None, None, :]), dtype=float).reshape(-1)
     if not np.allclose(Q, C @ delta, rtol=1e-9, atol=1e-12 * max(1.0, float(np.abs(C).max()))):
-        raise ValueError(
-            f"medium {medium.name!r}: quadratic_energy() disagrees with stress(): Q = C (X − X0) does not hold"
-        )
+        raise ValueError(f"medium {medium.name!r}: quadratic_energy() disagrees with stress(): Q ≠ C (X − X0)")
     k = group.space_dim if getattr(group, "affine", False) else 1
-    damp = np.zeros(r)
-    ubody = np.zeros(r)
-    field = np.zeros(k)
-    has = {"damp": False, "ubody": False, "field": False}
+    damp, ubody, field = np.zeros(r), np.zeros(r), np.zeros(k)
+    has_damp = has_ubody = has_field = False
     for load in problem.loads:
         if type(load) is Damping:
             damp = damp + np.asarray(load.coefficients, dtype=float)
-            has["damp"] = True
+            has_damp = True
         elif type(load) is UniformForce and load.frame == "body":
             ubody = ubody + np.asarray(load.components, dtype=float)
-            has["ubody"] = True
+            has_ubody = True
         elif (
             isinstance(load, ConstantFieldPotential)
-            and _same_methods(load, ConstantFieldPotential, ("force", "potential_gradient", "position", "_q"))
             and type(load).force is PotentialLoad.force
+            and _same_methods(load, ConstantFieldPotential, ("potential_gradient", "position", "_matrix"))
         ):
             field = field + load.density * np.asarray(load.field, dtype=float)
-            has["field"] = True
+            has_field = True
         else:
             return None
-    for b in problem.boundaries.values():
-        if type(b) not in (Free, Clamped):
-            return None
+    if any(type(b) not in (Free, Clamped) for b in problem.boundaries.values()):
+        return None
     n = grid.shape[0]
     ends = [(0 if sl[0] == 0 else n - 1, b) for sl, b in scheme._end_loads]
-    needs_phi = has["field"] or any(not b.follower for _, b in ends)
-    if needs_phi and not scheme.track:
+    if (has_field or any(not b.follower for _, b in ends)) and not scheme.track:
         return None
-    end_idx = np.array([i for i, _ in ends], dtype=np.int64)
-    end_load = np.array([np.asarray(b.load, dtype=float) for _, b in ends], dtype=float).reshape(len(ends), r)
-    end_follow = np.array([bool(b.follower) for _, b in ends], dtype=np.bool_)
+    weights = np.ascontiguousarray(scheme.weights, dtype=float)
+    live = np.ascontiguousarray(scheme.live, dtype=np.bool_)
+    clamped = np.ascontiguousarray(scheme._clamped, dtype=np.bool_)
     return (
         int(gid),
         bool(scheme.track),
@@ -1271,52 +1313,62 @@ def build_plan(scheme) -> tuple | None:
         float(scheme.h[0]),
         X0,
         np.ascontiguousarray(C),
-        np.ascontiguousarray(scheme.weights, dtype=float),
+        bool(np.count_nonzero(C - np.diag(np.diag(C))) == 0),
+        weights,
+        1.0 / weights,
         np.ascontiguousarray(scheme.mass, dtype=float),
-        np.ascontiguousarray(scheme.live, dtype=np.bool_),
-        np.ascontiguousarray(scheme._clamped, dtype=np.bool_),
+        live,
+        clamped,
+        bool(clamped.any() or not live.all()),
         damp,
-        has["damp"],
+        has_damp,
         ubody,
-        has["ubody"],
+        has_ubody,
         field,
-        has["field"],
-        end_idx,
-        end_load,
-        end_follow,
+        has_field,
+        np.array([i for i, _ in ends], dtype=np.int64),
+        np.array([np.asarray(b.load, dtype=float) for _, b in ends], dtype=float).reshape(len(ends), r),
+        np.array([bool(b.follower) for _, b in ends], dtype=np.bool_),
         bool(scheme.has_external_power()),
     )
 
 
-def _lie_verlet_sequence(integrator, scheme, gid: int):
+def _lie_verlet_sequence(integrator, scheme, gid: int, dt: float, cache: dict):
+    """``LieVerlet._sequence`` as arrays, cached per Δt in ``cache`` (the sequence depends on
+    the scheme's group and live components only): component masks, fractions of Δt, ``τ/m``
+    per component, and (kind, SE(3) rotation axis) per piece."""
+    key = ("lie-verlet", dt)
+    if key in cache:
+        return cache[key]
     seq = integrator._sequence(scheme)
     r = scheme.group.dim
     mask = np.zeros((len(seq), r), dtype=np.bool_)
     frac = np.empty(len(seq))
-    kind = np.zeros(len(seq), dtype=np.int64)
-    axis = np.zeros(len(seq), dtype=np.int64)
+    kind = np.zeros((len(seq), 2), dtype=np.int64)
     for p, (piece, f) in enumerate(seq):
         idx = sorted(int(i) for i in piece)
         mask[p, idx] = True
         frac[p] = f
         if gid == GID_SE3 and idx == [0, 1, 2]:
-            kind[p] = KIND_SE3_TRANSLATION
+            kind[p] = (KIND_SE3_TRANSLATION, 0)
         elif gid == GID_SE3 and len(idx) == 1 and idx[0] >= 3:
-            kind[p] = KIND_SE3_ROTATION
-            axis[p] = idx[0] - 3
-    return mask, frac, kind, axis
+            kind[p] = (KIND_SE3_ROTATION, idx[0] - 3)
+    fac = np.where(mask, (frac * dt)[:, None] / np.where(scheme.live, scheme.mass, 1.0), 0.0)
+    if len(cache) > 16:
+        cache.clear()
+    cache[key] = (mask, frac, np.ascontiguousarray(fac), kind)
+    return cache[key]
 
 
 def advance(scheme, plan: tuple, integrator, state, dt: float, nsteps: int, kinetic_limit: float) -> bool:
     """Run up to ``nsteps`` steps of ``integrator`` on ``state`` in compiled code (see
-    :meth:`cartan.schemes.lattice.Lattice.compiled_advance`); False when the integrator is
-    not supported (nothing is touched)."""
+    :meth:`cartan.schemes.lattice.Lattice.compiled_advance`); False, touching nothing, when
+    the integrator is not supported."""
     from ..integrators.explicit import _TABLEAUX, RKMK4, ForwardEuler, LieEuler, LieVerlet, Overdamped
 
     kind = type(integrator)
     if kind not in (LieVerlet, LieEuler, ForwardEuler, Overdamped, RKMK4):
         return False
-    gid = plan[0]
     gam = None
     if kind is Overdamped:
         gam = np.asarray(scheme.drag(), dtype=float)
@@ -1326,11 +1378,11 @@ def advance(scheme, plan: tuple, integrator, state, dt: float, nsteps: int, kine
     frame_key = "Phi" if scheme.track else "Phi_root"
     if set(state.arrays) != {key, frame_key}:
         return False
-    seq = _lie_verlet_sequence(integrator, scheme, gid) if kind is LieVerlet else None
     nsteps = int(nsteps)
     if nsteps <= 0:
         return True
     t_start = time.perf_counter()
+    dt = float(dt)
     S = state.S = _writable(state.S)
     G = state.arrays[key] = _writable(state.arrays[key])
     Phi = state.arrays[frame_key] = _writable(state.arrays[frame_key])
@@ -1338,25 +1390,28 @@ def advance(scheme, plan: tuple, integrator, state, dt: float, nsteps: int, kine
     nstep0 = state.scalars.get("nstep", 0)
     stamp = (id(state), state.t, nstep0)
     t0 = float(state.t)
-    dt = float(dt)
     diss = float(state.scalars.get("dissipated_energy", 0.0))
     ext = float(state.scalars.get("external_work", 0.0))
     check = CHECK_MOMENTUM if integrator.uses_momentum else CHECK_CONFIGURATION
     limit = float(kinetic_limit)
-    inv = kinetic_inverse(scheme.mass, scheme.live)
+    cache = scheme.__dict__.setdefault("_compiled_cache", {})
+    inv = cache.get("inv")
+    if inv is None:
+        inv = cache["inv"] = np.where(scheme.live, 1.0 / np.where(scheme.live, scheme.mass, 1.0), 0.0)
+    W = None
     if kind is LieVerlet:
         velocity_free = not any(ld.velocity_dependent for ld in scheme.problem.loads) and not getattr(
             scheme.medium, "velocity_dependent_forces", False)
         fsal = integrator._fsal
         have = bool(velocity_free and fsal is not None and fsal[0] == stamp)
         W = np.array(fsal[1], dtype=float, order="C") if have else np.zeros_like(S)
+        seq = _lie_verlet_sequence(integrator, scheme, plan[I_GID], dt, cache)
         done, nforce, t, diss, ext = lie_verlet_loop(
             plan, S, G, Phi3, W, have, bool(velocity_free), *seq, t0, dt, nsteps, diss, ext, check, limit, inv)
-    elif kind is LieEuler:
-        done, nforce, t, diss, ext = lie_euler_loop(plan, S, G, Phi3, t0, dt, nsteps, diss, ext, check, limit, inv)
-    elif kind is ForwardEuler:
-        done, nforce, t, diss, ext = forward_euler_loop(
-            plan, S, G, Phi3, t0, dt, nsteps, diss, ext, check, limit, inv)
+    elif kind is LieEuler or kind is ForwardEuler:
+        loop = lie_euler_loop if kind is LieEuler else forward_euler_loop
+        done, t, diss, ext = loop(plan, S, G, Phi3, t0, dt, nsteps, diss, ext, check, limit, inv)
+        nforce = done
     else:
         dynamics = kind is RKMK4
         order = 4 if dynamics else integrator.order
@@ -1377,18 +1432,17 @@ def advance(scheme, plan: tuple, integrator, state, dt: float, nsteps: int, kine
                 plan, S, G, Phi3, N, np.ones(S.shape[1]) if gam is None else gam, dynamics,
                 np.ascontiguousarray(A, dtype=float), np.ascontiguousarray(b, dtype=float),
                 t0, dt, nsteps, diss, ext, check, limit, inv)
-        # force evaluations as the reference path counts them: per step, rkmk4 evaluates 4;
-        # overdamped evaluates its velocity before and after the step (and 2 stages for order 2),
-        # the first one taken from the integrator's cache when it matches the state
-        per_step = 4 if (dynamics or order == 2) else 2
-        nforce = per_step * done - (0 if dynamics or not hit else 1)
-        if not dynamics and done:
+        # force evaluations as the reference path counts them: rkmk4 evaluates 4 per step;
+        # overdamped evaluates its velocity before and after every step (plus the 2 stages of
+        # order 2), the very first one taken from the integrator's cache when it matches
+        nforce = (4 if (dynamics or order == 2) else 2) * done - (1 if hit else 0)
+        if not dynamics:
             integrator._cache = ((id(state), t, nstep0 + done - 1), N.copy())
     state.t = t
     state.scalars["dissipated_energy"] = diss
     state.scalars["external_work"] = ext
     state.scalars["nstep"] = nstep0 + done
-    if kind is LieVerlet and done:
+    if W is not None:
         integrator._fsal = ((id(state), t, nstep0 + done), W)
     integrator.nstep += done
     integrator.nforce += nforce

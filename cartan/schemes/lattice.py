@@ -196,6 +196,8 @@ class Lattice(Scheme):
         for axis in range(self.grid.d):
             xi = g.log(state.arrays[self._key(axis)])
             Q, _ = self._axis_stress(xi / self.h[axis], axis)
+            # V = cell·Σ_e U(X_e) and δX_e carries 1/h_α: the edge stress enters as (cell/h_α)·Q
+            Q = Q * (float(np.prod(self.h)) / self.h[axis])
             out = np.einsum("...ji,...j->...i", g.dexp_inv(xi), Q)
             inc = np.einsum("...ji,...j->...i", g.dexp_inv(-xi), Q)
             self._scatter(F, out, -inc, axis)
@@ -211,7 +213,9 @@ class Lattice(Scheme):
             W += T
         for idx, b in self._end_loads:
             P = b.load if b.follower else dead_to_body(self.group, Phi[idx], b.load)
-            W[idx] += P / self.weights[idx][..., None]
+            # P is a load per unit face area (a point load for d = 1): the end node's share of the
+            # face is weight/(h_α/2), so its force density is P/(h_α/2)
+            W[idx] += P / (0.5 * self.h[self._end_axis(idx)])
         W[self._clamped] = 0.0
         W[..., ~self.live] = 0.0
         return W
@@ -220,8 +224,14 @@ class Lattice(Scheme):
         p = 0.0
         for idx, b in self._end_loads:
             P = b.load if b.follower else dead_to_body(self.group, Phi[idx], b.load)
-            p += float(np.sum(P * N[idx]))
+            face = self.weights[idx] / (0.5 * self.h[self._end_axis(idx)])
+            p += float(np.sum(face[..., None] * P * N[idx]))
         return p
+
+    @staticmethod
+    def _end_axis(idx: tuple) -> int:
+        """The axis whose end an end-load index selects (the one integer entry)."""
+        return next(k for k, s in enumerate(idx) if not isinstance(s, slice))
 
     # ------------------------------------------------------------------ drift
     def drift(self, state: State, tau: float, N: np.ndarray, exact: bool = True) -> None:
@@ -258,12 +268,33 @@ class Lattice(Scheme):
     def frames(self, state: State) -> np.ndarray:
         if "Phi" in state.arrays:
             return state.arrays["Phi"]
-        if self.grid.d != 1:
-            raise NotImplementedError("frame reconstruction is implemented for d = 1")
-        G = state.arrays[self._key(0)]
-        if self.grid.periodic[0]:
-            G = G[:-1]
-        return prefix_products(state.arrays["Phi_root"], G)
+        # Rebuild from the root frame along axis 0, then along each further axis from the
+        # frames already built (a spanning tree of the lattice); exact because the drift keeps
+        # every plaquette holonomy at its initial value.
+        P = state.arrays["Phi_root"]
+        for axis in range(self.grid.d):
+            G = state.arrays[self._key(axis)]
+            # the edges along this axis that start on the part built so far (index 0 on later axes)
+            G = G[tuple(slice(None) if k <= axis else 0 for k in range(self.grid.d))]
+            if self.grid.periodic[axis]:
+                G = np.take(G, np.arange(G.shape[axis] - 1), axis=axis)
+            steps = np.moveaxis(G, axis, 0)
+            P = np.moveaxis(prefix_products(P, steps), 0, axis)
+        return P
+
+    def plaquette_residual(self, state: State) -> float:
+        """Spatial integrability (paper §III.C): max over plaquettes and axis pairs of
+        ‖log(G_α(i) G_β(i+e_α) G_α(i+e_β)⁻¹ G_β(i)⁻¹)‖; 0 for d = 1."""
+        g = self.group
+        res = 0.0
+        for a in range(self.grid.d):
+            for b in range(a + 1, self.grid.d):
+                Ga, Gb = state.arrays[self._key(a)], state.arrays[self._key(b)]
+                Ga_i, Ga_next = self._ends(Ga, b)  # G_α(i), G_α(i + e_β)
+                Gb_i, Gb_next = self._ends(Gb, a)  # G_β(i), G_β(i + e_α)
+                loop = g.compose(g.compose(Ga_i, Gb_next), g.inverse(g.compose(Gb_i, Ga_next)))
+                res = max(res, float(np.max(np.abs(g.log(loop)))))
+        return res
 
     def potential_energy(self, state: State) -> float:
         V = 0.0

@@ -563,3 +563,21 @@ def test_scene_files(name):
     assert state.is_finite()
     if integ.name == "overdamped":
         assert _energy(scheme, state) < E0
+
+
+# ---------------------------------------------------------------------------- quadratic energy
+@pytest.mark.parametrize("planar", [False, True])
+def test_quadratic_energy_is_the_potential_as_data(planar):
+    """``quadratic_energy()`` = (X₀, C) with U = ½(X − X₀)ᵀC(X − X₀) and Q = C(X − X₀)."""
+    kappa = [0.0, 0.0, 0.3] if planar else [0.1, 0.2, 0.3]
+    rod = CosseratRod(E=1e6, poisson=0.3, radius=0.02, density=1000.0, rest_curvature=kappa)
+    rod = rod.planar() if planar else rod
+    X0, C = rod.quadratic_energy()
+    r = rod.group.dim
+    assert X0.shape == (r,) and C.shape == (r, r)
+    np.testing.assert_array_equal(X0, rod.rest_strain()[0])
+    np.testing.assert_array_equal(C, np.diag(rod.stiffness_diagonal()))
+    X = np.random.default_rng(0).standard_normal((5, 1, r))
+    D = X[:, 0] - X0
+    np.testing.assert_allclose(rod.potential(X), 0.5 * np.einsum("nk,kl,nl->n", D, C, D), rtol=1e-14)
+    np.testing.assert_allclose(rod.stress(X)[:, 0], D @ C.T, rtol=1e-14)
