@@ -202,6 +202,14 @@ class Scheme(abc.ABC):
     def _boundary_power(self, state: State, N: np.ndarray, Phi: np.ndarray | None) -> float:
         return 0.0
 
+    def spatial_residual(self, state: State) -> float:
+        """Spatial integrability residual (paper §III.C) for d ≥ 2; 0 for d = 1.
+
+        Schemes report their own measure: the lattice the plaquette holonomies, collocation
+        the continuum residual Δ_αβ = ∂_βX_α − ∂_αX_β − [X_α, X_β].
+        """
+        return 0.0
+
     def has_external_power(self) -> bool:
         """True when loads, boundary loads or the medium's body force can do work (the
         integrator then books their power every step)."""

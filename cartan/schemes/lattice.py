@@ -282,6 +282,10 @@ class Lattice(Scheme):
             P = np.moveaxis(prefix_products(P, steps), 0, axis)
         return P
 
+    def spatial_residual(self, state: State) -> float:
+        """The plaquette holonomy residual (:meth:`plaquette_residual`)."""
+        return self.plaquette_residual(state)
+
     def plaquette_residual(self, state: State) -> float:
         """Spatial integrability (paper §III.C): max over plaquettes and axis pairs of
         ‖log(G_α(i) G_β(i+e_α) G_α(i+e_β)⁻¹ G_β(i)⁻¹)‖; 0 for d = 1."""
