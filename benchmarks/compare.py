@@ -26,8 +26,10 @@ T5  work-precision: the first free–free axial mode of the same rod at small am
 
 cartan is timed along every path it offers: ``cartan.simulate`` (what a user calls;
 including its setup and the blow-up guard), ``cartan.simulate(compiled=False)`` when
-``simulate`` accepts that option, and a bare loop of ``LieVerlet.step`` on a ``Lattice``
-(``step loop``).  Results go to ``DIR/compare.nc`` (every sample, CF attributes) and
+``simulate`` accepts that option, a bare loop of ``LieVerlet.step`` on a ``Lattice``
+(``step loop``), and ``Lattice.compiled_advance`` (the scheme's compiled loop without
+``simulate`` around it) when the lattice has one.  A path that fails in the warm-up is
+reported and left out.  Results go to ``DIR/compare.nc`` (every sample, CF attributes) and
 ``DIR/compare.png``; a table of medians and ratios is printed.
 
 PyElastica is the optional extra ``compare`` (``pip install 'cartan[compare]'``); without it
