@@ -15,12 +15,22 @@ from typing import Any
 from .grid import Grid
 from .io import open_dataset
 from .medium import Medium
-from .problem import Clamped, Damping, Free, InitialState, PotentialLoad, Problem, UniformForce
+from .problem import (
+    Clamped,
+    ConstantFieldPotential,
+    Damping,
+    Free,
+    InitialState,
+    PotentialLoad,
+    Problem,
+    UniformForce,
+)
 from .scene import Scene, SceneError, load_scene, scene
 from .simulate import InstabilityError, StabilityWarning, simulate
 
 __all__ = [
     "Clamped",
+    "ConstantFieldPotential",
     "Damping",
     "Free",
     "Grid",

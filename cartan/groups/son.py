@@ -465,7 +465,11 @@ def so4_log_point(R, out):
     q3 = A[0, 3] * p0 + A[1, 3] * p1 + A[2, 3] * p2 + A[3, 3] * p3
     nq = np.sqrt(q0 * q0 + q1 * q1 + q2 * q2 + q3 * q3)
     q0, q1, q2, q3 = q0 / nq, q1 / nq, q2 / nq, q3 / nq
-    if p0 + q0 < 0.0:
+    # principal branch: half-angles α + β ≤ π.  (p₀ + q₀ has the right sign but is second-order
+    # small at a double rotation by ≈ π, where rounding would pick the branch; atan2 is not.)
+    alpha = np.arctan2(np.sqrt(p1 * p1 + p2 * p2 + p3 * p3), p0)
+    beta = np.arctan2(np.sqrt(q1 * q1 + q2 * q2 + q3 * q3), q0)
+    if alpha + beta > np.pi:
         p0, p1, p2, p3 = -p0, -p1, -p2, -p3
         q0, q1, q2, q3 = -q0, -q1, -q2, -q3
     u = _qlog(p0, p1, p2, p3)
@@ -624,7 +628,10 @@ def _so4_log_np(R: np.ndarray) -> np.ndarray:
     p = col / np.sqrt(np.take_along_axis(norms, dstar[..., None], axis=-1))
     q = np.einsum("...cd,...c->...d", A, p)
     q = q / np.sqrt(np.sum(q * q, axis=-1, keepdims=True))
-    flip = np.where(p[..., :1] + q[..., :1] < 0.0, -1.0, 1.0)
+    # principal branch α + β ≤ π, tested to first order (see so4_log_point)
+    alpha = np.arctan2(np.linalg.norm(p[..., 1:], axis=-1), p[..., 0])
+    beta = np.arctan2(np.linalg.norm(q[..., 1:], axis=-1), q[..., 0])
+    flip = np.where(alpha + beta > np.pi, -1.0, 1.0)[..., None]
     return _so4_from_uw_np(_qlog_np(flip * p), _qlog_np(flip * q))
 
 
