@@ -33,6 +33,14 @@ from .groups.base import SymmetryGroup
 __all__ = ["Medium", "check_positive", "check_finite", "pullback_gradient"]
 
 
+def _as_float(name: str, value: Any) -> np.ndarray:
+    """``np.asarray(value, float)`` with a ValueError naming ``name`` for non-numeric input."""
+    try:
+        return np.asarray(value, dtype=float)
+    except (TypeError, ValueError):
+        raise ValueError(f"{name} must be a real number or array, got {value!r}") from None
+
+
 def check_positive(name: str, value: Any, *, allow_zero: bool = False, shape: tuple | None = None) -> np.ndarray:
     """Validate a physical parameter: finite, > 0 (or ≥ 0), optional shape; return float array.
 
@@ -41,7 +49,7 @@ def check_positive(name: str, value: Any, *, allow_zero: bool = False, shape: tu
     ValueError
         naming the parameter and the allowed range.
     """
-    arr = np.asarray(value, dtype=float)
+    arr = _as_float(name, value)
     if shape is not None and arr.shape != shape:
         raise ValueError(f"{name} must have shape {shape}, got {arr.shape}")
     if not np.all(np.isfinite(arr)):
@@ -55,7 +63,7 @@ def check_positive(name: str, value: Any, *, allow_zero: bool = False, shape: tu
 
 def check_finite(name: str, value: Any, shape: tuple | None = None) -> np.ndarray:
     """Validate a finite float array (optional exact shape); ValueError naming ``name``."""
-    arr = np.asarray(value, dtype=float)
+    arr = _as_float(name, value)
     if shape is not None and arr.shape != shape:
         raise ValueError(f"{name} must have shape {shape}, got {arr.shape}")
     if not np.all(np.isfinite(arr)):

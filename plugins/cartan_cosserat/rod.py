@@ -88,26 +88,6 @@ PLANAR_COMPONENTS = (0, 1, 5)
 _MATERIAL_KEYS = ("E", "G", "poisson", "radius", "density", "shear_coefficient")
 
 
-def _positive(name: str, value: Any, **kw: Any) -> np.ndarray:
-    """:func:`cartan.medium.check_positive` that also names ``name`` for non-numeric input."""
-    try:
-        return check_positive(name, value, **kw)
-    except (TypeError, ValueError) as exc:
-        if name in str(exc):
-            raise
-        raise ValueError(f"{name} must be a real number or array, got {value!r}") from None
-
-
-def _finite(name: str, value: Any, shape: tuple | None = None) -> np.ndarray:
-    """:func:`cartan.medium.check_finite` that also names ``name`` for non-numeric input."""
-    try:
-        return check_finite(name, value, shape)
-    except (TypeError, ValueError) as exc:
-        if name in str(exc):
-            raise
-        raise ValueError(f"{name} must be a real number or array, got {value!r}") from None
-
-
 # ====================================================================== planar frame space
 
 
@@ -135,10 +115,10 @@ class Gravity(ConstantFieldPotential):
     """
 
     def __init__(self, g: Any, mass: float):
-        g = _finite("g", g)
+        g = check_finite("g", g)
         if g.ndim != 1 or g.shape[0] not in (2, 3):
             raise ValueError(f"g must be a vector of 2 or 3 components, got shape {g.shape}")
-        super().__init__(g, float(_positive("mass", mass)))
+        super().__init__(g, float(check_positive("mass", mass)))
 
     @property
     def g(self) -> np.ndarray:
@@ -213,7 +193,7 @@ class _Rod(Medium):
             )
         r = self.group.dim
         kappa_shape = (3,) if r == 6 else ()
-        kappa = _finite("rest_curvature", given.get("rest_curvature", np.zeros(kappa_shape)), kappa_shape)
+        kappa = check_finite("rest_curvature", given.get("rest_curvature", np.zeros(kappa_shape)), kappa_shape)
         X0 = np.zeros((1, r))
         X0[0, 0] = 1.0
         X0[0, (3 if r == 6 else 2) :] = kappa
@@ -229,20 +209,20 @@ class _Rod(Medium):
                 raise ValueError(
                     f"{self.name}: the material form needs {key!r} (E, G or poisson, radius, density)"
                 )
-        E = float(_positive("E", p["E"], shape=()))
-        a = float(_positive("radius", p["radius"], shape=()))
-        rho = float(_positive("density", p["density"], shape=()))
+        E = float(check_positive("E", p["E"], shape=()))
+        a = float(check_positive("radius", p["radius"], shape=()))
+        rho = float(check_positive("density", p["density"], shape=()))
         if ("G" in p) == ("poisson" in p):
             raise ValueError(f"{self.name}: give exactly one of 'G' (shear modulus) and 'poisson'")
         if "G" in p:
-            G = float(_positive("G", p["G"], shape=()))
+            G = float(check_positive("G", p["G"], shape=()))
         else:
-            nu = float(_finite("poisson", p["poisson"], ()))
+            nu = float(check_finite("poisson", p["poisson"], ()))
             if not -1.0 < nu <= 0.5:
                 raise ValueError(f"poisson must be in (−1, 0.5], got {p['poisson']!r}")
             G = E / (2.0 * (1.0 + nu))
         alpha = float(
-            _positive("shear_coefficient", p.get("shear_coefficient", DEFAULT_SHEAR_COEFFICIENT), shape=())
+            check_positive("shear_coefficient", p.get("shear_coefficient", DEFAULT_SHEAR_COEFFICIENT), shape=())
         )
         A = math.pi * a * a
         I = math.pi * a**4 / 4.0
@@ -263,7 +243,7 @@ class _Rod(Medium):
         vals = {}
         for key, shape in self._direct_shapes.items():
             positive_only = key in ("mass", "rotational_inertia")
-            vals[key] = _positive(key, p[key], allow_zero=not positive_only, shape=shape)
+            vals[key] = check_positive(key, p[key], allow_zero=not positive_only, shape=shape)
         return self._assemble_direct(vals)
 
     def _assemble_direct(self, v: dict[str, np.ndarray]) -> tuple[np.ndarray, np.ndarray]:
@@ -392,7 +372,7 @@ class _Rod(Medium):
         d = self._vec3("direction", direction, (1.0, 0.0, 0.0))
         d = d / _norm_checked("direction", d)
         o = self._vec3("origin", origin, (0.0, 0.0, 0.0))
-        lam = float(_positive("stretch", stretch, shape=()))
+        lam = float(check_positive("stretch", stretch, shape=()))
         nrm = _perpendicular(d) if normal is None else self._vec3("normal", normal, None)
         pos = o + lam * s[:, None] * d
         frames = _frames_from(np.broadcast_to(d, pos.shape), np.broadcast_to(nrm, pos.shape))
@@ -400,16 +380,16 @@ class _Rod(Medium):
 
     def _ring(self, grid, radius=None, origin=None, amplitude=0.0, mode=2, out_of_plane=0.0, phase=0.0):
         n, L = grid.shape[0], grid.length[0]
-        R = L / (2 * math.pi) if radius is None else float(_positive("radius", radius, shape=()))
+        R = L / (2 * math.pi) if radius is None else float(check_positive("radius", radius, shape=()))
         o = self._vec3("origin", origin, (0.0, 0.0, 0.0))
-        eps = float(_finite("amplitude", amplitude, ()))
-        zeta = float(_finite("out_of_plane", out_of_plane, ()))
+        eps = float(check_finite("amplitude", amplitude, ()))
+        zeta = float(check_finite("out_of_plane", out_of_plane, ()))
         if self._is_planar and zeta != 0.0:
             raise ValueError("out_of_plane must be 0 for a planar rod")
         if int(mode) != mode or mode < 1:
             raise ValueError(f"mode must be an integer ≥ 1, got {mode!r}")
         m = int(mode)
-        ph = float(_finite("phase", phase, ()))
+        ph = float(check_finite("phase", phase, ()))
         phi = 2 * math.pi * np.arange(n) / n
         c, s = np.cos(phi), np.sin(phi)
         rho = R * (1.0 + eps * np.cos(m * phi + ph))
@@ -423,8 +403,8 @@ class _Rod(Medium):
 
     def _arc(self, grid, curvature=0.0, origin=None, angle=0.0, centered=False):
         s = grid.coordinates(0)
-        k = float(_finite("curvature", curvature, ()))
-        a0 = float(_finite("angle", angle, ()))
+        k = float(check_finite("curvature", curvature, ()))
+        a0 = float(check_finite("angle", angle, ()))
         o = self._vec3("origin", origin, (0.0, 0.0, 0.0))
         if centered:
             s = s - 0.5 * grid.length[0]
@@ -442,8 +422,8 @@ class _Rod(Medium):
     def _helix(self, grid, radius=None, pitch=None, origin=None):
         if radius is None or pitch is None:
             raise ValueError("initial kind 'helix' needs 'radius' and 'pitch'")
-        a = float(_positive("radius", radius, shape=()))
-        b = float(_finite("pitch", pitch, ())) / (2 * math.pi)
+        a = float(check_positive("radius", radius, shape=()))
+        b = float(check_finite("pitch", pitch, ())) / (2 * math.pi)
         o = self._vec3("origin", origin, (0.0, 0.0, 0.0))
         c = math.hypot(a, b)
         t = grid.coordinates(0) / c
@@ -458,8 +438,8 @@ class _Rod(Medium):
         k = 2 if self._is_planar else 3
         if positions is None or frames is None:
             raise ValueError("initial kind 'arrays' needs 'positions' and 'frames'")
-        pos = _finite("positions", positions, (n, k))
-        E = _finite("frames", frames, (n, k, k))
+        pos = check_finite("positions", positions, (n, k))
+        E = check_finite("frames", frames, (n, k, k))
         defect = np.linalg.norm(np.swapaxes(E, -1, -2) @ E - np.eye(k), axis=(-2, -1))
         det = np.linalg.det(E)
         if np.any(defect > 1e-8) or np.any(np.abs(det - 1.0) > 1e-8):
@@ -477,7 +457,7 @@ class _Rod(Medium):
         if value is None:
             return np.array(default, dtype=float)
         k = 2 if self._is_planar else 3
-        v = _finite(name, value, (k,))
+        v = check_finite(name, value, (k,))
         return np.append(v, 0.0) if k == 2 else v
 
     # ------------------------------------------------------------------ assembly
@@ -488,12 +468,12 @@ class _Rod(Medium):
         n, r = grid.shape[0], self.group.dim
         N = np.zeros((n, r))
         if velocity is not None:
-            v = _finite("velocity", velocity)
+            v = check_finite("velocity", velocity)
             if v.shape not in ((r,), (n, r)):
                 raise ValueError(f"velocity must have shape ({r},) or ({n}, {r}), got {v.shape}")
             N = N + v
         if rigid is not None:
-            N = N + self._rigid_body_velocity(Phi, _finite("rigid_velocity", rigid, (r,)), center)
+            N = N + self._rigid_body_velocity(Phi, check_finite("rigid_velocity", rigid, (r,)), center)
         elif center is not None:
             raise ValueError("'center' is only used with 'rigid_velocity'")
         return N
@@ -606,7 +586,7 @@ class CosseratRod(_Rod):
 
     def _rigid_body_velocity(self, Phi, twist, center):
         pos, R = Phi[:, 1:, 0], Phi[:, 1:, 1:]
-        c = pos.mean(axis=0) if center is None else _finite("center", center, (3,))
+        c = pos.mean(axis=0) if center is None else check_finite("center", center, (3,))
         v, w = twist[:3], twist[3:]
         vs = v + np.cross(w, pos - c)
         Rt = np.swapaxes(R, -1, -2)
@@ -731,7 +711,7 @@ class PlanarCosseratRod(_Rod):
 
     def _rigid_body_velocity(self, Phi, twist, center):
         pos, R = Phi[:, 1:, 0], Phi[:, 1:, 1:]
-        c = pos.mean(axis=0) if center is None else _finite("center", center, (2,))
+        c = pos.mean(axis=0) if center is None else check_finite("center", center, (2,))
         v, w = twist[:2], float(twist[2])
         d = pos - c
         vs = v + w * np.stack([-d[:, 1], d[:, 0]], axis=-1)

@@ -84,21 +84,7 @@ def _int_param(name: str, value: Any, allowed: str, ok: Callable[[int], bool]) -
 
 
 def _positive(name: str, value: Any) -> float:
-    try:
-        return float(check_positive(name, value, shape=()))
-    except (TypeError, ValueError) as exc:
-        if name in str(exc):
-            raise
-        raise ValueError(f"{name} must be a finite real number > 0, got {value!r}") from None
-
-
-def _finite(name: str, value: Any, shape: tuple | None = None) -> np.ndarray:
-    try:
-        return check_finite(name, value, shape)
-    except (TypeError, ValueError) as exc:
-        if name in str(exc):
-            raise
-        raise ValueError(f"{name} must be a real number or array, got {value!r}") from None
+    return float(check_positive(name, value, shape=()))
 
 
 def _node_coordinates(grid) -> list[np.ndarray]:
@@ -111,7 +97,7 @@ def _nodal(name: str, value: Any, grid, trailing: tuple = ()) -> np.ndarray:
     node coordinates ``f(u)`` (d = 1), ``f(u, v)`` (d = 2), ``f(u, v, w)`` (d = 3)."""
     if callable(value):
         value = value(*_node_coordinates(grid))
-    arr = _finite(name, value)
+    arr = check_finite(name, value)
     target = (*grid.shape, *trailing)
     try:
         return np.broadcast_to(arr, target).astype(float, copy=True)
@@ -342,7 +328,7 @@ class SigmaModel(Medium):
             e = np.zeros(m)
             e[0] = 1.0
             return e
-        e = _finite("direction", direction, (m,))
+        e = check_finite("direction", direction, (m,))
         if abs(e[-1]) > 1e-12 * max(1.0, float(np.linalg.norm(e))):
             raise ValueError(f"direction must be tangent at n₀ = e_{m} (last component 0), got {e.tolist()}")
         norm = float(np.linalg.norm(e))
@@ -365,7 +351,7 @@ class SigmaModel(Medium):
                     continue
                 coords = _node_coordinates(grid)
                 coords[a] = coords[a] + grid.length[a]
-                jump = (_finite("angle", angle(*coords)) - phi) / (2 * math.pi)
+                jump = (check_finite("angle", angle(*coords)) - phi) / (2 * math.pi)
                 if np.max(np.abs(jump - np.round(jump))) > 1e-8:
                     raise ValueError(
                         f"angle must satisfy φ(u + L) = φ(u) + 2πm on the periodic axis {a} "
@@ -386,7 +372,7 @@ class SigmaModel(Medium):
         return Phi, N
 
     def _uniform(self, grid, point=None):
-        q = self.space.q_r if point is None else _finite("point", point, (self.n + 1,))
+        q = self.space.q_r if point is None else check_finite("point", point, (self.n + 1,))
         norm = float(np.linalg.norm(q))
         if not abs(norm - 1.0) <= 1e-8:
             raise ValueError(f"point must be a unit vector (a point of S^{self.n}), got |point| = {norm:.6g}")
@@ -452,13 +438,13 @@ def _lump_geometry(grid, charge, size, center, phase, cutoff):
     Q = _int_param("charge", charge, "a non-zero integer", lambda v: v != 0)
     Lmin = min(grid.length)
     lam = 0.1 * Lmin if size is None else _positive("size", size)
-    z0 = complex(*(0.5 * np.asarray(grid.length))) if center is None else complex(*_finite("center", center, (2,)))
-    alpha = float(_finite("phase", phase, ()))
+    z0 = complex(*(0.5 * np.asarray(grid.length))) if center is None else complex(*check_finite("center", center, (2,)))
+    alpha = float(check_finite("phase", phase, ()))
     if cutoff is None:
         r2 = 0.45 * Lmin
         r1 = 0.5 * r2
     else:
-        r1, r2 = (float(v) for v in _finite("cutoff", cutoff, (2,)))
+        r1, r2 = (float(v) for v in check_finite("cutoff", cutoff, (2,)))
         if not 0 < r1 < r2:
             raise ValueError(f"cutoff must be (r1, r2) with 0 < r1 < r2, got {cutoff!r}")
     if r2 > 0.5 * Lmin and any(grid.periodic):
@@ -658,7 +644,7 @@ def topological_charge(field: Any, density: bool = False, periodic: bool = True)
         Close the lattice on both axes (default); otherwise sum the interior plaquettes only
         (not an integer in general).
     """
-    n = _finite("field", field)
+    n = check_finite("field", field)
     if n.ndim < 3 or n.shape[-1] != 3:
         raise ValueError(f"field must have shape [..., nx, ny, 3], got {n.shape}")
     if periodic:
@@ -682,12 +668,12 @@ def topological_charge(field: Any, density: bool = False, periodic: bool = True)
 def great_circle_angle(field: Any, direction: Any = None) -> np.ndarray:
     """Angle φ ∈ (−π, π] of points ``n = cos φ n₀ + sin φ e`` on the great circle through
     n₀ = e_{last} and the unit tangent ``direction`` e (default e₁): ``atan2(n·e, n·n₀)``."""
-    n = _finite("field", field)
+    n = check_finite("field", field)
     m = n.shape[-1]
     e = np.zeros(m)
     e[0] = 1.0
     if direction is not None:
-        e = _finite("direction", direction, (m,))
+        e = check_finite("direction", direction, (m,))
         e = e / np.linalg.norm(e)
     return np.arctan2(n @ e, n[..., -1])
 

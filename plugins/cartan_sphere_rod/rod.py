@@ -75,26 +75,6 @@ __all__ = ["SphereRod"]
 _Z = np.array([0.0, 0.0, 1.0])
 
 
-def _positive(name: str, value: Any, **kw: Any) -> np.ndarray:
-    """:func:`cartan.medium.check_positive` that also names ``name`` for non-numeric input."""
-    try:
-        return check_positive(name, value, **kw)
-    except (TypeError, ValueError) as exc:
-        if name in str(exc):
-            raise
-        raise ValueError(f"{name} must be a real number or array, got {value!r}") from None
-
-
-def _finite(name: str, value: Any, shape: tuple | None = None) -> np.ndarray:
-    """:func:`cartan.medium.check_finite` that also names ``name`` for non-numeric input."""
-    try:
-        return check_finite(name, value, shape)
-    except (TypeError, ValueError) as exc:
-        if name in str(exc):
-            raise
-        raise ValueError(f"{name} must be a real number or array, got {value!r}") from None
-
-
 def _integer(name: str, value: Any, minimum: int = 1) -> int:
     if isinstance(value, bool) or not isinstance(value, int | float | np.integer | np.floating):
         raise ValueError(f"{name} must be an integer ≥ {minimum}, got {value!r}")
@@ -104,7 +84,7 @@ def _integer(name: str, value: Any, minimum: int = 1) -> int:
 
 
 def _unit(name: str, value: Any) -> np.ndarray:
-    v = _finite(name, value, (3,))
+    v = check_finite(name, value, (3,))
     n = float(np.linalg.norm(v))
     if n == 0.0:
         raise ValueError(f"{name} must be a non-zero 3-vector")
@@ -181,10 +161,10 @@ class SphereRod(Medium):
         bending: float = 0.01,
         rest_stretch: float = 1.0,
     ):
-        r = float(_positive("radius", radius, shape=()))
-        rho = float(_positive("density", density, shape=()))
-        inertia_n = float(_positive("rotational_inertia", rotational_inertia, shape=()))
-        K_given = _finite("stiffness", stiffness)
+        r = float(check_positive("radius", radius, shape=()))
+        rho = float(check_positive("density", density, shape=()))
+        inertia_n = float(check_positive("rotational_inertia", rotational_inertia, shape=()))
+        K_given = check_finite("stiffness", stiffness)
         if K_given.shape == (2,):
             if np.any(K_given < 0):
                 raise ValueError(f"stiffness must be ≥ 0 (diagonal of 𝕂), got {stiffness!r}")
@@ -197,8 +177,8 @@ class SphereRod(Medium):
                 raise ValueError(f"stiffness must be positive semi-definite (eigenvalues ≥ 0), got {stiffness!r}")
         else:
             raise ValueError(f"stiffness must have shape (2,) or (2, 2), got {K_given.shape}")
-        Nn = float(_positive("bending", bending, allow_zero=True, shape=()))
-        theta0 = float(_positive("rest_stretch", rest_stretch, shape=()))
+        Nn = float(check_positive("bending", bending, allow_zero=True, shape=()))
+        theta0 = float(check_positive("rest_stretch", rest_stretch, shape=()))
 
         self.space = cartan.space("frame-S2", radius=r)
         self.group = self.space.group
@@ -321,8 +301,8 @@ class SphereRod(Medium):
                 raise ValueError(
                     f"load 'drag' takes exactly the parameters 'gamma_T' and 'gamma_R', got {sorted(params)}"
                 )
-            gT = float(_positive("gamma_T", params["gamma_T"], allow_zero=True, shape=()))
-            gR = float(_positive("gamma_R", params["gamma_R"], allow_zero=True, shape=()))
+            gT = float(check_positive("gamma_T", params["gamma_T"], allow_zero=True, shape=()))
+            gR = float(check_positive("gamma_R", params["gamma_R"], allow_zero=True, shape=()))
             r2 = self.radius**2
             return Damping(np.array([gT * r2, gT * r2, gR]))
         return super().make_load(kind, **params)
@@ -401,14 +381,14 @@ class SphereRod(Medium):
     # geometry builders: frames (n, 3, 3), directors as columns
     def _longitudes(self, grid: Grid, winding: Any, phase: Any) -> np.ndarray:
         w = _integer("winding", winding)
-        ph = float(_finite("phase", phase, ()))
+        ph = float(check_finite("phase", phase, ()))
         n = grid.shape[0]
         return ph + 2.0 * math.pi * w * np.arange(n) / n
 
     def _latitude(self, grid, colatitude=None, axis=None, winding=1, phase=0.0):
         if colatitude is None:
             raise ValueError("initial kind 'latitude' needs 'colatitude' (radians, in (0, π))")
-        beta = float(_finite("colatitude", colatitude, ()))
+        beta = float(check_finite("colatitude", colatitude, ()))
         if not 0.0 < beta < math.pi:
             raise ValueError(f"colatitude must be in (0, π), got {colatitude!r}")
         A = _rotation_z_to(_Z if axis is None else _unit("axis", axis))
@@ -424,9 +404,9 @@ class SphereRod(Medium):
         return self._latitude(grid, colatitude=math.pi / 2, axis=axis, winding=winding, phase=phase)
 
     def _arc(self, grid, stretch=None, shear=0.0, curvature=0.0, point=None, direction=None, centered=False):
-        theta1 = self.rest_stretch if stretch is None else float(_positive("stretch", stretch, shape=()))
-        theta2 = float(_finite("shear", shear, ()))
-        kappa = float(_finite("curvature", curvature, ()))
+        theta1 = self.rest_stretch if stretch is None else float(check_positive("stretch", stretch, shape=()))
+        theta2 = float(check_finite("shear", shear, ()))
+        kappa = float(check_finite("curvature", curvature, ()))
         e3 = _Z if point is None else _unit("point", point)
         d = np.array([1.0, 0.0, 0.0]) if direction is None else _unit("direction", direction)
         R0 = _frames(e3[None], d[None])[0]
@@ -438,14 +418,14 @@ class SphereRod(Medium):
 
     def _perturbed(self, grid, amplitude=0.3, mode=2, phase=0.0, director_amplitude=0.0, director_mode=None,
                    director_phase=0.0, axis=None, winding=1):
-        a = float(_finite("amplitude", amplitude, ()))
+        a = float(check_finite("amplitude", amplitude, ()))
         if abs(a) >= math.pi / 2:
             raise ValueError(f"amplitude must be in (−π/2, π/2) (a latitude in radians), got {amplitude!r}")
         m = _integer("mode", mode)
-        ph = float(_finite("phase", phase, ()))
-        b = float(_finite("director_amplitude", director_amplitude, ()))
+        ph = float(check_finite("phase", phase, ()))
+        b = float(check_finite("director_amplitude", director_amplitude, ()))
         md = m if director_mode is None else _integer("director_mode", director_mode)
-        phd = float(_finite("director_phase", director_phase, ()))
+        phd = float(check_finite("director_phase", director_phase, ()))
         A = _rotation_z_to(_Z if axis is None else _unit("axis", axis))
         phi = self._longitudes(grid, winding, 0.0)
         lam = a * np.sin(m * phi + ph)
@@ -465,12 +445,12 @@ class SphereRod(Medium):
         n = grid.shape[0]
         if frames is None:
             raise ValueError("initial kind 'arrays' needs 'frames' (n, 3, 3), directors as columns")
-        R = _finite("frames", frames, (n, 3, 3))
+        R = check_finite("frames", frames, (n, 3, 3))
         if np.any(self.group.defect(R) > 1e-8):
             raise ValueError("frames must be proper rotations (orthonormal directors as columns, det = +1)")
         H = None
         if holonomy is not None:
-            H = _finite("holonomy", holonomy, (3, 3))
+            H = check_finite("holonomy", holonomy, (3, 3))
             if float(self.group.defect(H)) > 1e-8:
                 raise ValueError("holonomy must be a proper rotation")
         return R, H
@@ -480,7 +460,7 @@ class SphereRod(Medium):
         for name, value in (("velocity", velocity), ("physical_velocity", physical)):
             if value is None:
                 continue
-            v = _finite(name, value)
+            v = check_finite(name, value)
             if v.shape not in ((3,), (n, 3)):
                 raise ValueError(f"{name} must have shape (3,) or ({n}, 3), got {v.shape}")
             N = N + (v if name == "velocity" else self.velocity_components(v[..., 0], v[..., 1], v[..., 2]))
