@@ -170,11 +170,32 @@ def frame_record(scheme: Scheme, integrator: Integrator, state: State) -> dict[s
             rec["spatial_residual"] = float(scheme.spatial_residual(state))
         rec["group_defect"] = float(np.max(g.defect(Phi))) if Phi.size else 0.0
         rec["total_momentum"] = np.array(scheme.total_momentum(state), dtype=float)
+        med = scheme.medium
+        if getattr(med, "output_fields", None):
+            sp = _space(scheme)
+            q = sp.act(Phi, sp.q_r) if sp is not None else Phi
+            extra = med.outputs(q, np.asarray(scheme.nodal_strains(state)), np.asarray(N), scheme.grid)
+            missing = sorted(set(med.output_fields) - set(extra))
+            if missing:
+                raise ValueError(f"medium {med.name!r}: outputs() did not return {missing}")
+            for name in med.output_fields:
+                rec[name] = np.array(extra[name], dtype=float)
     return rec
+
+
+def _meta(scheme: Scheme) -> dict[str, tuple[str, str]]:
+    """The core variables and the medium's declared :attr:`~cartan.medium.Medium.output_fields`."""
+    extra = dict(getattr(scheme.medium, "output_fields", {}) or {})
+    clash = sorted(set(extra) & set(_META))
+    if clash:
+        raise ValueError(f"medium {scheme.medium.name!r} declares output fields named like core variables: {clash}")
+    return {**_META, **extra}
 
 
 def _dims(scheme: Scheme, name: str, value: np.ndarray) -> tuple[str, ...]:
     nodes = _node_dims(scheme)
+    if name in getattr(scheme.medium, "output_fields", {}):
+        return nodes if np.ndim(value) else ()
     if name == "X":
         if scheme.grid.d == 1:
             return ("edge" if _strain_location(scheme) == "edge" else "node", "component")
@@ -314,7 +335,7 @@ def build_dataset(
     data_vars = {}
     sizes: dict[str, int] = {}
     nt = len(records["time"])
-    for name, (long_name, units) in _META.items():
+    for name, (long_name, units) in _meta(scheme).items():
         if name not in records:
             continue
         values = records[name]
@@ -425,9 +446,9 @@ def read_checkpoint(path: str | os.PathLike) -> tuple[State, dict[str, Any], dic
         "time": list(root["time"].values[:nframes]),
         "step": list(root["step"].values[:nframes]),
     }
-    for name in _META:
-        if name in root:
-            records[name] = [v for v in root[name].values[:nframes]]
+    for name, var in root.data_vars.items():
+        if var.dims[:1] == ("time",):
+            records[name] = [v for v in var.values[:nframes]]
     return state, meta, records, dict(root.attrs)
 
 

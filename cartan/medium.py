@@ -202,6 +202,31 @@ class Medium(abc.ABC):
             f"available: {', '.join(self.initial_kinds) or 'none'}"
         )
 
+    #: extra per-frame outputs: ``{name: (long_name, units)}``; values come from :meth:`outputs`
+    output_fields: ClassVar[dict[str, tuple[str, str]]] = {}
+
+    def outputs(self, q: np.ndarray, X: np.ndarray, N: np.ndarray, grid: Any) -> dict[str, np.ndarray]:
+        """Medium-specific diagnostics recorded in every saved frame (default: none).
+
+        Parameters
+        ----------
+        q : array ``[*grid.shape, *point_shape]``
+            Configuration q = Φ·q_r at the nodes.
+        X : array ``[*grid.shape, d, r]``
+            Strains at the nodes.
+        N : array ``[*grid.shape, r]``
+            Velocities at the nodes.
+        grid : Grid
+            The material grid (shape, spacing, periodic axes).
+
+        Returns
+        -------
+        dict
+            ``{name: value}`` for every name of :attr:`output_fields`; a value is a scalar
+            (a time series in the output) or an array of shape ``grid.shape`` (a node field).
+        """
+        return {}
+
     def gauge_mask(self) -> np.ndarray:
         """Boolean ``(r,)``: True for components of N that are gauge (held at zero)."""
         return self.inertia() == 0

@@ -151,6 +151,11 @@ class SigmaModel(Medium):
         self.group = self.space.group
         self._A = self._projector()
         self._moving = self._A > 0
+        # per-frame outputs recorded by cartan.simulate (see outputs())
+        self.output_fields = {"energy_density": ("energy density ½(K/c²)|∂ₜn|² + ½K|∇n|²", "energy")}
+        if self.n == 2 and self.material_dim == 2:
+            self.output_fields["topological_charge"] = (
+                "Berg–Lüscher topological charge (an integer on periodic grids)", "1")
 
     def _projector(self) -> np.ndarray:
         """Diagonal of 𝒜 from ``⟨b_k, 𝒜 b_l⟩ = (b̂_k n₀)·(b̂_l n₀)``; checked to be a 0/1 diagonal."""
@@ -264,6 +269,14 @@ class SigmaModel(Medium):
         k = self.kinetic(np.asarray(N, dtype=float))
         u = self.potential(X)
         return (k, u) if parts else k + u
+
+    def outputs(self, q, X, N, grid) -> dict[str, Any]:
+        """Energy density at the nodes and, for n = 2, d = 2, the Berg–Lüscher charge of the
+        field q (periodic in both axes: an integer; otherwise the charge of the open lattice)."""
+        out = {"energy_density": self.energy_density(N, X)}
+        if "topological_charge" in self.output_fields:
+            out["topological_charge"] = topological_charge(q, periodic=all(grid.periodic))
+        return out
 
     # ------------------------------------------------------------------ initial states
     def initial_state(self, grid, kind: str, **params: Any) -> InitialState:
