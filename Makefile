@@ -8,13 +8,14 @@ STAMP  := $(VENV)/.cartan-installed
 OUT    ?= out
 PYTEST_ARGS ?= -n auto
 
-.PHONY: install test test-slow test-all demo demo-rigid-body bench lint clean clean-cache help
+.PHONY: install test test-slow test-all demo demo-rigid-body verify verify-full bench lint clean clean-cache help
 
 help:
 	@echo "make demo       run the demo scene $(DEMO_SCENE) (writes a netCDF file and a PNG to $(OUT)/)"
 	@echo "make demo-rigid-body  free rigid body on SO(3) against its exact Jacobi solution"
 	@echo "make test       run the test suite (fast cases; < 10 min)"
 	@echo "make test-slow  run the long cases marked 'slow'"
+	@echo "make verify     regenerate the verification report docs/verification/ (quick levels)"
 	@echo "make bench      run the asv benchmarks once on this machine (offline)"
 	@echo "make lint       ruff"
 
@@ -45,6 +46,12 @@ demo: $(STAMP)
 
 demo-rigid-body: $(STAMP)
 	$(PY) examples/rigid_body_demo.py --outdir $(OUT)
+
+verify: $(STAMP)
+	$(VENV)/bin/cartan verify --quick --out docs/verification
+
+verify-full: $(STAMP)
+	$(VENV)/bin/cartan verify --out out/verification
 
 bench: $(STAMP)
 	$(VENV)/bin/asv machine --yes >/dev/null

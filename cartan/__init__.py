@@ -28,6 +28,7 @@ from ._backend import get_backend, set_backend, use_backend
 from .api import *  # noqa: F403 - the run-level API; its __all__ is the single list of names
 from .groups import SymmetryGroup
 from .plugins import PluginWarning, RegistryError, hookimpl, registry
+from .study import converge
 
 try:
     __version__ = _version("cartan")
@@ -46,6 +47,7 @@ __all__ = [
     "set_backend",
     "space",
     "use_backend",
+    "converge",
     *_api.__all__,
 ]
 

@@ -22,6 +22,7 @@ import tomllib
 import click
 
 from .cli_run import register as _register_run_commands
+from .cli_verify import register as _register_verify_commands
 from .plugins import KINDS, RegistryError, get_registry
 
 
@@ -112,6 +113,7 @@ def list_cmd(kind: str | None) -> None:
 
 
 _register_run_commands(main)
+_register_verify_commands(main)
 
 
 if __name__ == "__main__":  # pragma: no cover
