@@ -30,7 +30,7 @@ import numpy as np
 
 from .groups.base import SymmetryGroup
 
-__all__ = ["Medium", "check_positive", "check_finite", "pullback_gradient"]
+__all__ = ["Medium", "QuadraticMedium", "check_finite", "check_positive", "pullback_gradient"]
 
 
 def _as_float(name: str, value: Any) -> np.ndarray:
@@ -280,3 +280,51 @@ class Medium(abc.ABC):
     def __repr__(self) -> str:
         params = ", ".join(f"{k}={v!r}" for k, v in self.parameters().items())
         return f"{type(self).__name__}({params})"
+
+
+class QuadraticMedium(Medium):
+    """A medium with a quadratic potential, the form of every linear-elastic Cartan medium:
+    ``U(X) = ½ Σ_α (X_α − X₀_α)ᵀ C (X_α − X₀_α)`` with one constant symmetric ``C`` for all
+    axes, so ``Q^α = C (X_α − X₀_α)`` (Cosserat rods §VI.C, rods on spheres §VIII.A, the
+    sigma model §VIII.B).
+
+    Subclasses call :meth:`_set_energy` in ``__init__`` and implement :meth:`inertia`; the
+    potential, stress, stiffness and :meth:`quadratic_energy` (the data the compiled step
+    loops use) follow.
+    """
+
+    def _set_energy(self, X0: Any, C: Any) -> None:
+        """Set the rest strain ``X0`` ``(d, r)`` (or ``(r,)`` for d = 1) and the stiffness ``C``,
+        a symmetric ``(r, r)`` matrix or its diagonal ``(r,)``."""
+        r = self.group.dim
+        X0 = np.asarray(X0, dtype=float).reshape(-1, r)
+        C = np.asarray(C, dtype=float)
+        C = np.diag(C) if C.ndim == 1 else C
+        if C.shape != (r, r) or not np.allclose(C, C.T, rtol=0, atol=1e-12 * max(1.0, float(np.abs(C).max()))):
+            raise ValueError(f"the stiffness must be a symmetric ({r}, {r}) matrix, got shape {C.shape}")
+        self._X0, self._C = X0, C
+
+    def rest_strain(self) -> np.ndarray:
+        return self._X0.copy()
+
+    def potential(self, X: np.ndarray) -> np.ndarray:
+        D = np.asarray(X, dtype=float) - self._X0
+        return 0.5 * np.einsum("...ak,kl,...al->...", D, self._C, D)
+
+    def stress(self, X: np.ndarray) -> np.ndarray:
+        D = np.asarray(X, dtype=float) - self._X0
+        return np.einsum("kl,...al->...ak", self._C, D)
+
+    def stiffness(self, X: np.ndarray | None = None, eps: float = 1e-6) -> np.ndarray:
+        """``∂Q/∂X``: C on every axis, shape ``(d, r, d, r)`` (exact; X and eps are unused)."""
+        d, r = self._X0.shape
+        H = np.zeros((d, r, d, r))
+        for a in range(d):
+            H[a, :, a, :] = self._C
+        return H
+
+    def quadratic_energy(self) -> tuple[np.ndarray, np.ndarray] | None:
+        """``(X₀, C)`` for d = 1; None otherwise (the compiled loops are one-dimensional)."""
+        if self._X0.shape[0] != 1:
+            return None
+        return self._X0[0].copy(), self._C.copy()

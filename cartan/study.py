@@ -5,7 +5,8 @@ dims ``(integrator, scheme, level)``: the error, the cost (wall time, force eval
 steps), the step sizes and the observed order of accuracy fitted on the asymptotic levels.
 :func:`stability` bisects the largest stable time step against the grid spacing beside the
 integrator's CFL estimate.  :func:`plot_work_precision`, :func:`plot_error_vs_h` and
-:func:`plot_stability` chart them.
+:func:`plot_stability` chart them; :func:`traces` records the integrability residual and the
+relative energy error of one run per integrator × scheme, charted by :func:`plot_traces`.
 
 Scale-out
 ---------
@@ -44,9 +45,11 @@ __all__ = [
     "observed_order",
     "plot_error_vs_h",
     "plot_stability",
+    "plot_traces",
     "plot_work_precision",
     "stability",
     "task_key",
+    "traces",
 ]
 
 REFINE = ("space", "time", "both")
@@ -476,6 +479,70 @@ def converge(case: Any, integrators: Sequence[str] | None = None, schemes: Seque
     return ds
 
 
+# ---------------------------------------------------------------------------- traces
+def _energy_error(ds: Any) -> np.ndarray:
+    """|E(t) − E(0)| / E(0) with E = kinetic + potential (− dissipated + external work when recorded)."""
+    energy = ds["kinetic_energy"].values + ds["potential_energy"].values
+    for name, sign in (("dissipated_energy", 1.0), ("external_work", -1.0)):
+        if name in ds:
+            energy = energy + sign * ds[name].values
+    scale = max(abs(float(energy[0])), 1e-300)
+    return np.abs(energy - energy[0]) / scale
+
+
+def traces(case: Any, integrators: Sequence[str], schemes: Sequence[str], level: int, frames: int = 100,
+           compiled: bool = True) -> Any:
+    """Invariant time series of one run per integrator × scheme of ``case`` at ``level``.
+
+    Each run uses the case's own settings at ``level`` (its Δt and end time), saving about
+    ``frames`` frames.  Returns a Dataset with dims (integrator, scheme, frame): ``t``,
+    ``integrability_residual`` (from the run's Dataset) and ``energy_error`` (relative energy
+    error, see :func:`_energy_error`), and per (integrator, scheme) ``status`` (``"ok"`` or why
+    the run stopped; a run that stops has NaN series).
+    """
+    import xarray as xr
+
+    from .simulate import InstabilityError, simulate
+
+    case = _case_obj(case)
+    integrators, schemes = list(integrators), list(schemes)
+    shape = (len(integrators), len(schemes), frames + 1)
+    arr = {v: np.full(shape, np.nan) for v in ("t", "integrability_residual", "energy_error")}
+    status = np.full(shape[:2], "ok", dtype=object)
+    for i, integ in enumerate(integrators):
+        for j, sch in enumerate(schemes):
+            try:
+                problem, run = case.problem(int(level), sch)
+                steps = max(1, round(float(run["t_end"]) / float(run["dt"])))
+                with warnings.catch_warnings():
+                    warnings.simplefilter("ignore")
+                    ds = simulate(problem, integrator=integ, scheme=sch, dt=run["dt"], t_end=run["t_end"],
+                                  save_every=max(1, steps // frames), compiled=compiled, progress=False,
+                                  integrator_options=run.get("integrator_options"))
+            except InstabilityError as exc:
+                if exc.path is not None and pathlib.Path(exc.path).name.startswith("cartan-unstable-"):
+                    pathlib.Path(exc.path).unlink(missing_ok=True)
+                status[i, j] = "unstable: " + re.sub(r";\s*last good state.*$", "", " ".join(str(exc).split()))
+                continue
+            except ValueError as exc:  # the scheme does not support the problem
+                status[i, j] = "unsupported: " + " ".join(str(exc).split())
+                continue
+            m = min(len(ds["time"]), frames + 1)
+            arr["t"][i, j, :m] = ds["time"].values[:m]
+            if "integrability_residual" in ds:
+                arr["integrability_residual"][i, j, :m] = ds["integrability_residual"].values[:m]
+            arr["energy_error"][i, j, :m] = _energy_error(ds)[:m]
+    dims = ("integrator", "scheme", "frame")
+    attrs = {"t": ("time of the saved frame", "s"),
+             "integrability_residual": ("temporal integrability residual max|X_stored − X(Φ)|", "1"),
+             "energy_error": ("relative energy error |E(t) − E(0)|/E(0), E = kinetic + potential", "1")}
+    data = {v: (dims, a, {"long_name": attrs[v][0], "units": attrs[v][1]}) for v, a in arr.items()}
+    data["status"] = (dims[:2], status.astype(str), {"long_name": "run status ('ok' or why it stopped)"})
+    out = xr.Dataset(data, coords={"integrator": integrators, "scheme": schemes, "frame": np.arange(frames + 1)})
+    out.attrs = {"case": str(getattr(case, "name", type(case).__name__)), "level": int(level)}
+    return out
+
+
 # ---------------------------------------------------------------------------- stability
 def _stable_run(problem: Any, integrator: str, scheme: str, dt: float, steps: int, growth: float,
                 trend: float, compiled: bool) -> bool:
@@ -667,6 +734,43 @@ def plot_error_vs_h(ds: Any, path: str | os.PathLike) -> pathlib.Path:
     x_name = ds.attrs.get("order_variable", "h")
     label = {"dt": "Δt", "limit": "1/(limit parameter)"}.get(x_name, "dx")
     return _lines(ds, x_name, path, label, 1.0, f"error vs {label}: {ds.attrs.get('case', '')}")
+
+
+def plot_traces(ds: Any, path: str | os.PathLike) -> pathlib.Path:
+    """Integrability residual and relative energy error against time (a :func:`traces` Dataset),
+    one line per integrator × scheme, two log-scale panels; stopped runs are listed in the legend."""
+    import matplotlib
+
+    matplotlib.use("Agg", force=False)
+    import matplotlib.pyplot as plt
+
+    fig, axes = plt.subplots(2, 1, figsize=(7.0, 7.0), sharex=True, constrained_layout=True)
+    for integ in ds["integrator"].values:
+        for sch in ds["scheme"].values:
+            sel = ds.sel(integrator=integ, scheme=sch)
+            label = f"{integ} / {sch}"
+            status = str(sel["status"].values)
+            if status != "ok":
+                for ax in axes:
+                    ax.plot([], [], "x", label=f"{label}: {status.split(':')[0]}")
+                continue
+            t = np.asarray(sel["t"].values, float)
+            for ax, v in zip(axes, ("integrability_residual", "energy_error"), strict=True):
+                y = np.asarray(sel[v].values, float)
+                ok = np.isfinite(t) & np.isfinite(y)
+                # exact zeros (commuting motions, round-off-free lattice) are drawn at 1e-17
+                ax.semilogy(t[ok], np.maximum(y[ok], 1e-17), "-", label=label)
+    axes[0].set_ylabel("integrability residual")
+    axes[1].set_ylabel("|E(t) − E(0)| / E(0)")
+    axes[1].set_xlabel("t")
+    axes[0].set_title(f"invariants at level {ds.attrs.get('level', '')}: {ds.attrs.get('case', '')}")
+    for ax in axes:
+        ax.grid(True, which="both", alpha=0.3)
+        ax.legend(fontsize=7, ncol=2)
+    path = pathlib.Path(path)
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+    return path
 
 
 def plot_stability(ds: Any, path: str | os.PathLike) -> pathlib.Path:

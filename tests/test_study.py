@@ -187,6 +187,16 @@ def test_plots(tmp_path):
         assert out.read_bytes()[:4] == b"\x89PNG"
 
 
+def test_traces_and_plot(tmp_path):
+    tr = study.traces(SpinningArc(), ["lie-verlet", "rkmk4"], ["lattice"], level=0, frames=10)
+    assert dict(tr.sizes) == {"integrator": 2, "scheme": 1, "frame": 11}
+    assert (tr["status"] == "ok").all()
+    assert np.isfinite(tr["energy_error"]).all() and float(tr["energy_error"].max()) < 0.1  # coarse Δt
+    assert float(tr["integrability_residual"].max()) < 1e-10  # the lattice: round-off
+    out = study.plot_traces(tr, tmp_path / "traces.png")
+    assert out.read_bytes()[:4] == b"\x89PNG"
+
+
 # ---------------------------------------------------------------------------- stability
 def straight_rod(n):
     rng = np.random.default_rng(1)
@@ -275,3 +285,45 @@ def test_cli_converge(tmp_path, registered_case):
     res = CliRunner().invoke(cli_verify.converge_cmd, ["no-such-case", "-o", str(out)])
     assert res.exit_code == 2
     assert res.output.count("\n") == 1 and "no-such-case" in res.output
+
+
+# ---------------------------------------------------------------------------- thin-rod stability
+def thin_rod(radius, n):
+    """A straight free Cosserat rod (L = 1) of the given radius, small random velocities."""
+    rod = cartan.medium("cosserat-rod", E=1e6, G=4e5, radius=radius, density=1000.0)
+    grid = Grid(n, length=1.0)
+    initial = rod.initial_state(grid, "straight")
+    initial.N = 1e-3 * np.random.default_rng(1).standard_normal((n, 6))
+    return Problem(medium=rod, grid=grid, initial=initial)
+
+
+def test_thin_rod_stability_limit():
+    """dx = 0.1 > radius: the shear/rotary-inertia mode ω ~ √(G/ρ)/r sets Δt_max ∝ radius, not dx."""
+    import functools
+
+    radii = [0.04, 0.02, 0.01, 0.005]
+    dt_max, dt_cfl = [], []
+    for r in radii:
+        # the bracket starts at CFL/4: far below the limit a 300-step window sees only part of
+        # the (bounded) O(Δt²) energy oscillation, which the drift test would misread
+        ds = study.stability(functools.partial(thin_rod, r), "lie-verlet", [11], steps=300, rtol=0.02,
+                             bracket=(0.25, 4.0))
+        assert float(ds["h"].squeeze()) > r
+        assert int(ds["bracketed"].squeeze()) == 1
+        dt_max.append(float(ds["dt_max"].squeeze()))
+        dt_cfl.append(float(ds["dt_cfl"].squeeze()))
+    dt_max, dt_cfl = np.array(dt_max), np.array(dt_cfl)
+    # halving the radius halves Δt_max (± 20 %)
+    assert np.all(np.abs(dt_max[:-1] / dt_max[1:] / 2.0 - 1.0) < 0.2), dt_max
+    # Δt_max tracks the integrator's CFL estimate within a factor 1.5
+    assert np.all((dt_max / dt_cfl > 1 / 1.5) & (dt_max / dt_cfl < 1.5)), dt_max / dt_cfl
+    # refining dx (still > radius) leaves Δt_max set by the radius
+    finer = study.stability(functools.partial(thin_rod, 0.01), "lie-verlet", [21], steps=300, rtol=0.02,
+                            bracket=(0.25, 4.0))
+    assert float(finer["h"].squeeze()) > 0.01
+    assert float(finer["dt_max"].squeeze()) == pytest.approx(dt_max[2], rel=0.2)
+    # forward-euler: unstable at every Δt tried, down to 1/64 of the leapfrog estimate
+    for r in (0.04, 0.005):
+        fe = study.stability(functools.partial(thin_rod, r), "forward-euler", [11], steps=300)
+        assert float(fe["dt_max"].squeeze()) == 0.0
+        assert int(fe["bracketed"].squeeze()) == 1

@@ -6,11 +6,11 @@ import numpy as np
 
 import cartan
 from cartan.grid import Grid
-from cartan.medium import Medium
+from cartan.medium import QuadraticMedium as _Quadratic
 from cartan.problem import InitialState, Problem
 
 
-class QuadraticMedium(Medium):
+class QuadraticMedium(_Quadratic):
     """U = ½ Σ_k C_k (X_k − X0_k)², K = ½ Σ_k m_k N_k² on any group, d = 1."""
 
     name = "toy-quadratic"
@@ -23,6 +23,7 @@ class QuadraticMedium(Medium):
         self.m = np.asarray(mass if mass is not None else np.linspace(1.0, 0.2, r), dtype=float)
         self.C = np.asarray(stiffness if stiffness is not None else np.linspace(10.0, 2.0, r), dtype=float)
         self.X0 = np.asarray(rest if rest is not None else np.eye(r)[0], dtype=float)
+        self._set_energy(self.X0, self.C)
 
     def parameters(self):
         return {"group": self.group.name, "mass": self.m.tolist(), "stiffness": self.C.tolist(),
@@ -30,16 +31,6 @@ class QuadraticMedium(Medium):
 
     def inertia(self):
         return self.m
-
-    def rest_strain(self):
-        return self.X0[None, :]
-
-    def potential(self, X):
-        d = X - self.X0
-        return 0.5 * np.einsum("...ak,k,...ak->...", d, self.C, d)
-
-    def stress(self, X):
-        return (X - self.X0) * self.C
 
 
 def arc_problem(n=21, length=1.0, curvature=2.0, group="SE3", periodic=False, twist=0.0, velocity=None,

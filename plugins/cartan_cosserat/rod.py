@@ -66,7 +66,7 @@ import numpy as np
 
 import cartan
 from cartan.grid import Grid
-from cartan.medium import Medium, check_finite, check_positive
+from cartan.medium import Medium, QuadraticMedium, check_finite, check_positive
 from cartan.problem import ConstantFieldPotential, InitialState
 from cartan.spaces import FrameBundleE2
 
@@ -161,7 +161,7 @@ def _perpendicular(d: np.ndarray) -> np.ndarray:
     return v / np.linalg.norm(v)
 
 
-class _Rod(Medium):
+class _Rod(QuadraticMedium):
     """Shared machinery of :class:`CosseratRod` and :class:`PlanarCosseratRod`."""
 
     material_dim: ClassVar[int] = 1
@@ -199,7 +199,7 @@ class _Rod(Medium):
         X0[0, (3 if r == 6 else 2) :] = kappa
         self._stiff = np.asarray(stiff, dtype=float)
         self._inertia = np.asarray(inertia, dtype=float)
-        self._X0 = X0
+        self._set_energy(X0, self._stiff)
         self._params = {k: (np.asarray(v, dtype=float).tolist()) for k, v in given.items()}
 
     # ------------------------------------------------------------------ parameter forms
@@ -262,28 +262,6 @@ class _Rod(Medium):
     def stiffness_diagonal(self) -> np.ndarray:
         """Diagonal of (𝕊, 𝔹): ``(EA, α_cGA, α_cGA, GJ, EI, EI)`` or ``(EA, α_cGA, EI)``, shape ``(r,)``."""
         return self._stiff.copy()
-
-    def rest_strain(self) -> np.ndarray:
-        """``X₀ = {θ₀; π₀}`` with ``θ₀ = e₁``, ``π₀ = rest_curvature``, shape ``(1, r)``."""
-        return self._X0.copy()
-
-    def potential(self, X: np.ndarray) -> np.ndarray:
-        """``U = ½(X − X₀)ᵀ diag(𝕊, 𝔹)(X − X₀)``, X ``[..., 1, r]`` → ``[...]``."""
-        D = np.asarray(X, dtype=float) - self._X0
-        return 0.5 * np.einsum("...ak,k,...ak->...", D, self._stiff, D)
-
-    def stress(self, X: np.ndarray) -> np.ndarray:
-        """``Q = {F; M} = diag(𝕊, 𝔹)(X − X₀)``, X ``[..., 1, r]`` → ``[..., 1, r]``."""
-        return (np.asarray(X, dtype=float) - self._X0) * self._stiff
-
-    def stiffness(self, X: np.ndarray | None = None, eps: float = 1e-6) -> np.ndarray:
-        """Hessian ``∂Q/∂X`` (constant): ``diag(𝕊, 𝔹)`` as ``(1, r, 1, r)``."""
-        r = self.group.dim
-        return np.diag(self._stiff).reshape(1, r, 1, r)
-
-    def quadratic_energy(self) -> tuple[np.ndarray, np.ndarray]:
-        """The quadratic potential as data: ``(X₀, diag(𝕊, 𝔹))``, shapes ``(r,)`` and ``(r, r)``."""
-        return self._X0[0].copy(), np.diag(self._stiff)
 
     @property
     def linear_density(self) -> float:

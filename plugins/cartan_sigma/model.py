@@ -62,7 +62,7 @@ from typing import Any, ClassVar
 
 import numpy as np
 
-from cartan.medium import Medium, check_finite, check_positive
+from cartan.medium import QuadraticMedium, check_finite, check_positive
 from cartan.problem import Damping, InitialState
 from cartan.spaces import Sphere
 
@@ -106,7 +106,7 @@ def _nodal(name: str, value: Any, grid, trailing: tuple = ()) -> np.ndarray:
 
 
 # ====================================================================== the medium
-class SigmaModel(Medium):
+class SigmaModel(QuadraticMedium):
     """The O(n+1) nonlinear sigma model: wave maps and harmonic-map flow into Sⁿ (§VIII.B).
 
     Parameters
@@ -151,6 +151,8 @@ class SigmaModel(Medium):
         self.group = self.space.group
         self._A = self._projector()
         self._moving = self._A > 0
+        # U = ½K Σ_α ⟨X_α, 𝒜X_α⟩ = ½K|∇n|²: quadratic with X₀ = 0 and C = K𝒜 on every axis
+        self._set_energy(np.zeros((self.material_dim, self.group.dim)), self.stiffness_value * self._A)
         # per-frame outputs recorded by cartan.simulate (see outputs())
         self.output_fields = {"energy_density": ("energy density ½(K/c²)|∂ₜn|² + ½K|∇n|²", "energy")}
         if self.n == 2 and self.material_dim == 2:
@@ -189,36 +191,9 @@ class SigmaModel(Medium):
         """``(K/c²) 𝒜``, shape ``(r,)``: zeros mark the gauge components."""
         return self.density * self._A
 
-    def rest_strain(self) -> np.ndarray:
-        """A uniform field is stress free: zeros ``(d, r)``."""
-        return np.zeros((self.material_dim, self.group.dim))
-
-    def potential(self, X: np.ndarray) -> np.ndarray:
-        """``U = ½K Σ_α ⟨X_α, 𝒜X_α⟩ = ½K|∇n|²``, X ``[..., d, r]`` → ``[...]``."""
-        X = np.asarray(X, dtype=float)
-        return 0.5 * self.stiffness_value * np.einsum("...ak,k,...ak->...", X, self._A, X)
-
-    def stress(self, X: np.ndarray) -> np.ndarray:
-        """``Q^α = K 𝒜X_α``, X ``[..., d, r]`` → ``[..., d, r]``."""
-        return self.stiffness_value * np.asarray(X, dtype=float) * self._A
-
-    def stiffness(self, X: np.ndarray | None = None, eps: float = 1e-6) -> np.ndarray:
-        """Hessian ``∂Q/∂X = K 𝒜`` per axis (constant), shape ``(d, r, d, r)``."""
-        d, r = self.material_dim, self.group.dim
-        H = np.zeros((d, r, d, r))
-        for a in range(d):
-            H[a, :, a, :] = self.stiffness_value * np.diag(self._A)
-        return H
-
     def wave_speed(self) -> float:
         """c."""
         return self.speed
-
-    def quadratic_energy(self) -> tuple[np.ndarray, np.ndarray] | None:
-        """``(0, K𝒜)`` for d = 1 (compiled lattice loops); None for d ≥ 2."""
-        if self.material_dim != 1:
-            return None
-        return np.zeros(self.group.dim), self.stiffness_value * np.diag(self._A)
 
     # ------------------------------------------------------------------ loads
     def harmonic_map_damping(self, gamma: float | None = None) -> Damping:

@@ -67,7 +67,7 @@ import numpy as np
 
 import cartan
 from cartan.grid import Grid
-from cartan.medium import Medium, check_finite, check_positive
+from cartan.medium import QuadraticMedium, check_finite, check_positive
 from cartan.problem import Damping, InitialState
 
 __all__ = ["SphereRod"]
@@ -113,7 +113,7 @@ def _frames(e3: np.ndarray, tangent: np.ndarray) -> np.ndarray:
     return np.stack([e1, np.cross(e3, e1), e3], axis=-1)
 
 
-class SphereRod(Medium):
+class SphereRod(QuadraticMedium):
     """Cosserat rod on the sphere of radius r: (M, X, G) = ([0, L₀] or periodic, F(S²_r), SO(3)).
 
     Every value is validated on construction (``ValueError`` naming the parameter and its
@@ -189,14 +189,10 @@ class SphereRod(Medium):
         self.bending = Nn
         self.rest_stretch = theta0
         self._inertia = np.array([rho * r * r, rho * r * r, inertia_n])
-        self._X0 = np.array([[0.0, theta0 / r, 0.0]])
         r2 = r * r
-        self._C = np.array(
-            [
-                [r2 * K[1, 1], -r2 * K[0, 1], 0.0],
-                [-r2 * K[0, 1], r2 * K[0, 0], 0.0],
-                [0.0, 0.0, Nn],
-            ]
+        self._set_energy(
+            [0.0, theta0 / r, 0.0],
+            [[r2 * K[1, 1], -r2 * K[0, 1], 0.0], [-r2 * K[0, 1], r2 * K[0, 0], 0.0], [0.0, 0.0, Nn]],
         )
         self._params = {
             "radius": r,
@@ -218,28 +214,6 @@ class SphereRod(Medium):
         From N = (−V₂/r, V₁/r, Ω_n): ½ρ₀|V|² + ½𝕀_nΩ_n² = ½ρ₀r²(N₁² + N₂²) + ½𝕀_nN₃².
         """
         return self._inertia.copy()
-
-    def rest_strain(self) -> np.ndarray:
-        """``X₀ = (0, θ₀/r, 0)`` (a great circle along e₁), shape ``(1, 3)``."""
-        return self._X0.copy()
-
-    def potential(self, X: np.ndarray) -> np.ndarray:
-        """``U = ½(X − X₀)ᵀC(X − X₀)`` = ½(θ₁ − θ₀, θ₂)𝕂(θ₁ − θ₀, θ₂)ᵀ + ½ℕ_nπ_n², ``[..., 1, 3]`` → ``[...]``."""
-        D = np.asarray(X, dtype=float) - self._X0
-        return 0.5 * np.einsum("...ak,kl,...al->...", D, self._C, D)
-
-    def stress(self, X: np.ndarray) -> np.ndarray:
-        """``Q = C(X − X₀) = (−rF₂, rF₁, M_n)``, ``[..., 1, 3]`` → ``[..., 1, 3]``."""
-        D = np.asarray(X, dtype=float) - self._X0
-        return np.einsum("kl,...al->...ak", self._C, D)
-
-    def stiffness(self, X: np.ndarray | None = None, eps: float = 1e-6) -> np.ndarray:
-        """Hessian ``∂Q/∂X = C`` (constant), shape ``(1, 3, 1, 3)``."""
-        return self._C.reshape(1, 3, 1, 3).copy()
-
-    def quadratic_energy(self) -> tuple[np.ndarray, np.ndarray]:
-        """The potential as data ``(X₀, C)``, shapes ``(3,)`` and ``(3, 3)``."""
-        return self._X0[0].copy(), self._C.copy()
 
     # ------------------------------------------------------------------ components
     def strain_components(self, theta1: Any, theta2: Any, pi_n: Any) -> np.ndarray:

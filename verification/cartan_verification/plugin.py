@@ -13,6 +13,7 @@ def all_cases():
     return [
         cases_rod.FreeRigidBody(),
         cases_rod.AxialWave(),
+        cases_rod.AxialWaveFreeEnds(),
         cases_rod.Butterfly(),
         cases_rod.PlanarEquivalence(),
         cases_other.LatitudeCircle(),
