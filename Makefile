@@ -19,11 +19,11 @@ help:
 	@echo "make bench      run the asv benchmarks once on this machine (offline)"
 	@echo "make lint       ruff"
 
-$(STAMP): pyproject.toml
+$(STAMP): pyproject.toml Makefile
 	@$(PYTHON) -c 'import sys; sys.exit(0 if sys.version_info >= (3, 11) else "cartan needs Python >= 3.11; found " + sys.version.split()[0] + " (set PYTHON=python3.11)")'
 	@test -x $(PY) || $(PYTHON) -m venv $(VENV)
 	$(PY) -m pip install --quiet --upgrade pip
-	$(PY) -m pip install --quiet -e ".[test,bench,dev]"
+	$(PY) -m pip install --quiet -e ".[test,bench,dev,dist]"
 	@touch $(STAMP)
 
 install: $(STAMP)
