@@ -27,10 +27,12 @@ from .problem import (
 )
 from .scene import Scene, SceneError, load_scene, scene
 from .simulate import InstabilityError, StabilityWarning, simulate
+from .statics import ConvergenceError, solve_static
 
 __all__ = [
     "Clamped",
     "ConstantFieldPotential",
+    "ConvergenceError",
     "Damping",
     "Free",
     "Grid",
@@ -47,6 +49,7 @@ __all__ = [
     "open",
     "scene",
     "simulate",
+    "solve_static",
 ]
 
 #: ``cartan.open(path)``: read a run file (see :func:`cartan.io.open_dataset`).
