@@ -12,6 +12,7 @@ from __future__ import annotations
 
 from typing import Any
 
+from .continuation import continuation
 from .grid import Grid
 from .io import open_dataset
 from .medium import Medium
@@ -33,6 +34,7 @@ __all__ = [
     "Clamped",
     "ConstantFieldPotential",
     "ConvergenceError",
+    "continuation",
     "Damping",
     "Free",
     "Grid",
