@@ -24,13 +24,22 @@ with 𝒯 = ∂U/∂q), so a plugin never writes a torque by hand.
 from __future__ import annotations
 
 import abc
+import inspect
 from typing import Any, ClassVar
 
 import numpy as np
 
 from .groups.base import SymmetryGroup
 
-__all__ = ["Medium", "QuadraticMedium", "check_finite", "check_positive", "pullback_gradient"]
+__all__ = [
+    "Medium",
+    "QuadraticMedium",
+    "check_finite",
+    "check_keywords",
+    "check_positive",
+    "close_on_periodic_grid",
+    "pullback_gradient",
+]
 
 
 def _as_float(name: str, value: Any) -> np.ndarray:
@@ -69,6 +78,35 @@ def check_finite(name: str, value: Any, shape: tuple | None = None) -> np.ndarra
     if not np.all(np.isfinite(arr)):
         raise ValueError(f"{name} must be finite (no NaN or inf)")
     return arr
+
+
+def check_keywords(kind: str, build: Any, params: dict[str, Any], extra: tuple[str, ...] = ()) -> None:
+    """Reject keywords that the initial-shape builder ``build(grid, **params)`` does not take.
+
+    Raises ``ValueError`` naming the unknown keywords and listing the accepted ones (the
+    builder's own plus ``extra``, e.g. ``"velocity"`` handled by the medium itself).
+    """
+    accepted = [p for p in inspect.signature(build).parameters if p != "grid"]
+    unknown = sorted(set(params) - set(accepted))
+    if unknown:
+        raise ValueError(
+            f"initial kind {kind!r} takes no parameter(s) {', '.join(map(repr, unknown))}; accepted: "
+            f"{', '.join([*accepted, *extra])}"
+        )
+
+
+def close_on_periodic_grid(group: SymmetryGroup, grid: Any, frames_on: Any) -> tuple[np.ndarray, np.ndarray]:
+    """An open shape on a periodic axis (d = 1): its frames and the holonomy that closes it.
+
+    ``frames_on(open_grid)`` returns Φ ``[n+1, m, m]`` on an open grid with one more node at
+    u = L and the same spacing L/n; the result is ``(Φ[:-1], H)`` with ``H = Φ(L)Φ(0)⁻¹``, so
+    that Φ(u + L) = HΦ(u) (``InitialState.holonomy``): a straight rod, an arc, a helix.
+    """
+    from .grid import Grid
+
+    n, L = grid.shape[0], grid.length[0]
+    ext = np.asarray(frames_on(Grid(n + 1, length=L)), dtype=float)
+    return ext[:-1].copy(), group.compose(ext[-1], group.inverse(ext[0]))
 
 
 def pullback_gradient(group: SymmetryGroup, space, Phi: np.ndarray, grad: np.ndarray) -> np.ndarray:

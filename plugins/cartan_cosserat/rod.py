@@ -58,15 +58,20 @@ Loads
 
 from __future__ import annotations
 
-import inspect
 import math
 from typing import Any, ClassVar
 
 import numpy as np
 
 import cartan
-from cartan.grid import Grid
-from cartan.medium import Medium, QuadraticMedium, check_finite, check_positive
+from cartan.medium import (
+    Medium,
+    QuadraticMedium,
+    check_finite,
+    check_keywords,
+    check_positive,
+    close_on_periodic_grid,
+)
 from cartan.problem import ConstantFieldPotential, InitialState
 from cartan.spaces import FrameBundleE2
 
@@ -322,22 +327,10 @@ class _Rod(QuadraticMedium):
         if kind == "ring" and not periodic:
             raise ValueError("initial kind 'ring' needs a periodic grid (a closed rod)")
         build = builders[kind]
-        accepted = [p for p in inspect.signature(build).parameters if p != "grid"]
-        unknown = sorted(set(params) - set(accepted))
-        if unknown:
-            raise ValueError(
-                f"initial kind {kind!r} takes no parameter(s) {', '.join(map(repr, unknown))}; accepted: "
-                f"{', '.join([*accepted, 'velocity', 'rigid_velocity', 'center'])}"
-            )
+        check_keywords(kind, build, params, ("velocity", "rigid_velocity", "center"))
         holonomy = None
         if periodic and kind in ("straight", "arc", "helix"):
-            # an open shape on a periodic grid: build one more node at u = L on an open grid of
-            # the same spacing; the holonomy H = Φ(L)Φ(0)⁻¹ closes the last edge (Φ(u+L) = HΦ(u))
-            n, L = grid.shape[0], grid.length[0]
-            pos, frames = build(Grid(n + 1, length=L), **params)  # open, same spacing L/n
-            ext = self._assemble(pos, frames)
-            holonomy = ext[-1] @ self.group.inverse(ext[0])
-            Phi = ext[:-1].copy()
+            Phi, holonomy = close_on_periodic_grid(self.group, grid, lambda g: self._assemble(*build(g, **params)))
         else:
             pos, frames = build(grid, **params)
             Phi = self._assemble(pos, frames)

@@ -53,7 +53,6 @@ Outputs
 
 from __future__ import annotations
 
-import inspect
 import json
 import math
 import numbers
@@ -62,7 +61,7 @@ from typing import Any, ClassVar
 
 import numpy as np
 
-from cartan.medium import QuadraticMedium, check_finite, check_positive
+from cartan.medium import QuadraticMedium, check_finite, check_keywords, check_positive
 from cartan.problem import Damping, InitialState
 from cartan.spaces import Sphere
 
@@ -297,13 +296,7 @@ class SigmaModel(QuadraticMedium):
         }
         if kind not in builders:
             return super().initial_state(grid, kind, **params)
-        accepted = [p for p in inspect.signature(builders[kind]).parameters if p != "grid"]
-        unknown = sorted(set(params) - set(accepted))
-        if unknown:
-            raise ValueError(
-                f"initial kind {kind!r} takes no parameter(s) {', '.join(map(repr, unknown))}; accepted: "
-                f"{', '.join([*accepted, 'velocity'])}"
-            )
+        check_keywords(kind, builders[kind], params, ("velocity",))
         Phi, N = builders[kind](grid, **params)
         if velocity is not None:
             ndot = _nodal("velocity", velocity, grid, (self.n + 1,))

@@ -59,7 +59,6 @@ T·N = −γ_T|V|² − γ_RΩ_n² is the dissipation rate of the paper.
 
 from __future__ import annotations
 
-import inspect
 import math
 from typing import Any, ClassVar
 
@@ -67,7 +66,7 @@ import numpy as np
 
 import cartan
 from cartan.grid import Grid
-from cartan.medium import QuadraticMedium, check_finite, check_positive
+from cartan.medium import QuadraticMedium, check_finite, check_keywords, check_positive, close_on_periodic_grid
 from cartan.problem import Damping, InitialState
 
 __all__ = ["SphereRod"]
@@ -327,24 +326,13 @@ class SphereRod(QuadraticMedium):
         if kind not in builders:
             return super().initial_state(grid, kind, **params)
         build = builders[kind]
-        accepted = [p for p in inspect.signature(build).parameters if p != "grid"]
-        unknown = sorted(set(params) - set(accepted))
-        if unknown:
-            raise ValueError(
-                f"initial kind {kind!r} takes no parameter(s) {', '.join(map(repr, unknown))}; accepted: "
-                f"{', '.join([*accepted, 'velocity', 'physical_velocity'])}"
-            )
+        check_keywords(kind, build, params, ("velocity", "physical_velocity"))
         periodic = grid.periodic[0]
         if kind in ("great-circle", "latitude", "perturbed") and not periodic:
             raise ValueError(f"initial kind {kind!r} is a closed rod and needs a periodic grid")
         holonomy = None
         if kind == "arc" and periodic:
-            # an open arc on a periodic grid: one more node at u = L on an open grid of the same
-            # spacing; H = Φ(L)Φ(0)⁻¹ closes the last edge (Φ(u + L) = HΦ(u))
-            n, L = grid.shape[0], grid.length[0]
-            ext = build(Grid(n + 1, length=L), **params)
-            holonomy = ext[-1] @ ext[0].T
-            Phi = ext[:-1].copy()
+            Phi, holonomy = close_on_periodic_grid(self.group, grid, lambda g: build(g, **params))
         elif kind == "arrays":
             Phi, holonomy = build(grid, **params)
         else:
