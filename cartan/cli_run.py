@@ -4,15 +4,21 @@
     run a scene file (or ``--scene NAME`` for a registered scene; ``--restart out.nc`` to
     continue a run from its last checkpoint), overriding its ``[run]`` settings with
     ``--integrator``, ``--scheme``, ``--dt``, ``--t-end``, ``--save-every`` and
-    ``--checkpoint-every``;
+    ``--checkpoint-every``.  Scenes with ``mode = "static"`` or ``mode = "continuation"``
+    are solved by :func:`cartan.statics.solve_static` or followed by
+    :func:`cartan.continuation.continuation` with their ``[static]`` / ``[continuation]``
+    settings (the dynamic options do not apply to them);
 ``cartan plot out.nc [-o out.png]``
-    configuration snapshots coloured by time and the energies against time.
+    dynamic runs: configuration snapshots coloured by time and the energies against time;
+    static results: the equilibrium shape, its displacement and the Newton residuals;
+    continuation results: the load–displacement chart and shapes along the path.
 
 Bad input — malformed TOML, unknown names, bad parameters or options — prints one line
 ``cartan: error: ...`` on stderr and exits with status 2 without writing anything; a run
 that blows up prints the :class:`~cartan.simulate.InstabilityError` message (which names the
-file holding the last good state) and exits with status 1.  :func:`register` adds the
-commands to a click group.
+file holding the last good state), and a static or continuation run that finds no
+equilibrium the :class:`~cartan.statics.ConvergenceError` message; both exit with status 1.
+:func:`register` adds the commands to a click group.
 """
 
 from __future__ import annotations
@@ -104,6 +110,7 @@ def run_cmd(
     from .plugins import RegistryError
     from .scene import SceneError, load_scene, scene
     from .simulate import InstabilityError, simulate
+    from .statics import ConvergenceError
 
     if scene_file is not None and scene_name is not None:
         raise CommandError("give a scene file or --scene NAME, not both")
@@ -124,6 +131,26 @@ def run_cmd(
             raise CommandError("give a scene file, --scene NAME, or --restart FILE")
         if output is None:
             output = restart if restart is not None else pathlib.Path(f"{sc.name or 'run'}.nc")
+        if sc is not None and sc.mode != "dynamic":
+            dynamic_only = {
+                "--integrator": integrator,
+                "--dt": dt,
+                "--t-end": t_end,
+                "--save-every": save_every,
+                "--restart": restart,
+                "--checkpoint-every": checkpoint_every,
+            }
+            given = [name for name, value in dynamic_only.items() if value is not None]
+            if given:
+                raise CommandError(
+                    f"{', '.join(given)}: only for dynamic scenes; scene {sc.name!r} has mode = {sc.mode!r} "
+                    f"(its settings are in the [{sc.mode}] table)"
+                )
+            if scheme is not None and scheme != "lattice":
+                raise CommandError(f"--scheme: {sc.mode} runs use the 'lattice' scheme only, got {scheme!r}")
+            ds = sc.run(output=output, command=_command_line(ctx))
+            click.echo(f"wrote {output} ({_summary(ds, sc.mode)})")
+            return
         with warnings.catch_warnings():
             warnings.showwarning = _show_warning
             ds = simulate(
@@ -141,7 +168,7 @@ def run_cmd(
             )
     except CommandError:
         raise
-    except InstabilityError as exc:
+    except (InstabilityError, ConvergenceError) as exc:
         raise CommandError(str(exc), RUN_ERROR) from None
     except (SceneError, RegistryError, ValueError, TypeError) as exc:
         raise CommandError(str(exc)) from None
@@ -149,6 +176,20 @@ def run_cmd(
         raise CommandError(f"{exc.filename or output}: {exc.strerror or exc}", RUN_ERROR) from None
     t = ds["time"].values
     click.echo(f"wrote {output} ({len(t)} frames, t = {t[0]:g} to {t[-1]:g})")
+
+
+def _summary(ds: Any, mode: str) -> str:
+    """One line about a static or continuation result."""
+    if mode == "static":
+        text = f"static equilibrium, {ds.attrs['newton_iterations']} Newton iterations"
+        if "measure" in ds.attrs:
+            text += f"; {ds.attrs['measure']} = {ds.attrs['measured_displacement']:.6g}"
+        return text
+    lam = ds["load_factor"].values
+    text = f"continuation, {ds.sizes['path']} path points, λ = {lam[0]:g} to {lam[-1]:g}"
+    crit = [f"{kind} at λ = {load:.6g}" for kind, load in zip(ds["critical_kind"].values,
+                                                              ds["critical_load"].values, strict=True)]
+    return text + (f"; {', '.join(crit)}" if crit else "; no critical point")
 
 
 @click.command("plot", cls=_OneLineCommand)
@@ -161,9 +202,10 @@ def run_cmd(
 )
 @click.option("--snapshots", type=int, default=8, show_default=True, help="Configurations drawn.")
 def plot_cmd(run_file: pathlib.Path, output: pathlib.Path | None, snapshots: int) -> None:
-    """Plot a run file: configuration snapshots coloured by time, and energies against time."""
+    """Plot a run file: snapshots and energies (dynamic), the equilibrium (static) or the
+    load–displacement chart (continuation)."""
     from .io import open_dataset
-    from .plotting import plot_run
+    from .plotting import plot_run, result_kind
 
     if not run_file.is_file():
         raise CommandError(f"{run_file}: no such file")
@@ -173,9 +215,10 @@ def plot_cmd(run_file: pathlib.Path, output: pathlib.Path | None, snapshots: int
         ds = open_dataset(run_file)
     except (OSError, ValueError) as exc:
         raise CommandError(f"{run_file}: not a readable netCDF file ({' '.join(str(exc).split())})") from None
-    missing = [v for v in ("kinetic_energy", "potential_energy") if v not in ds]
-    if missing or "time" not in ds.dims:
-        raise CommandError(f"{run_file}: not a cartan run file (missing {', '.join(missing) or 'time'})")
+    if result_kind(ds) != "continuation":
+        missing = [v for v in ("kinetic_energy", "potential_energy") if v not in ds]
+        if missing or "time" not in ds.dims:
+            raise CommandError(f"{run_file}: not a cartan run file (missing {', '.join(missing) or 'time'})")
     output = output if output is not None else run_file.with_suffix(".png")
     try:
         plot_run(ds, output, snapshots=snapshots)

@@ -4,8 +4,12 @@
 (the centreline ``position`` for affine groups, in 3-D or 2-D; the ``field`` when it is a
 point of R² or R³; nothing otherwise) and the energies against time: kinetic, potential,
 total ``E = K + V``, and ``E + D − W`` (total plus dissipated energy minus external work,
-constant when the energy balance closes).  matplotlib is used through its object API with
-the Agg canvas, so no display is needed.
+constant when the energy balance closes).  Given a static equilibrium or a continuation
+path it hands over to :func:`plot_static` (the equilibrium shape, its displacement and the
+Newton residuals) or :func:`plot_continuation` (the load–displacement chart of
+:func:`plot_load_displacement`, bifurcations and folds marked, branches coloured, beside
+shapes along the path).  3-D curves lying in a coordinate plane are drawn in that plane.
+matplotlib is used through its object API with the Agg canvas, so no display is needed.
 """
 
 from __future__ import annotations
@@ -18,9 +22,10 @@ import numpy as np
 
 if TYPE_CHECKING:  # pragma: no cover
     import xarray as xr
+    from matplotlib.axes import Axes
     from matplotlib.figure import Figure
 
-__all__ = ["plot_run"]
+__all__ = ["plot_continuation", "plot_load_displacement", "plot_run", "plot_static", "result_kind"]
 
 
 def _points(ds: xr.Dataset) -> np.ndarray | None:
@@ -102,6 +107,9 @@ def plot_run(
 ) -> Figure:
     """Quick-look figure of a run: configuration snapshots and energies against time.
 
+    Static equilibria go to :func:`plot_static`, continuation paths to
+    :func:`plot_continuation` (see :func:`result_kind`).
+
     Parameters
     ----------
     ds : xarray.Dataset
@@ -109,7 +117,252 @@ def plot_run(
     path : path-like, optional
         Where to save the figure (format from the suffix, e.g. ``.png``, ``.pdf``).
     snapshots : int
-        Number of configurations drawn, evenly spaced in time.
+        Number of configurations drawn, evenly spaced in time (along the path for a
+        continuation result).
+    title : str, optional
+        Figure title (default: the Dataset's ``title`` attribute).
+
+    Returns
+    -------
+    matplotlib.figure.Figure
+    """
+    from matplotlib.figure import Figure
+
+    kind = result_kind(ds)
+    if kind == "continuation":
+        return plot_continuation(ds, path, snapshots=snapshots, title=title)
+    if kind == "static":
+        return plot_static(ds, path, title=title)
+
+    pts = _points(ds)
+    ncols = 2 if pts is not None and ds.sizes.get("time", 0) > 0 else 1
+    fig = Figure(figsize=(6.0 * ncols, 4.8), layout="constrained")
+    if ncols == 2:
+        _draw_configuration(fig, 1, ds, pts, snapshots)
+    _draw_energies(fig, ncols, ncols, ds)
+    fig.suptitle(title if title is not None else str(ds.attrs.get("title", "")))
+    if path is not None:
+        fig.savefig(pathlib.Path(path), dpi=120)
+    return fig
+
+
+# ---------------------------------------------------------------------------- static and continuation results
+def result_kind(ds: xr.Dataset) -> str:
+    """``"continuation"`` (a path along ``path``), ``"static"`` (a Newton equilibrium) or ``"dynamic"``."""
+    if "path" in ds.dims and "load_factor" in ds:
+        return "continuation"
+    if "newton_residual" in ds:
+        return "static"
+    return "dynamic"
+
+
+def _in_plane(curves: list[np.ndarray]) -> tuple[list[int], list[str]]:
+    """The spatial axes to draw: all of them, or the two that vary when 3-D curves lie in a
+    coordinate plane (e.g. a rod bending in x–z)."""
+    k = curves[0].shape[-1]
+    labels = ["x", "y", "z"][:k] if k <= 3 else [f"x{i}" for i in range(k)]
+    if k != 3:
+        return list(range(k)), labels
+    flat = np.concatenate([c.reshape(-1, k) for c in curves])
+    spread = np.nanmax(flat, axis=0) - np.nanmin(flat, axis=0)
+    flat_axes = np.nonzero(spread <= 1e-9 * max(float(np.max(spread)), 1e-300))[0]
+    if flat_axes.size:
+        keep = [i for i in range(3) if i != int(flat_axes[0])]
+        return keep, [labels[i] for i in keep]
+    return [0, 1, 2], labels
+
+
+def _draw_shapes(fig: Figure, slot: tuple[int, int, int], curves: list[np.ndarray], values: np.ndarray | None,
+                 label: str, reference: np.ndarray | None = None, title: str = "shape") -> None:
+    """Curves ``[nodes, k]`` (a scatter for d ≥ 2 arrays ``[..., k]``) coloured by ``values``, the
+    reference configuration dashed."""
+    from matplotlib import cm, colors
+
+    every = curves + ([reference] if reference is not None else [])
+    axes, names = _in_plane(every)
+    three_d = len(axes) == 3
+    ax = fig.add_subplot(*slot, projection="3d" if three_d else None)
+    cmap = cm.viridis
+    norm = None
+    if values is not None and len(values):
+        lo, hi = float(np.min(values)), float(np.max(values))
+        norm = colors.Normalize(vmin=lo, vmax=hi if hi > lo else lo + 1.0)
+    if reference is not None:
+        ref = reference.reshape(-1, reference.shape[-1])[:, axes]
+        if reference.ndim == 2:
+            ax.plot(*ref.T, "--", color="0.6", lw=1.0, label="initial")
+        else:
+            ax.scatter(*ref.T, color="0.6", s=2, label="initial")
+    for i, c in enumerate(curves):
+        colour = cmap(norm(values[i])) if norm is not None else "C0"
+        pts = c.reshape(-1, c.shape[-1])[:, axes]
+        if c.ndim == 2:
+            ax.plot(*pts.T, color=colour, lw=1.5)
+        else:
+            ax.scatter(*pts.T, color=colour, s=4)
+    flat = np.concatenate([c.reshape(-1, c.shape[-1])[:, axes] for c in every])
+    lo_p, hi_p = np.nanmin(flat, axis=0), np.nanmax(flat, axis=0)
+    if three_d:
+        centre = 0.5 * (lo_p + hi_p)
+        half = 0.55 * max(float(np.max(hi_p - lo_p)), 1e-12)
+        ax.set_xlim(centre[0] - half, centre[0] + half)
+        ax.set_ylim(centre[1] - half, centre[1] + half)
+        ax.set_zlim(centre[2] - half, centre[2] + half)
+        ax.set_box_aspect((1.0, 1.0, 1.0))
+        ax.set_zlabel(names[2])
+    else:
+        ax.set_aspect("equal", adjustable="datalim")
+        ax.grid(True, alpha=0.3)
+    ax.set_xlabel(names[0])
+    ax.set_ylabel(names[1])
+    ax.set_title(title)
+    if reference is not None:
+        ax.legend(fontsize="small", loc="best")
+    if norm is not None and len(curves) > 1:
+        sm = cm.ScalarMappable(norm=norm, cmap=cmap)
+        sm.set_array([])
+        fig.colorbar(sm, ax=ax, shrink=0.7, pad=0.1, label=label)
+
+
+def _axis_label(var: xr.DataArray, fallback: str) -> str:
+    text = str(var.attrs.get("long_name", fallback))
+    units = var.attrs.get("units")
+    return f"{text} [{units}]" if units and units != "1" else text
+
+
+def plot_load_displacement(
+    ds: xr.Dataset,
+    path: str | os.PathLike | None = None,
+    *,
+    ax: Axes | None = None,
+    title: str | None = None,
+) -> Figure:
+    """Load–displacement chart of a continuation result: λ against the recorded displacement.
+
+    The path is drawn per branch (``branch`` 0: the primary path, 1: the branch followed
+    after the switch at the first bifurcation, starting at the critical point); critical
+    points are marked (bifurcation ★, fold ◆) and labelled with their load factor.
+
+    Parameters
+    ----------
+    ds : xarray.Dataset
+        A continuation result (:func:`cartan.continuation.continuation`, or a file of
+        ``cartan run`` on a ``mode = "continuation"`` scene): ``load_factor`` and ``monitor``
+        along ``path``; ``branch``, ``critical_load``, ``critical_monitor``,
+        ``critical_kind`` and ``critical_path_index`` are used when present.
+    path : path-like, optional
+        Where to save the figure (format from the suffix).
+    ax : matplotlib.axes.Axes, optional
+        Draw into these axes (the figure is then ``ax.figure``) instead of a new figure.
+    title : str, optional
+        Axes title (default: "load–displacement").
+
+    Returns
+    -------
+    matplotlib.figure.Figure
+
+    Raises
+    ------
+    ValueError
+        If ``ds`` is not a continuation result.
+    """
+    from matplotlib.figure import Figure
+
+    if result_kind(ds) != "continuation" or "monitor" not in ds:
+        raise ValueError("ds: not a continuation result (needs load_factor and monitor along path)")
+    if ax is None:
+        fig = Figure(figsize=(6.0, 4.8), layout="constrained")
+        ax = fig.add_subplot(1, 1, 1)
+    else:
+        fig = ax.figure
+    lam = np.asarray(ds["load_factor"].values, dtype=float)
+    w = np.asarray(ds["monitor"].values, dtype=float)
+    branch = np.asarray(ds["branch"].values) if "branch" in ds else np.zeros(lam.size, dtype=int)
+    kinds = [str(k) for k in ds["critical_kind"].values] if "critical_kind" in ds else []
+    c_lam = np.asarray(ds["critical_load"].values, dtype=float) if kinds else np.zeros(0)
+    c_w = np.asarray(ds["critical_monitor"].values, dtype=float) if kinds else np.zeros(0)
+    c_idx = np.asarray(ds["critical_path_index"].values) if kinds and "critical_path_index" in ds else None
+    names = {0: "primary path", 1: "after the branch switch"}
+    for b in np.unique(branch):
+        sel = np.nonzero(branch == b)[0]
+        x, y = w[sel], lam[sel]
+        if b > 0 and c_idx is not None:  # start the new branch at its bifurcation point
+            at = [j for j, (kind, i) in enumerate(zip(kinds, c_idx, strict=True))
+                  if kind == "bifurcation" and i == sel[0]]
+            if at:
+                x, y = np.r_[c_w[at[0]], x], np.r_[c_lam[at[0]], y]
+        ax.plot(x, y, "-o", ms=3.5, lw=1.5, color=f"C{int(b)}", label=names.get(int(b), f"branch {int(b)}"))
+    for kind, cl, cw in zip(kinds, c_lam, c_w, strict=True):
+        marker, colour = ("*", "C3") if kind == "bifurcation" else ("D", "C1")
+        ax.plot([cw], [cl], marker, ms=13 if marker == "*" else 8, color=colour, mec="k", mew=0.6, zorder=5,
+                label=f"{kind}, λ = {cl:.5g}")
+    ax.set_xlabel(_axis_label(ds["monitor"], "displacement"))
+    ax.set_ylabel("load factor λ")
+    ax.set_title(title if title is not None else "load–displacement")
+    ax.grid(True, alpha=0.3)
+    ax.legend(fontsize="small", loc="best")
+    if "comment" in ds["load_factor"].attrs:
+        ax.annotate(str(ds["load_factor"].attrs["comment"]), (0.01, 0.01), xycoords="figure fraction",
+                    fontsize="x-small", color="0.35")
+    if path is not None:
+        fig.savefig(pathlib.Path(path), dpi=120)
+    return fig
+
+
+def plot_continuation(
+    ds: xr.Dataset, path: str | os.PathLike | None = None, snapshots: int = 6, title: str | None = None
+) -> Figure:
+    """Quick-look figure of a continuation result: the load–displacement chart
+    (:func:`plot_load_displacement`) beside ``snapshots`` shapes along the path coloured by λ
+    (when the result holds ``position``; the initial configuration dashed).
+
+    Parameters
+    ----------
+    ds : xarray.Dataset
+        A continuation result.
+    path : path-like, optional
+        Where to save the figure.
+    snapshots : int
+        Number of shapes drawn, evenly spaced along the path (the last point included).
+    title : str, optional
+        Figure title (default: the Dataset's ``title`` attribute).
+
+    Returns
+    -------
+    matplotlib.figure.Figure
+    """
+    from matplotlib.figure import Figure
+
+    shapes = "position" in ds and ds["position"].ndim == 3 and ds["position"].shape[-1] in (2, 3)
+    ncols = 2 if shapes else 1
+    fig = Figure(figsize=(6.0 * ncols, 4.8), layout="constrained")
+    plot_load_displacement(ds, ax=fig.add_subplot(1, ncols, 1))
+    if shapes:
+        pos = np.asarray(ds["position"].values, dtype=float)
+        idx = _snapshot_indices(pos.shape[0], snapshots)
+        lam = np.asarray(ds["load_factor"].values, dtype=float)
+        ref = np.asarray(ds["initial_position"].values, dtype=float) if "initial_position" in ds else None
+        _draw_shapes(fig, (1, ncols, 2), [pos[i] for i in idx], lam[idx], "load factor λ", ref,
+                     title="shapes along the path")
+    fig.suptitle(title if title is not None else str(ds.attrs.get("title", "")))
+    if path is not None:
+        fig.savefig(pathlib.Path(path), dpi=120)
+    return fig
+
+
+def plot_static(ds: xr.Dataset, path: str | os.PathLike | None = None, title: str | None = None) -> Figure:
+    """Quick-look figure of a static equilibrium (:func:`cartan.statics.solve_static`).
+
+    Panels: the equilibrium shape (the initial configuration dashed, when the result holds
+    ``initial_position``); for d = 1 the displacement components against the material
+    coordinate ``u``; and the Newton residual norm at every iteration.
+
+    Parameters
+    ----------
+    ds : xarray.Dataset
+        A static result (one frame along ``time``, ``newton_residual`` along ``iteration``).
+    path : path-like, optional
+        Where to save the figure.
     title : str, optional
         Figure title (default: the Dataset's ``title`` attribute).
 
@@ -120,11 +373,37 @@ def plot_run(
     from matplotlib.figure import Figure
 
     pts = _points(ds)
-    ncols = 2 if pts is not None and ds.sizes.get("time", 0) > 0 else 1
-    fig = Figure(figsize=(6.0 * ncols, 4.8), layout="constrained")
-    if ncols == 2:
-        _draw_configuration(fig, 1, ds, pts, snapshots)
-    _draw_energies(fig, ncols, ncols, ds)
+    ref = np.asarray(ds["initial_position"].values, dtype=float) if "initial_position" in ds else None
+    curve = pts is not None and pts.ndim == 3
+    panels = (pts is not None) + (curve and ref is not None) + 1
+    fig = Figure(figsize=(5.2 * panels, 4.6), layout="constrained")
+    slot = 1
+    if pts is not None:
+        _draw_shapes(fig, (1, panels, slot), [pts[-1]], None, "", ref, title="equilibrium")
+        slot += 1
+    if curve and ref is not None:
+        ax = fig.add_subplot(1, panels, slot)
+        u = np.asarray(ds["u"].values, dtype=float) if "u" in ds.coords else np.arange(pts.shape[1], dtype=float)
+        disp = pts[-1] - ref
+        k = disp.shape[-1]
+        for a, name in enumerate(["x", "y", "z"][:k] if k <= 3 else [f"x{i}" for i in range(k)]):
+            ax.plot(u, disp[:, a], label=f"{name}")
+        ax.set_xlabel("material coordinate u")
+        ax.set_ylabel("displacement")
+        ax.set_title("displacement from the initial configuration")
+        if "measure" in ds.attrs:
+            ax.annotate(f"{ds.attrs['measure']} = {float(ds.attrs['measured_displacement']):.6g}", (0.02, 0.02),
+                        xycoords="axes fraction", fontsize="small")
+        ax.grid(True, alpha=0.3)
+        ax.legend(fontsize="small")
+        slot += 1
+    ax = fig.add_subplot(1, panels, slot)
+    hist = np.asarray(ds["newton_residual"].values, dtype=float)
+    ax.semilogy(np.arange(hist.size), np.maximum(hist, 1e-300), "-o", ms=4)
+    ax.set_xlabel("Newton iteration")
+    ax.set_ylabel("residual ‖w·W‖₂")
+    ax.set_title(f"Newton: {int(ds.attrs.get('newton_iterations', hist.size - 1))} iterations")
+    ax.grid(True, which="both", alpha=0.3)
     fig.suptitle(title if title is not None else str(ds.attrs.get("title", "")))
     if path is not None:
         fig.savefig(pathlib.Path(path), dpi=120)

@@ -31,6 +31,36 @@ A scene file names a registered medium and gives, in plain tables, everything
 Load kinds ``"damping"`` (``coefficients``) and ``"uniform-force"`` (``components``,
 ``frame``) are the core's; every other kind is built by ``medium.make_load(kind, **rest)``.
 
+Modes
+-----
+``mode = "dynamic"`` (the default) runs :func:`cartan.simulate` with the ``[run]`` table.
+``mode = "static"`` finds an equilibrium with :func:`cartan.statics.solve_static`, settings in
+``[static]``::
+
+    mode = "static"
+    [static]
+    tol = 1e-10             # residual tolerance (relative to the largest external nodal force)
+    max_iterations = 50     # Newton iterations per load step
+    load_steps = 1
+    initial_guess = "previous.nc"   # optional: start from the last frame of a run file
+    measure = { node = "end", component = "z" }   # optional: a displacement to report
+
+``mode = "continuation"`` follows the equilibrium path in the load factor λ with
+:func:`cartan.continuation.continuation`, settings in ``[continuation]``::
+
+    mode = "continuation"
+    [continuation]
+    parameter = "end"       # the load λ scales: a loaded end, or "all" (every external load)
+    lambda_max = 15.0       # follow λ from 0 to lambda_max
+    ds = 0.05               # first arclength step; ds_min, ds_max bound it
+    max_steps = 200         # path points allowed
+    measure = { node = "middle", component = "y" }   # the displacement recorded along the path
+    pins = { start = ["x", "y"], end = ["y"] }      # position components held (free ends only)
+    branch_switch = true    # leave the path at the first bifurcation
+
+Static and continuation scenes have no ``[run]`` table; :meth:`Scene.run` runs any mode and
+writes the result (CF attributes, ``history``, ``cartan_config``) atomically.
+
 Every problem found while reading a scene — malformed TOML, a missing or unknown key, an
 unknown medium, integrator, scheme or load kind, a parameter the medium rejects — raises
 :class:`SceneError` with one line naming the file and the key, e.g.
@@ -52,9 +82,13 @@ from .grid import Grid
 from .plugins import get_registry
 from .problem import Clamped, Damping, Free, Problem, UniformForce
 
-__all__ = ["Scene", "SceneError", "load_scene", "scene"]
+__all__ = ["MODES", "Measure", "Scene", "SceneError", "load_scene", "scene"]
 
-_TOP_KEYS = {"name", "description", "medium", "parameters", "grid", "boundaries", "loads", "initial", "run"}
+MODES = ("dynamic", "static", "continuation")
+_TOP_KEYS = {
+    "name", "description", "mode", "medium", "parameters", "grid", "boundaries", "loads", "initial", "run",
+    "static", "continuation",
+}
 _GRID_KEYS = {"n", "shape", "length", "periodic"}
 _RUN_KEYS = {
     "integrator",
@@ -66,6 +100,29 @@ _RUN_KEYS = {
     "integrator_options",
     "scheme_options",
 }
+_STATIC_KEYS = {"tol", "xtol", "max_iterations", "load_steps", "fd_step", "initial_guess", "measure"}
+_CONTINUATION_KEYS = {
+    "parameter",
+    "lambda_max",
+    "lambda_scale",
+    "stops",
+    "ds",
+    "ds_min",
+    "ds_max",
+    "max_steps",
+    "tol",
+    "max_iterations",
+    "measure",
+    "pins",
+    "detect",
+    "branch_switch",
+    "switch_direction",
+    "locate_tol",
+    "fd_step",
+}
+#: continuation's first arclength step when ``[continuation]`` gives no ``ds``
+DEFAULT_DS = 0.05
+_AXIS_LABELS = ("x", "y", "z")
 
 
 class SceneError(ValueError):
@@ -75,21 +132,70 @@ class SceneError(ValueError):
     """
 
 
+@dataclass(frozen=True)
+class Measure:
+    """A displacement recorded by static and continuation runs (``measure = {node, component}``).
+
+    The value is one spatial component — or the length — of ``position − initial position``
+    at one node, for media on affine groups.
+
+    Attributes
+    ----------
+    node : int
+        Flat node index (C order over the grid's axes).
+    node_label : str
+        The node as the scene gives it (``"end"``, ``"middle"``, ``"50"``, ``"[3, 4]"``).
+    component : int or None
+        Spatial axis (0 = x, 1 = y, 2 = z); None for the length of the displacement.
+    component_label : str
+        ``"x"``, ``"y"``, ``"z"`` or ``"magnitude"``.
+    """
+
+    node: int
+    node_label: str
+    component: int | None
+    component_label: str
+
+    def __call__(self, position: Any, initial: Any) -> float:
+        """The displacement from flat node positions ``position`` and ``initial`` ``[nodes, k]``."""
+        import numpy as np
+
+        d = np.asarray(position, dtype=float)[self.node] - np.asarray(initial, dtype=float)[self.node]
+        return float(np.linalg.norm(d)) if self.component is None else float(d[self.component])
+
+    def describe(self) -> str:
+        """E.g. ``"displacement z of node end"``."""
+        what = "displacement magnitude" if self.component is None else f"displacement {self.component_label}"
+        return f"{what} of node {self.node_label}"
+
+
 @dataclass
 class Scene:
-    """A runnable problem with its run settings (the ``[run]`` table of a scene).
+    """A runnable problem with its run settings (the ``[run]``, ``[static]`` or ``[continuation]`` table).
 
     Attributes
     ----------
     problem : Problem
         Medium, grid, boundaries, loads and initial state.
     name, description : str
+    mode : str
+        ``"dynamic"`` (:func:`cartan.simulate`), ``"static"`` (:func:`cartan.statics.solve_static`)
+        or ``"continuation"`` (:func:`cartan.continuation.continuation`).
     integrator, scheme : str or None
         Registered names (None: the :func:`cartan.simulate` defaults).
     dt, t_end : float or None
     save_every, checkpoint_every : int or None
     integrator_options, scheme_options : dict
         Keyword arguments of the integrator and scheme constructors.
+    solver_options : dict
+        Static and continuation modes: the keyword arguments of ``solve_static`` or
+        ``continuation`` read from ``[static]`` / ``[continuation]`` (validated).
+    measure : Measure or None
+        The displacement reported by a static run and recorded along a continuation path.
+    initial_guess : pathlib.Path or None
+        Static mode: a run file whose last frame starts Newton's method.
+    parameter : str
+        Continuation mode: the load λ scales (a loaded end, or ``"all"``).
     source : dict
         The scene as parsed (TOML tables as dicts); recorded in the output and used to
         rebuild the problem on restart.
@@ -100,6 +206,7 @@ class Scene:
     problem: Problem
     name: str = ""
     description: str = ""
+    mode: str = "dynamic"
     integrator: str | None = None
     scheme: str | None = None
     dt: float | None = None
@@ -108,11 +215,27 @@ class Scene:
     checkpoint_every: int | None = None
     integrator_options: dict[str, Any] = field(default_factory=dict)
     scheme_options: dict[str, Any] = field(default_factory=dict)
+    solver_options: dict[str, Any] = field(default_factory=dict)
+    measure: Measure | None = None
+    initial_guess: pathlib.Path | None = None
+    parameter: str = "all"
     source: dict[str, Any] = field(default_factory=dict)
     path: pathlib.Path | None = None
 
     def run_settings(self) -> dict[str, Any]:
-        """The ``[run]`` settings as keyword arguments of :func:`cartan.simulate` (unset ones omitted)."""
+        """The ``[run]`` settings as keyword arguments of :func:`cartan.simulate` (unset ones omitted).
+
+        Raises
+        ------
+        SceneError
+            For static and continuation scenes, which :func:`cartan.simulate` does not run
+            (use :meth:`run`).
+        """
+        if self.mode != "dynamic":
+            raise SceneError(
+                f"scene {self.name!r} has mode = {self.mode!r}: cartan.simulate runs dynamic scenes only; "
+                "run it with Scene.run() or `cartan run`"
+            )
         out = {
             "integrator": self.integrator,
             "scheme": self.scheme,
@@ -134,9 +257,56 @@ class Scene:
 
         return simulate(self, **kwargs)
 
+    def run(self, output: str | pathlib.Path | None = None, *, command: str | None = None, **options: Any):
+        """Run the scene by its mode and optionally write the result.
+
+        Parameters
+        ----------
+        output : path, optional
+            netCDF file written atomically (:func:`cartan.io.write_dataset`) after a
+            successful run; nothing is written when the run fails.
+        command : str, optional
+            Text recorded in the ``history`` attribute (default: a description of this call).
+        **options
+            Dynamic mode only: keywords of :func:`cartan.simulate` (overriding ``[run]``).
+
+        Returns
+        -------
+        xarray.Dataset
+            Dynamic: the run (``time`` frames).  Static: the one-frame equilibrium of
+            ``solve_static`` plus ``initial_position`` (affine groups).  Continuation: the path of
+            ``continuation`` (``load_factor``, ``monitor`` — the measured displacement —,
+            ``position`` along ``path``, critical points along ``critical``) plus
+            ``initial_position``; both with the CF attributes of a dynamic run (``Conventions``,
+            ``title``, ``source``, ``history``, ``cartan_config`` holding the scene).
+
+        Raises
+        ------
+        ValueError
+            Run options given to a static or continuation scene.
+        cartan.statics.ConvergenceError
+            Newton's method or the path following failed.
+        """
+        if self.mode == "dynamic":
+            from .simulate import simulate
+
+            return simulate(self, output=output, command=command, **options)
+        if options:
+            raise ValueError(
+                f"scene {self.name!r} has mode = {self.mode!r}: run options {', '.join(sorted(options))} apply to "
+                f"dynamic scenes only; change the [{self.mode}] table instead"
+            )
+        ds = _solve_static(self, command) if self.mode == "static" else _follow_path(self, command)
+        if output is not None:
+            from . import io
+
+            io.write_dataset(ds, output)
+        return ds
+
     def __repr__(self) -> str:
         where = f", path={str(self.path)!r}" if self.path else ""
-        return f"Scene(name={self.name!r}, medium={self.problem.medium.name!r}{where})"
+        mode = f", mode={self.mode!r}" if self.mode != "dynamic" else ""
+        return f"Scene(name={self.name!r}, medium={self.problem.medium.name!r}{mode}{where})"
 
 
 # ---------------------------------------------------------------------------- helpers
@@ -371,6 +541,379 @@ def _problem_error_key(message: str) -> str:
     return "problem"
 
 
+# ---------------------------------------------------------------------------- static and continuation
+def _mode(reader: _Reader, data: Mapping) -> str:
+    mode = data.get("mode", "dynamic")
+    if mode not in MODES:
+        raise reader.fail("mode", f"unknown mode {mode!r}; allowed: {', '.join(repr(m) for m in MODES)}")
+    for table in ("run", "static", "continuation"):
+        wanted = "dynamic" if table == "run" else table
+        if table in data and mode != wanted:
+            raise reader.fail(
+                table, f"a [{table}] table belongs to mode = {wanted!r} scenes, but this scene has mode = {mode!r}"
+            )
+    return mode
+
+
+def _boolean(reader: _Reader, data: Mapping, key: str, where: str) -> bool | None:
+    if key not in data:
+        return None
+    value = data[key]
+    if not isinstance(value, bool):
+        raise reader.fail(_join(where, key), f"must be true or false, got {value!r}")
+    return value
+
+
+def _affine_problem(reader: _Reader, problem: Problem, key: str) -> int:
+    """The spatial dimension k of an affine group (positions), or a SceneError naming ``key``."""
+    g = problem.medium.group
+    if not getattr(g, "affine", False):
+        raise reader.fail(
+            key, f"needs a medium on an affine group (positions); medium {problem.medium.name!r} is on {g.name}"
+        )
+    return int(g.matrix_size) - 1
+
+
+def _component(reader: _Reader, value: Any, k: int, key: str, magnitude: bool) -> int | None:
+    """A spatial axis named ``"x"``/``"y"``/``"z"`` or by index; None for ``"magnitude"``."""
+    names = list(_AXIS_LABELS[:k]) if k <= 3 else [f"x{i}" for i in range(k)]
+    allowed = [*names, *(["magnitude"] if magnitude else [])]
+    if magnitude and value == "magnitude":
+        return None
+    if isinstance(value, str) and value in names:
+        return names.index(value)
+    if isinstance(value, numbers.Integral) and not isinstance(value, bool) and 0 <= value < k:
+        return int(value)
+    raise reader.fail(
+        key, f"unknown component {value!r}; allowed: {', '.join(repr(a) for a in allowed)} or an index 0..{k - 1}"
+    )
+
+
+def _measure(reader: _Reader, spec: Any, problem: Problem, key: str) -> Measure:
+    import numpy as np
+
+    if not isinstance(spec, Mapping):
+        raise reader.fail(key, f'must be a table such as {{ node = "end", component = "z" }}, got {spec!r}')
+    reader.no_extra(spec, {"node", "component"}, key)
+    k = _affine_problem(reader, problem, key)
+    shape = problem.grid.shape
+    for part in ("node", "component"):
+        if part not in spec:
+            raise reader.fail(f"{key}.{part}", "missing key")
+    node = spec["node"]
+    ends = {"start": 0, "middle": shape[0] // 2, "end": shape[0] - 1}
+    if isinstance(node, str):
+        if len(shape) != 1 or node not in ends:
+            allowed = "'start', 'middle', 'end' or an index" if len(shape) == 1 else f"a list of {len(shape)} indices"
+            raise reader.fail(f"{key}.node", f"unknown node {node!r}; allowed: {allowed}")
+        flat, label = ends[node], node
+    else:
+        idx = [node] if len(shape) == 1 and not isinstance(node, list) else node
+        ok = (
+            isinstance(idx, list)
+            and len(idx) == len(shape)
+            and all(isinstance(i, numbers.Integral) and not isinstance(i, bool) and -n <= i < n
+                    for i, n in zip(idx, shape, strict=True))
+        )
+        if not ok:
+            ranges = ", ".join(f"{-n}..{n - 1}" for n in shape)
+            what = "'start', 'middle', 'end' or an index in" if len(shape) == 1 else "a list of indices in"
+            raise reader.fail(f"{key}.node", f"must be {what} {ranges}, got {node!r}")
+        flat = int(np.ravel_multi_index(tuple(int(i) % n for i, n in zip(idx, shape, strict=True)), shape))
+        label = str(node)
+    comp = _component(reader, spec["component"], k, f"{key}.component", magnitude=True)
+    return Measure(node=flat, node_label=label, component=comp,
+                   component_label="magnitude" if comp is None else str(spec["component"]))
+
+
+def _static(reader: _Reader, data: Mapping, problem: Problem, path: pathlib.Path | None) -> dict[str, Any]:
+    st = reader.table(data, "static", "")
+    reader.no_extra(st, _STATIC_KEYS, "static")
+    options = {
+        "tol": reader.number(st, "tol", "static"),
+        "xtol": reader.number(st, "xtol", "static"),
+        "max_iter": reader.integer(st, "max_iterations", "static"),
+        "load_steps": reader.integer(st, "load_steps", "static"),
+        "fd_step": reader.number(st, "fd_step", "static"),
+    }
+    out: dict[str, Any] = {"solver_options": {k: v for k, v in options.items() if v is not None}}
+    if "measure" in st:
+        out["measure"] = _measure(reader, st["measure"], problem, "static.measure")
+    if "initial_guess" in st:
+        out["initial_guess"] = _initial_guess(reader, st, problem, path)
+    return out
+
+
+def _initial_guess(reader: _Reader, st: Mapping, problem: Problem, path: pathlib.Path | None) -> pathlib.Path:
+    """``[static] initial_guess``: a run file (relative to the scene file) with the grid's nodes."""
+    key = "static.initial_guess"
+    value = reader.string(st, "initial_guess", "static")
+    guess = pathlib.Path(value)
+    if not guess.is_absolute() and path is not None:
+        guess = path.parent / guess
+    _affine_problem(reader, problem, key)
+    if not guess.is_file():
+        raise reader.fail(key, f"no such file {str(guess)!r} (a run file whose last frame starts Newton's method)")
+    from .io import open_dataset
+
+    try:
+        ds = open_dataset(guess)
+    except (OSError, ValueError) as exc:
+        raise reader.fail(key, f"{guess}: not a readable netCDF file ({_one_line(exc)})") from None
+    if "position" not in ds or "frame" not in ds or "time" not in ds["position"].dims:
+        raise reader.fail(key, f"{guess}: not a run file with position and frame along time")
+    nodes = int(ds["position"].isel(time=-1).size // ds.sizes.get("row", 1))
+    if nodes != problem.grid.size or ds.sizes.get("row") != problem.medium.group.matrix_size - 1:
+        raise reader.fail(key, f"{guess}: holds {nodes} nodes in {ds.sizes.get('row')} dimensions, the scene "
+                               f"{problem.grid.size} in {problem.medium.group.matrix_size - 1}")
+    return guess
+
+
+def _external_loads(problem: Problem) -> list[str]:
+    """The external loads λ would scale: non-zero end loads and body loads (velocity-dependent
+    loads such as damping vanish at rest and are left out)."""
+    import numpy as np
+
+    names = [f"boundaries.{end}" for end, b in problem.boundaries.items()
+             if isinstance(b, Free) and b.load is not None and np.any(np.asarray(b.load) != 0)]
+    names += [f"loads[{i}]" for i, load in enumerate(problem.loads)
+              if not (isinstance(load, Damping) or getattr(load, "velocity_dependent", False))]
+    return names
+
+
+def _continuation(reader: _Reader, data: Mapping, problem: Problem) -> dict[str, Any]:
+    w = "continuation"
+    ct = reader.table(data, w, "", required=True)
+    reader.no_extra(ct, _CONTINUATION_KEYS, w)
+    if "lambda_max" not in ct:
+        raise reader.fail(f"{w}.lambda_max", "missing key (the load factor at which the path ends)")
+    lam_max = reader.number(ct, "lambda_max", w)
+    ds0 = reader.number(ct, "ds", w) or DEFAULT_DS
+    ds_min = reader.number(ct, "ds_min", w)
+    ds_max = reader.number(ct, "ds_max", w)
+    if ds_min is not None and ds_min > ds0:
+        raise reader.fail(f"{w}.ds_min", f"must be ≤ ds = {ds0:g}, got {ds_min:g}")
+    if ds_max is not None and ds_max < ds0:
+        raise reader.fail(f"{w}.ds_max", f"must be ≥ ds = {ds0:g}, got {ds_max:g}")
+    options: dict[str, Any] = {
+        "lam_max": lam_max,
+        "ds0": ds0,
+        "ds_min": ds_min,
+        "ds_max": ds_max,
+        "lam_scale": reader.number(ct, "lambda_scale", w),
+        "max_points": reader.integer(ct, "max_steps", w, minimum=2),
+        "tol": reader.number(ct, "tol", w),
+        "max_iter": reader.integer(ct, "max_iterations", w),
+        "locate_tol": reader.number(ct, "locate_tol", w),
+        "fd_step": reader.number(ct, "fd_step", w),
+        "detect": _boolean(reader, ct, "detect", w),
+        "branch_switch": _boolean(reader, ct, "branch_switch", w),
+    }
+    if "switch_direction" in ct:
+        sd = ct["switch_direction"]
+        if isinstance(sd, bool) or sd not in (1, -1):
+            raise reader.fail(f"{w}.switch_direction", f"must be 1 or -1, got {sd!r}")
+        options["switch_direction"] = float(sd)
+    if "stops" in ct:
+        stops = ct["stops"]
+        if not isinstance(stops, list) or not all(
+            isinstance(x, numbers.Real) and not isinstance(x, bool) and 0 < x < lam_max for x in stops
+        ):
+            raise reader.fail(f"{w}.stops", f"must be a list of load factors in (0, lambda_max = {lam_max:g}), "
+                                            f"got {stops!r}")
+        options["stops"] = [float(x) for x in stops]
+    if "pins" in ct:
+        options["pins"] = _pins(reader, ct["pins"], problem)
+    out: dict[str, Any] = {"solver_options": {k: v for k, v in options.items() if v is not None}}
+    if "measure" in ct:
+        out["measure"] = _measure(reader, ct["measure"], problem, f"{w}.measure")
+    external = _external_loads(problem)
+    if not external:
+        raise reader.fail(w, "the scene has no external load for λ to scale (give an end load or a body load)")
+    parameter = ct.get("parameter", "all")
+    loaded_ends = [e.split(".", 1)[1] for e in external if e.startswith("boundaries.")]
+    allowed = ["all", *loaded_ends]
+    if not isinstance(parameter, str) or parameter not in allowed:
+        raise reader.fail(f"{w}.parameter", f"unknown load {parameter!r}; allowed: "
+                                            f"{', '.join(repr(a) for a in allowed)} (a loaded end or every load)")
+    if parameter != "all" and len(external) > 1:
+        others = ", ".join(e for e in external if e != f"boundaries.{parameter}")
+        raise reader.fail(f"{w}.parameter", f"λ scales every external load together, but the scene also has "
+                                            f"{others}; give parameter = \"all\" or remove them")
+    out["parameter"] = parameter
+    return out
+
+
+def _pins(reader: _Reader, spec: Any, problem: Problem) -> dict[str, tuple[int, ...]]:
+    key = "continuation.pins"
+    if not isinstance(spec, Mapping):
+        raise reader.fail(key, f'must be a table such as {{ start = ["x", "y"], end = ["y"] }}, got {spec!r}')
+    k = _affine_problem(reader, problem, key)
+    if problem.grid.d != 1 or problem.grid.periodic[0]:
+        raise reader.fail(key, "pins hold the ends of an open rod (d = 1, not periodic)")
+    out = {}
+    for end, comps in spec.items():
+        where = f"{key}.{end}"
+        if end not in ("start", "end"):
+            raise reader.fail(where, "unknown end; allowed: 'start', 'end'")
+        if isinstance(problem.boundaries.get(end), Clamped):
+            raise reader.fail(where, f"the {end} is clamped; pins hold free ends (give {{ kind = \"free\" }})")
+        if not isinstance(comps, list) or not comps:
+            raise reader.fail(where, f'must be a non-empty list of components such as ["x", "y"], got {comps!r}')
+        idx = tuple(_component(reader, c, k, where, magnitude=False) for c in comps)
+        if len(set(idx)) != len(idx):
+            raise reader.fail(where, f"repeated component in {comps!r}")
+        out[end] = idx
+    return out
+
+
+# ---------------------------------------------------------------------------- running static modes
+_REFERENCES = "Kikuchi & Adhikari, Cartan media: geometric continuum mechanics in homogeneous spaces"
+
+
+def _initial_positions(problem: Problem) -> Any:
+    """Positions of the scene's initial state ``[*grid.shape, k]`` (affine groups), else None."""
+    import numpy as np
+
+    if not getattr(problem.medium.group, "affine", False):
+        return None
+    return np.array(np.asarray(problem.initial.Phi)[..., 1:, 0], dtype=float)
+
+
+def _finish(ds: Any, sc: Scene, config: dict[str, Any], command: str | None) -> None:
+    """Record the scene, the mode and the command in ``cartan_config`` and ``history``."""
+    from . import io
+
+    config["mode"] = sc.mode
+    config["scene"] = sc.source if sc.source.get("medium") else None
+    config["scene_path"] = str(sc.path) if sc.path else None
+    if command is None:
+        what = f"cartan.load_scene({str(sc.path)!r})" if sc.path else f"scene {sc.name!r}"
+        command = f"Scene.run({what}, mode={sc.mode!r})"
+    ds.attrs["history"] = io.history_line(command)
+    ds.attrs["cartan_config"] = io.to_json(config)
+
+
+def _solve_static(sc: Scene, command: str | None) -> Any:
+    """``solve_static`` of the scene's problem with its ``[static]`` settings, annotated."""
+    import json
+
+    from . import io
+    from .statics import solve_static
+
+    initial = io.open_dataset(sc.initial_guess) if sc.initial_guess is not None else None
+    ds = solve_static(sc.problem, initial=initial, **sc.solver_options)
+    config = json.loads(ds.attrs["cartan_config"])
+    config["run"]["initial_guess"] = str(sc.initial_guess) if sc.initial_guess is not None else None
+    pos0 = _initial_positions(sc.problem)
+    if pos0 is not None and "position" in ds:
+        ds["initial_position"] = (
+            ds["position"].dims[1:],
+            pos0,
+            {"long_name": "position in the scene's initial state (the reference of displacements)",
+             "units": "length"},
+        )
+        if sc.measure is not None:
+            k = pos0.shape[-1]
+            value = sc.measure(ds["position"].values[0].reshape(-1, k), pos0.reshape(-1, k))
+            ds.attrs["measure"] = sc.measure.describe()
+            ds.attrs["measured_displacement"] = value
+            config["run"]["measure"] = sc.measure.describe()
+    _finish(ds, sc, config, command)
+    return ds
+
+
+def _parameter_comment(sc: Scene) -> str:
+    import numpy as np
+
+    if sc.parameter == "all":
+        return "λ multiplies every external load of the scene (end loads and body loads)"
+    b = sc.problem.boundaries[sc.parameter]
+    kind = "follower" if b.follower else "dead"
+    return f"λ multiplies the {kind} load {np.asarray(b.load).tolist()} at boundary {sc.parameter!r}"
+
+
+def _follow_path(sc: Scene, command: str | None) -> Any:
+    """``continuation`` of the scene's problem with its ``[continuation]`` settings, as a run file."""
+    import numpy as np
+
+    from . import io
+    from .continuation import continuation
+
+    problem = sc.problem
+    pos0 = _initial_positions(problem)
+    flat0 = None if pos0 is None else pos0.reshape(-1, pos0.shape[-1])
+    measure = sc.measure
+    monitor = None
+    if measure is not None:
+
+        def monitor(snapshot: Any) -> float:
+            return measure(snapshot["position"].values[0], flat0)
+
+    ds = continuation(problem, monitor=monitor, **sc.solver_options)
+    if flat0 is not None:
+        k = flat0.shape[1]
+        labels = list(_AXIS_LABELS[:k]) if k <= 3 else [f"x{i}" for i in range(k)]
+        ds.coords["row"] = ("row", np.array(labels, dtype=object), {"long_name": "spatial axis"})
+        if problem.grid.d == 1:
+            ds.coords["u"] = ("node", problem.grid.coordinates(0),
+                              {"long_name": "material coordinate of the nodes", "units": "length"})
+        if "position" in ds:
+            ds["position"].attrs.update(long_name="position of the material point along the path", units="length")
+        ds["initial_position"] = (("node", "row"), flat0, {
+            "long_name": "position in the scene's initial state (the reference of displacements)",
+            "units": "length"})
+    if measure is not None:
+        ds["monitor"].attrs.update(long_name=f"{measure.describe()} (position − initial position)",
+                                   units="length")
+    elif flat0 is not None:
+        ds["monitor"].attrs.update(long_name="largest displacement of a node from its initial position",
+                                   units="length")
+    ds["load_factor"].attrs["comment"] = _parameter_comment(sc)
+    for name, long_name, units in (
+        ("newton_iterations", "corrector iterations of the path point", "1"),
+        ("step", "arclength step Δs to the path point", "1"),
+        ("branch", "branch index (0 before the branch switch, 1 after)", "1"),
+        ("critical_load", "load factor λ of the critical point", "1"),
+        ("critical_monitor", "monitored displacement at the critical point", ds["monitor"].attrs.get("units", "")),
+        ("critical_eig", "eigenvalue of smallest magnitude of the symmetric Jacobian part at the critical point", ""),
+        ("critical_kind", "kind of critical point (fold or bifurcation)", ""),
+        ("critical_path_index", "index along path of the first point past the critical point", "1"),
+        ("reaction", "reaction force at the pin (spatial component)", "force"),
+    ):
+        if name in ds:
+            ds[name].attrs.update({"long_name": long_name, **({"units": units} if units else {})})
+    wall = float(ds.attrs.get("wall_time", 0.0))
+    iters = int(ds.attrs.get("newton_iterations", 0))
+    options = dict(sc.solver_options)
+    config: dict[str, Any] = {
+        "problem": problem.to_dict(),
+        "run": {
+            "solver": "continuation",
+            "scheme": "lattice",
+            "parameter": sc.parameter,
+            "measure": measure.describe() if measure is not None else None,
+            **options,
+        },
+        "counters": {"newton_iterations": iters, "wall_time": wall},
+    }
+    title = ds.attrs.get("title") or f"{sc.name}: load continuation"
+    ds.attrs = {
+        "Conventions": io.CONVENTIONS,
+        "title": title,
+        "source": io.source_string(problem),
+        "history": "",
+        "references": _REFERENCES,
+        "comment": "written by cartan; cartan_config holds the full run configuration as JSON",
+        "units_convention": io.UNITS_CONVENTION,
+        "cartan_config": "",
+        "wall_time": wall,
+        "newton_iterations": iters,
+    }
+    _finish(ds, sc, config, command)
+    return ds
+
+
 # ---------------------------------------------------------------------------- public
 def _parse(path_or_dict: Any) -> tuple[dict, pathlib.Path | None, str]:
     if isinstance(path_or_dict, Mapping):
@@ -414,11 +957,13 @@ def load_scene(path_or_dict: str | pathlib.Path | Mapping[str, Any]) -> Scene:
     SceneError
         One line naming the file and the key for every problem found: malformed TOML,
         missing or unknown keys, unknown medium/integrator/scheme/load kind, a parameter the
-        medium rejects (e.g. a negative stiffness).
+        medium rejects (e.g. a negative stiffness), an unknown ``mode`` or a bad value in
+        ``[static]`` / ``[continuation]``.
     """
     data, path, label = _parse(path_or_dict)
     reader = _Reader(label)
     reader.no_extra(data, _TOP_KEYS, "")
+    mode = _mode(reader, data)
     name = reader.string(data, "name", "", required=False, default=path.stem if path else "")
     description = reader.string(data, "description", "", required=False)
     medium_name = reader.string(data, "medium", "")
@@ -441,8 +986,14 @@ def load_scene(path_or_dict: str | pathlib.Path | Mapping[str, Any]) -> Scene:
         msg = _one_line(exc)
         key = _problem_error_key(msg)
         raise reader.fail("" if msg.startswith(key) else key, msg) from None
-    run = _run(reader, data, problem)
-    return Scene(problem=problem, name=name, description=description, source=data, path=path, **run)
+    if mode == "dynamic":
+        settings = _run(reader, data, problem)
+    elif mode == "static":
+        settings = _static(reader, data, problem, path)
+    else:
+        settings = _continuation(reader, data, problem)
+    return Scene(problem=problem, name=name, description=description, mode=mode, source=data, path=path,
+                 **settings)
 
 
 def scene(name: str) -> Scene:

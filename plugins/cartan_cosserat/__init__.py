@@ -4,8 +4,9 @@ Registered through the ``cartan`` entry point ``cosserat = "cartan_cosserat.plug
 
 * media ``"cosserat-rod"`` (:class:`~cartan_cosserat.rod.CosseratRod`, paper §VI.C) and
   ``"planar-cosserat-rod"`` (:class:`~cartan_cosserat.rod.PlanarCosseratRod`);
-* scenes ``"rod-cantilever-gravity"``, ``"rod-butterfly"``, ``"rod-ring-relax"``
-  (TOML files in :mod:`cartan_cosserat.scenes`).
+* scenes ``"rod-cantilever-gravity"``, ``"rod-butterfly"``, ``"rod-ring-relax"`` (dynamic) and
+  ``"rod-timoshenko-static"``, ``"rod-euler-buckling"``, ``"rod-elastica-continuation"`` (static and
+  continuation runs) — TOML files in :mod:`cartan_cosserat.scenes`.
 """
 
 from .rod import (

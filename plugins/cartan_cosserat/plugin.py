@@ -15,6 +15,13 @@ SCENES = {
     "rod-ring-relax": SCENE_DIR / "rod-ring-relax.toml",
 }
 
+#: static and continuation scenes (``mode = "static"`` / ``"continuation"``; run by ``cartan run``)
+STATIC_SCENES = {
+    "rod-timoshenko-static": SCENE_DIR / "rod-timoshenko-static.toml",
+    "rod-euler-buckling": SCENE_DIR / "rod-euler-buckling.toml",
+    "rod-elastica-continuation": SCENE_DIR / "rod-elastica-continuation.toml",
+}
+
 
 @cartan.hookimpl
 def cartan_register_media(register):
@@ -26,5 +33,5 @@ def cartan_register_media(register):
 
 @cartan.hookimpl
 def cartan_register_scenes(register):
-    for name, path in SCENES.items():
+    for name, path in {**SCENES, **STATIC_SCENES}.items():
         register(name, path)
