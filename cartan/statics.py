@@ -103,6 +103,63 @@ def _stencil_pairs(shape: tuple[int, ...], periodic: tuple[bool, ...]) -> tuple[
     return pairs[:, 0], pairs[:, 1]
 
 
+def _coloured_jacobian(displaced, colour: np.ndarray, src: np.ndarray, dst: np.ndarray, unknown: np.ndarray,
+                       index: np.ndarray, shape: tuple[int, ...], step: float):
+    """Sparse Jacobian of a nodal residual by coloured central finite differences.
+
+    Parameters
+    ----------
+    displaced : callable ``(direction, eps) -> residual``
+        The residual ``[*shape, r]`` at the point displaced by ``eps`` along ``direction``
+        ``[*shape, r]`` (e.g. the scheme's drift by ``eps·direction``, or ``x + eps·direction``).
+    colour : array ``(nnode,)``
+        :func:`_colouring` (nodes of one colour have disjoint stencils).
+    src, dst : arrays ``(npairs,)``
+        :func:`_stencil_pairs`: node ``dst`` is in the stencil of node ``src``.
+    unknown : bool array ``(nnode, r)``
+        The unknowns (other residual entries and directions are left out).
+    index : int array ``(nnode, r)``
+        Position of each unknown in the unknown vector (−1 elsewhere).
+    shape : tuple of int
+        Node shape of the grid.
+    step : float
+        Finite-difference step ``eps``.
+
+    Returns
+    -------
+    scipy.sparse.csc_matrix, shape ``(nunk, nunk)``
+        ``J[i, j] = ∂r_i/∂x_j``: 2 residual evaluations per colour and component.
+    """
+    import scipy.sparse as sp
+
+    nnode, r_dim = unknown.shape
+    nunk = int(unknown.sum())
+    rows, cols, vals = [], [], []
+    for c in range(int(colour.max()) + 1):
+        nodes = colour == c
+        sel = nodes[src]
+        s_c, d_c = src[sel], dst[sel]
+        for a in range(r_dim):
+            pert = np.zeros((nnode, r_dim))
+            pert[nodes & unknown[:, a], a] = 1.0
+            if not pert.any():
+                continue
+            pert = pert.reshape(*shape, r_dim)
+            diff = ((displaced(pert, step) - displaced(pert, -step)) / (2 * step)).reshape(nnode, r_dim)
+            col = index[s_c, a]
+            ok = col >= 0
+            rr = index[d_c[ok]]  # [pairs, r]
+            vv = diff[d_c[ok]]
+            cc = np.broadcast_to(col[ok, None], rr.shape)
+            m = rr >= 0
+            rows.append(rr[m])
+            cols.append(cc[m])
+            vals.append(vv[m])
+    if not rows:
+        return sp.csc_matrix((nunk, nunk))
+    return sp.csc_matrix((np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols))), shape=(nunk, nunk))
+
+
 def _initial_phi(problem: Problem, initial: Any) -> InitialState:
     g = problem.medium.group
     if initial is None:
@@ -181,7 +238,6 @@ def solve_static(
     ConvergenceError
         No equilibrium was found (see the module docstring).
     """
-    import scipy.sparse as sp
     import scipy.sparse.linalg as spla
 
     from . import io
@@ -231,35 +287,12 @@ def solve_static(
         return total if lam == 1.0 else internal + lam * (total - internal)
 
     def assemble(st, lam: float):
-        rows, cols, vals = [], [], []
-        for c in range(int(colour.max()) + 1):
-            nodes = colour == c
-            sel = nodes[src]
-            s_c, d_c = src[sel], dst[sel]
-            for a in range(r_dim):
-                pert = np.zeros((nnode, r_dim))
-                pert[nodes & unknown_flat[:, a], a] = 1.0
-                if not pert.any():
-                    continue
-                pert = pert.reshape(*shape, r_dim)
-                plus, minus = st.copy(), st.copy()
-                sch.drift(plus, fd_step, pert)
-                sch.drift(minus, -fd_step, pert)
-                diff = ((residual(plus, lam) - residual(minus, lam)) / (2 * fd_step)).reshape(nnode, r_dim)
-                col = index[s_c, a]
-                ok = col >= 0
-                rr = index[d_c[ok]]  # [pairs, r]
-                vv = diff[d_c[ok]]
-                cc = np.broadcast_to(col[ok, None], rr.shape)
-                m = rr >= 0
-                rows.append(rr[m])
-                cols.append(cc[m])
-                vals.append(vv[m])
-        if not rows:
-            return sp.csc_matrix((nunk, nunk))
-        return sp.csc_matrix(
-            (np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols))), shape=(nunk, nunk)
-        )
+        def displaced(direction: np.ndarray, eps: float) -> np.ndarray:
+            trial = st.copy()
+            sch.drift(trial, eps, direction)
+            return residual(trial, lam)
+
+        return _coloured_jacobian(displaced, colour, src, dst, unknown_flat, index, shape, fd_step)
 
     history: list[float] = []
     factors: list[float] = []

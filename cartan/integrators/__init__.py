@@ -1,6 +1,8 @@
-"""Time integrators: the :class:`Integrator` contract and the explicit integrators."""
+"""Time integrators: the :class:`Integrator` contract, the explicit integrators and the implicit midpoint rule."""
 
 from .base import Integrator
 from .explicit import RKMK4, ForwardEuler, Kinematic, LieEuler, LieVerlet, Overdamped
+from .implicit import ImplicitMidpoint
 
-__all__ = ["RKMK4", "ForwardEuler", "Integrator", "Kinematic", "LieEuler", "LieVerlet", "Overdamped"]
+__all__ = ["RKMK4", "ForwardEuler", "ImplicitMidpoint", "Integrator", "Kinematic", "LieEuler", "LieVerlet",
+           "Overdamped"]

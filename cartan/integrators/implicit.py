@@ -1,0 +1,406 @@
+"""The implicit midpoint Lie-group integrator ``implicit-midpoint`` (symplectic, A-stable).
+
+Method
+------
+A variational (Hamilton–Pontryagin) integrator for the Hamiltonian system of paper §V,
+``Φ̇ = ΦN``, ``Ṡ = ad_NᵀS + W`` with ``W = D*Q + T`` (``Ṡ + ad*_N S = W``), built from the
+discrete Lagrangian with the exponential map and the force at the midpoint of the step::
+
+    L_d(Φ_k, Φ_{k+1}) = Δt Σ_i w_i [K(ξ_i/Δt) − U(Φ_{k+½})],  Φ_{k+1} = Φ_k exp(ξ),
+                                                           Φ_{k+½} = Φ_k exp(ξ/2).
+
+One step from ``(Φ_k, S_k)`` solves, node by node, for ``ξ = Δt N_{k+½} ∈ 𝔤``::
+
+    R(ξ) = dexp⁻¹_ξᵀ μ − Δt B(ξ)ᵀ W_{k+½} − S_k = 0,          (stage equation)
+    μ = ∂K/∂N(ξ/Δt),   B(ξ) = (I + Ad_{exp(ξ/2)})⁻¹,
+    W_{k+½} = W(Φ_k exp(ξ/2), ξ/Δt, t_k + Δt/2),
+
+then sets ``Φ_{k+1} = Φ_k exp(ξ)`` (the scheme's exact drift; on the lattice the edges are
+conjugated, so temporal integrability is exact) and::
+
+    S_{k+1} = dexp⁻¹_{−ξ}ᵀ μ + Δt (I − B(ξ))ᵀ W_{k+½}.
+
+``B(ξ)`` and ``I − B(ξ) = (I + Ad_{exp(−ξ/2)})⁻¹`` are the left-trivialised derivatives of the
+midpoint ``Φ_k exp(ξ/2)`` with respect to Φ_k and Φ_{k+1}; they share the midpoint force
+between the two ends of the step (``½`` each on an abelian group).  Non-conservative loads
+(damping, follower loads, velocity-dependent body forces) enter by the discrete
+Lagrange–d'Alembert principle with the same weights.
+
+Properties
+----------
+* **order 2**: the discrete Lagrangian is symmetric (``Φ_{k+½}`` is also
+  ``Φ_{k+1} exp(−ξ/2)``), so the method is time-reversible, hence of even order;
+* **symplectic** on T*G (a discrete Lagrangian method) and, for loads that are conservative,
+  with bounded energy error and no drift (backward error analysis); on an abelian group (a
+  vector space) it *is* the classical implicit midpoint rule, which conserves every quadratic
+  invariant — the energy of a linear problem exactly;
+* **momentum maps**: ``L_d`` is invariant under Φ → gΦ when the potential is (no loads,
+  free ends), so the total spatial momentum ``Σ w Ad_{Φ⁻¹}ᵀS`` (linear and angular momentum
+  of a rod) is conserved exactly for the solved ``ξ`` — in practice to the Newton
+  tolerance, since ``J(Φ_{k+1}, S_{k+1}) = J(Φ_k, S_k + R(ξ))`` identically;
+* **stays in G** (round-off) and **A-stable**: no stability limit on Δt for the linearised
+  undamped system (``stability = inf``).  Unresolved modes (Δt·ω ≫ 1) are neither damped
+  nor, for nonlinear problems, energy-bounded: they flip sign every step, and a
+  large-amplitude motion can feed them by resonance until the energy grows.  The usable Δt is
+  set by that, by accuracy and by the convergence of Newton's method — far above the
+  explicit limit when the stiff modes are slaved to a slow motion (thin rods bending:
+  ``cartan_verification.stiff``).
+
+Newton's method
+---------------
+Unknowns: ξ at the live components of every non-clamped node; the initial guess is the
+previous step's ξ (scaled by the ratio of the steps), else ΔtN_k.  The Jacobian ``∂R/∂ξ``
+is assembled by coloured central finite differences (:func:`cartan.statics._coloured_jacobian`
+with the colouring and stencil of :func:`cartan.statics._colouring` and
+:func:`cartan.statics._stencil_pairs`: ``2·3^d·r`` residual evaluations on the lattice, whose
+force has a nearest-neighbour stencil; the dense pattern for other schemes, up to
+:data:`MAX_DENSE_UNKNOWNS` unknowns) and factorised by sparse LU.  The factorisation is kept
+across steps (modified Newton).  An iteration that reduces ``‖R‖_*`` by less than the factor
+``contraction`` discards it, so the next iteration uses a fresh Jacobian at the current
+iterate; an iterate that does not decrease ``‖R‖_*`` at all is rejected (kept Jacobian) or
+halved up to :data:`MAX_HALVINGS` times (fresh Jacobian).  The Jacobian is also discarded
+when Δt changes and at every :meth:`ImplicitMidpoint.begin_block` (called by
+:func:`cartan.simulate` at each save block, where a restart can resume, so that a restarted
+run is bit-for-bit identical to the uninterrupted one).
+
+Converged when ``‖R‖_* ≤ tol·‖N_{k+½}‖_M`` with the kinetic-energy norms
+``‖N‖_M² = Σ w m N²`` and ``‖R‖_*² = Σ w R²/m`` (a relative velocity error), when ``‖R‖_*``
+is at the round-off level of its terms, or when a Newton increment is at the round-off level
+of the configuration (``‖δξ‖_∞ ≤`` :data:`XTOL`·max(1, L)).  After ``max_iter`` iterations
+without convergence, or when no decrease is found, the step raises
+:class:`cartan.statics.ConvergenceError` and leaves the state untouched;
+:func:`cartan.simulate` turns it into its :class:`~cartan.simulate.InstabilityError` with
+the last good state saved.
+
+Cost per step: 2–5 residual evaluations (one force evaluation, one drift to the midpoint and
+batched ``r × r`` algebra each) plus, when the Jacobian is refreshed, ``2·3^d·r`` residual
+evaluations and a sparse LU of a banded matrix (lattice, d = 1).
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from typing import Any
+
+import numpy as np
+
+from ..schemes.base import Scheme, State
+from .base import Integrator
+
+__all__ = ["ImplicitMidpoint"]
+
+#: dense finite-difference Jacobians (schemes other than the lattice) up to this many unknowns
+MAX_DENSE_UNKNOWNS = 3000
+#: a Newton step with ‖δξ‖_∞ ≤ XTOL·max(1, L) (L the largest grid length) is at the round-off
+#: level of the configuration: converged even when R (then round-off noise) does not decrease
+XTOL = 1e-12
+#: backtracking halvings with a fresh Jacobian before a step is declared failed
+MAX_HALVINGS = 10
+
+
+def _check_option(name: str, value: Any, lo: float, hi: float, allowed: str) -> float:
+    if isinstance(value, bool) or not isinstance(value, int | float | np.floating | np.integer):
+        raise ValueError(f"{name} must be a number in {allowed}, got {value!r}")
+    v = float(value)
+    if not (math.isfinite(v) and lo < v < hi):
+        raise ValueError(f"{name} must be in {allowed}, got {value!r}")
+    return v
+
+
+class _Plan:
+    """Unknown layout and Jacobian sparsity of one scheme (built once per scheme)."""
+
+    def __init__(self, scheme: Scheme):
+        from ..schemes.lattice import Lattice
+        from ..statics import _colouring, _stencil_pairs
+
+        shape = tuple(scheme.grid.shape)
+        r = scheme.group.dim
+        nnode = int(np.prod(shape))
+        unknown = np.broadcast_to(scheme.live, (*shape, r)).copy()
+        unknown[scheme._clamped] = False
+        self.shape = shape
+        self.unknown = unknown
+        self.unknown_flat = unknown.reshape(nnode, r)
+        self.nunk = int(unknown.sum())
+        self.index = -np.ones((nnode, r), dtype=np.int64)
+        self.index[self.unknown_flat] = np.arange(self.nunk)
+        if isinstance(scheme, Lattice):
+            self.colour = _colouring(shape, tuple(scheme.grid.periodic))
+            self.src, self.dst = _stencil_pairs(shape, tuple(scheme.grid.periodic))
+        else:
+            if self.nunk > MAX_DENSE_UNKNOWNS:
+                raise ValueError(
+                    f"implicit-midpoint supports the 'lattice' scheme at any size (coloured sparse Jacobian) and "
+                    f"other schemes up to {MAX_DENSE_UNKNOWNS} unknowns (dense Jacobian); scheme {scheme.name!r} "
+                    f"has {self.nunk} unknowns here"
+                )
+            self.colour = np.arange(nnode)
+            self.src, self.dst = (a.ravel() for a in np.meshgrid(np.arange(nnode), np.arange(nnode), indexing="ij"))
+        w = scheme.weights[..., None]
+        m = scheme.mass
+        inv = np.where(m > 0, 1.0 / np.where(m > 0, m, 1.0), 0.0)
+        self.w_over_m = np.broadcast_to(w * inv, (*shape, r))[unknown]  # ‖R‖_*² = Σ w R²/m
+        self.w_times_m = np.broadcast_to(w * m, (*shape, r))[unknown]  # ‖N‖_M² = Σ w m N²
+        self.length = max(1.0, float(np.max(scheme.grid.length)))
+
+
+class ImplicitMidpoint(Integrator):
+    """Symplectic implicit midpoint Lie-group integrator, solved by Newton's method (see module docstring).
+
+    Parameters
+    ----------
+    tol : float, default 1e-10
+        Relative Newton tolerance in (0, 1): ``‖R‖_* ≤ tol·‖N_{k+½}‖_M`` (a relative error of
+        the midpoint velocity; see the module docstring for the round-off criteria).
+    max_iter : int, default 25
+        Newton iterations allowed per step (≥ 1); then :class:`cartan.statics.ConvergenceError`.
+    fd_step : float, default 1e-6
+        Central finite-difference step of the Jacobian along ξ (> 0), in the units of the
+        Lie-algebra components (radians, lengths), like :func:`cartan.statics.solve_static`.
+    contraction : float, default 0.25
+        In (0, 1): a kept Jacobian is discarded when an iteration reduces ``‖R‖_*`` by less
+        than this factor.
+    reuse_jacobian : bool, default True
+        Keep the factorised Jacobian across steps (modified Newton); False assembles it at
+        the start of every step (full cost, fewest iterations).
+    predictor : bool, default True
+        Start Newton's method from the previous step's ξ (when the step continues the last
+        one) instead of ΔtN_k, which at Δt·ω_max ≫ 1 carries the unresolved stiff oscillation.
+
+    Attributes
+    ----------
+    nstep, nforce, wall_time
+        The :class:`~cartan.integrators.base.Integrator` counters (``nforce`` includes the
+        finite-difference Jacobians' force evaluations).
+    newton_iterations : int
+        Newton iterations (residual evaluations after the first of each step) in total.
+    jacobians : int
+        Jacobian assemblies (and sparse LU factorisations) in total.
+    """
+
+    name = "implicit-midpoint"
+    order = 2
+    symplectic = True
+    explicit = False
+    stability = np.inf
+
+    def __init__(self, tol: float = 1e-10, max_iter: int = 25, fd_step: float = 1e-6, contraction: float = 0.25,
+                 reuse_jacobian: bool = True, predictor: bool = True):
+        self.tol = _check_option("tol", tol, 0.0, 1.0, "(0, 1)")
+        if isinstance(max_iter, bool) or not isinstance(max_iter, int | np.integer) or max_iter < 1:
+            raise ValueError(f"max_iter must be an integer ≥ 1, got {max_iter!r}")
+        self.max_iter = int(max_iter)
+        self.fd_step = _check_option("fd_step", fd_step, 0.0, math.inf, "(0, inf)")
+        self.contraction = _check_option("contraction", contraction, 0.0, 1.0, "(0, 1)")
+        if not isinstance(reuse_jacobian, bool | np.bool_):
+            raise ValueError(f"reuse_jacobian must be True or False, got {reuse_jacobian!r}")
+        self.reuse_jacobian = bool(reuse_jacobian)
+        if not isinstance(predictor, bool | np.bool_):
+            raise ValueError(f"predictor must be True or False, got {predictor!r}")
+        self.predictor = bool(predictor)
+        self._plan: tuple[Scheme, _Plan] | None = None
+        super().__init__()
+
+    def options(self) -> dict[str, Any]:
+        return {"tol": self.tol, "max_iter": self.max_iter, "fd_step": self.fd_step,
+                "contraction": self.contraction, "reuse_jacobian": self.reuse_jacobian, "predictor": self.predictor}
+
+    def reset(self) -> None:
+        super().reset()
+        self.newton_iterations = 0
+        self.jacobians = 0
+        self._cache: dict[str, Any] | None = None  # the last step: continuation key, Δt, ξ, Jacobian factor
+
+    def begin_block(self) -> None:
+        """Forget the previous step (kept Jacobian, previous ξ): the next step starts afresh,
+        exactly as a run restarted here would (called by :func:`cartan.simulate` at the start
+        of every save block)."""
+        self._cache = None
+
+    def step(self, scheme: Scheme, state: State, dt: float) -> None:
+        """Advance ``state`` in place by one step of size ``dt``.
+
+        As :meth:`Integrator.step`, except that the dissipated and external powers are
+        integrated by the midpoint rule at ``(Φ_k exp(ξ/2), N_{k+½})`` — the quadrature of the
+        method itself, so that the energy balance of a linear damped or forced problem closes
+        to the Newton tolerance (the end-point trapezoidal rule does not, when Δt·γ/m ≫ 1).
+        """
+        t0 = time.perf_counter()
+        self._mid_powers = {"dissipated": 0.0, "external": 0.0}
+        self._step(scheme, state, dt)
+        state.t = state.t + dt
+        for key, name in (("dissipated", "dissipated_energy"), ("external", "external_work")):
+            state.scalars[name] = state.scalars.get(name, 0.0) + dt * self._mid_powers[key]
+        state.scalars["nstep"] = state.scalars.get("nstep", 0) + 1
+        self.nstep += 1
+        self.wall_time += time.perf_counter() - t0
+
+    # ------------------------------------------------------------------ pieces
+    def _layout(self, scheme: Scheme) -> _Plan:
+        if self._plan is None or self._plan[0] is not scheme:
+            if not np.any(scheme.live):
+                raise ValueError(
+                    "implicit-midpoint needs a medium with inertia (some inertia() > 0); "
+                    f"{scheme.medium.name or type(scheme.medium).__name__!r} has none"
+                )
+            self._plan = (scheme, _Plan(scheme))
+            self._cache = None
+        return self._plan[1]
+
+    def _residual(self, scheme: Scheme, state: State, xi: np.ndarray, dt: float) -> dict[str, np.ndarray] | None:
+        """Stage residual R(ξ) and its pieces; None when ξ is outside the domain of dexp⁻¹."""
+        g = scheme.group
+        if np.any(g.log_domain_norm(xi) >= g.injectivity_radius):
+            return None
+        mid = state.copy()
+        scheme.drift(mid, 0.5, xi)
+        N = xi / dt
+        W = self.force(scheme, mid, N, state.t + 0.5 * dt)
+        mu = scheme.medium.momentum(N)
+        lhs = np.swapaxes(np.eye(g.dim) + g.Ad(g.exp(0.5 * xi)), -1, -2)
+        BW = np.linalg.solve(lhs, W[..., None])[..., 0]  # B(ξ)ᵀ W
+        Dmu = np.einsum("...ji,...j->...i", g.dexp_inv(xi), mu)
+        R = Dmu - dt * BW - state.S
+        return {"R": R, "W": W, "BW": BW, "mu": mu, "Dmu": Dmu, "mid": mid}
+
+    def _jacobian(self, scheme: Scheme, state: State, xi: np.ndarray, dt: float, plan: _Plan):
+        import scipy.sparse.linalg as spla
+
+        from ..statics import _coloured_jacobian
+
+        def displaced(direction: np.ndarray, eps: float) -> np.ndarray:
+            res = self._residual(scheme, state, xi + eps * direction, dt)
+            if res is None:
+                raise FloatingPointError("finite-difference point outside the domain of exp")
+            return res["R"]
+
+        J = _coloured_jacobian(displaced, plan.colour, plan.src, plan.dst, plan.unknown_flat, plan.index,
+                               plan.shape, self.fd_step)
+        self.jacobians += 1
+        with np.errstate(all="ignore"):
+            lu = spla.splu(J.tocsc())
+        return lu
+
+    # ------------------------------------------------------------------ step
+    def _step(self, scheme: Scheme, state: State, dt: float) -> None:
+        plan = self._layout(scheme)
+        g = scheme.group
+        unk = plan.unknown
+        key = (id(state), state.t, state.scalars.get("nstep", 0))
+        cache = self._cache if self._cache is not None and self._cache["key"] == key else None
+        lu = cache["lu"] if cache is not None and self.reuse_jacobian and cache["dt"] == dt else None
+        fresh = False
+
+        def dnorm(y: np.ndarray) -> float:  # ‖y‖_* of a momentum density y [*shape, r]
+            return float(np.sqrt(np.sum(plan.w_over_m * y[unk] ** 2)))
+
+        def vnorm(v: np.ndarray) -> float:  # ‖v‖_M of a velocity v [*shape, r]
+            return float(np.sqrt(np.sum(plan.w_times_m * v[unk] ** 2)))
+
+        xi = np.zeros_like(state.S)
+        res = None
+        if cache is not None and self.predictor:
+            # ξ_{k+½} ≈ ξ_{k−½}(Δt/Δt_prev): the midpoint velocities are smooth, whereas the step
+            # momentum S_k carries the unresolved stiff oscillation when Δt·ω_max ≫ 1
+            guess = xi.copy()
+            guess[unk] = (dt / cache["dt"]) * cache["xi"][unk]
+            res = self._residual(scheme, state, guess, dt)
+            if res is not None:
+                xi = guess
+        if res is None:
+            # no previous step: the better of ξ = ΔtN_k and ξ = 0 (the former is poor, or even
+            # beyond the injectivity radius of exp, when S_k carries a stiff oscillation)
+            xi[unk] = dt * scheme.velocity(state)[unk]
+            res = self._residual(scheme, state, xi, dt)
+            if np.any(xi):
+                zero = np.zeros_like(xi)
+                res0 = self._residual(scheme, state, zero, dt)
+                if res is None or dnorm(res0["R"]) < dnorm(res["R"]):
+                    xi, res = zero, res0
+        rn = dnorm(res["R"])
+        history = [rn]
+        it = 0
+        while True:
+            if not math.isfinite(rn):
+                raise self._failure(state, dt, it, rn, history, "the residual is not finite")
+            # converged: a relative velocity error below tol, or R at the round-off level of its terms
+            floor = 64 * np.finfo(float).eps * (dnorm(state.S) + dnorm(res["Dmu"]) + abs(dt) * dnorm(res["BW"]))
+            if plan.nunk == 0 or rn <= max(self.tol * vnorm(xi) / abs(dt), floor):
+                break
+            if it >= self.max_iter:
+                raise self._failure(state, dt, it, rn, history,
+                                    f"the iteration limit max_iter = {self.max_iter} was reached")
+            if lu is None:
+                try:
+                    lu = self._jacobian(scheme, state, xi, dt, plan)
+                except (RuntimeError, FloatingPointError) as exc:
+                    raise self._failure(state, dt, it, rn, history, f"the Jacobian is singular ({exc})") from None
+                fresh = True
+            with np.errstate(all="ignore"):
+                delta = lu.solve(-res["R"][unk])
+            if not np.all(np.isfinite(delta)):
+                raise self._failure(state, dt, it, rn, history, "the Jacobian is singular (non-finite Newton step)")
+            negligible = float(np.max(np.abs(delta))) <= XTOL * plan.length
+            alpha = 1.0
+            accepted = done = False
+            for _ in range(MAX_HALVINGS + 1 if fresh else 1):
+                trial = xi.copy()
+                trial[unk] += alpha * delta
+                res_t = self._residual(scheme, state, trial, dt)
+                rn_t = math.inf if res_t is None else dnorm(res_t["R"])
+                it += 1
+                if negligible and res_t is not None:
+                    # a Newton step at the round-off level of ξ: what is left of R is round-off noise
+                    accepted = done = True
+                    break
+                if rn_t < rn:
+                    accepted = True
+                    break
+                if not fresh or it >= self.max_iter:
+                    break
+                alpha *= 0.5
+            if accepted:
+                slow = rn_t > self.contraction * rn
+                xi, res, rn = trial, res_t, rn_t
+                history.append(rn)
+                fresh = False
+                if done:
+                    break
+                if slow:
+                    lu = None  # convergence slows: the next iteration uses a Jacobian at the new iterate
+            elif not fresh:
+                lu = None  # a kept Jacobian that no longer contracts: a fresh one at the current iterate
+            elif it >= self.max_iter:
+                raise self._failure(state, dt, it, rn, history,
+                                    f"the iteration limit max_iter = {self.max_iter} was reached")
+            else:
+                raise self._failure(state, dt, it, rn, history,
+                                    f"no decrease of the residual along the Newton step after {MAX_HALVINGS} halvings")
+        self.newton_iterations += it
+        # the powers at the midpoint, for the energy bookkeeping of step()
+        if scheme.has_external_power():
+            self._mid_powers = scheme.powers(res["mid"], xi / dt, state.t + 0.5 * dt)
+        # advance: Φ ← Φ exp(ξ), S ← dexp⁻¹_{−ξ}ᵀ μ + Δt (I − B)ᵀ W
+        S_new = np.einsum("...ji,...j->...i", g.dexp_inv(-xi), res["mu"]) + dt * (res["W"] - res["BW"])
+        scheme.drift(state, 1.0, xi)
+        state.S = S_new
+        scheme.constrain(state)
+        self._cache = {"key": (id(state), state.t + dt, state.scalars.get("nstep", 0) + 1), "dt": dt, "xi": xi,
+                       "lu": lu if self.reuse_jacobian else None}
+
+    def _failure(self, state: State, dt: float, it: int, rn: float, history: list[float], reason: str):
+        from ..statics import ConvergenceError
+
+        self.newton_iterations += it
+        self._cache = None
+        tail = ", ".join(f"{x:.3e}" for x in history[-6:])
+        return ConvergenceError(
+            f"implicit-midpoint: Newton's method did not converge in the step from t = {state.t:.6g} with "
+            f"Δt = {dt:.3g} after {it} iteration(s), residual ‖R‖ = {rn:.3e}: {reason} (last residuals: {tail}); "
+            "reduce Δt or raise max_iter",
+            it,
+            rn,
+            history,
+        )
