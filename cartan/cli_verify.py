@@ -9,10 +9,12 @@
     runs every registered case (or the selected ones) and writes a report: ``README.md`` (one
     row per case × integrator × scheme: error, observed against expected order, pass/fail,
     tolerance and its reason), the charts (error against dx or Δt, work-precision) and
-    ``verification.nc`` with every number.  When ``rod-axial-wave-free`` is selected it also
-    compares every integrator × scheme on it (:data:`METHOD_INTEGRATORS` × :data:`METHOD_SCHEMES`):
-    work-precision, error against dx and the invariants (integrability residual, energy error)
-    against time.  Exit status 1 when a check fails.
+    ``verification.nc`` with every number.  Static cases (equilibria; "integrator" ``newton``)
+    are refined in space like the others.  When ``rod-ring-flexural-wave`` (:data:`METHOD_CASE`)
+    is selected it also compares every integrator × scheme on it (:data:`METHOD_INTEGRATORS` ×
+    :data:`METHOD_SCHEMES`): work-precision, error against dx, the invariants (integrability
+    residual, energy error) against time and the integrability residual level by level.  Exit
+    status 1 when a check fails.
 
 Bad input prints one line ``cartan: error: ...`` on stderr and exits with status 2.
 :func:`register` adds the commands to a click group.
@@ -33,8 +35,10 @@ __all__ = ["converge_cmd", "register", "verify_cmd"]
 
 
 
-#: The analytic rod case on which ``cartan verify`` compares every integrator × scheme.
-METHOD_CASE = "rod-axial-wave-free"
+#: The analytic rod case on which ``cartan verify`` compares every integrator × scheme: a
+#: flexural wave of a ring, whose motion mixes non-commuting translations and rotations, so that
+#: the integrability of the stored strains is a real constraint.
+METHOD_CASE = "rod-ring-flexural-wave"
 METHOD_INTEGRATORS = ("lie-verlet", "rkmk4", "lie-euler", "forward-euler")
 METHOD_SCHEMES = ("lattice", "collocation")
 #: The method of the paper (collocation in space, Lie–Euler in time).
@@ -87,7 +91,8 @@ _store_option = click.option(
 @click.command("converge", cls=_OneLineCommand)
 @click.argument("case_name", metavar="CASE")
 @click.option("-i", "--integrator", "integrators", multiple=True, help="Integrator (repeatable; default: the case's).")
-@click.option("-s", "--scheme", "schemes", multiple=True, help="Scheme (repeatable; default: lattice).")
+@click.option("-s", "--scheme", "schemes", multiple=True,
+              help="Scheme (repeatable; default: the case's default schemes, else lattice).")
 @click.option("--levels", type=int, default=None, help="Refinement levels (default: the case's, at least 2).")
 @click.option("--refine", type=click.Choice(["space", "time", "both"]), default=None,
               help="What to refine (default: space if the case is refined in space, else time).")
@@ -142,7 +147,8 @@ def _prefixed(ds: Any, name: str) -> Any:
 @click.command("verify", cls=_OneLineCommand)
 @click.option("--medium", "media", multiple=True, help="Only the cases of this medium (repeatable).")
 @click.option("--case", "case_names", multiple=True, help="Only this case (repeatable).")
-@click.option("-s", "--scheme", "schemes", multiple=True, help="Scheme (repeatable; default: lattice).")
+@click.option("-s", "--scheme", "schemes", multiple=True,
+              help="Scheme (repeatable; default: the case's default schemes, else lattice).")
 @click.option("--quick", is_flag=True, help="The case's own levels (the full run adds one finer level).")
 @click.option("--out", "out_dir", type=click.Path(file_okay=False, path_type=pathlib.Path),
               default=pathlib.Path("docs/verification"), show_default=True, help="Report directory.")
@@ -202,7 +208,7 @@ def verify_cmd(media, case_names, schemes, quick, out_dir, scheduler, store) -> 
                     ds.attrs["refine"], _fmt(float(sel["error"][-1])),
                     f"{_fmt(float(sel['observed_order']), '.2f')} vs {_fmt(float(sel['expected_order']), 'g')}",
                     "pass" if ok else "**FAIL**",
-                    f"{_fmt(ds.attrs['tolerance'])}: {ds.attrs['tolerance_reason']}",
+                    f"{_fmt(float(sel['tolerance']))}: {ds.attrs['tolerance_reason']}",
                     f"[error]({charts[0].name}), [work]({charts[1].name})")) + " |")
     method_text = ""
     if METHOD_CASE in selected:
@@ -247,7 +253,9 @@ def _method_study(case: Any, quick: bool, out_dir: pathlib.Path, scheduler: Any,
     wp = study.plot_work_precision(ds, out_dir / f"{name}-methods-work-precision.png")
     ev = study.plot_error_vs_h(ds, out_dir / f"{name}-methods-error.png")
     inv = study.plot_traces(tr, out_dir / f"{name}-methods-invariants.png")
-    explicit = set(getattr(case, "tolerances", {}) or {}) | set(getattr(case, "default_integrators", ()))
+    judged = {str(k).split("/")[0] for k in (getattr(case, "tolerances", {}) or {})}
+    judged |= set(getattr(case, "default_integrators", ()))
+
     def short(status: str) -> str:
         m = re.search(r"unstable at step \d+ \(t = [^)]*\)", status)
         return m.group(0) if m else status
@@ -257,12 +265,12 @@ def _method_study(case: Any, quick: bool, out_dir: pathlib.Path, scheduler: Any,
         for sch in ds["scheme"].values:
             sel = ds.sel(integrator=integ, scheme=sch)
             statuses = [str(v) for v in np.ravel(sel["status"].values) if str(v) != "ok"]
-            if integ in explicit:
+            if integ in judged:
                 ok = bool(sel["passed"])
                 total += 1
                 failed += not ok
                 result = "pass" if ok else "**FAIL**"
-                tol = _fmt(float(case.tolerance_for(str(integ))))
+                tol = _fmt(float(sel["tolerance"]))
             else:
                 result, tol = "—", "—"
             trace_status = str(tr["status"].sel(integrator=integ, scheme=sch).values)
@@ -279,32 +287,50 @@ def _method_study(case: Any, quick: bool, out_dir: pathlib.Path, scheduler: Any,
                 _fmt(resid) if trace_status == "ok" else "—", _fmt(energy) if trace_status == "ok" else "—",
                 status if trace_status == "ok" else f"{status}; level {middle}: {short(trace_status)}")) + " |")
 
-    def max_resid(sch: str) -> str:
-        vals = [float(tr["integrability_residual"].sel(integrator=i, scheme=sch).max(skipna=True))
-                for i in METHOD_INTEGRATORS if str(tr["status"].sel(integrator=i, scheme=sch).values) == "ok"]
-        vals = [v for v in vals if math.isfinite(v)]
-        return _fmt(max(vals)) if vals else "—"
+    # the integrability residual of every run, level by level (max over its saved frames)
+    nodes = [int(v) for v in ds["n"].isel(integrator=0, scheme=0).values]
+    resid_rows = []
+    for integ in ds["integrator"].values:
+        for sch in ds["scheme"].values:
+            sel = ds.sel(integrator=integ, scheme=sch)
+            vals = [float(v) if str(st) == "ok" else math.nan
+                    for v, st in zip(sel["integrability_residual"].values, sel["status"].values, strict=True)]
+            resid_rows.append("| " + " | ".join([f"{integ} / {sch}", *(_fmt(v) for v in vals)]) + " |")
 
-    resid_all = np.asarray(tr["integrability_residual"].values, float)
-    zero_note = (" (both at round-off: a purely axial motion stays in the commuting translations along e₁, where "
-                 "neither scheme has an integrability error to show)"
-                 if np.nanmax(np.where(np.isfinite(resid_all), resid_all, 0.0), initial=0.0) <= study.ROUNDOFF else "")
-    n_mid = int(ds["n"].isel(integrator=0, scheme=0, level=middle))
+    def residuals(sch: str, level: int) -> list[float]:
+        """Residuals of the judged (geometric, resolved) integrators' runs of ``sch`` at ``level``."""
+        sel = ds.sel(scheme=sch).isel(level=level)
+        return [float(v) for integ, v, st in zip(sel["integrator"].values, sel["integrability_residual"].values,
+                                                 sel["status"].values, strict=True)
+                if str(integ) in judged and str(st) == "ok" and math.isfinite(float(v))]
+
+    lattice_max = max((v for k in range(levels) for v in residuals("lattice", k)), default=math.nan)
+    colloc = [min(residuals("collocation", k), default=math.nan) for k in range(levels)]
+    resid_p = study.observed_order(1.0 / np.asarray(nodes, float), colloc)
+    n_mid = nodes[middle]
+    summary = (f"Temporal integrability residual (stored strains against those of the stepped frames, max over each "
+               f"run, with {' and '.join(sorted(judged))}): `lattice` stays at round-off — at most "
+               f"{_fmt(lattice_max)} over every level — while the strains `collocation` stores leave those of its "
+               f"frames: {' → '.join(_fmt(v) for v in colloc)} from n = {nodes[0]} to n = {nodes[-1]} "
+               f"(observed order {_fmt(resid_p, '.2f')} in dx).  The discrete ∂_u has no product rule, so every "
+               "step adds O(Δt·hᵖ) times the velocity gradient; on this standing wave the defect follows the "
+               "motion (it is largest at the half period, see the invariants chart).")
     text = (f"\n## Schemes and integrators on one analytic case: `{name}`\n\n"
             f"{getattr(case, 'description', '')}; refined in space over {levels} levels (all levels with the "
             f"finest level's Δt), every integrator × scheme, the paper's own method being "
             f"{PAPER_METHOD[1]} + {PAPER_METHOD[0]}.  Rows without a tolerance (integrators the case does not "
             "expect to be accurate here) are reported, not judged (—); a run that blows up has no error (—) "
-            "and its status says where it stopped.  The integrability residual and the relative energy error "
-            f"are the maxima over one run at level {middle} (n = {n_mid}, the case's own Δt).\n\n"
-            f"Integrability residual, max over the run at level {middle} and over the integrators that ran: "
-            f"lattice {max_resid('lattice')}, collocation {max_resid('collocation')}"
-            f"{zero_note}.\n\n"
+            "and its status says where it stopped.  The last two columns are the maxima over one run at level "
+            f"{middle} (n = {n_mid}, the case's own Δt).\n\n"
+            f"{summary}\n\n"
             f"Charts: [work-precision]({wp.name}), [error vs dx]({ev.name}), "
             f"[integrability residual and energy error vs t]({inv.name}).\n\n"
             "| integrator / scheme | error | wall time (all levels) [s] | observed vs expected order | tolerance "
             "| result | max integrability residual | max relative energy error | status |\n"
-            "|---|---|---|---|---|---|---|---|---|\n" + "\n".join(rows) + "\n")
+            "|---|---|---|---|---|---|---|---|---|\n" + "\n".join(rows) + "\n\n"
+            "Integrability residual by level (max over the run's saved frames; — where the run blew up):\n\n"
+            "| integrator / scheme | " + " | ".join(f"n = {n}" for n in nodes) + " |\n"
+            "|---|" + "---|" * len(nodes) + "\n" + "\n".join(resid_rows) + "\n")
     return text, [_prefixed(ds, f"{name}-methods"), _prefixed(tr, f"{name}-invariants")], total, failed
 
 

@@ -8,6 +8,10 @@ integrator's CFL estimate.  :func:`plot_work_precision`, :func:`plot_error_vs_h`
 :func:`plot_stability` chart them; :func:`traces` records the integrability residual and the
 relative energy error of one run per integrator × scheme, charted by :func:`plot_traces`.
 
+A case runs through its own ``case.run`` (a dynamic run by :func:`cartan.simulate`, or a
+static solve whose "integrator" is ``newton``; see ``cartan_verification.case``); an object
+without one is run by :func:`cartan.simulate`.
+
 Scale-out
 ---------
 Every (integrator, scheme, level) run is an independent task.  ``client=None`` runs them in
@@ -75,7 +79,10 @@ def _case_obj(case: Any) -> Any:
 
 
 def expected_order(case: Any, integrator: str, refine: str) -> float:
-    """The order the case expects for ``integrator`` under ``refine`` (nan when unknown)."""
+    """The order the case expects for ``integrator`` under ``refine`` (nan when unknown, or when
+    the case is met to round-off at every level: ``case.roundoff``)."""
+    if getattr(case, "roundoff", False):
+        return math.nan
     if getattr(case, "parameter_order", None) is not None:
         return float(case.parameter_order)
     space = getattr(case, "space_order", None)
@@ -122,6 +129,8 @@ def _settings(case: Any, level: int | str, scheme: str, refine: str, levels: int
     if refine == "space":
         problem, run = case.problem(int(level), scheme)
         run = dict(run)
+        if "dt" not in run:  # a static case: nothing to step in time
+            return problem, run
         finest = dict(case.problem(levels - 1, scheme)[1])
         dt = min(float(run["dt"]), float(finest["dt"]))
         if run.get("save_every"):  # the same saved times as the case asked for at this level
@@ -162,6 +171,35 @@ def _spacing(problem: Any) -> tuple[float, int]:
 
 
 # ---------------------------------------------------------------------------- one task
+def _execute(case: Any, problem: Any, run: dict, integrator: str, scheme: str, compiled: bool) -> Any:
+    """The Dataset of one run: ``case.run(problem, run, integrator, scheme, compiled)`` when the
+    case has it (verification cases: dynamic or static), else :func:`cartan.simulate`."""
+    fn = getattr(case, "run", None)
+    if callable(fn):
+        return fn(problem, run, integrator, scheme, compiled)
+    from .simulate import simulate
+
+    return simulate(problem, integrator=integrator, scheme=scheme, dt=run["dt"], t_end=run["t_end"],
+                    save_every=run.get("save_every"), compiled=compiled, progress=False,
+                    integrator_options=run.get("integrator_options"), scheme_options=run.get("scheme_options"))
+
+
+def _counters(ds: Any) -> dict[str, float]:
+    """nstep, nforce, wall_time of a run's Dataset (NaN where the run did not count them)."""
+    config = ds.attrs.get("cartan_config")
+    counters = json.loads(config).get("counters", {}) if config else {}
+    return {"nstep": float(counters.get("nstep", math.nan)), "nforce": float(counters.get("nforce", math.nan)),
+            "wall_time": float(counters.get("wall_time", ds.attrs.get("wall_time", math.nan)))}
+
+
+def _unstable_status(exc: Exception) -> str:
+    """The one-line reason of an InstabilityError, its last-good-state file removed."""
+    path = getattr(exc, "path", None)
+    if path is not None and pathlib.Path(path).name.startswith("cartan-unstable-"):
+        pathlib.Path(path).unlink(missing_ok=True)
+    return "unstable: " + re.sub(r";\s*last good state.*$", "", " ".join(str(exc).split()))
+
+
 def _store_path(store: str | os.PathLike, key: str) -> pathlib.Path:
     return pathlib.Path(store) / f"{key}.json"
 
@@ -196,7 +234,8 @@ def _write_once(path: pathlib.Path, result: dict) -> None:
 def _run_task(case: Any, integrator: str, scheme: str, level: int | str, refine: str, levels: int,
               key: str, store: str | None, compiled: bool = True) -> dict:
     """Run one (integrator, scheme, level) task and return (and store) its result."""
-    from .simulate import InstabilityError, simulate
+    from .simulate import InstabilityError
+    from .statics import ConvergenceError
 
     path = _store_path(store, key) if store else None
     if path is not None and path.exists():
@@ -207,28 +246,25 @@ def _run_task(case: Any, integrator: str, scheme: str, level: int | str, refine:
     problem, run = _settings(case, level, scheme, refine, levels)
     h, n = _spacing(problem)
     result: dict[str, Any] = {"key": key, "integrator": integrator, "scheme": scheme, "level": level,
-                              "dt": float(run["dt"]), "h": h, "n": n, "status": "ok"}
+                              "dt": float(run.get("dt", math.nan)), "h": h, "n": n, "status": "ok"}
     start = time.perf_counter()
     try:
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")
-            ds = simulate(problem, integrator=integrator, scheme=scheme, dt=run["dt"], t_end=run["t_end"],
-                          save_every=run.get("save_every"), compiled=compiled, progress=False,
-                          integrator_options=run.get("integrator_options"))
-        counters = json.loads(ds.attrs["cartan_config"])["counters"]
-        result.update(nstep=int(counters["nstep"]), nforce=int(counters["nforce"]),
-                      wall_time=float(counters["wall_time"]))
+            ds = _execute(case, problem, run, integrator, scheme, compiled)
+        result.update(_counters(ds))
+        resid = np.asarray(ds["integrability_residual"].values, float) if "integrability_residual" in ds else None
+        result["integrability_residual"] = float(np.max(resid)) if resid is not None and resid.size else math.nan
         if _self_referenced(case, refine):
             result["quantity"] = _quantity(case, ds).tolist()
             result["error"] = math.nan
         else:
             result["error"] = float(case.error(ds, problem))
-    except InstabilityError as exc:
-        if exc.path is not None and pathlib.Path(exc.path).name.startswith("cartan-unstable-"):
-            pathlib.Path(exc.path).unlink(missing_ok=True)
-        why = re.sub(r";\s*last good state.*$", "", " ".join(str(exc).split()))  # its file is gone
-        result.update(status=f"unstable: {why}", error=math.inf, nstep=-1, nforce=-1,
-                      wall_time=time.perf_counter() - start)
+    except (InstabilityError, ConvergenceError) as exc:
+        status = (_unstable_status(exc) if isinstance(exc, InstabilityError)
+                  else "no equilibrium: " + " ".join(str(exc).split()))
+        result.update(status=status, error=math.inf, nstep=-1, nforce=-1, wall_time=time.perf_counter() - start,
+                      integrability_residual=math.nan)
         if _self_referenced(case, refine):
             result["quantity"] = None
     if path is not None:
@@ -317,7 +353,7 @@ def observed_order(x: Iterable[float], error: Iterable[float], roundoff: float =
 def converge(case: Any, integrators: Sequence[str] | None = None, schemes: Sequence[str] | None = None,
              levels: int = 4, refine: str | None = None, client: Any = None,
              store: str | os.PathLike | None = None, compiled: bool = True,
-             order_slack: float = 0.3) -> Any:
+             order_slack: float | tuple[float, float] = (0.2, 0.3)) -> Any:
     """Refine ``case`` over ``levels`` levels for every integrator × scheme.
 
     Parameters
@@ -326,17 +362,20 @@ def converge(case: Any, integrators: Sequence[str] | None = None, schemes: Seque
         A verification case (``cartan_verification.case.Case`` interface): ``problem(level,
         scheme) -> (problem, dict(dt=, t_end=, save_every=))`` and ``error(ds, problem)``.
     integrators, schemes : sequence of str
-        Registered names (default: the case's ``default_integrators``; ``["lattice"]``).
+        Registered names (default: the case's ``default_integrators`` and ``default_schemes``,
+        else ``["lattice"]``).
     levels : int
         Number of refinement levels (≥ 2; the protocol asks for ≥ 4).
     refine : {"space", "time", "both"}
         ``"space"``: the case's level-``k`` problems, all run with the finest level's Δt so that
-        time errors do not contaminate the space order.  ``"time"``: the level-0 problem with
+        time errors do not contaminate the space order (a static case has no Δt).  ``"time"``: the level-0 problem with
         Δt/2ᵏ; when the case is discretised in space (``space_order`` not None) the error is the
         max-norm distance of the compared quantity at the final time from a run with the
         finest Δt / 8 (so the spatial error cancels), otherwise ``case.error``.  ``"both"``:
-        the case's level-``k`` problem and run settings as given.  Default: ``"space"`` when
-        the case has a ``space_order``, else ``"time"``.
+        the case's level-``k`` problem and run settings as given.  Default: the case's own
+        ``refine`` attribute when it has one, else ``"both"`` for a parameter limit
+        (``parameter_order``), ``"space"`` when the case has a ``space_order``, else ``"time"``.
+        A static case (``case.static``) is refined in space only.
     client : None, "local", "tcp://host:port" or distributed.Client
         Where the tasks run (see the module docstring).
     store : directory, optional
@@ -344,21 +383,30 @@ def converge(case: Any, integrators: Sequence[str] | None = None, schemes: Seque
         are not rerun.
     compiled : bool
         Passed to :func:`cartan.simulate`.
-    order_slack : float
-        ``passed`` accepts an observed order down to expected − ``order_slack``.
+    order_slack : float or (float, float)
+        ``passed`` accepts an observed order p_obs in [p − below, p + above] for
+        ``order_slack = (below, above)`` (a float s: [p − s, p + s]), p the expected order.
 
     Returns
     -------
     xarray.Dataset
         dims (integrator, scheme, level); variables ``error``, ``wall_time``, ``nforce``,
-        ``nstep``, ``dt``, ``h``, ``n``, ``local_order`` (log₂ of successive error ratios),
-        and per (integrator, scheme) ``observed_order``, ``expected_order`` and ``passed``.
+        ``nstep`` (time steps, or Newton iterations of a static case), ``dt``, ``h``, ``n``,
+        ``integrability_residual`` (max over the run's saved frames), ``local_order`` (log₂ of
+        successive error ratios), ``status``, and per (integrator, scheme)
+        ``observed_order``, ``expected_order``, ``tolerance`` and ``passed``.
     """
     import xarray as xr
 
     from . import __version__, io
 
     case = _case_obj(case)
+    below, above = (order_slack, order_slack) if np.ndim(order_slack) == 0 else order_slack
+    below, above = float(below), float(above)
+    if not (below >= 0 and above >= 0):
+        raise ValueError(f"order_slack must be ≥ 0 (a number or a pair), got {order_slack!r}")
+    if refine is None:
+        refine = getattr(case, "refine", None)
     if refine is None:
         if getattr(case, "parameter_order", None) is not None:
             refine = "both"  # a limit case: its levels refine a parameter (e.g. r → ∞)
@@ -366,11 +414,14 @@ def converge(case: Any, integrators: Sequence[str] | None = None, schemes: Seque
             refine = "space" if getattr(case, "space_order", None) is not None else "time"
     if refine not in REFINE:
         raise StudyError(f"refine must be one of {', '.join(REFINE)}, got {refine!r}")
+    if getattr(case, "static", False) and refine != "space":
+        raise StudyError(f"the static case {getattr(case, 'name', '')!r} is refined in space only "
+                         f"(refine='space'), got refine={refine!r}")
     levels = int(levels)
     if levels < 2:
         raise StudyError(f"a convergence study needs at least 2 levels, got {levels}")
     integrators = list(integrators or getattr(case, "default_integrators", None) or ["lie-verlet"])
-    schemes = list(schemes or ["lattice"])
+    schemes = list(schemes or getattr(case, "default_schemes", None) or ["lattice"])
     name = str(getattr(case, "name", type(case).__name__))
     store_s = None if store is None else str(pathlib.Path(store).resolve())
     if store_s is not None:
@@ -395,7 +446,8 @@ def converge(case: Any, integrators: Sequence[str] | None = None, schemes: Seque
     results.update(_map(_run_task, pending, client))
 
     shape = (len(integrators), len(schemes), levels)
-    arrays = {v: np.full(shape, np.nan) for v in ("error", "wall_time", "nforce", "nstep", "dt", "h", "n")}
+    arrays = {v: np.full(shape, np.nan) for v in ("error", "wall_time", "nforce", "nstep", "dt", "h", "n",
+                                                  "integrability_residual")}
     status = np.full(shape, "", dtype=object)
     for i, integ in enumerate(integrators):
         for j, sch in enumerate(schemes):
@@ -421,17 +473,18 @@ def converge(case: Any, integrators: Sequence[str] | None = None, schemes: Seque
         x_name = "limit"
     obs = np.full(shape[:2], np.nan)
     exp = np.full(shape[:2], np.nan)
+    tols = np.full(shape[:2], np.nan)
     passed = np.zeros(shape[:2], dtype=np.int8)
     for i, integ in enumerate(integrators):
-        tol_of = getattr(case, "tolerance_for", None)
-        tol = float(tol_of(integ) if tol_of is not None else (getattr(case, "tolerance", math.inf) or math.inf))
-        for j in range(len(schemes)):
-            obs[i, j] = observed_order(arrays[x_name][i, j], arrays["error"][i, j])
+        for j, sch in enumerate(schemes):
+            tol = tols[i, j] = _tolerance(case, integ, sch)
+            if not getattr(case, "roundoff", False):  # round-off errors have no order to fit
+                obs[i, j] = observed_order(arrays[x_name][i, j], arrays["error"][i, j])
             exp[i, j] = expected_order(case, integ, refine)
             e_fine = arrays["error"][i, j, -1]
             ok = bool(np.isfinite(e_fine) and e_fine <= tol)
             if math.isfinite(exp[i, j]) and math.isfinite(obs[i, j]):
-                ok = ok and obs[i, j] >= exp[i, j] - order_slack
+                ok = ok and exp[i, j] - below <= obs[i, j] <= exp[i, j] + above
             passed[i, j] = ok
     with np.errstate(divide="ignore", invalid="ignore"):
         err = arrays["error"]
@@ -444,6 +497,7 @@ def converge(case: Any, integrators: Sequence[str] | None = None, schemes: Seque
              "wall_time": ("wall-clock time of the time loop", "s"),
              "nforce": ("number of force evaluations", "1"), "nstep": ("number of time steps", "1"),
              "dt": ("time step", "s"), "h": ("smallest grid spacing", "m"), "n": ("number of grid nodes", "1"),
+             "integrability_residual": ("largest temporal integrability residual over the run's saved frames", "1"),
              "limit": ("inverse of the limit parameter (e.g. 1/r)", "1"),
              "local_order": (f"log of successive error ratios over log of successive {x_name} ratios", "1")}
     data = {v: (dims, a, {"long_name": units[v][0], "units": units[v][1]}) for v, a in arrays.items()}
@@ -452,8 +506,9 @@ def converge(case: Any, integrators: Sequence[str] | None = None, schemes: Seque
     data["observed_order"] = (dims[:2], obs, {
         "long_name": f"fitted slope of log error against log {x_name} on the asymptotic levels", "units": "1"})
     data["expected_order"] = (dims[:2], exp, {"long_name": "order of accuracy the case expects", "units": "1"})
+    data["tolerance"] = (dims[:2], tols, {"long_name": "largest accepted error at the finest level", "units": "1"})
     data["passed"] = (dims[:2], passed, {
-        "long_name": "finest error within tolerance and observed order within the slack of the expected",
+        "long_name": "finest error within tolerance and observed order in [expected − below, expected + above]",
         "flag_values": np.array([0, 1], dtype=np.int8), "flag_meanings": "fail pass"})
     ds = xr.Dataset(data, coords={"integrator": integrators, "scheme": schemes,
                                   "level": ("level", np.arange(levels), {"long_name": "refinement level"})})
@@ -469,14 +524,26 @@ def converge(case: Any, integrators: Sequence[str] | None = None, schemes: Seque
         "reference": str(getattr(case, "reference", "")),
         "quantity": str(getattr(case, "quantity", "")),
         "norm": str(getattr(case, "norm", "")),
-        "tolerance": tol,
+        "tolerance": float(np.nanmax(tols)) if np.isfinite(tols).any() else math.inf,
         "tolerance_reason": str(getattr(case, "tolerance_reason", "")),
         "refine": refine,
         "order_variable": x_name,
-        "order_slack": float(order_slack),
+        "order_slack": [below, above],
         "error_reference": (f"run with the finest dt / {REFERENCE_DIVISOR}" if extra else "the case's reference"),
     }
     return ds
+
+
+def _tolerance(case: Any, integrator: str, scheme: str) -> float:
+    """The case's pass threshold for ``integrator`` on ``scheme`` (``tolerance_for(integrator,
+    scheme)``, ``tolerance_for(integrator)`` or ``tolerance``)."""
+    tol_of = getattr(case, "tolerance_for", None)
+    if tol_of is None:
+        return float(getattr(case, "tolerance", math.inf) or math.inf)
+    try:
+        return float(tol_of(integrator, scheme))
+    except TypeError:  # a case whose tolerance_for takes the integrator only
+        return float(tol_of(integrator))
 
 
 # ---------------------------------------------------------------------------- traces
@@ -494,15 +561,15 @@ def traces(case: Any, integrators: Sequence[str], schemes: Sequence[str], level:
            compiled: bool = True) -> Any:
     """Invariant time series of one run per integrator × scheme of ``case`` at ``level``.
 
-    Each run uses the case's own settings at ``level`` (its Δt and end time), saving about
-    ``frames`` frames.  Returns a Dataset with dims (integrator, scheme, frame): ``t``,
+    Each run uses the case's own settings at ``level`` (its Δt, end time and run options, through
+    ``case.run``), saving about ``frames`` frames.  Returns a Dataset with dims (integrator, scheme, frame): ``t``,
     ``integrability_residual`` (from the run's Dataset) and ``energy_error`` (relative energy
     error, see :func:`_energy_error`), and per (integrator, scheme) ``status`` (``"ok"`` or why
     the run stopped; a run that stops has NaN series).
     """
     import xarray as xr
 
-    from .simulate import InstabilityError, simulate
+    from .simulate import InstabilityError
 
     case = _case_obj(case)
     integrators, schemes = list(integrators), list(schemes)
@@ -513,16 +580,14 @@ def traces(case: Any, integrators: Sequence[str], schemes: Sequence[str], level:
         for j, sch in enumerate(schemes):
             try:
                 problem, run = case.problem(int(level), sch)
+                run = dict(run)
                 steps = max(1, round(float(run["t_end"]) / float(run["dt"])))
+                run["save_every"] = max(1, steps // frames)
                 with warnings.catch_warnings():
                     warnings.simplefilter("ignore")
-                    ds = simulate(problem, integrator=integ, scheme=sch, dt=run["dt"], t_end=run["t_end"],
-                                  save_every=max(1, steps // frames), compiled=compiled, progress=False,
-                                  integrator_options=run.get("integrator_options"))
+                    ds = _execute(case, problem, run, integ, sch, compiled)
             except InstabilityError as exc:
-                if exc.path is not None and pathlib.Path(exc.path).name.startswith("cartan-unstable-"):
-                    pathlib.Path(exc.path).unlink(missing_ok=True)
-                status[i, j] = "unstable: " + re.sub(r";\s*last good state.*$", "", " ".join(str(exc).split()))
+                status[i, j] = _unstable_status(exc)
                 continue
             except ValueError as exc:  # the scheme does not support the problem
                 status[i, j] = "unsupported: " + " ".join(str(exc).split())
@@ -544,21 +609,28 @@ def traces(case: Any, integrators: Sequence[str], schemes: Sequence[str], level:
 
 
 # ---------------------------------------------------------------------------- stability
-def _stable_run(problem: Any, integrator: str, scheme: str, dt: float, steps: int, growth: float,
-                trend: float, compiled: bool) -> bool:
-    """Bounded energy over ``steps`` steps: no blow-up, balance error ≤ growth × initial energy,
-    and no growth of the error from the first half of the run to the second (≤ trend ×)."""
+def _run_steps(steps: int, horizon: float, dt: float) -> int:
+    """Steps of a stability trial: at least ``steps``, and enough to cover ``horizon``."""
+    return max(int(steps), math.ceil(horizon / dt * (1.0 - 1e-12)))
+
+
+def _stable_run(problem: Any, integrator: str, scheme: str, dt: float, steps: int, horizon: float, growth: float,
+                trend: float | None, compiled: bool) -> bool:
+    """Bounded energy over :func:`_run_steps` steps (the physical time ``horizon``, at least
+    ``steps`` steps): no blow-up and an energy-balance error of at most ``growth`` × the initial
+    energy at every saved frame; with ``trend``, also no growth of that error from the first
+    half of the run to the second by more than ``trend`` times."""
     from .simulate import InstabilityError, simulate
 
-    every = max(1, steps // 40)
+    nsteps = _run_steps(steps, horizon, dt)
+    every = max(1, nsteps // 40)
     try:
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")
-            ds = simulate(problem, integrator=integrator, scheme=scheme, dt=dt, t_end=steps * dt,
+            ds = simulate(problem, integrator=integrator, scheme=scheme, dt=dt, t_end=nsteps * dt,
                           save_every=every, compiled=compiled, progress=False)
     except InstabilityError as exc:
-        if exc.path is not None and pathlib.Path(exc.path).name.startswith("cartan-unstable-"):
-            pathlib.Path(exc.path).unlink(missing_ok=True)
+        _unstable_status(exc)  # removes its last-good-state file
         return False
     energy = ds["kinetic_energy"].values + ds["potential_energy"].values
     for name, sign in (("dissipated_energy", 1.0), ("external_work", -1.0)):
@@ -571,15 +643,16 @@ def _stable_run(problem: Any, integrator: str, scheme: str, dt: float, steps: in
                 1e-300)
     if dev.max() > growth * scale:
         return False
+    if trend is None:
+        return True
     half = len(dev) // 2
     first, second = dev[1: half + 1].max(initial=0.0), dev[half + 1:].max(initial=0.0)
-    floor = 1e-10 * scale
-    return second <= trend * first + floor
+    return second <= trend * first + 1e-10 * scale
 
 
 def _stability_task(problem_factory: Callable[[int], Any], integrator: str, scheme: str, n: int, steps: int,
-                    growth: float, trend: float, rtol: float, bracket: tuple[float, float],
-                    compiled: bool) -> dict:
+                    growth: float, trend: float | None, rtol: float, bracket: tuple[float, float],
+                    compiled: bool, horizon: float | None = None) -> dict:
     from .plugins import get_registry
 
     problem = problem_factory(n)
@@ -593,14 +666,16 @@ def _stability_task(problem_factory: Callable[[int], Any], integrator: str, sche
     h, nn = _spacing(problem)
     ref = cfl if 0 < cfl < math.inf else leapfrog
     out = {"integrator": integrator, "n": nn, "h": h, "dt_cfl": cfl, "dt_reference": ref, "runs": 0,
-           "dt_max": math.nan, "bracketed": 0}
+           "dt_max": math.nan, "bracketed": 0, "horizon": math.nan}
     if not (0 < ref < math.inf):
         return out
+    window = float(horizon) if horizon is not None else steps * ref
+    out["horizon"] = window
     lo, hi = ref * bracket[0], ref * bracket[1]
 
     def stable(dt: float) -> bool:
         out["runs"] += 1
-        return _stable_run(problem, integrator, scheme, dt, steps, growth, trend, compiled)
+        return _stable_run(problem, integrator, scheme, dt, steps, window, growth, trend, compiled)
 
     if not stable(lo):
         out.update(dt_max=0.0, bracketed=1)
@@ -616,25 +691,35 @@ def _stability_task(problem_factory: Callable[[int], Any], integrator: str, sche
 
 
 def stability(problem_factory: Callable[[int], Any], integrator: str | Sequence[str], n_values: Sequence[int],
-              scheme: str = "lattice", steps: int = 1000, growth: float = 10.0, trend: float = 1.5,
+              scheme: str = "lattice", steps: int = 1000, growth: float = 10.0, trend: float | None = None,
               rtol: float = 0.01, bracket: tuple[float, float] = (1 / 64, 4.0), client: Any = None,
-              compiled: bool = True) -> Any:
+              compiled: bool = True, horizon: float | None = None) -> Any:
     """Largest stable Δt against the grid spacing, beside the CFL estimate.
 
-    For each ``n`` in ``n_values`` the problem ``problem_factory(n)`` is run for ``steps`` steps
-    at trial Δt; a Δt is stable when the run does not blow up, its energy-balance error stays
-    below ``growth`` times the initial energy and does not grow from the first half of the run
-    to the second by more than ``trend`` times (a bounded error, not a drift).  Δt_max is
-    bisected (geometrically, to relative ``rtol``) in ``bracket`` × the integrator's CFL
-    estimate (× the leapfrog estimate 2/ω_max for integrators with none, e.g. forward-euler):
-    ``dt_max = 0`` means unstable at every Δt of the bracket, ``bracketed = 0`` stable at its
-    top.  ``problem_factory`` must be picklable to run on a dask ``client``.
+    For each ``n`` in ``n_values`` the problem ``problem_factory(n)`` is run at trial Δt over a
+    fixed physical time, ``horizon`` (default: ``steps`` × the bisection's reference Δt), and
+    at least ``steps`` steps — so a trial far below the limit runs proportionally more steps
+    and sees the same stretch of the motion.  A Δt is stable when the run does not blow up and
+    its energy-balance error |E(t) + D(t) − W(t) − E(0)| stays below ``growth`` times the
+    initial energy at every saved frame: an instability grows exponentially in time, so over a
+    fixed time it exceeds any such bound, while a stable integrator's bounded O(Δt^p) error
+    shrinks with Δt.  (Forward Euler multiplies the energy of a mode of frequency ω by
+    1 + ω²Δt² per step, exp(ω²Δt·t) over a time t: over the default horizon its fastest mode,
+    ω ≈ 2/ref, gains exp(4·steps·Δt/ref), e.g. e^12.5 at steps = 200 and Δt = ref/64, the bottom
+    of the default bracket.)  ``trend`` adds a drift test — no growth of the error from the
+    first half of the run to the second by more than ``trend`` times — which a short window can
+    misread for a bounded oscillation; it is off by default.  Δt_max is bisected
+    (geometrically, to relative ``rtol``) in ``bracket`` × the integrator's CFL estimate (× the
+    leapfrog estimate 2/ω_max for integrators with none, e.g. forward-euler): ``dt_max = 0``
+    means unstable at every Δt of the bracket, ``bracketed = 0`` stable at its top.
+    ``problem_factory`` must be picklable to run on a dask ``client``.
 
     Returns
     -------
     xarray.Dataset
         dims (integrator, n): ``dt_max``, ``dt_cfl`` (the integrator's estimate), ``dt_reference``
-        (the bisection's scale), ``h``, ``ratio`` = dt_max / dt_reference, ``runs``, ``bracketed``.
+        (the bisection's scale), ``h``, ``ratio`` = dt_max / dt_reference, ``runs``, ``bracketed``,
+        ``horizon`` (the physical time of every trial).
     """
     import xarray as xr
 
@@ -642,11 +727,19 @@ def stability(problem_factory: Callable[[int], Any], integrator: str | Sequence[
 
     integrators = [integrator] if isinstance(integrator, str) else list(integrator)
     n_values = [int(n) for n in n_values]
+    if int(steps) < 1:
+        raise ValueError(f"steps must be an integer ≥ 1, got {steps!r}")
+    if not (math.isfinite(growth) and growth > 0):
+        raise ValueError(f"growth must be a finite number > 0, got {growth!r}")
+    if horizon is not None and not (math.isfinite(horizon) and horizon > 0):
+        raise ValueError(f"horizon must be a finite time > 0 (or None), got {horizon!r}")
+    if not (len(bracket) == 2 and 0 < bracket[0] < bracket[1] < math.inf):
+        raise ValueError(f"bracket must be two numbers 0 < low < high, got {bracket!r}")
     tasks = [(f"stability-{integ}-{scheme}-{n}", (problem_factory, integ, scheme, n, steps, growth, trend, rtol,
-                                                   tuple(bracket), compiled))
+                                                   tuple(bracket), compiled, horizon))
              for integ in integrators for n in n_values]
     results = _map(_stability_task, tasks, client)
-    names = ("dt_max", "dt_cfl", "dt_reference", "h", "runs", "bracketed")
+    names = ("dt_max", "dt_cfl", "dt_reference", "h", "runs", "bracketed", "horizon")
     arr = {v: np.full((len(integrators), len(n_values)), np.nan) for v in names}
     nodes = np.zeros(len(n_values), dtype=int)
     for i, integ in enumerate(integrators):
@@ -657,7 +750,8 @@ def stability(problem_factory: Callable[[int], Any], integrator: str | Sequence[
             nodes[j] = r["n"]
     attrs = {"dt_max": ("largest stable time step found", "s"), "dt_cfl": ("CFL estimate of the integrator", "s"),
              "dt_reference": ("time-step scale of the bisection bracket", "s"), "h": ("smallest grid spacing", "m"),
-             "runs": ("number of trial runs", "1"), "bracketed": ("1 when dt_max lies inside the bracket", "1")}
+             "runs": ("number of trial runs", "1"), "bracketed": ("1 when dt_max lies inside the bracket", "1"),
+             "horizon": ("physical time of every trial run", "s")}
     data = {v: (("integrator", "n"), a, {"long_name": attrs[v][0], "units": attrs[v][1]}) for v, a in arr.items()}
     with np.errstate(divide="ignore", invalid="ignore"):
         data["ratio"] = (("integrator", "n"), arr["dt_max"] / arr["dt_reference"],
@@ -666,8 +760,9 @@ def stability(problem_factory: Callable[[int], Any], integrator: str | Sequence[
                                   "nodes": ("n", nodes, {"long_name": "number of grid nodes"})})
     ds.attrs = {"Conventions": "CF-1.11", "title": f"stability study ({scheme})", "source": f"cartan {__version__}",
                 "history": io.history_line(f"cartan.study.stability(integrator={integrators}, n_values={n_values})"),
-                "scheme": scheme, "steps": steps, "growth": growth, "trend": trend, "rtol": rtol,
-                "bracket": list(bracket)}
+                "scheme": scheme, "steps": steps, "growth": growth, "trend": "off" if trend is None else trend,
+                "rtol": rtol, "bracket": list(bracket),
+                "horizon": "steps × dt_reference" if horizon is None else float(horizon)}
     return ds
 
 

@@ -7,6 +7,7 @@ import math
 import os
 import pathlib
 import signal
+import subprocess
 import sys
 import threading
 import time
@@ -197,6 +198,45 @@ def test_traces_and_plot(tmp_path):
     assert out.read_bytes()[:4] == b"\x89PNG"
 
 
+def test_converge_static_case():
+    """A static case (equilibria by Newton; "integrator" newton) is refined in space: no Δt, the
+    Newton iterations as nstep, the per-scheme tolerance and the integrability residual recorded."""
+    ds = study.converge("rod-timoshenko-static", levels=3)
+    assert ds.attrs["refine"] == "space" and list(ds["integrator"].values) == ["newton"]
+    assert ds["n"].values.ravel().tolist() == [13, 25, 49]
+    assert np.isnan(ds["dt"]).all() and np.isnan(ds["nforce"]).all()
+    assert ((ds["nstep"] >= 2) & (ds["nstep"] <= 10)).all()
+    assert (ds["integrability_residual"] <= 1e-12).all()  # the lattice: round-off
+    assert abs(float(ds["observed_order"].squeeze()) - 2.0) < 0.05
+    assert float(ds["tolerance"].squeeze()) == 1e-4 and bool(ds["passed"].squeeze())
+    with pytest.raises(study.StudyError, match=r"refined in space only.*'time'"):
+        study.converge("rod-timoshenko-static", levels=2, refine="time")
+
+
+def test_converge_per_scheme_tolerance():
+    """tolerances keyed "integrator/scheme" judge each scheme by its own threshold."""
+    case = cartan.registry("cases")["rod-ring-flexural-wave"]
+    assert case.tolerance_for("lie-verlet", "collocation") == 6e-2
+    assert case.tolerance_for("lie-verlet", "lattice") == case.tolerance_for("lie-verlet") == 5e-3
+    ds = study.converge(StrainEnergy(), integrators=["lie-verlet"], schemes=["lattice"], levels=2)
+    assert float(ds["tolerance"].squeeze()) == StrainEnergy.tolerance  # a case without tolerance_for
+
+
+def test_converge_order_band():
+    """``passed`` needs the observed order in [p − 0.2, p + 0.3]: an error falling faster than
+    claimed fails too (a reference or a level that is not what the case says)."""
+
+    class Understated(StrainEnergy):
+        space_order = 1  # the midpoint rule is second order: observed 2.0 > 1 + 0.3
+
+    ds = study.converge(Understated(), levels=3)
+    assert abs(float(ds["observed_order"].squeeze()) - 2.0) < 0.1
+    assert not bool(ds["passed"].squeeze()) and ds.attrs["order_slack"] == [0.2, 0.3]
+    assert bool(study.converge(Understated(), levels=3, order_slack=(0.2, 1.5))["passed"].squeeze())
+    with pytest.raises(ValueError, match="order_slack must be ≥ 0"):
+        study.converge(Understated(), levels=2, order_slack=-0.1)
+
+
 # ---------------------------------------------------------------------------- stability
 def straight_rod(n):
     rng = np.random.default_rng(1)
@@ -219,7 +259,86 @@ def test_stability_bisection(tmp_path):
     assert out.stat().st_size > 0
 
 
+def test_stability_criterion_covers_a_fixed_time():
+    """Far below the limit (Δt = CFL/64) a fixed 300-step window sees only the rising part of the
+    bounded energy oscillation of a thin rod; the drift test then reads it as growth and calls
+    every Δt unstable.  Trials over a fixed physical time (300 × the CFL estimate) find the limit."""
+    import functools
+
+    problem = functools.partial(thin_rod, 0.005)
+    old = study.stability(problem, "lie-verlet", [11], steps=300, rtol=0.02, trend=1.5, horizon=1e-12)
+    assert float(old["dt_max"].squeeze()) == 0.0  # misread: "unstable" at the bottom of the bracket
+    new = study.stability(problem, "lie-verlet", [11], steps=300, rtol=0.02)
+    assert float(new["dt_max"].squeeze() / new["dt_cfl"].squeeze()) == pytest.approx(1.0, abs=0.1)
+    assert new.attrs["trend"] == "off"
+    with pytest.raises(ValueError, match="horizon must be a finite time > 0"):
+        study.stability(problem, "lie-verlet", [11], horizon=-1.0)
+    with pytest.raises(ValueError, match="bracket must be two numbers 0 < low < high"):
+        study.stability(problem, "lie-verlet", [11], bracket=(4.0, 1.0))
+    with pytest.raises(ValueError, match="steps must be an integer ≥ 1"):
+        study.stability(problem, "lie-verlet", [11], steps=0)
+
+
 # ---------------------------------------------------------------------------- distributed
+def test_scheduler_address_string(tmp_path):
+    """``--scheduler tcp://HOST:PORT``: the study's tasks run on the workers of a running scheduler
+    reached by its address string (here a LocalCluster's), results stored once per task."""
+    distributed = pytest.importorskip("distributed")
+    from cartan import cli_verify
+
+    out, store = tmp_path / "wp.nc", tmp_path / "store"
+    with distributed.LocalCluster(n_workers=1, threads_per_worker=1, processes=True,
+                                  dashboard_address=None) as cluster:
+        address = cluster.scheduler_address
+        assert isinstance(address, str) and address.startswith("tcp://")
+        res = CliRunner().invoke(cli_verify.converge_cmd, ["rod-timoshenko-static", "--levels", "2", "--scheduler",
+                                                           address, "--store", str(store), "-o", str(out)])
+        assert res.exit_code == 0, res.output
+        with distributed.Client(address) as client:  # the tasks ran there, not in this process
+            keys = client.run_on_scheduler(lambda dask_scheduler: {str(t[0]) for t in dask_scheduler.transition_log})
+            assert sum(k.startswith("cartan-study-rod-timoshenko-static") for k in keys) == 2, keys
+        ds = study.converge("sphere-rod-latitude", levels=2, client=address)  # from Python: the same string
+        assert abs(float(ds["observed_order"].squeeze()) - 1.0) < 0.2  # Lie–Euler overdamped
+    assert len(list(store.glob("*.json"))) == 2
+    with xr.open_dataset(out) as wp:
+        assert wp.sizes["level"] == 2 and list(wp["integrator"].values) == ["newton"]
+
+
+@pytest.mark.slow
+def test_documented_dask_commands(tmp_path):
+    """The documented commands: ``dask scheduler``, ``dask worker ADDRESS --nworkers N --nthreads 1``
+    and ``cartan converge CASE --scheduler ADDRESS --store DIR`` (random ports, no dashboards)."""
+    pytest.importorskip("distributed")
+    bindir = pathlib.Path(sys.executable).parent
+    info = tmp_path / "scheduler.json"
+    procs = [subprocess.Popen([str(bindir / "dask"), "scheduler", "--port", "0", "--no-dashboard",
+                               "--scheduler-file", str(info)], stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)]
+    try:
+        deadline = time.monotonic() + 60
+        while not info.exists() and time.monotonic() < deadline:
+            time.sleep(0.2)
+        address = json.loads(info.read_text())["address"]
+        procs.append(subprocess.Popen([str(bindir / "dask"), "worker", address, "--nworkers", "2", "--nthreads", "1",
+                                       "--no-dashboard"], stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL))
+        out, store = tmp_path / "wp.nc", tmp_path / "study"
+        res = subprocess.run([str(bindir / "cartan"), "converge", "sphere-rod-latitude", "--levels", "3",
+                              "--scheduler", address, "--store", str(store), "-o", str(out)],
+                             capture_output=True, text=True, timeout=300)
+        assert res.returncode == 0, res.stderr
+        assert "sphere-rod-latitude  overdamped / lattice" in res.stdout
+        assert len(list(store.glob("*.json"))) == 3
+        with xr.open_dataset(out) as wp:
+            assert abs(float(wp["observed_order"].squeeze()) - 1.0) < 0.2
+    finally:
+        for proc in reversed(procs):
+            proc.terminate()
+        for proc in procs:
+            try:
+                proc.wait(timeout=30)
+            except subprocess.TimeoutExpired:
+                proc.kill()
+
+
 def test_local_cluster_worker_killed(tmp_path):
     distributed = pytest.importorskip("distributed")
     case = SlowSpinningArc()
@@ -287,6 +406,34 @@ def test_cli_converge(tmp_path, registered_case):
     assert res.output.count("\n") == 1 and "no-such-case" in res.output
 
 
+def test_cli_verify_method_section(tmp_path, monkeypatch):
+    """The report's schemes-and-integrators section on the ring wave (here with lie-verlet only):
+    the text quotes the lattice's round-off residual against collocation's O(h²) one, level by level."""
+    import re
+
+    from cartan import cli_verify
+
+    monkeypatch.setattr(cli_verify, "METHOD_INTEGRATORS", ("lie-verlet",))
+    case = cartan.registry("cases")[cli_verify.METHOD_CASE]
+    out = tmp_path
+    text, parts, total, failed = cli_verify._method_study(case, True, out, None, None)
+    assert (total, failed) == (2, 0)
+    assert "## Schemes and integrators on one analytic case: `rod-ring-flexural-wave`" in text
+    m = re.search(r"`lattice` stays at round-off — at most (\S+) over every level — while the strains "
+                  r"`collocation` stores leave those of its frames: (.*?) from n = 16 to n = 128 "
+                  r"\(observed order (\S+) in dx\)", text)
+    assert m, text
+    lattice = float(m.group(1))
+    colloc = [float(v) for v in m.group(2).split(" → ")]
+    assert lattice <= 1e-12 and len(colloc) == 4
+    assert min(colloc) >= 1e3 * lattice and np.all(np.diff(colloc) < 0)
+    assert abs(float(m.group(3)) - 2.0) < 0.2
+    assert "| lie-verlet / collocation | 5." in text  # the residual table, level by level
+    for name in ("methods-work-precision", "methods-error", "methods-invariants"):
+        assert (out / f"rod-ring-flexural-wave-{name}.png").stat().st_size > 0
+    assert "rod-ring-flexural-wave-methods__integrability_residual" in parts[0]
+
+
 # ---------------------------------------------------------------------------- thin-rod stability
 def thin_rod(radius, n):
     """A straight free Cosserat rod (L = 1) of the given radius, small random velocities."""
@@ -304,10 +451,11 @@ def test_thin_rod_stability_limit():
     radii = [0.04, 0.02, 0.01, 0.005]
     dt_max, dt_cfl = [], []
     for r in radii:
-        # the bracket starts at CFL/4: far below the limit a 300-step window sees only part of
-        # the (bounded) O(Δt²) energy oscillation, which the drift test would misread
-        ds = study.stability(functools.partial(thin_rod, r), "lie-verlet", [11], steps=300, rtol=0.02,
-                             bracket=(0.25, 4.0))
+        # the default bracket (1/64, 4) × CFL: every trial covers the same physical time,
+        # 300 × the CFL estimate (19 200 steps at the bottom of the bracket)
+        ds = study.stability(functools.partial(thin_rod, r), "lie-verlet", [11], steps=300, rtol=0.02)
+        assert tuple(ds.attrs["bracket"]) == (1 / 64, 4.0)
+        assert float(ds["horizon"].squeeze()) == pytest.approx(300 * float(ds["dt_reference"].squeeze()))
         assert float(ds["h"].squeeze()) > r
         assert int(ds["bracketed"].squeeze()) == 1
         dt_max.append(float(ds["dt_max"].squeeze()))
@@ -318,8 +466,7 @@ def test_thin_rod_stability_limit():
     # Δt_max tracks the integrator's CFL estimate within a factor 1.5
     assert np.all((dt_max / dt_cfl > 1 / 1.5) & (dt_max / dt_cfl < 1.5)), dt_max / dt_cfl
     # refining dx (still > radius) leaves Δt_max set by the radius
-    finer = study.stability(functools.partial(thin_rod, 0.01), "lie-verlet", [21], steps=300, rtol=0.02,
-                            bracket=(0.25, 4.0))
+    finer = study.stability(functools.partial(thin_rod, 0.01), "lie-verlet", [21], steps=300, rtol=0.02)
     assert float(finer["h"].squeeze()) > 0.01
     assert float(finer["dt_max"].squeeze()) == pytest.approx(dt_max[2], rel=0.2)
     # forward-euler: unstable at every Δt tried, down to 1/64 of the leapfrog estimate

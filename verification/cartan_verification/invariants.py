@@ -14,10 +14,20 @@ ring_closure               ``closure_residual``: holonomy around each periodic l
 group_membership           ``group_defect``: ‖ΦᵀΦ − I‖ or the group's relation          round-off (geometric)
 energy_balance             |E(t) + D(t) − W(t) − E(0)| / energy scale                   the integrator's order
 momentum_drift             |J(t) − J(0)| / momentum scale (free media)                  round-off (symmetric)
+dissipation_balance        |E(t) − E(0) + ∫₀ᵗ Σ wᵢNᵢ·ΓNᵢ dt − W(t)| / E(0), the rate      the integrator's order
+                           recomputed from the saved velocities and the problem's        (frames saved every
+                           dissipative loads (needs the Problem)                          step)
 =========================  ==========================================================  =====================
 
 A check that does not apply to the run (no periodic axis, d = 1 for the spatial residual)
 returns 0.0.  :func:`check_invariants` applies them all with tolerances and reports pass/fail.
+
+:func:`dissipation_balance` is the energy law of a gradient flow, dE/dt = −⟨N, ΓN⟩, checked
+independently of the integrator's own ``dissipated_energy`` account: for the harmonic-map
+flow of the sigma model (``harmonic_map_damping``, the ``overdamped`` integrator) it is
+dE/dt = −∫|∂_t n|² du (Eells & Sampson 1964); it applies to any run with linear damping,
+overdamped or inertial (then E = K + V).  The time integral is the trapezoidal rule over the
+saved frames, so it measures the run only when every step (or a fine enough subset) is saved.
 """
 
 from __future__ import annotations
@@ -34,6 +44,8 @@ if TYPE_CHECKING:  # pragma: no cover
 __all__ = [
     "DEFAULT_TOLERANCES",
     "check_invariants",
+    "dissipation_balance",
+    "dissipation_rate",
     "energy_balance",
     "energy_scale",
     "group_membership",
@@ -121,6 +133,71 @@ def momentum_drift(ds: xr.Dataset, relative: bool = True) -> float:
     return drift / scale if relative and scale > 0 else drift
 
 
+def dissipation_rate(ds: xr.Dataset, problem: Any) -> np.ndarray:
+    """The dissipated power ``Σ_i w_i N_i·Γ N_i`` at every saved frame, ``(time,)``.
+
+    Computed from the saved body velocities ``N`` and the problem's dissipative loads
+    (velocity-dependent forces such as :class:`cartan.Damping`, whose power is −T·N), with the
+    quadrature weights of the run's scheme.
+
+    Parameters
+    ----------
+    ds : xarray.Dataset
+        A run of :func:`cartan.simulate` (needs ``N`` and ``cartan_config``).
+    problem : cartan.Problem
+        The problem that was run.
+
+    Returns
+    -------
+    ndarray, shape ``(time,)``
+        −Σ_i w_i T_i·N_i summed over the dissipative loads (≥ 0).
+    """
+    import json
+
+    from cartan.plugins import get_registry
+
+    loads = [load for load in problem.loads if getattr(load, "dissipative", False)]
+    N = np.asarray(ds["N"].values, dtype=float)
+    if not loads:
+        return np.zeros(N.shape[0])
+    for load in loads:
+        if getattr(load, "needs_structure_field", False):
+            raise ValueError(f"dissipation_balance: the dissipative load {type(load).__name__} needs the structure "
+                             "field; only velocity-dependent loads (e.g. cartan.Damping) are supported")
+    run = json.loads(ds.attrs["cartan_config"])["run"]
+    scheme = get_registry().get("schemes", run.get("scheme", "lattice"))
+    weights = scheme(problem, **(run.get("scheme_options") or {})).weights
+    t = np.asarray(ds["time"].values, dtype=float)
+    rate = np.zeros(N.shape[0])
+    for load in loads:
+        for k in range(N.shape[0]):
+            T = np.asarray(load.force(None, N[k], float(t[k])), dtype=float)
+            rate[k] -= float(np.sum(weights * np.einsum("...i,...i->...", T, N[k])))
+    return rate
+
+
+def dissipation_balance(ds: xr.Dataset, problem: Any, relative: bool = True) -> float:
+    """max_t |E(t) − E(0) + ∫₀ᵗ P dt − W(t)|, E = K + V, with the dissipated power P of
+    :func:`dissipation_rate` integrated by the trapezoidal rule over the saved frames;
+    divided by E(0) (``relative=True``, absolute when E(0) = 0).  0.0 without dissipative loads.
+
+    For a gradient flow saved at every step this is the discrete defect of the energy law
+    dE/dt = −⟨N, ΓN⟩: O(Δt^p) for an integrator of order p.
+    """
+    rate = dissipation_rate(ds, problem)
+    if not np.any(rate):
+        return 0.0
+    K, V, _, W = _energies(ds)
+    E = K + V
+    t = np.asarray(ds["time"].values, dtype=float)
+    dissipated = np.concatenate([[0.0], np.cumsum(0.5 * (rate[1:] + rate[:-1]) * np.diff(t))])
+    err = np.abs(E - E[0] + dissipated - W)
+    if not np.all(np.isfinite(err)):
+        return math.inf
+    worst = float(np.max(err))
+    return worst / abs(float(E[0])) if relative and E[0] != 0 else worst
+
+
 #: Tolerances of :func:`check_invariants` for a lattice run with a geometric integrator: the
 #: geometric residuals are round-off (a few hundred ulps of the O(1) group elements, after
 #: thousands of steps); the energy balance is the integrator's O(Δt^p) error at a resolved Δt;
@@ -132,6 +209,7 @@ DEFAULT_TOLERANCES: dict[str, float | None] = {
     "group_membership": 1e-10,
     "energy_balance": 1e-2,
     "momentum_drift": None,
+    "dissipation_balance": None,
 }
 
 CHECKS = {
@@ -144,7 +222,8 @@ CHECKS = {
 }
 
 
-def check_invariants(ds: xr.Dataset, tolerances: Mapping[str, float | None] | None = None) -> dict[str, Any]:
+def check_invariants(ds: xr.Dataset, tolerances: Mapping[str, float | None] | None = None,
+                     problem: Any = None) -> dict[str, Any]:
     """Apply every invariant check to ``ds``.
 
     Parameters
@@ -153,6 +232,9 @@ def check_invariants(ds: xr.Dataset, tolerances: Mapping[str, float | None] | No
         A run of :func:`cartan.simulate`.
     tolerances : mapping, optional
         Overrides of :data:`DEFAULT_TOLERANCES` (``None`` reports a check without judging it).
+    problem : cartan.Problem, optional
+        The problem that was run: adds :func:`dissipation_balance` (reported, judged when a
+        tolerance is given).
 
     Returns
     -------
@@ -161,12 +243,16 @@ def check_invariants(ds: xr.Dataset, tolerances: Mapping[str, float | None] | No
         ``"passed"``: True when every judged check passed.
     """
     tol = {**DEFAULT_TOLERANCES, **dict(tolerances or {})}
-    unknown = sorted(set(tol) - set(CHECKS))
+    checks: dict[str, Any] = dict(CHECKS)
+    checks["dissipation_balance"] = None if problem is None else (lambda d: dissipation_balance(d, problem))
+    unknown = sorted(set(tol) - set(checks))
     if unknown:
-        raise ValueError(f"unknown invariant checks {unknown}; choose from {sorted(CHECKS)}")
+        raise ValueError(f"unknown invariant checks {unknown}; choose from {sorted(checks)}")
     report: dict[str, Any] = {}
     ok = True
-    for name, fn in CHECKS.items():
+    for name, fn in checks.items():
+        if fn is None:
+            continue
         value = fn(ds)
         limit = tol[name]
         passed = None if limit is None else bool(value <= limit)
