@@ -10,11 +10,12 @@
     row per case × integrator × scheme: error, observed against expected order, pass/fail,
     tolerance and its reason), the charts (error against dx or Δt, work-precision) and
     ``verification.nc`` with every number.  Static cases (equilibria; "integrator" ``newton``)
-    are refined in space like the others.  When ``rod-ring-flexural-wave`` (:data:`METHOD_CASE`)
-    is selected it also compares every integrator × scheme on it (:data:`METHOD_INTEGRATORS` ×
+    are refined in space like the others.  When a case with ``compare_methods = True`` (the rod's
+    ring flexural wave) is selected it also compares every integrator × scheme on it (:data:`METHOD_INTEGRATORS` ×
     :data:`METHOD_SCHEMES`): work-precision, error against dx, the invariants (integrability
-    residual, energy error) against time and the integrability residual level by level.  Exit
-    status 1 when a check fails.
+    residual, energy error) against time and the integrability residual level by level.  A case of
+    ``kind = "stability"`` contributes its own section (``Case.report_section``; the stiff rod's
+    stability map, explicit against implicit).  Exit status 1 when a check fails.
 
 Bad input prints one line ``cartan: error: ...`` on stderr and exits with status 2.
 :func:`register` adds the commands to a click group.
@@ -35,10 +36,9 @@ __all__ = ["converge_cmd", "register", "verify_cmd"]
 
 
 
-#: The analytic rod case on which ``cartan verify`` compares every integrator × scheme: a
-#: flexural wave of a ring, whose motion mixes non-commuting translations and rotations, so that
-#: the integrability of the stored strains is a real constraint.
-METHOD_CASE = "rod-ring-flexural-wave"
+#: What ``cartan verify`` compares on the case with ``compare_methods = True`` (the rod's ring
+#: flexural wave, whose motion mixes non-commuting translations and rotations, so that the
+#: integrability of the stored strains is a real constraint).
 METHOD_INTEGRATORS = ("lie-verlet", "rkmk4", "lie-euler", "forward-euler")
 METHOD_SCHEMES = ("lattice", "collocation")
 #: The method of the paper (collocation in space, Lie–Euler in time).
@@ -184,8 +184,15 @@ def verify_cmd(media, case_names, schemes, quick, out_dir, scheduler, store) -> 
     except OSError as exc:
         raise CommandError(f"{out_dir}: {exc.strerror or exc}") from None
 
-    rows, parts, failed, total = [], [], 0, 0
+    rows, parts, sections, failed, total = [], [], [], 0, 0
     for name, case in selected.items():
+        if getattr(case, "kind", "convergence") == "stability":
+            text, dss, checks, bad = case.report_section(out_dir, quick, scheduler)
+            sections.append(text)
+            parts.extend(_prefixed(d, name) if i == 0 else _prefixed(d, f"{name}-{i}") for i, d in enumerate(dss))
+            total += checks
+            failed += bad
+            continue
         own = getattr(case, "levels", 4)
         own = len(own) if isinstance(own, tuple | list) else int(own or 4)
         # tolerances are stated at a case's finest own level: --quick runs exactly those levels,
@@ -211,9 +218,9 @@ def verify_cmd(media, case_names, schemes, quick, out_dir, scheduler, store) -> 
                     f"{_fmt(float(sel['tolerance']))}: {ds.attrs['tolerance_reason']}",
                     f"[error]({charts[0].name}), [work]({charts[1].name})")) + " |")
     method_text = ""
-    if METHOD_CASE in selected:
-        case = selected[METHOD_CASE]
-        method_text, mparts, mtotal, mfailed = _method_study(case, quick, out_dir, scheduler, store)
+    method_case = next((c for c in selected.values() if getattr(c, "compare_methods", False)), None)
+    if method_case is not None:
+        method_text, mparts, mtotal, mfailed = _method_study(method_case, quick, out_dir, scheduler, store)
         parts.extend(mparts)
         total += mtotal
         failed += mfailed
@@ -227,7 +234,7 @@ def verify_cmd(media, case_names, schemes, quick, out_dir, scheduler, store) -> 
     text = (f"# Verification report\n\nWritten by `cartan verify{' --quick' if quick else ''}` (cartan {__version__}): "
             f"{total - failed} of {total} checks pass.  The error is the finest level's; the observed order is "
             "the fitted slope of log error against log dx (or Δt) on the asymptotic levels.  Every number is in "
-            "`verification.nc`.\n\n" + header + "\n" + "\n".join(rows) + "\n" + method_text)
+            "`verification.nc`.\n\n" + header + "\n" + "\n".join(rows) + "\n" + method_text + "".join(sections))
     (out_dir / "README.md").write_text(text)
     click.echo(f"{total - failed} of {total} checks pass; wrote {out_dir / 'README.md'}")
     if failed:
@@ -241,7 +248,7 @@ def _method_study(case: Any, quick: bool, out_dir: pathlib.Path, scheduler: Any,
 
     from . import study
 
-    name = METHOD_CASE
+    name = case.name
     own = getattr(case, "levels", 4)
     own = len(own) if isinstance(own, tuple | list) else int(own or 4)
     levels = own if quick else own + 1

@@ -401,6 +401,9 @@ def converge(case: Any, integrators: Sequence[str] | None = None, schemes: Seque
     from . import __version__, io
 
     case = _case_obj(case)
+    if getattr(case, "kind", "convergence") != "convergence":
+        raise StudyError(f"case {getattr(case, 'name', case)!r} is a {case.kind} study, not refined against a "
+                         f"reference: run it with `cartan verify --case {getattr(case, 'name', '')}`")
     below, above = (order_slack, order_slack) if np.ndim(order_slack) == 0 else order_slack
     below, above = float(below), float(above)
     if not (below >= 0 and above >= 0):

@@ -36,8 +36,8 @@ from cartan_verification.plugin import all_cases
 import cartan
 
 CASES = cartan.registry("cases")
-RUNS = [(name, integ, scheme) for name, case in sorted(CASES.items()) for integ in case.default_integrators
-        for scheme in case.default_schemes]
+RUNS = [(name, integ, scheme) for name, case in sorted(CASES.items()) if case.kind == "convergence"
+        for integ in case.default_integrators for scheme in case.default_schemes]
 #: every level of these takes several seconds (continuation paths at four resolutions)
 SLOW_ALL_LEVELS = {"rod-euler-buckling", "rod-cantilever-elastica"}
 ALL_LEVEL_RUNS = [pytest.param(*run, marks=pytest.mark.slow) if run[0] in SLOW_ALL_LEVELS else run for run in RUNS]
@@ -96,6 +96,8 @@ def test_problem_settings_are_simulate_arguments():
     solver_keys = set(inspect.signature(solve_static).parameters) | set(inspect.signature(continuation).parameters)
     for case in CASES.values():
         problem, settings = case.problem(case.levels[0])
+        if case.kind == "stability":
+            continue
         assert isinstance(problem, cartan.Problem)
         if case.static:  # the solver's keyword arguments
             assert "dt" not in settings and set(settings) <= solver_keys, (case.name, settings)
@@ -356,3 +358,28 @@ def test_great_circle_slide_detects_stress():
     bent = ds.copy(deep=True)
     bent["X"].values[-1, 3, ..., 2] += 1e-6
     assert case.error(bent, case.problem(1)[0]) >= 1e-7
+
+
+# ---------------------------------------------------------------------------- stability cases
+def test_stability_case_is_not_a_convergence_study():
+    from cartan.study import StudyError, converge
+
+    case = CASES["rod-stiff-stability"]
+    assert case.kind == "stability" and not case.compare_methods
+    with pytest.raises(StudyError, match=r"stability study.*cartan verify --case rod-stiff-stability"):
+        converge(case, levels=2)
+
+
+@pytest.mark.slow
+def test_stiff_rod_stability_section(tmp_path):
+    """The report section of the stiff rod: implicit-midpoint stable at ≥ 10× the explicit CFL
+    estimate at every dx, lie-verlet's bisected limit within a factor 2 of that estimate."""
+    case = CASES["rod-stiff-stability"]
+    text, parts, checks, failed = case.report_section(tmp_path, quick=True)
+    assert (checks, failed) == (2 * len(case.n_values), 0), text
+    assert (tmp_path / "rod-stiff-stability.png").stat().st_size > 0
+    ds = parts[0]
+    ratio = ds["dt_max"] / ds["dt_reference"]
+    assert float(ratio.sel(integrator="implicit-midpoint").min()) >= 10.0
+    explicit = ratio.sel(integrator="lie-verlet")
+    assert 0.5 <= float(explicit.min()) <= float(explicit.max()) <= 2.0

@@ -60,6 +60,14 @@ tolerance, tolerance_reason
 default_integrators, default_schemes, levels, quick_levels
     What the studies run by default; ``quick_levels`` are cheap enough for the test suite
     (their finest level meets the tolerance too).
+compare_methods : bool
+    True for the case on which ``cartan verify`` compares every integrator × scheme (work
+    precision, error against dx, integrability and energy against time).
+kind : {"convergence", "stability"}
+    ``"convergence"`` (the default): the studies refine the case and compare with its reference.
+    ``"stability"``: the case is a stability study, not refined against a reference;
+    ``cartan verify`` calls its :meth:`Case.report_section` instead of a convergence study and
+    ``cartan converge`` refuses it.
 """
 
 from __future__ import annotations
@@ -105,6 +113,8 @@ class Case(abc.ABC):
     default_schemes: tuple[str, ...] = ("lattice",)
     levels: tuple[int, ...] = (0, 1, 2, 3)
     quick_levels: tuple[int, ...] | None = None
+    compare_methods: bool = False
+    kind: str = "convergence"
 
     @abc.abstractmethod
     def problem(self, level: int, scheme: str = "lattice") -> tuple[Problem, dict[str, Any]]:
@@ -139,6 +149,27 @@ class Case(abc.ABC):
 
         return cartan.simulate(problem, integrator=integrator, scheme=scheme, compiled=compiled, progress=False,
                                **dict(settings))
+
+    def report_section(self, out_dir: Any, quick: bool, client: Any = None) -> tuple[str, list, int, int]:
+        """The report section of a ``kind = "stability"`` case.
+
+        Parameters
+        ----------
+        out_dir : pathlib.Path
+            The report directory, where the section writes its charts.
+        quick : bool
+            ``cartan verify --quick`` (the cheap default levels).
+        client
+            The dask scheduler option of ``cartan verify`` (None: in this process).
+
+        Returns
+        -------
+        (markdown, datasets, checks, failed)
+            The Markdown section (charts linked by file name), Datasets to merge into
+            ``verification.nc`` (``cartan verify`` prefixes their variables with the case name),
+            the number of pass/fail checks and the number of failed ones.
+        """
+        raise NotImplementedError(f"case {self.name!r} has no report section (kind = {self.kind!r})")
 
     # ------------------------------------------------------------------ derived
     def expected_time_order(self, integrator: str) -> float | None:

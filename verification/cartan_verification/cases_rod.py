@@ -311,6 +311,7 @@ class RingFlexuralWave(Case):
     """
 
     name = "rod-ring-flexural-wave"
+    compare_methods = True
     medium = "cosserat-rod"
     description = "flexural (ovalling) standing wave of a closed ring: linearised Cosserat ring dispersion"
     reference = ("linearised Cosserat rod about the ring, ω²𝕄η̂ = (ik + ad_X₀)ᴴℂ(ik + ad_X₀)η̂ "

@@ -8,7 +8,7 @@ from cartan.plugins import hookimpl
 
 def all_cases():
     """One instance of every verification case, in the order of VERIFICATION.md §4."""
-    from . import cases_other, cases_rod, cases_static
+    from . import cases_other, cases_rod, cases_static, stiff
 
     return [
         cases_rod.FreeRigidBody(),
@@ -27,6 +27,7 @@ def all_cases():
         cases_other.NullWave(),
         cases_other.HarmonicMapFlowDecay(),
         cases_other.HarmonicMapEnergyBalance(),
+        stiff.StiffRodStability(),
     ]
 
 

@@ -28,12 +28,14 @@ import numpy as np
 
 import cartan
 
+from .case import Case
+
 if TYPE_CHECKING:  # pragma: no cover
     import xarray as xr
 
     from cartan.problem import Problem
 
-__all__ = ["STIFF_ROD", "plot_stability_map", "stability_map", "step_cost", "stiff_rod"]
+__all__ = ["STIFF_ROD", "StiffRodStability", "plot_stability_map", "stability_map", "step_cost", "stiff_rod"]
 
 #: material of the stiff rod: radius ≪ dx, so stretch and shear are far stiffer than bending
 STIFF_ROD = {"E": 1e6, "poisson": 0.5, "radius": 1e-3, "density": 1000.0}
@@ -83,9 +85,8 @@ def stability_map(n_values: Sequence[int] = (11, 21, 41), *, steps_implicit: int
     Each Δt_max is bisected by :func:`cartan.study.stability` (a trial Δt is stable when
     ``steps`` steps run without blow-up — for the implicit integrator also without a Newton
     failure, which :func:`cartan.simulate` reports as an instability — and the energy-balance
-    error stays below 10 × the initial energy without growing from the first half of the run
-    to the second), in ``bracket`` × the explicit CFL estimate 2/ω_max of the grid, to
-    relative ``rtol``.
+    error stays below 10 × the initial energy over the trial's fixed physical time), in
+    ``bracket`` × the explicit CFL estimate 2/ω_max of the grid, to relative ``rtol``.
 
     Parameters
     ----------
@@ -208,3 +209,63 @@ def plot_stability_map(ds: xr.Dataset, path: str | os.PathLike) -> pathlib.Path:
     fig.savefig(path, dpi=110)
     plt.close(fig)
     return path
+
+
+class StiffRodStability(Case):
+    """The stiff cantilever's stability map as a report section (``kind = "stability"``).
+
+    Checks, at every dx of the map: ``implicit-midpoint`` is stable at ≥ 10× the explicit CFL
+    estimate (its whole point), and ``lie-verlet``'s bisected limit lies within a factor 2 of
+    that estimate (the estimate, 2/ω_max of the linearised lattice force, predicts the explicit
+    limit: a leapfrog-type method is stable up to ωΔt = 2 for the fastest mode).
+    """
+
+    name = "rod-stiff-stability"
+    medium = "cosserat-rod"
+    kind = "stability"
+    description = "thin cantilever (radius 1e-3 ≪ dx) in bending: largest stable Δt against dx, explicit vs implicit"
+    reference = "the explicit CFL estimate 2/ω_max (power iteration on the linearised lattice force)"
+    quantity = "largest stable Δt (bisected) relative to the explicit estimate"
+    norm = "ratio dt_max / dt_cfl(lie-verlet)"
+    tolerance = 10.0
+    tolerance_reason = ("implicit-midpoint stable at ≥ 10× the explicit limit at every dx; lie-verlet's limit "
+                        "within [1/2, 2] of its CFL estimate")
+    default_integrators = ("lie-verlet", "implicit-midpoint")
+    levels = (0, 1, 2)
+    #: grid sizes of the quick map (dx = 0.1, 0.05, 0.025); the full run adds dx = 0.0125
+    n_values = (11, 21, 41)
+
+    def problem(self, level: int, scheme: str = "lattice") -> tuple[Problem, dict[str, Any]]:
+        """The stiff cantilever at ``n_values[level]`` and a run of 100 steps at 10× the explicit limit."""
+        n = self.n_values[int(level)] if int(level) < len(self.n_values) else 2 * self.n_values[-1] - 1
+        return stiff_rod(n, tip_speed=0.01), {"dt": 5e-4, "t_end": 5e-2, "save_every": 10}
+
+    def error(self, ds: xr.Dataset, problem: Problem) -> float:
+        """Not a convergence case: no reference solution (NaN)."""
+        return math.nan
+
+    def report_section(self, out_dir: Any, quick: bool, client: Any = None) -> tuple[str, list, int, int]:
+        n_values = self.n_values if quick else (*self.n_values, 2 * self.n_values[-1] - 1)
+        ds = stability_map(n_values, client=client)
+        chart = plot_stability_map(ds, pathlib.Path(out_dir) / f"{self.name}.png")
+        ref = np.asarray(ds["dt_reference"].isel(integrator=0).values, float)
+        h = np.asarray(ds["h"].isel(integrator=0).values, float)
+        explicit = np.asarray(ds["dt_max"].sel(integrator="lie-verlet").values, float) / ref
+        implicit = np.asarray(ds["dt_max"].sel(integrator="implicit-midpoint").values, float) / ref
+        lower = np.asarray(ds["bracketed"].sel(integrator="implicit-midpoint").values, float) == 0
+        rows, failed = [], 0
+        for k in range(len(h)):
+            ok_e = bool(0.5 <= explicit[k] <= 2.0)
+            ok_i = bool(implicit[k] >= 10.0)
+            failed += (not ok_e) + (not ok_i)
+            bound = " (lower bound: stable at the top of the bracket)" if lower[k] else ""
+            rows.append(f"| {h[k]:.4g} | {ref[k]:.3g} | {explicit[k]:.2f} | {'pass' if ok_e else '**FAIL**'} "
+                        f"| {implicit[k]:.0f}{bound} | {'pass' if ok_i else '**FAIL**'} |")
+        text = (f"\n## Stability: `{self.name}`\n\n{self.description}.  Each largest stable Δt is bisected by "
+                "`cartan.study.stability` (a trial is stable when it neither blows up nor lets the energy-balance "
+                "error exceed 10× the initial energy over a fixed physical time; for implicit-midpoint a Newton "
+                f"failure counts as unstable).  Checks: {self.tolerance_reason}.  Chart: [stability map]({chart.name})."
+                "\n\n| dx | explicit CFL estimate [s] | lie-verlet Δt_max / estimate | result "
+                "| implicit-midpoint Δt_max / estimate | result |\n|---|---|---|---|---|---|\n"
+                + "\n".join(rows) + "\n")
+        return text, [ds], 2 * len(h), failed
