@@ -44,6 +44,14 @@ Initial strains
     stencils, closed on open axes by one-sided stencils of the full order p, so X(0) is
     O(hᵖ) accurate at every node and the integrability residual starts at round-off.
 
+Compiled loops
+    :meth:`Collocation.compiled_advance` runs whole blocks of steps in numba
+    (:mod:`cartan.schemes._collocation_compiled`) for d = 1 on SO(2), SE(2), SO(3), SE(3) with
+    ``fd2``, ``fd4`` or ``fourier`` (up to 512 nodes) when the medium's potential is quadratic
+    and the loads are data (damping, body-frame uniform force, constant-field potentials, end
+    loads, clamps); everything else stays on this module's numpy path, the reference the
+    compiled loops are tested against (``docs/schemes.md``).
+
 What is exact and what is not
     Unlike the ``lattice`` scheme, the stored strains are independent unknowns: temporal
     integrability (stored X = Φ⁻¹∂_uΦ) holds only to the accuracy of the difference
@@ -63,6 +71,7 @@ from typing import Any
 
 import numpy as np
 
+from .._backend import get_backend
 from ..problem import Clamped, Free, dead_to_body
 from .base import Scheme, State, prefix_products
 
@@ -308,6 +317,42 @@ class Collocation(Scheme):
 
     def options(self) -> dict[str, Any]:
         return {"derivative": self.derivative, "track_frames": self.track}
+
+    # ------------------------------------------------------------------ compiled loops
+    def compiled_advance(self, integrator, state: State, dt: float, nsteps: int, *,
+                         kinetic_limit: float = math.inf) -> bool:
+        """Advance ``state`` in place by up to ``nsteps`` steps of ``integrator`` in compiled code.
+
+        The contract of :meth:`cartan.schemes.lattice.Lattice.compiled_advance`: returns False,
+        leaving everything untouched, when the combination is not supported (the caller then
+        runs ``integrator.step`` in Python); the numpy backend always declines.  Supported
+        (:mod:`cartan.schemes._collocation_compiled`, ``docs/schemes.md``): d = 1, open or
+        periodic; SO(2), SE(2), SO(3), SE(3); ``fd2``, ``fd4``, and ``fourier`` up to
+        :data:`~cartan.schemes._collocation_compiled.FOURIER_MAX_NODES` nodes; a medium with
+        ``quadratic_energy()``; damping, body-frame uniform forces, constant-field
+        potentials, free (loaded or not) and clamped ends; ``lie-euler``, ``lie-verlet``,
+        ``rkmk4``, ``forward-euler``, ``overdamped``.
+
+        When it returns True the steps were taken as ``integrator.step`` takes them (same
+        formulas, agreement to round-off): ``state.t``, ``state.scalars`` (energy
+        accumulators by the trapezoidal rule, ``"nstep"``) and the integrator's counters and
+        caches are updated as the Python loop would.  The loop stops early after the first
+        step whose momentum (or, for integrators without momentum, configuration) is not
+        finite, or whose kinetic energy ``½Σ w S²/m`` exceeds ``kinetic_limit``; the number of
+        steps done is the increase of ``state.scalars["nstep"]``.
+        """
+        if get_backend() != "numba":
+            return False
+        plan = self.__dict__.get("_compiled_plan", False)
+        if plan is False:
+            from ._collocation_compiled import build_plan
+
+            plan = self._compiled_plan = build_plan(self)
+        if plan is None:
+            return False
+        from ._collocation_compiled import advance
+
+        return advance(self, plan, integrator, state, dt, nsteps, kinetic_limit)
 
     # ------------------------------------------------------------------ strains from frames
     def strain_from_frames(self, Phi: np.ndarray, check: bool = False) -> np.ndarray:
