@@ -24,6 +24,7 @@ $(STAMP): pyproject.toml Makefile
 	@test -x $(PY) || $(PYTHON) -m venv $(VENV)
 	$(PY) -m pip install --quiet --upgrade pip
 	$(PY) -m pip install --quiet -e ".[test,bench,dev,dist]"
+	$(VENV)/bin/cartan warm
 	@touch $(STAMP)
 
 install: $(STAMP)
@@ -54,6 +55,7 @@ verify-full: $(STAMP)
 	$(VENV)/bin/cartan verify --out out/verification
 
 bench: $(STAMP)
+	$(VENV)/bin/cartan warm
 	$(VENV)/bin/asv machine --yes >/dev/null
 	$(VENV)/bin/asv run --python=same --quick --show-stderr
 

@@ -13,8 +13,14 @@ per sample, along each path cartan offers:
   compiled loop without ``simulate`` around it), skipped (n/a) when the scheme has none or
   declines the problem.
 
-``setup`` runs every path once on the same rod, so that numba compilation (or loading its
-on-disk cache) never lands inside a timing.
+``RodStep`` runs every path at n = 10², 10³, 10⁴ and 10⁵ elements.  ``setup`` runs every
+path once on the same rod, so that numba compilation (or loading its on-disk cache) never
+lands inside a timing.
+
+Work around the steps: ``SimulateSaves`` times ``cartan.simulate`` of the same rod at
+n = 1000 over 2000 steps with ``save_every`` = 20, 100, 1000 and 2000 (the per-save cost
+against the steps), and ``CFLEstimate`` the CFL estimate each run starts with, compiled and
+numpy, at n = 10³ … 10⁵.
 
 Accuracy: the butterfly rod (PyElastica's butterfly material, n = 11, an arc of curvature
 0.5 released from rest): max relative energy error of ``lie-verlet`` over t ∈ [0, 1.2] and
@@ -30,6 +36,9 @@ import cartan
 from .compare import cartan_problem, step_size, t1_velocity
 
 STEPS = 20
+#: :class:`SimulateSaves`: rod size and steps per run
+SAVE_N = 1000
+SAVE_STEPS = 2000
 
 PATHS = ["simulate", "simulate-uncompiled", "step-loop", "compiled-advance"]
 
@@ -45,7 +54,7 @@ def _simulate(problem, dt: float, nsteps: int, **options):
 class RodStep:
     """``STEPS`` steps of ``lie-verlet`` on a free straight rod of ``n`` elements."""
 
-    params = ([100, 1000, 10000], PATHS)
+    params = ([100, 1000, 10000, 100000], PATHS)
     param_names = ["n", "path"]
     number = 1
     repeat = (3, 10, 20.0)
@@ -86,6 +95,49 @@ class RodStep:
             self.scheme.compiled_advance(self.integrator, self.state, self.dt, STEPS)
         else:
             _simulate(self.problem, self.dt, STEPS, **self.options)
+
+
+class SimulateSaves:
+    """``cartan.simulate`` of the T1 rod at n = 1000 over ``SAVE_STEPS`` steps, saving every
+    ``save_every`` steps: the per-save work (frame output, the guard's energy tests at the
+    steps 1, 2, 4, 8, … of every save block) against the steps themselves."""
+
+    params = ([20, 100, 1000, SAVE_STEPS],)
+    param_names = ["save_every"]
+    number = 1
+    repeat = (3, 10, 20.0)
+    warmup_time = 0.0
+
+    def setup(self, save_every):
+        self.problem = cartan_problem(SAVE_N, t1_velocity(SAVE_N))
+        self.dt = step_size(SAVE_N)
+        _simulate(self.problem, self.dt, 4)  # compile or load every kernel
+
+    def time_simulate(self, save_every):
+        cartan.simulate(self.problem, integrator="lie-verlet", scheme="lattice", dt=self.dt,
+                        t_end=SAVE_STEPS * self.dt, save_every=save_every, progress=False)
+
+
+class CFLEstimate:
+    """The CFL estimate ``simulate`` computes once per run (``Scheme.dt_max``: a power iteration
+    of force evaluations, compiled for lattice problems with a compiled plan; ``numpy``: the
+    same with ``compiled_diagnostics = False``) on the T1 rod of ``n`` elements."""
+
+    params = ([1000, 10000, 100000], ["compiled", "numpy"])
+    param_names = ["n", "path"]
+    number = 1
+    repeat = (3, 10, 20.0)
+    warmup_time = 0.0
+    timeout = 600.0
+
+    def setup(self, n, path):
+        self.scheme = cartan.registry("schemes")["lattice"](cartan_problem(n, t1_velocity(n)))
+        self.scheme.compiled_diagnostics = path == "compiled"
+        self.state = self.scheme.initial_state()
+        self.scheme.dt_max(self.state, iterations=1)  # compile or load the kernels
+
+    def time_dt_max(self, n, path):
+        self.scheme.dt_max(self.state)
 
 
 # ---------------------------------------------------------------------------- butterfly energy

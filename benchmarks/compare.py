@@ -1,8 +1,8 @@
-"""cartan against PyElastica on the same rod scenes, in one process, alternating.
+"""cartan against PyElastica (and the paper's own method) on the targets T1, T2, T3, T5, T6.
 
 Run it as a script::
 
-    python benchmarks/compare.py [--quick] [--out DIR]
+    python benchmarks/compare.py [--quick] [--out DIR] [--t2-elastica]
 
 Targets (PERFORMANCE.md §2):
 
@@ -24,16 +24,43 @@ T5  work-precision: the first free–free axial mode of the same rod at small am
     a fixed Courant number 0.5.  Wall time to reach a relative error of 1e-4 is
     interpolated for each method.
 
+Saves  ``cartan.simulate`` of the T1 rod at the largest T1 size over 2000 steps with
+    ``save_every`` = 20, 100, 1000 (``--save-every``): the cost of the saved frames and of the
+    blow-up guard's energy tests against the steps.
+
+T2  the Timoshenko cantilever (VERIFICATION.md §4; the registered case
+    ``rod-timoshenko-static``): wall time of building and solving the equilibrium with
+    ``cartan.solve_static`` (through the case's solver) at n = 12, 24, 48, 96 elements, the
+    relative tip error against the geometrically exact deflection, and the coarsest n that
+    reaches 1e-4.  PyElastica has no static solver: its Timoshenko example relaxes the
+    damped dynamics for 2.4 M steps (final time 5000, n = 100).  That run takes minutes, so
+    it runs only with ``--t2-elastica``; otherwise the figure of PERFORMANCE.md §1 (166 s
+    for a tip error of 1.0 %) is quoted, and the output says so.
+
+T3  a closed rod relaxing by overdamped (gradient) dynamics: the registered scene
+    ``rod-ring-relax`` with N = 1000 nodes (``--t3-nodes``), ms per step at the same Δt (half
+    the overdamped CFL estimate), steps only.  PyCoss, the paper's authors' code, is not on
+    PyPI; its method — collocation in space, Lie–Euler in time, pure numpy — is cartan's
+    ``collocation`` scheme with ``overdamped`` (order 1: the Lie–Euler step of the gradient
+    flow) on the numpy path (``compiled=False``), the "PyCoss equivalent" of the table and
+    the reference of its ratios; PERFORMANCE.md's PyCoss timings are quoted beside it.  The
+    ring closure residual at the end of each run is reported too.
+
+T6  start-up: ``import cartan`` and a first 100-step rod simulation in fresh processes
+    from a warm numba cache (``benchmarks/startup.py``).
+
 cartan is timed along every path it offers: ``cartan.simulate`` (what a user calls;
 including its setup and the blow-up guard), ``cartan.simulate(compiled=False)`` when
 ``simulate`` accepts that option, a bare loop of ``LieVerlet.step`` on a ``Lattice``
 (``step loop``), and ``Lattice.compiled_advance`` (the scheme's compiled loop without
 ``simulate`` around it) when the lattice has one.  A path that fails in the warm-up is
-reported and left out.  Results go to ``DIR/compare.nc`` (every sample, CF attributes) and
-``DIR/compare.png``; a table of medians and ratios is printed.
+reported and left out.  Results go to ``DIR/compare.nc`` (every sample, CF attributes; T2,
+T3, T6 and the saves table as variables with their own dimensions) and ``DIR/compare.png``
+(T1 and T5); tables of medians and ratios are printed.
 
 PyElastica is the optional extra ``compare`` (``pip install 'cartan[compare]'``); without it
-only cartan is timed.
+only cartan is timed.  ``--quick`` (200 T1 steps, T5 on n ≤ 100, 50 T3 steps, 3 T6 processes)
+runs in about a minute.
 """
 
 from __future__ import annotations
@@ -480,6 +507,216 @@ def observed_order(sizes: Sequence[int], error: np.ndarray) -> float:
     return float(-np.polyfit(np.log(np.asarray(sizes)[ok]), np.log(error[ok]), 1)[0])
 
 
+# ---------------------------------------------------------------------------- saves
+def measure_saves(n: int, nsteps: int, save_everys: Sequence[int], reps: int, log=print) -> dict[str, Any]:
+    """``cartan.simulate`` of the T1 rod (n elements, ``nsteps`` steps) saving every
+    ``save_every`` steps: seconds per step ``[save_every, rep]`` of the whole call."""
+    import cartan
+
+    v, dt = t1_velocity(n), step_size(n)
+    run_cartan_simulate(cartan_problem(n, v), dt, 4)  # compile or load every kernel
+    seconds = np.full((len(save_everys), reps), np.nan)
+    for rep in range(reps):
+        for i in (range(len(save_everys)) if rep % 2 == 0 else reversed(range(len(save_everys)))):
+            problem = cartan_problem(n, v)
+            gc.collect()
+            t0 = time.perf_counter()
+            cartan.simulate(problem, integrator="lie-verlet", scheme="lattice", dt=dt, t_end=nsteps * dt,
+                            save_every=int(save_everys[i]), progress=False)
+            seconds[i, rep] = (time.perf_counter() - t0) / nsteps
+    med = np.median(seconds, axis=-1)
+    log("  " + "; ".join(f"save_every {k}: {1e6 * m:.1f} µs/step" for k, m in zip(save_everys, med)))
+    return {"seconds": seconds, "save_every": np.asarray(save_everys), "n": n, "steps": nsteps}
+
+
+# ---------------------------------------------------------------------------- T2
+#: the registered static case of the Timoshenko cantilever (VERIFICATION.md §4)
+T2_CASE = "rod-timoshenko-static"
+T2_TARGET = 1e-4
+#: PERFORMANCE.md §1: PyElastica's damped dynamic relaxation of the same cantilever, n = 100
+#: elements, 2.4 M PositionVerlet steps (its example's final time 5000 at Δt = 0.07·dx)
+ELASTICA_T2_QUOTED = {"seconds": 166.0, "error": 1.0e-2, "n": 100, "steps": 2.4e6}
+
+
+def t2_case():
+    """The registered Timoshenko cantilever case, or None when it is not registered."""
+    import cartan
+
+    cases = cartan.registry("cases")
+    if T2_CASE not in cases:
+        return None
+    obj = cases[T2_CASE]
+    return obj() if isinstance(obj, type) else obj
+
+
+def measure_t2(case, levels: Sequence[int], reps: int, log=print) -> dict[str, Any]:
+    """``cartan.solve_static`` (through the case's solver) at the case's levels: wall time of
+    building the problem and solving it ``[level, rep]``, the relative tip error and the Newton
+    iterations per level."""
+    case.solve(*case.problem(levels[0]))  # warm-up: loads every kernel
+    seconds = np.full((len(levels), reps), np.nan)
+    error = np.full(len(levels), np.nan)
+    iterations = np.zeros(len(levels), dtype=int)
+    nodes = np.zeros(len(levels), dtype=int)
+    for rep in range(reps):
+        for j in (range(len(levels)) if rep % 2 == 0 else reversed(range(len(levels)))):
+            gc.collect()
+            t0 = time.perf_counter()
+            problem, settings = case.problem(levels[j])
+            ds = case.solve(problem, settings)
+            seconds[j, rep] = time.perf_counter() - t0
+            error[j] = case.error(ds, problem)
+            iterations[j] = int(ds.attrs.get("newton_iterations", 0))
+            nodes[j] = problem.grid.shape[0]
+    med = np.median(seconds, axis=-1)
+    for j in range(len(levels)):
+        log(f"  n = {nodes[j] - 1} elements: tip error {error[j]:.2e}, {iterations[j]} Newton iterations, "
+            f"{1e3 * med[j]:.1f} ms")
+    return {"seconds": seconds, "error": error, "iterations": iterations, "nodes": nodes}
+
+
+def t2_at_target(t2: dict[str, Any]) -> tuple[int, float, float]:
+    """(elements, seconds, error) of the coarsest level that reaches :data:`T2_TARGET`."""
+    med = np.median(t2["seconds"], axis=-1)
+    for j in np.argsort(t2["nodes"]):
+        if t2["error"][j] <= T2_TARGET:
+            return int(t2["nodes"][j] - 1), float(med[j]), float(t2["error"][j])
+    return -1, math.nan, math.nan
+
+
+def run_elastica_timoshenko(ea, exact: float, n_elem: int = 100, final_time: float = 5000.0,
+                            log=print) -> dict[str, float]:
+    """PyElastica's Timoshenko-beam example (damped dynamic relaxation): the same cantilever
+    (L = 3, radius 0.25, E = 1e6, G = 1e4, ρ = 5000, tip force 15 ramped up over half the run,
+    ``AnalyticalLinearDamper`` with ν = 0.1/7/ρ/A, Δt = 0.07·dx, ``PositionVerlet``), stepped by
+    hand to ``final_time``; wall time of the stepping and relative tip error against ``exact``."""
+
+    class Simulator(ea.BaseSystemCollection, ea.Constraints, ea.Forcing, ea.CallBacks, ea.Damping):
+        pass
+
+    sim = Simulator()
+    area = math.pi * RADIUS**2
+    rod = ea.CosseratRod.straight_rod(n_elem, np.zeros(3), np.array([0.0, 0.0, 1.0]), np.array([0.0, 1.0, 0.0]),
+                                      LENGTH, RADIUS, DENSITY, youngs_modulus=YOUNG, shear_modulus=SHEAR)
+    sim.append(rod)
+    dt = 0.07 * LENGTH / n_elem
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")  # its deprecated damping_constant keyword, as the example uses it
+        sim.dampen(rod).using(ea.AnalyticalLinearDamper, damping_constant=0.1 / 7 / DENSITY / area, time_step=dt)
+    sim.constrain(rod).using(ea.OneEndFixedBC, constrained_position_idx=(0,), constrained_director_idx=(0,))
+    force = np.array([-15.0, 0.0, 0.0])
+    sim.add_forcing_to(rod).using(ea.EndpointForces, 0.0 * force, force, ramp_up_time=final_time / 2.0)
+    sim.finalize()
+    stepper = ea.PositionVerlet()
+    steps = int(final_time / dt)
+    t = np.float64(0.0)
+    h = np.float64(dt)
+    log(f"  PyElastica: {steps} PositionVerlet steps of {dt:g} s to t = {final_time:g} ...")
+    t0 = time.perf_counter()
+    for k in range(steps):
+        t = stepper.step(sim, t, h)
+        if (k + 1) % max(1, steps // 10) == 0:
+            log(f"    {100 * (k + 1) // steps} % ({time.perf_counter() - t0:.0f} s)")
+    seconds = time.perf_counter() - t0
+    tip = -float(rod.position_collection[0, -1])
+    return {"seconds": seconds, "error": abs(tip - exact) / exact, "n": n_elem, "steps": steps, "tip": tip}
+
+
+# ---------------------------------------------------------------------------- T3
+#: the registered overdamped closed-rod scene (PERFORMANCE.md T3: closed rod relaxing, N = 1000)
+T3_SCENE = "rod-ring-relax"
+#: PERFORMANCE.md §1: PyCoss's SE(3) Lie–Euler step at N = 100–1000 points
+PYCOSS_QUOTED_MS = (1.7, 3.8)
+#: T3 rows: (label, scheme, integrator, compiled); the first is cartan's best, the third the
+#: paper's method on cartan's numpy path (the PyCoss equivalent, the reference of the ratio)
+T3_PATHS = [
+    ("cartan lattice + overdamped (compiled)", "lattice", "overdamped", True),
+    ("cartan collocation + overdamped (compiled)", "collocation", "overdamped", True),
+    ("PyCoss equivalent: collocation + overdamped Lie–Euler (numpy)", "collocation", "overdamped", False),
+    ("cartan lattice + overdamped (numpy)", "lattice", "overdamped", False),
+    ("collocation + lie-euler, damped inertial (numpy)", "collocation", "lie-euler", False),
+    ("cartan lattice + lie-euler, damped inertial (compiled)", "lattice", "lie-euler", True),
+]
+T3_REFERENCE = 2
+
+
+def t3_problem(nodes: int):
+    """The ``rod-ring-relax`` scene (a perturbed closed ring, drag, overdamped) with ``nodes`` nodes."""
+    import cartan
+
+    src = dict(cartan.scene(T3_SCENE).source)
+    src["grid"] = {**src["grid"], "n": int(nodes)}
+    return cartan.load_scene(src).problem
+
+
+def run_t3_path(problem, scheme_name: str, integrator: str, compiled: bool, dt: float, nsteps: int
+                ) -> tuple[float, float, float]:
+    """Steps only (no ``simulate`` around them): the scheme's compiled loop, or a loop of
+    ``Integrator.step``; (seconds, closure residual, potential energy) at the end.  Raises
+    NotImplementedError when a compiled loop is asked for and the scheme has none or declines."""
+    import cartan
+
+    scheme = cartan.registry("schemes")[scheme_name](problem)
+    integ = cartan.registry("integrators")[integrator]()
+    state = scheme.initial_state()
+    gc.collect()
+    t0 = time.perf_counter()
+    if compiled:
+        advance = getattr(scheme, "compiled_advance", None)
+        if advance is None or not advance(integ, state, dt, nsteps):
+            raise NotImplementedError(f"{scheme_name} has no compiled loop for {integrator} here")
+    else:
+        for _ in range(nsteps):
+            integ.step(scheme, state, dt)
+    seconds = time.perf_counter() - t0
+    closure = getattr(scheme, "closure_residual", None)
+    return seconds, float(closure(state)) if closure is not None else math.nan, float(scheme.potential_energy(state))
+
+
+def measure_t3(nodes: int, nsteps: int, reps: int, log=print) -> dict[str, Any]:
+    """ms per step ``[path, rep]`` of :data:`T3_PATHS` at the same Δt (half the overdamped CFL
+    estimate), the closure residual and potential energy at the end of each path."""
+    import cartan
+
+    problem = t3_problem(nodes)
+    scheme = cartan.registry("schemes")["lattice"](problem)
+    integ = cartan.registry("integrators")["overdamped"]()
+    dt = 0.5 * float(integ.dt_max(scheme, scheme.initial_state()))
+    labels = [p[0] for p in T3_PATHS]
+    seconds = np.full((len(T3_PATHS), reps), np.nan)
+    closure = np.full(len(T3_PATHS), np.nan)
+    energy = np.full(len(T3_PATHS), np.nan)
+    ok = []
+    for i, (label, sch, name, comp) in enumerate(T3_PATHS):
+        try:
+            run_t3_path(problem, sch, name, comp, dt, 2)  # compile or load every kernel
+            ok.append(i)
+        except NotImplementedError as exc:
+            log(f"  {label}: n/a ({exc})")
+        except Exception as exc:  # noqa: BLE001 - report any failure and carry on
+            log(f"  {label} failed in the warm-up and is not timed: {type(exc).__name__}: {exc}")
+    for rep in range(reps):
+        for i in (ok if rep % 2 == 0 else list(reversed(ok))):
+            _, sch, name, comp = T3_PATHS[i]
+            sec, closure[i], energy[i] = run_t3_path(problem, sch, name, comp, dt, nsteps)
+            seconds[i, rep] = sec / nsteps
+    med = np.median(seconds, axis=-1)
+    for i in ok:
+        log(f"  {labels[i]}: {1e3 * med[i]:.3f} ms/step, closure {closure[i]:.1e}")
+    return {"seconds": seconds, "closure": closure, "energy": energy, "labels": labels, "dt": dt,
+            "nodes": nodes, "steps": nsteps}
+
+
+# ---------------------------------------------------------------------------- T6
+def measure_t6(reps: int, log=print) -> dict[str, np.ndarray]:
+    """Fresh-process start-up (``benchmarks/startup.py``): import + first simulation."""
+    try:
+        from .startup import measure
+    except ImportError:  # run as a script from benchmarks/
+        from startup import measure
+    return measure(reps=reps, log=log)
+
+
 # ---------------------------------------------------------------------------- output
 def build_dataset(t1: dict[str, Any], paths: list[Path], sizes: Sequence[int], nsteps: int,
                   t5: dict[str, Any] | None, methods: list[Path], t5_sizes: Sequence[int],
@@ -543,11 +780,13 @@ def build_dataset(t1: dict[str, Any], paths: list[Path], sizes: Sequence[int], n
             "long_name": "T5 observed order of the error in n (least squares)", "units": "1"})
     ds.attrs.update({
         "Conventions": "CF-1.11",
-        "title": "cartan vs PyElastica: wall time per step of a free Cosserat rod (T1) and work-precision (T5)",
+        "title": ("cartan vs PyElastica and the paper's method: cost per step of a free Cosserat rod (T1), "
+                  "static time to accuracy (T2), closed rod relaxing (T3), work-precision (T5), start-up (T6)"),
         "institution": "cartan benchmarks",
         "source": meta["source"],
         "history": meta["history"],
-        "references": "PERFORMANCE.md targets T1 and T5; PyElastica's Timoshenko beam example for the material",
+        "references": ("PERFORMANCE.md targets T1, T2, T3, T5, T6; PyElastica's Timoshenko beam example for the "
+                       "material; VERIFICATION.md §4 for the cantilever"),
         "comment": meta["comment"],
         "scene": json.dumps(meta["scene"]),
         "cartan_paths": json.dumps(meta["paths"]),
@@ -644,11 +883,84 @@ def t5_summary(ds) -> str | None:
     return f"wall time at error {T5_TARGET:g}: PyElastica / best cartan ({best}) = {ratio:.3g}"
 
 
+def add_targets(ds, saves: dict[str, Any] | None, t2: dict[str, Any] | None, t2_peer: dict[str, Any] | None,
+                t3: dict[str, Any] | None, t6: dict[str, np.ndarray] | None):
+    """The saves table, T2, T3 and T6 as variables of the output Dataset (own dimensions)."""
+    if saves is not None:
+        ds = ds.assign_coords(save_every=("save_every", saves["save_every"], {
+            "long_name": "steps between saved frames of cartan.simulate", "units": "1"}))
+        ds["saves_step_time"] = (("save_every", "saves_rep"), saves["seconds"], {
+            "long_name": f"cartan.simulate wall time per step, T1 rod n = {saves['n']}, {saves['steps']} steps",
+            "units": "s"})
+    if t2 is not None:
+        ds = ds.assign_coords(t2_n=("t2_n", t2["nodes"] - 1, {"long_name": "T2 rod elements", "units": "1"}))
+        ds["t2_seconds"] = (("t2_n", "t2_rep"), t2["seconds"], {
+            "long_name": "T2 wall time of building and solving the cantilever (cartan.solve_static)", "units": "s"})
+        ds["t2_error"] = ("t2_n", t2["error"], {
+            "long_name": "T2 relative tip deflection error against the geometrically exact solution", "units": "1"})
+        ds["t2_newton_iterations"] = ("t2_n", t2["iterations"], {"long_name": "T2 Newton iterations", "units": "1"})
+    if t2_peer is not None:
+        for key in ("seconds", "error", "n", "steps"):
+            ds[f"t2_peer_{key}"] = ((), float(t2_peer[key]), {
+                "long_name": f"T2 PyElastica dynamic relaxation: {key}",
+                "comment": "measured in this run" if t2_peer.get("measured") else "quoted from PERFORMANCE.md §1",
+                "units": "s" if key == "seconds" else "1"})
+    if t3 is not None:
+        ds = ds.assign_coords(t3_path=("t3_path", np.array(t3["labels"], dtype=object), {"long_name": "T3 path"}))
+        ds["t3_step_time"] = (("t3_path", "t3_rep"), t3["seconds"], {
+            "long_name": f"T3 wall time per step, closed rod relaxing, N = {t3['nodes']}", "units": "s"})
+        ds["t3_closure"] = ("t3_path", t3["closure"], {"long_name": "T3 ring closure residual at the end",
+                                                       "units": "1"})
+        ds["t3_potential_energy"] = ("t3_path", t3["energy"], {"long_name": "T3 potential energy at the end",
+                                                               "units": "energy"})
+        ds["t3_dt"] = ((), t3["dt"], {"long_name": "T3 time step", "units": "s"})
+    if t6 is not None:
+        for key, long_name in (("import", "import cartan"), ("simulation", "first simulation (T1 rod, 100 steps)"),
+                               ("process", "whole fresh process"), ("misses", "numba signatures compiled")):
+            ds[f"t6_{key}"] = ("t6_rep", t6[key], {"long_name": f"T6 {long_name}",
+                                                   "units": "1" if key == "misses" else "s"})
+    return ds
+
+
+def print_saves_table(saves: dict[str, Any], log=print) -> None:
+    med = np.median(saves["seconds"], axis=-1)
+    log("| save_every | " + " | ".join(str(int(k)) for k in saves["save_every"]) + " |")
+    log("|---|" + "---|" * len(med))
+    log("| µs per step | " + " | ".join(f"{1e6 * m:.1f}" for m in med) + " |")
+
+
+def print_t2_table(t2: dict[str, Any], peer: dict[str, Any], log=print) -> None:
+    med = np.median(t2["seconds"], axis=-1)
+    log("| code | elements n | tip error | wall time |")
+    log("|---|---|---|---|")
+    for j in np.argsort(t2["nodes"]):
+        log(f"| cartan.solve_static | {t2['nodes'][j] - 1} | {t2['error'][j]:.2e} | {1e3 * med[j]:.1f} ms |")
+    how = "measured" if peer.get("measured") else "quoted from PERFORMANCE.md §1; not run here, --t2-elastica runs it"
+    log(f"| PyElastica dynamic relaxation ({how}) | {int(peer['n'])} | {peer['error']:.2e} | {peer['seconds']:.1f} s |")
+    n, sec, err = t2_at_target(t2)
+    if n > 0:
+        log(f"T2: cartan reaches {T2_TARGET:g} at n = {n} in {sec:.3f} s (error {err:.2e}); PyElastica's "
+            f"{peer['error']:.1%} took {peer['seconds']:.0f} s: {peer['seconds'] / sec:.0f}× the time for "
+            f"{peer['error'] / err:.0f}× the error")
+
+
+def print_t3_table(t3: dict[str, Any], log=print) -> None:
+    med = np.median(t3["seconds"], axis=-1)
+    ref = med[T3_REFERENCE]
+    log("| path | ms/step | vs PyCoss equivalent | closure residual |")
+    log("|---|---|---|---|")
+    for i, label in enumerate(t3["labels"]):
+        ratio = ref / med[i] if math.isfinite(med[i]) and math.isfinite(ref) else math.nan
+        log(f"| {label} | {fmt(med[i], 1e3, 3)} | {fmt(ratio, 1.0, 1)}× | {t3['closure'][i]:.1e} |")
+    log(f"PyCoss itself (PERFORMANCE.md §1, not installable from PyPI): {PYCOSS_QUOTED_MS[0]}–{PYCOSS_QUOTED_MS[1]} ms "
+        "per SE(3) Lie–Euler step at N = 100–1000")
+
+
 # ---------------------------------------------------------------------------- main
 def main(argv: Sequence[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0],
                                  formatter_class=argparse.RawDescriptionHelpFormatter)
-    ap.add_argument("--quick", action="store_true", help="fewer steps and repetitions (< 60 s)")
+    ap.add_argument("--quick", action="store_true", help="fewer steps and repetitions (about a minute)")
     ap.add_argument("--out", default="out/compare", help="output directory (default: out/compare)")
     ap.add_argument("--steps", type=int, default=None, help="T1 steps per run (default 2000; --quick 200)")
     ap.add_argument("--reps", type=int, default=None, help="T1 repetitions (default 5; --quick 3)")
@@ -657,7 +969,28 @@ def main(argv: Sequence[str] | None = None) -> int:
     ap.add_argument("--t5-budget", type=float, default=None,
                     help="stop T5 repetitions after this many seconds (default 300; --quick 15)")
     ap.add_argument("--cartan-only", action="store_true", help="do not time PyElastica")
+    ap.add_argument("--save-every", type=int, nargs="+", default=[20, 100, 1000],
+                    help="save intervals of the simulate-with-saves table (T1 rod at the largest size, 2000 steps)")
+    ap.add_argument("--skip-saves", action="store_true", help="skip the simulate-with-saves table")
+    ap.add_argument("--skip-t2", action="store_true", help="skip the static cantilever (T2)")
+    ap.add_argument("--t2-elastica", action="store_true",
+                    help="also run PyElastica's dynamic relaxation of the T2 cantilever (≈ 3 min at final time 5000)")
+    ap.add_argument("--t2-elastica-time", type=float, default=5000.0,
+                    help="final time of that run (default 5000, its example's; 2.4 M steps)")
+    ap.add_argument("--skip-t3", action="store_true", help="skip the closed rod relaxing (T3)")
+    ap.add_argument("--t3-nodes", type=int, default=1000, help="T3 ring nodes (default 1000)")
+    ap.add_argument("--t3-steps", type=int, default=None, help="T3 steps per run (default 200; --quick 50)")
+    ap.add_argument("--skip-t6", action="store_true", help="skip the start-up time (T6)")
+    ap.add_argument("--t6-reps", type=int, default=None, help="T6 fresh processes (default 5; --quick 3)")
     args = ap.parse_args(argv)
+    for name in ("steps", "reps", "t3_steps", "t6_reps"):
+        value = getattr(args, name)
+        if value is not None and value < 1:
+            ap.error(f"--{name.replace('_', '-')} must be ≥ 1, got {value}")
+    if args.t3_nodes < 8 or any(k < 1 for k in args.save_every) or any(k < 2 for k in args.sizes):
+        ap.error("--t3-nodes must be ≥ 8, --save-every ≥ 1 and --sizes ≥ 2")
+    if not args.t2_elastica_time > 0:
+        ap.error(f"--t2-elastica-time must be > 0, got {args.t2_elastica_time}")
 
     nsteps = args.steps or (200 if args.quick else 2000)
     reps = args.reps or (3 if args.quick else 5)
@@ -709,6 +1042,44 @@ def main(argv: Sequence[str] | None = None) -> int:
     else:
         log("T5: skipped (--skip-t5)")
 
+    saves = None
+    if not args.skip_saves:
+        log(f"simulate with saves: T1 rod n = {sizes[-1]}, 2000 steps, save_every {args.save_every}, "
+            f"{reps} repetition(s)")
+        saves = measure_saves(sizes[-1], 2000, args.save_every, reps, log)
+
+    t2 = t2_peer = None
+    case = None if args.skip_t2 else t2_case()
+    if args.skip_t2:
+        log("T2: skipped (--skip-t2)")
+    elif case is None:
+        log(f"T2: the verification case {T2_CASE!r} is not registered: skipped")
+    else:
+        log(f"T2: Timoshenko cantilever ({T2_CASE}), cartan.solve_static, {reps} repetition(s)")
+        t2 = measure_t2(case, list(case.levels), reps, log)
+        t2_peer = {**ELASTICA_T2_QUOTED, "measured": False}
+        if args.t2_elastica and ea is not None:
+            t2_peer = {**run_elastica_timoshenko(ea, case.exact(), final_time=args.t2_elastica_time, log=log),
+                       "measured": True}
+        elif args.t2_elastica:
+            log(f"T2: {NO_PEER}")
+
+    t3 = None
+    if not args.skip_t3:
+        t3_steps = args.t3_steps or (50 if args.quick else 200)
+        log(f"T3: closed rod relaxing ({T3_SCENE}), N = {args.t3_nodes}, {t3_steps} steps, {reps} repetition(s)")
+        t3 = measure_t3(args.t3_nodes, t3_steps, reps, log)
+    else:
+        log("T3: skipped (--skip-t3)")
+
+    t6 = None
+    if not args.skip_t6:
+        t6_reps = args.t6_reps or (3 if args.quick else 5)
+        log(f"T6: import + first simulation in {t6_reps} fresh processes")
+        t6 = measure_t6(t6_reps, log)
+    else:
+        log("T6: skipped (--skip-t6)")
+
     cmd = " ".join([pathlib.Path(sys.argv[0]).name if argv is None else "compare.main", *(
         sys.argv[1:] if argv is None else list(argv))])
     stamp = datetime.datetime.now(datetime.UTC).isoformat(timespec="seconds")
@@ -728,6 +1099,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         "agreement": agreement,
     }
     ds = build_dataset(t1, paths, sizes, nsteps, t5, methods, t5_sizes, meta)
+    ds = add_targets(ds, saves, t2, t2_peer, t3, t6)
     nc = outdir / "compare.nc"
     png = outdir / "compare.png"
     ds.to_netcdf(nc)
@@ -760,6 +1132,26 @@ def main(argv: Sequence[str] | None = None) -> int:
         summary = t5_summary(ds)
         if summary:
             log(summary)
+    if saves is not None:
+        log("")
+        log(f"cartan.simulate with saves — T1 rod, n = {saves['n']}, {saves['steps']} steps, medians of {reps}:")
+        print_saves_table(saves, log)
+    if t2 is not None:
+        log("")
+        log(f"T2 — Timoshenko cantilever, time to a relative tip error of {T2_TARGET:g} (medians of {reps}):")
+        print_t2_table(t2, t2_peer, log)
+    if t3 is not None:
+        log("")
+        log(f"T3 — closed rod relaxing, N = {t3['nodes']}, {t3['steps']} steps of {t3['dt']:.3g} (medians of {reps}; "
+            "steps only, no simulate around them):")
+        print_t3_table(t3, log)
+    if t6 is not None:
+        try:
+            from .startup import summary
+        except ImportError:
+            from startup import summary
+        log("")
+        log(summary(t6))
     log("")
     log(f"wrote {nc} and {png} ({time.perf_counter() - wall0:.0f} s in all)")
     return 0

@@ -7,7 +7,9 @@
 ``cartan run scene.toml -o out.nc`` / ``cartan run --scene NAME``
     run a scene and write a netCDF file;
 ``cartan plot out.nc``
-    centreline snapshots and energies against time, as a PNG.
+    centreline snapshots and energies against time, as a PNG;
+``cartan warm``
+    compile every numba kernel into the on-disk cache (run once after installing).
 
 Plugins add commands through the ``cartan_register_commands`` hook
 (``register("name", click_command)``).
@@ -21,6 +23,7 @@ import tomllib
 
 import click
 
+from .cli_cache import register as _register_cache_commands
 from .cli_run import register as _register_run_commands
 from .cli_verify import register as _register_verify_commands
 from .plugins import KINDS, RegistryError, get_registry
@@ -114,6 +117,7 @@ def list_cmd(kind: str | None) -> None:
 
 _register_run_commands(main)
 _register_verify_commands(main)
+_register_cache_commands(main)
 
 
 if __name__ == "__main__":  # pragma: no cover

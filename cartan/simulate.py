@@ -20,6 +20,13 @@ copy taken at the start of the save block, as before.  Each step depends only on
 so the result does not depend on the sub-blocks and a restart is bit for bit (with the same
 path on both sides: the compiled and Python paths agree to round-off, not bit for bit).
 
+The work around the steps uses compiled kernels too when the scheme has them
+(``scheme.compiled_diagnostics``, cleared by ``compiled=False``): the CFL estimate
+(:meth:`~cartan.schemes.base.Scheme.dt_max`, whose stiffness products use the lattice's
+compiled force and drift) and the guard's energies (the compiled plan's quadratic energy);
+saved frames always use the scheme's reference methods, with the frames rebuilt once per
+frame (``docs/performance.md``, "Work around the steps").
+
 Blow-up is detected cheaply inside each save block and fully at every save.  The tests:
 non-finite momentum or configuration (every step); an energy-balance error
 ``|K + V + D − W − E₀|`` beyond ``max_energy_growth`` times the energy scale of the run *and*
@@ -193,9 +200,18 @@ def _advance(
     ``guard(state, steps done)`` reports a blow-up.  With ``compiled``, the steps go to
     ``scheme.compiled_advance`` when the scheme has it and accepts the combination (see the
     module docstring), in sub-blocks ending where the guard runs its energy test; otherwise,
-    or for what it declines, to ``integrator.step`` one by one.
+    or for what it declines, to ``integrator.step`` one by one.  An implicit integrator's
+    :class:`~cartan.statics.ConvergenceError` (its stage equations unsolved; the state is left
+    at the last step done) is reported like a blow-up.  Integrators with a ``begin_block()``
+    method (caches that change results, e.g. a kept Jacobian) are told that a block starts,
+    where a restart could resume, so that restarts stay bit for bit.
     """
+    from .statics import ConvergenceError
+
     k = 0
+    begin = getattr(integrator, "begin_block", None)
+    if begin is not None:
+        begin()
     with np.errstate(over="ignore", invalid="ignore", divide="ignore"):
         fast = getattr(scheme, "compiled_advance", None) if compiled else None
         energy_checks = getattr(guard, "energy_checks", True)
@@ -210,7 +226,10 @@ def _advance(
             if reason is not None:
                 return k, reason
         for j in range(k, nsteps):
-            integrator.step(scheme, state, dt)
+            try:
+                integrator.step(scheme, state, dt)
+            except ConvergenceError as exc:
+                return j + 1, str(exc)
             reason = guard(state, j + 1)
             if reason is not None:
                 return j + 1, reason
@@ -222,13 +241,18 @@ def _make_guard(scheme: Scheme, integrator: Integrator, growth: float | None, e0
 
     Every step: non-finite momentum (or configuration, for integrators without momentum).
     At k = 1, 2, 4, 8, …: the energy-balance test of :func:`_balance` on K and V (two
-    energy evaluations), which also raises the energy scale ``scale[0]`` and marks it
-    established (``scale[1] ≥ 1``).  At the other steps, once the scale is established: the
-    kinetic energy ½Σ w S²/m against ``growth × scale[0]`` (one pass over S).
+    energy evaluations, from the compiled plan's quadratic energy when the lattice has one and
+    ``scheme.compiled_diagnostics`` is set: ``cartan.schemes._lattice_diagnostics.guard_energies``),
+    which also raises the energy scale ``scale[0]`` and marks it established (``scale[1] ≥ 1``).
+    At the other steps, once the scale is established: the kinetic energy ½Σ w S²/m against
+    ``growth × scale[0]`` (one pass over S).
     """
     inv = np.where(scheme.live, 1.0 / np.where(scheme.live, scheme.mass, 1.0), 0.0)
     w = scheme.weights[..., None]
     momentum = integrator.uses_momentum
+    compiled_energies = bool(getattr(scheme, "compiled_diagnostics", False)) and growth is not None
+    if compiled_energies:
+        from .schemes._lattice_diagnostics import guard_energies
 
     def kinetic_limit() -> float:
         """The bound the kinetic test applies now (inf while it is off): for compiled loops,
@@ -246,9 +270,11 @@ def _make_guard(scheme: Scheme, integrator: Integrator, growth: float | None, e0
         if growth is None:
             return None
         if k & (k - 1) == 0:
+            fast = guard_energies(scheme, state) if compiled_energies else None
+            K, V = fast if fast is not None else (scheme.kinetic_energy(state), scheme.potential_energy(state))
             energies = {
-                "kinetic_energy": float(scheme.kinetic_energy(state)),
-                "potential_energy": float(scheme.potential_energy(state)),
+                "kinetic_energy": float(K),
+                "potential_energy": float(V),
                 "dissipated_energy": float(state.scalars.get("dissipated_energy", 0.0)),
                 "external_work": float(state.scalars.get("external_work", 0.0)),
             }
@@ -331,6 +357,8 @@ def _describe_dt(dt: float, dt_max: float) -> str:
         return f"Δt = {dt:.3g} exceeds the CFL estimate 0 (no stable Δt for undamped motion)"
     if dt > dt_max:
         return f"Δt = {dt:.3g} exceeds the CFL estimate {dt_max:.3g}"
+    if dt_max == math.inf:
+        return f"Δt = {dt:.3g} (no stability limit)"
     return f"Δt = {dt:.3g} is within the CFL estimate {dt_max:.3g}"
 
 
@@ -401,9 +429,9 @@ def simulate(
         environment variable ``CI`` is not set.
     max_energy_growth : float or None
         Blow-up threshold (see the module docstring); None disables the energy tests
-        (non-finite values are always detected).  Integrators without a stability limit
-        (``stability = inf``, e.g. ``kinematic``, which prescribes N) have no energy budget to
-        test and get the non-finite test only.
+        (non-finite values are always detected).  Integrators that prescribe N
+        (``kinematic``: no stability limit and no momentum) have no energy budget to test and
+        get the non-finite test only.
     compiled : bool, default True
         Run the steps between saves in the scheme's compiled loop when it supports the
         combination (the lattice scheme for d = 1 with a quadratic medium and data-like loads,
@@ -463,6 +491,7 @@ def simulate(
     if isinstance(scheme_cls, Scheme):
         raise TypeError("scheme must be a registered name or a Scheme subclass, not an instance")
     scheme_obj: Scheme = scheme_cls(problem, **sopts)
+    scheme_obj.compiled_diagnostics = bool(compiled)  # the CFL estimate and the guard's energies
     integ = _resolve("integrators", integ_spec, Integrator)
     integ_obj: Integrator = integ(**iopts) if isinstance(integ, type) else integ
     if not isinstance(integ, type):
@@ -534,8 +563,9 @@ def simulate(
     if checkpoint_every is not None and output is None:
         raise ValueError("checkpoint_every needs an output file (output=path)")
     output = None if output is None else pathlib.Path(output)
-    # integrators without a stability limit prescribe N (kinematic): no energy budget to test
-    no_budget = max_energy_growth is None or integ_obj.stability == math.inf
+    # integrators that prescribe N (kinematic) have no energy budget to test; implicit ones
+    # without a stability limit (stability = inf, uses_momentum) do
+    no_budget = max_energy_growth is None or (integ_obj.stability == math.inf and not integ_obj.uses_momentum)
     growth = None if no_budget else float(max_energy_growth)
 
     run_config = {

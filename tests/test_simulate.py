@@ -227,3 +227,144 @@ def test_integrator_instances_and_options(toy):
     assert json.loads(a.attrs["cartan_config"])["run"]["integrator_options"] == {"order": 2}
     with pytest.raises(ValueError, match="order must be 1 or 2"):
         simulate(sc, integrator="overdamped", integrator_options={"order": 3}, dt=5e-4, t_end=0.002)
+
+
+# ---------------------------------------------------------------------------- work around the steps
+def _dense_lambda_max(scheme, state, inv: np.ndarray) -> float:
+    """max |eig(M⁻¹K)| (or Γ⁻¹K) of the stiffness assembled column by column with the numpy probe,
+    on the free degrees of freedom (live components of nodes that are not clamped)."""
+    scheme.compiled_diagnostics = False
+    probe = scheme.stiffness_probe(state)
+    scheme.compiled_diagnostics = True
+    shape, dof = state.S.shape, state.S.size
+    J = np.zeros((dof, dof))
+    for k in range(dof):
+        v = np.zeros(dof)
+        v[k] = 1.0
+        J[:, k] = (inv * probe(v.reshape(shape))).ravel()
+    keep = np.outer(~scheme._clamped, inv > 0).ravel()
+    return float(np.max(np.abs(np.linalg.eigvals(J[np.ix_(keep, keep)]))))
+
+
+def _t1_rod(n: int) -> cartan.Problem:
+    """A straight free rod with the Timoshenko-beam material of benchmarks/compare.py (T1)."""
+    rod = cartan.medium("cosserat-rod", E=1e6, G=1e4, radius=0.25, density=5000.0)
+    grid = cartan.Grid(n, length=3.0)
+    return cartan.Problem(rod, grid, rod.initial_state(grid, "straight"))
+
+
+@pytest.mark.parametrize("kind", ["straight", "dead", "ring"])
+def test_cfl_estimate_against_the_exact_eigenvalue(kind):
+    """dt_max = 1/√λ_max(M⁻¹K) (and 1/λ_max(Γ⁻¹K) overdamped) against a dense eigensolver.
+
+    The power iteration stops when two Rayleigh quotients agree to 1e-3; the quotient
+    approaches λ_max from below, so the estimate lies above the exact value, measured by
+    0.2–0.8 % (inertial, √ of the quotient) and 0.2–1.7 % (overdamped) on these rods: the
+    bounds 1 % and 2 % leave room for the stopping rule, not for a wrong operator."""
+    from test_lattice_compiled import rod_problem
+
+    problem = _t1_rod(16) if kind == "straight" else rod_problem(kind)
+    scheme = Lattice(problem)
+    state = scheme.initial_state()
+    exact = 1.0 / np.sqrt(_dense_lambda_max(scheme, state, 1.0 / scheme.mass))
+    assert 1.0 <= scheme.dt_max(state) / exact <= 1.01
+    if kind != "straight":
+        exact = 1.0 / _dense_lambda_max(scheme, state, 1.0 / scheme.drag())
+        assert 1.0 <= scheme.dt_max(state, rate="overdamped") / exact <= 1.02
+
+
+@pytest.mark.parametrize("kind", ["straight", "dead", "follower", "ring", "planar"])
+def test_compiled_cfl_estimate_matches_the_numpy_one(kind):
+    """The compiled stiffness probe (lattice with a compiled plan) gives the numpy estimate: the
+    same power iteration on the same operator, round-off apart.  The central difference divides
+    force round-off (≈ 1e-16 of the stress scale) by ε = 1e-7, so the two estimates may differ
+    by ≈ 1e-9 relative (measured ≤ 2e-12)."""
+    from test_lattice_compiled import rod_problem
+
+    problem = {"straight": lambda: _t1_rod(40), "planar": lambda: rod_problem("dead", planar=True)}.get(
+        kind, lambda: rod_problem(kind))()
+    scheme = Lattice(problem)
+    state = scheme.initial_state()
+    before = state.copy()
+    assert scheme.stiffness_probe(state).__module__ == "cartan.schemes._lattice_diagnostics"
+    for rate in ("inertial", "overdamped") if kind != "straight" else ("inertial",):
+        fast = scheme.dt_max(state, rate=rate)
+        scheme.compiled_diagnostics = False
+        ref = scheme.dt_max(state, rate=rate)
+        scheme.compiled_diagnostics = True
+        assert abs(fast / ref - 1.0) <= 1e-9, (rate, fast, ref)
+    assert state.t == before.t and np.array_equal(state.S, before.S)
+    assert all(np.array_equal(state.arrays[k], before.arrays[k]) for k in before.arrays)
+
+
+def test_cfl_estimate_rejects_bad_settings():
+    scheme = Lattice(_t1_rod(8))
+    state = scheme.initial_state()
+    with pytest.raises(ValueError, match="rate must be 'inertial' or 'overdamped'"):
+        scheme.dt_max(state, rate="viscous")
+    with pytest.raises(ValueError, match="iterations must be an integer ≥ 1"):
+        scheme.dt_max(state, iterations=0)
+    with pytest.raises(ValueError, match="eps must be finite and > 0"):
+        scheme.dt_max(state, eps=0.0)
+
+
+def test_compiled_false_runs_the_reference_cfl_estimate():
+    """simulate(compiled=False) computes dt_max with the numpy forces (the reference path)."""
+    problem = _t1_rod(12)
+    scheme = Lattice(problem)
+    scheme.compiled_diagnostics = False
+    ref = float(LieVerlet().dt_max(scheme, scheme.initial_state()))
+    ds = simulate(problem, dt=1e-4, t_end=2e-4, compiled=False)
+    assert json.loads(ds.attrs["cartan_config"])["run"]["dt_max"] == ref
+
+
+def test_prefix_products_compiled_against_doubling():
+    """The compiled sequential frame rebuild against numpy's doubling scan, for a chain and a
+    batch of chains: products of n ≤ 400 SE(3) factors of norm ≈ 1 (positions up to ≈ 30)
+    agree to round-off, a few ulps times √n (measured ≤ 4e-15 absolute)."""
+    from cartan.schemes.base import prefix_products
+
+    g = cartan.group("SE3")
+    rng = np.random.default_rng(3)
+    for shape in ((399,), (99, 3)):
+        steps = g.exp(0.1 * rng.standard_normal((*shape, 6)))
+        first = g.exp(rng.standard_normal((*shape[1:], 6)))
+        fast = prefix_products(first, steps)
+        with cartan.use_backend("numpy"):
+            ref = prefix_products(first, steps)
+        assert fast.shape == ref.shape == (shape[0] + 1, *shape[1:], 4, 4)
+        assert np.max(np.abs(fast - ref)) <= 1e-13 * max(1.0, float(np.max(np.abs(ref))))
+        assert np.array_equal(fast[0], first)
+
+
+@pytest.mark.parametrize("kind", ["dead", "ring", "planar"])
+def test_guard_energies_match_the_reference(kind):
+    """The guard's compiled-plan energies against Scheme.kinetic_energy/Lattice.potential_energy
+    (the same sums in another order: round-off, ≤ 1e-12 relative) on moving, loaded rods."""
+    from test_lattice_compiled import rod_problem
+
+    from cartan.schemes._lattice_diagnostics import guard_energies
+
+    problem = rod_problem("dead", planar=True) if kind == "planar" else rod_problem(kind)
+    scheme = Lattice(problem)
+    state = scheme.initial_state()
+    assert scheme.compiled_advance(LieVerlet(), state, 1e-3, 20)
+    K, V = guard_energies(scheme, state)
+    assert K > 0 and V != 0
+    assert K == pytest.approx(scheme.kinetic_energy(state), rel=1e-12)
+    assert V == pytest.approx(scheme.potential_energy(state), rel=1e-12)
+    scheme.compiled_diagnostics = False
+    assert guard_energies(scheme, state) is None
+
+
+def test_frame_record_total_momentum_with_the_built_frames():
+    """frame_record reuses its rebuilt frames for the total momentum: equal to the scheme's own."""
+    from test_lattice_compiled import rod_problem
+
+    from cartan import io
+
+    scheme = Lattice(rod_problem("ring"))
+    state = scheme.initial_state()
+    scheme.compiled_advance(LieVerlet(), state, 1e-3, 10)
+    rec = io.frame_record(scheme, LieVerlet(), state)
+    assert np.array_equal(rec["total_momentum"], scheme.total_momentum(state))
