@@ -172,6 +172,12 @@ class Medium(abc.ABC):
         :meth:`body_force` returns a generalised force density ``T ∈ 𝔤*`` that does not derive
         from U(X) (default: none).  Configurational potentials U(q) are loads given to the
         problem and pulled back by the core (:func:`pullback_gradient`).
+
+    Static Jacobian (optional)
+        :meth:`static_jacobian` may return ``∂r/∂δ``, the Jacobian of the static residual
+        ``r = w·W`` on the lattice along the drift directions ``Φ_i ← Φ_i exp(δ_i)``, a sparse
+        ``(nnode·r, nnode·r)`` matrix over all node components; :func:`cartan.solve_static`
+        then skips its coloured finite differences.  Default: None (not provided).
     """
 
     name: ClassVar[str] = ""
@@ -215,6 +221,43 @@ class Medium(abc.ABC):
         :meth:`stress` must agree with them (``Q = C (X − X₀)``).  Schemes use the data to
         run whole step loops in compiled code (``docs/performance.md``); None means "not
         quadratic" and keeps the medium on the generic path, which calls :meth:`stress`.
+        """
+        return None
+
+    def static_jacobian(self, scheme: Any, state: Any, lam: float) -> Any:
+        """Analytic Jacobian of the static residual, or None (default: none).
+
+        :func:`cartan.solve_static` solves ``r(λ) = F_int + λ (w·W − F_int) = 0`` on the
+        ``lattice`` scheme, with ``W = scheme.force(state, 0, state.t)`` the force density,
+        ``F_int = scheme.internal_force(state)`` and ``w = scheme.weights`` (paper §IV; see
+        ``docs/statics.md``).  A medium that can differentiate it in closed form returns
+
+            ``J[i·r + k, j·r + l] = ∂r_{i,k} / ∂δ_{j,l}``
+
+        along the drift directions ``Φ_j ← Φ_j exp(δ_j)`` (δ_j ∈ 𝔤 in the group's basis), at
+        ``δ = 0``, over **all** node components: ``i, j`` are flat node indices in C order of
+        ``scheme.grid.shape`` and ``k, l < r = group.dim``.  Rows and columns of clamped nodes
+        and gauge components may hold anything: the solver keeps only the unknowns.
+
+        Return None when the medium cannot differentiate the residual of this problem (e.g. a
+        load, boundary or scheme it does not cover); the answer must depend on the problem
+        only, not on the configuration.  ``solve_static(jacobian="auto")`` then falls back to
+        coloured finite differences and ``jacobian="analytic"`` raises ``ValueError``.
+
+        Parameters
+        ----------
+        scheme : Lattice
+            The scheme the solver runs (its ``problem``, ``grid``, ``weights``, ``h``,
+            ``edge_strains(state)`` ...).
+        state : State
+            The current iterate (``state.t`` the load time, ``state.S = 0``).
+        lam : float
+            Load factor λ ∈ (0, 1] of the load step.
+
+        Returns
+        -------
+        scipy.sparse matrix (or ndarray) of shape ``(nnode·r, nnode·r)``, or None
+            ``nnode = prod(scheme.grid.shape)``.
         """
         return None
 

@@ -11,10 +11,12 @@ so the iterates stay in G and the lattice edges stay exact (``G_e ← exp(−δ_
 Residual
     ``r = w·W`` (the generalised nodal forces, w the node weights) on the unknowns.
 Jacobian
-    Coloured central finite differences of r along drift directions: the lattice force at a
-    node depends only on the node and its neighbours along each axis, so perturbing every
-    third node (per axis) in one component at once gives 3^d·r force-difference pairs per
-    Jacobian, assembled as a sparse banded matrix and factorised by sparse LU.
+    Analytic when the medium provides one (:meth:`cartan.medium.Medium.static_jacobian`,
+    ``∂r/∂δ`` over all node components, restricted here to the unknowns); otherwise coloured
+    central finite differences of r along drift directions: the lattice force at a node
+    depends only on the node and its neighbours along each axis, so perturbing every third
+    node (per axis) in one component at once gives 3^d·r force-difference pairs per
+    Jacobian, assembled as a sparse banded matrix.  Either is factorised by sparse LU.
 Globalisation
     A backtracking line search halves the step until the residual norm decreases; the load
     can be applied in ``load_steps`` equal increments, each solved from the previous
@@ -160,6 +162,35 @@ def _coloured_jacobian(displaced, colour: np.ndarray, src: np.ndarray, dst: np.n
     return sp.csc_matrix((np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols))), shape=(nunk, nunk))
 
 
+_JACOBIANS = ("auto", "analytic", "fd")
+
+
+def _analytic_jacobian(medium, scheme, state, lam: float, cols: np.ndarray, size: int):
+    """The medium's :meth:`~cartan.medium.Medium.static_jacobian` restricted to the unknowns.
+
+    Parameters
+    ----------
+    cols : int array ``(nunk,)``
+        Flat positions ``node·r + k`` of the unknowns, in the order of the unknown vector.
+    size : int
+        ``nnode·r``, the side of the medium's matrix.
+
+    Returns
+    -------
+    scipy.sparse.csc_matrix, shape ``(nunk, nunk)``, or None when the medium has none.
+    """
+    import scipy.sparse as sp
+
+    J = medium.static_jacobian(scheme, state, float(lam))
+    if J is None:
+        return None
+    J = sp.csr_matrix(J)
+    if J.shape != (size, size):
+        raise ValueError(f"jacobian: {type(medium).__name__}.static_jacobian must return a ({size}, {size}) matrix "
+                         f"(nnode·r), got shape {J.shape}")
+    return J[cols][:, cols].tocsc()
+
+
 def _initial_phi(problem: Problem, initial: Any) -> InitialState:
     g = problem.medium.group
     if initial is None:
@@ -186,7 +217,7 @@ def solve_static(
     tol: float = 1e-10,
     max_iter: int = 50,
     initial: Any = None,
-    jacobian: str = "fd",
+    jacobian: str = "auto",
     *,
     xtol: float = 1e-12,
     load_steps: int = 1,
@@ -212,7 +243,10 @@ def solve_static(
         Starting configuration instead of ``problem.initial`` (a Dataset: its last frame,
         for media on affine groups — e.g. a previous :func:`solve_static` result).
     jacobian : str
-        ``"fd"``: coloured central finite differences (the only choice).
+        ``"auto"`` (default): the medium's analytic Jacobian
+        (:meth:`~cartan.medium.Medium.static_jacobian`) when it returns one for this
+        problem, coloured central finite differences otherwise; ``"analytic"``: the
+        medium's, a ``ValueError`` when it has none; ``"fd"``: finite differences.
     xtol : float
         Also converged when the Newton increment satisfies ``‖δ‖_∞ ≤ xtol·max(1, L)``
         (L the largest grid length), i.e. at the round-off floor of the residual.
@@ -231,10 +265,14 @@ def solve_static(
     xarray.Dataset
         One frame (``time`` of length 1) with the usual run variables (position, frame, X,
         energies, residuals) plus ``newton_residual`` and ``load_factor`` along ``iteration``;
-        attributes ``newton_iterations`` and ``newton_wall_time``.
+        attributes ``newton_iterations``, ``newton_wall_time`` and ``newton_jacobian``
+        (``"analytic"`` or ``"fd"``, the Jacobian used).
 
     Raises
     ------
+    ValueError
+        Bad options; ``jacobian="analytic"`` for a medium without an analytic Jacobian of
+        this problem; a :meth:`~cartan.medium.Medium.static_jacobian` of the wrong shape.
     ConvergenceError
         No equilibrium was found (see the module docstring).
     """
@@ -245,8 +283,8 @@ def solve_static(
 
     if scheme != "lattice":
         raise ValueError(f"solve_static supports scheme='lattice' only, got {scheme!r}")
-    if jacobian != "fd":
-        raise ValueError(f"jacobian must be 'fd', got {jacobian!r}")
+    if jacobian not in _JACOBIANS:
+        raise ValueError(f"jacobian must be one of {', '.join(map(repr, _JACOBIANS))}, got {jacobian!r}")
     if int(load_steps) < 1:
         raise ValueError(f"load_steps must be ≥ 1, got {load_steps!r}")
     start = time.perf_counter()
@@ -286,7 +324,32 @@ def solve_static(
         internal, total = parts(st)
         return total if lam == 1.0 else internal + lam * (total - internal)
 
+    unknown_cols = np.flatnonzero(unknown_flat.ravel())  # flat node·r + k of each unknown, in index order
+    medium = problem.medium
+    # the analytic Jacobian is probed once, at the starting configuration and first load factor;
+    # the probe's matrix serves as the first Newton Jacobian
+    probe = None
+    if jacobian != "fd":
+        probe = _analytic_jacobian(medium, sch, state, 1.0 / int(load_steps), unknown_cols, nnode * r_dim)
+        if probe is None and jacobian == "analytic":
+            raise ValueError(
+                f"jacobian='analytic': medium {medium.name!r} provides no analytic Jacobian for this problem "
+                "(Medium.static_jacobian returned None); use jacobian='auto' or 'fd'"
+            )
+    used = "analytic" if probe is not None else "fd"
+    first = [(state, 1.0 / int(load_steps), probe)] if probe is not None else []
+
     def assemble(st, lam: float):
+        if used == "analytic":
+            if first and first[0][0] is st and first[0][1] == lam:
+                return first.pop()[2]
+            first.clear()
+            J = _analytic_jacobian(medium, sch, st, lam, unknown_cols, nnode * r_dim)
+            if J is None:
+                raise ValueError(f"jacobian: medium {medium.name!r} returned an analytic Jacobian at the start "
+                                 "but None later; Medium.static_jacobian must depend on the problem only")
+            return J
+
         def displaced(direction: np.ndarray, eps: float) -> np.ndarray:
             trial = st.copy()
             sch.drift(trial, eps, direction)
@@ -426,6 +489,7 @@ def solve_static(
     )
     ds.attrs["newton_iterations"] = int(iters)
     ds.attrs["newton_wall_time"] = float(wall)
+    ds.attrs["newton_jacobian"] = used
     ds.attrs["newton_residual_final"] = float(history[-1]) if history else 0.0
     ds.attrs["newton_converged"] = 1
     return ds

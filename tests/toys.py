@@ -6,8 +6,9 @@ import numpy as np
 
 import cartan
 from cartan.grid import Grid
+from cartan.medium import Medium as _Medium
 from cartan.medium import QuadraticMedium as _Quadratic
-from cartan.problem import InitialState, Problem
+from cartan.problem import Damping, InitialState, Problem, UniformForce
 
 
 class QuadraticMedium(_Quadratic):
@@ -48,3 +49,64 @@ def arc_problem(n=21, length=1.0, curvature=2.0, group="SE3", periodic=False, tw
     Phi = G.exp(u[:, None] * xi)
     N = None if velocity is None else np.broadcast_to(velocity, (n, G.dim)).copy()
     return Problem(medium, grid, InitialState(Phi=Phi, N=N))
+
+
+class TorsionChain(_Medium):
+    """A stiffening torsion chain on SO(2), d = 1: ``U = ½C D² + ¼β D⁴`` with ``D = X − X0``,
+    ``K = ½ m N²``; provides the analytic static Jacobian.
+
+    SO(2) is abelian (``dexp⁻¹ = 1``, ``Ad = 1``), so the lattice force on node i is
+    ``F_i = Q(X_{i,i+1}) − Q(X_{i−1,i})`` with ``X_e = (θ_j − θ_i)/h`` and its Jacobian along
+    ``θ_i ← θ_i + δ_i`` is the weighted graph Laplacian ``−Σ_e k_e (e_i − e_j)(e_i − e_j)ᵀ``,
+    ``k_e = U''(X_e)/h = (C + 3βD_e²)/h``.  Loads of SO(2) that do not depend on the
+    configuration (damping at N = 0, uniform forces in either frame, end moments, dead or
+    follower, since Ad = 1) add nothing; any other load makes :meth:`static_jacobian` None.
+    """
+
+    name = "toy-torsion-chain"
+    material_dim = 1
+
+    def __init__(self, stiffness=2.0, cubic=0.0, rest=0.0, mass=1.0):
+        self.group = cartan.group("SO2")
+        self.space = None
+        self.C, self.beta, self.X0, self.m = float(stiffness), float(cubic), float(rest), float(mass)
+
+    def parameters(self):
+        return {"stiffness": self.C, "cubic": self.beta, "rest": self.X0, "mass": self.m}
+
+    def inertia(self):
+        return np.array([self.m])
+
+    def rest_strain(self):
+        return np.array([[self.X0]])
+
+    def potential(self, X):
+        D = np.asarray(X, dtype=float)[..., 0, 0] - self.X0
+        return 0.5 * self.C * D**2 + 0.25 * self.beta * D**4
+
+    def stress(self, X):
+        D = np.asarray(X, dtype=float) - self.X0
+        return self.C * D + self.beta * D**3
+
+    def static_jacobian(self, scheme, state, lam):
+        import scipy.sparse as sp
+
+        if scheme.name != "lattice" or any(not isinstance(ld, (Damping, UniformForce)) for ld in scheme.problem.loads):
+            return None
+        n, h = scheme.grid.shape[0], scheme.h[0]
+        X = scheme.edge_strains(state)[0][:, 0]  # [edges]
+        k = (self.C + 3.0 * self.beta * (X - self.X0) ** 2) / h
+        tail = np.arange(len(k))
+        head = (tail + 1) % n
+        rows = np.concatenate([tail, head, tail, head])
+        cols = np.concatenate([tail, head, head, tail])
+        vals = np.concatenate([-k, -k, k, k])
+        return sp.coo_matrix((vals, (rows, cols)), shape=(n, n)).tocsr()
+
+
+def chain_problem(n=41, length=2.0, periodic=False, boundaries=None, loads=(), **kw) -> Problem:
+    """A straight :class:`TorsionChain` (all angles zero)."""
+    medium = TorsionChain(**kw)
+    grid = Grid(n, length, periodic=periodic)
+    Phi = medium.group.exp(np.zeros((n, 1)))
+    return Problem(medium, grid, InitialState(Phi=Phi), dict(boundaries or {}), list(loads))
