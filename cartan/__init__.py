@@ -15,6 +15,7 @@ Public API
 ``cartan.registry(kind)``            ``{name: object}`` for ``"groups"``, ``"spaces"``, ...
 ``cartan.hookimpl``                  marker for plugin hook implementations
 ``cartan.use_backend(name)``         ``"numba"`` (default) or ``"numpy"`` reference kernels
+``cartan.set_threads(k)``            threads of the compiled loops (default 1, or ``CARTAN_THREADS``)
 """
 
 from __future__ import annotations
@@ -25,6 +26,7 @@ from typing import Any
 
 from . import api as _api
 from ._backend import get_backend, set_backend, use_backend
+from ._threads import get_threads, set_threads, use_threads
 from .api import *  # noqa: F403 - the run-level API; its __all__ is the single list of names
 from .groups import SymmetryGroup
 from .plugins import PluginWarning, RegistryError, hookimpl, registry
@@ -41,12 +43,15 @@ __all__ = [
     "SymmetryGroup",
     "__version__",
     "get_backend",
+    "get_threads",
     "group",
     "hookimpl",
     "registry",
     "set_backend",
+    "set_threads",
     "space",
     "use_backend",
+    "use_threads",
     "converge",
     *_api.__all__,
 ]

@@ -2,9 +2,10 @@
 
 The reference is ``Integrator.step`` with the lattice scheme's numpy methods; the compiled
 loops must agree with it to 1e-12 (relative to each array's magnitude) on every state array
-and energy accumulator, count steps and force evaluations identically, decline (and leave
-the state untouched) whatever they do not support, keep restarts bit for bit, and load
-their machine code from numba's cache in a new process.
+and energy accumulator — rods (d = 1) and the sigma model and toy media on d = 2 and 3
+grids —, count steps and force evaluations identically, decline (and leave the state
+untouched) whatever they do not support, keep restarts bit for bit, and load their machine
+code from numba's cache in a new process.
 """
 
 from __future__ import annotations
@@ -423,6 +424,142 @@ def test_constant_field_on_a_point_space():
     T = field.force(Phi, np.zeros((5, 6)), 0.0)
     np.testing.assert_allclose(T[:, :3], np.einsum("nji,j->ni", Phi[:, 1:, 1:], [0.0, 0.0, -2.0]), atol=1e-14)
     np.testing.assert_allclose(field.energy(Phi), 2.0 * Phi[:, 3, 0], atol=1e-14)
+
+
+# ---------------------------------------------------------------------------- d ≥ 2
+def sigma_problem(shape, periodic, damping=False, boundaries=None) -> Problem:
+    """The sigma model on S² (SO(3), the gauge component carries no inertia) on a d = 2 or 3
+    grid: a smooth random field with a gauge twist of the frames and a velocity."""
+    medium = cartan.medium("sigma-model", n=2, d=len(shape))
+    grid = Grid(shape, 1.0, periodic=periodic)
+    init = medium.initial_state(grid, "random-smooth", amplitude=0.6, gauge_amplitude=0.3, velocity_amplitude=0.4,
+                                seed=1)
+    loads = [medium.make_load("drag", gamma=0.7)] if damping else []
+    return Problem(medium, grid, init, boundaries or {}, loads)
+
+
+#: (integrator factory, Δt, steps, damping) on the 12 × 9 grids (h ≈ 0.1, c = 1: Δt = 2e-3 is a
+#: Courant number of 0.02; the harmonic-map flow is stable below Δt ≈ h²/8 ≈ 1e-3)
+SIGMA_INTEGRATORS = {
+    "lie-verlet": (LieVerlet, 2e-3, 40, False),
+    "lie-verlet-damped": (LieVerlet, 2e-3, 40, True),
+    "lie-euler": (LieEuler, 2e-4, 20, True),
+    "forward-euler": (ForwardEuler, 1e-5, 5, True),
+    "rkmk4": (RKMK4, 1e-3, 10, True),
+    "overdamped-1": (lambda: Overdamped(order=1), 2e-5, 30, True),
+    "overdamped-2": (lambda: Overdamped(order=2), 2e-5, 15, True),
+}
+
+
+@pytest.mark.parametrize("periodic", [(True, True), (False, False), (True, False)], ids=["torus", "open", "cylinder"])
+@pytest.mark.parametrize("name", sorted(SIGMA_INTEGRATORS))
+def test_sigma_model_d2_agrees_with_python(name, periodic):
+    make, dt, nsteps, damping = SIGMA_INTEGRATORS[name]
+    _, (ref, ri), (fast, fi) = run_both(sigma_problem((12, 9), periodic, damping), make, dt, nsteps)
+    assert set(fast.arrays) == {"G_u", "G_v", "Phi_root"}
+    assert_close_states(fast, ref)
+    assert (fi.nstep, fi.nforce) == (ri.nstep, ri.nforce)
+
+
+@pytest.mark.parametrize("track", [False, True], ids=["root-frame", "all-frames"])
+@pytest.mark.parametrize("name", ["lie-verlet-damped", "overdamped-1", "rkmk4"])
+def test_d2_clamped_and_loaded_faces(name, track):
+    """A clamped face, a follower and a dead load on two others (the corner nodes are loaded
+    twice, or loaded and clamped); the dead load needs every frame."""
+    make, dt, nsteps, damping = SIGMA_INTEGRATORS[name]
+    follower = {"u-start": Clamped(), "u-end": Free(load=[0.1, 0.2, 0.0], follower=True),
+                "v-end": Free(load=[0.3, -0.2, 0.1], follower=True)}
+    dead = dict(follower, **{"v-end": Free(load=[0.3, -0.2, 0.1], follower=False)})
+    problem = sigma_problem((12, 9), (False, False), damping, dead if track else follower)
+    _, (ref, ri), (fast, fi) = run_both(problem, make, dt, nsteps)
+    assert ("Phi" in fast.arrays) == track
+    assert_close_states(fast, ref)
+    assert fi.nforce == ri.nforce
+
+
+@pytest.mark.parametrize("periodic", [(True, True, True), (False, True, False)], ids=["periodic", "mixed"])
+@pytest.mark.parametrize("name", ["lie-verlet", "overdamped-1"])
+def test_sigma_model_d3_agrees_with_python(name, periodic):
+    make, dt, nsteps, damping = SIGMA_INTEGRATORS[name]
+    _, (ref, ri), (fast, fi) = run_both(sigma_problem((6, 5, 4), periodic, damping), make, dt, nsteps // 2)
+    assert set(fast.arrays) == {"G_u", "G_v", "G_w", "Phi_root"}
+    assert_close_states(fast, ref)
+    assert fi.nforce == ri.nforce
+
+
+class _Toy2(_FullQuadratic):
+    """A coupled quadratic medium on a d = 2 grid, with a different rest strain per axis."""
+
+    name = "toy-quadratic-2d"
+    material_dim = 2
+    separable_axes = True
+
+    def __init__(self, group):
+        super().__init__(group)
+        r = self.group.dim
+        self._set_energy(np.stack([0.5 * np.eye(r)[0], np.linspace(-0.3, 0.2, r)]), self.C)
+
+
+def _toy2_problem(group: str, periodic) -> Problem:
+    medium = _Toy2(group)
+    g = medium.group
+    grid = Grid((7, 6), (1.0, 0.8), periodic=periodic)
+    u, v = np.meshgrid(grid.coordinates(0), grid.coordinates(1), indexing="ij")
+    rng = np.random.default_rng(5)
+    a, b = rng.standard_normal((2, g.dim))
+    Phi = g.exp(0.8 * np.sin(2 * np.pi * u)[..., None] * a + 0.6 * np.cos(2 * np.pi * v)[..., None] * b)
+    N = 0.3 * np.sin(2 * np.pi * (u + v))[..., None] * np.linspace(0.5, 1.0, g.dim)
+    return Problem(medium, grid, InitialState(Phi=Phi, N=N), {}, [Damping(0.2)])
+
+
+@pytest.mark.parametrize("group", ["SO2", "SE2", "SE3"])
+@pytest.mark.parametrize("name", ["lie-verlet", "lie-euler", "rkmk4"])
+def test_every_group_on_a_d2_grid(group, name):
+    """The generic kernels on d = 2 (and SE(3)'s scalar ones), coupled stiffness, a rest
+    strain per axis, damping, a torus."""
+    make, dt, nsteps = INTEGRATORS[name]
+    _, (ref, ri), (fast, fi) = run_both(_toy2_problem(group, True), make, dt, nsteps // 2)
+    assert_close_states(fast, ref)
+    assert (fi.nstep, fi.nforce) == (ri.nstep, ri.nforce)
+
+
+@pytest.mark.parametrize("on_group", [True, False])
+def test_force_matches_lattice_force_d2(on_group):
+    """One force evaluation on a d = 2 lattice with end loads, at a perturbed state."""
+    problem = sigma_problem((8, 7), (False, True), True, {"u-end": Free(load=[0.2, 0.1, 0.0], follower=False)})
+    scheme = Lattice(problem)
+    state = scheme.initial_state()
+    rng = np.random.default_rng(2)
+    g = scheme.group
+    for key in ("G_u", "G_v"):
+        G = state.arrays[key]
+        G = g.compose(G, g.exp(0.05 * rng.standard_normal((*G.shape[:-2], 3))))
+        if not on_group:
+            G = G + 1e-6 * rng.standard_normal(G.shape)
+        state.arrays[key] = G
+    N = rng.standard_normal(state.S.shape)
+    W = scheme.force(state, N, 0.0)
+    Wc = np.empty((problem.grid.size, 3))
+    lc.force_once(lc.build_plan(scheme), (state.arrays["G_u"], state.arrays["G_v"]),
+                  state.arrays["Phi"].reshape(-1, 3, 3), N.reshape(-1, 3), Wc, on_group)
+    assert _rel(Wc.reshape(W.shape), W) <= 1e-13
+
+
+def test_d2_unsupported_loads_decline():
+    problem = sigma_problem((6, 5), (True, True))
+    spatial = Problem(problem.medium, problem.grid, problem.initial, loads=[UniformForce(np.ones(3), frame="spatial")])
+    _declines(spatial, LieVerlet())
+
+
+def test_simulate_sigma_model_d2_compiled_agrees_with_reference():
+    problem = sigma_problem((16, 12), (True, False), damping=True)
+    kw = dict(dt=2e-3, t_end=0.06, save_every=10)
+    fast = simulate(problem, **kw)
+    ref = simulate(problem, **kw, compiled=False)
+    for name in ("S", "N", "kinetic_energy", "potential_energy", "dissipated_energy"):
+        assert _rel(fast[name].values, ref[name].values) <= TOL, name
+    cf, cr = _config(fast)["counters"], _config(ref)["counters"]
+    assert (cf["nstep"], cf["nforce"]) == (cr["nstep"], cr["nforce"])
 
 
 # ---------------------------------------------------------------------------- numba cache

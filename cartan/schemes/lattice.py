@@ -27,10 +27,11 @@ additive over the axes (``medium.separable_axes = True``).
 
 Compiled loops
     :meth:`Lattice.compiled_advance` runs whole blocks of steps in numba
-    (:mod:`cartan.schemes._lattice_compiled`) for d = 1 on SO(2), SE(2), SO(3), SE(3) when the
-    medium's potential is quadratic and the loads are data (damping, body-frame uniform force,
-    constant-field potentials, end loads, clamps); everything else stays on this module's
-    numpy path, the reference the compiled loops are tested against (``docs/performance.md``).
+    (:mod:`cartan.schemes._lattice_compiled`) for d = 1, 2, 3 on SO(2), SE(2), SO(3), SE(3)
+    when the medium's potential is quadratic and the loads are data (damping, body-frame
+    uniform force, constant-field potentials, end loads, clamps), on threads when
+    ``CARTAN_THREADS`` allows; everything else stays on this module's numpy path, the
+    reference the compiled loops are tested against (``docs/performance.md``).
 """
 
 from __future__ import annotations
@@ -85,10 +86,13 @@ class Lattice(Scheme):
 
         Returns False, leaving everything untouched, when the combination is not supported
         (the caller then runs ``integrator.step`` in Python): see ``docs/performance.md`` for
-        what qualifies (d = 1; SO(2), SE(2), SO(3), SE(3); a medium with
-        ``quadratic_energy()``; damping, body-frame uniform forces, constant-field potentials,
-        free and clamped ends; ``lie-verlet``, ``lie-euler``, ``forward-euler``, ``rkmk4``,
-        ``overdamped``), and the numpy backend always declines.
+        what qualifies (d = 1, 2, 3; SO(2), SE(2), SO(3), SE(3); a quadratic potential —
+        ``quadratic_energy()``, or a ``QuadraticMedium`` for d ≥ 2; damping, body-frame uniform
+        forces, constant-field potentials, free and clamped ends or faces; ``lie-verlet``,
+        ``lie-euler``, ``forward-euler``, ``rkmk4``, ``overdamped``), and the numpy backend
+        always declines.  With ``CARTAN_THREADS`` (or :func:`cartan.set_threads`) above 1 and
+        a grid of at least ``cartan._threads.MIN_NODES`` nodes the loops run on threads, with
+        the same results.
 
         When it returns True the steps were taken exactly as ``integrator.step`` takes them
         (same formulas, agreement to round-off): ``state.t``, ``state.scalars`` (energy

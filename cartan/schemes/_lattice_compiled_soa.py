@@ -1,0 +1,671 @@
+"""Vectorised ``lie-verlet`` for SE(3) rods (d = 1) on structure-of-arrays copies of the state.
+
+Used by :func:`cartan.schemes._lattice_compiled.advance` for SE(3), d = 1, with every
+free-flow piece in closed form (the three translations, then single body axes: every rod
+with positive inertias).  The loop works on copies of the state with one row per component
+and one column per node or edge, made once per call, so that LLVM vectorises the passes over
+nodes and edges.  Their bodies have no branches: the SO(3)/SE(3) coefficients come from
+their Taylor series (the library's own, valid for θ < 0.1) and the edge logarithm from the
+trace quaternion; each pass flags the elements outside that range (an edge turning by
+0.1 rad or more; a node turning by 0.1 rad or more in one piece of the free flow, decided
+per chunk of nodes) and recomputes them with the closed forms of the scalar kernels.
+
+A step is three passes over fixed chunks of :data:`~cartan.schemes._lattice_compiled_plan.CHUNK`
+nodes or edges (``prange``; serial unless threads are enabled, and then with the same
+results): the nodes (half kick, constraints, free flow composed into one element per node,
+frames, velocity), the edges (conjugation ``G_e ← D_i⁻¹G_eD_j`` by the composed free flow, then
+the logarithms and force terms of the new edges), the nodes again (force density with
+loads and end loads, constraints, half kick, velocity, power and blow-up partial sums; for
+a chunk without loads or constraints the force and the kick in one loop).  The edge pass
+groups its chunks in contiguous blocks, one per thread, and keeps the logarithms and
+stresses of a chunk in its block's small scratch, so that, however long the rod, they stay
+in the cache.  The arithmetic is that of :mod:`cartan.schemes._lattice_compiled_kernels`
+(round-off agreement with the reference path).
+
+Writing these loops: helpers inlined into a vectorised loop take and return scalars (an
+inlined helper that takes arrays keeps LLVM from vectorising the loop), and an offset added
+to a loop index is stated non-negative (``max(lo, 0)``, :func:`_chunk`) so that LLVM can
+drop numba's negative-index test.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numba import prange
+
+from .._threads import threaded_twins
+from ._lattice_compiled_kernels import (
+    ATAN_SERIES,
+    ATAN_SERIES_X2,
+    KIND_SE3_TRANSLATION,
+    SMALL_THETA2,
+    TAYLOR_A,
+    TAYLOR_B,
+    TAYLOR_C,
+    TAYLOR_CINV,
+    TAYLOR_D,
+    TAYLOR_E,
+    _ad_T,
+    _chunk,
+    _edge_terms6,
+    _inline,
+    _jit,
+    _q_coeffs,
+    _rot_coeffs,
+    _se3_dexp_inv_T,
+    _se3_log12,
+    _stress6,
+    _sum_parts,
+    _turn,
+    _V_apply,
+    cross3,
+    horner,
+)
+from ._lattice_compiled_plan import (
+    CHUNK,
+    I_C,
+    I_CLAMPED,
+    I_CONSTRAINED,
+    I_DAMP,
+    I_DIAG,
+    I_END_CHUNK,
+    I_END_DIV,
+    I_END_FACE,
+    I_END_FOLLOW,
+    I_END_IDX,
+    I_END_LOAD,
+    I_FIELD,
+    I_H,
+    I_HAS_DAMP,
+    I_HAS_FIELD,
+    I_HAS_POWER,
+    I_HAS_UBODY,
+    I_LIVE,
+    I_MASS,
+    I_UBODY,
+    I_W,
+    I_WINV,
+    I_X0,
+)
+
+__all__ = ["THREADED", "lie_verlet_se3_loop"]
+
+#: blow-up test on the momentum (the value of ``_lattice_compiled.CHECK_MOMENTUM``)
+CHECK_MOMENTUM = 1
+
+
+# ---------------------------------------------------------------------------- edges
+@_jit
+def _soa_edges(P, g, D, conj, OUT, INC, nblocks, scratch):
+    """Per chunk of edges: (``conj``) ``G_e ← D_i⁻¹ G_e D_j``; then the logarithms of the edges
+    with their ``J⁻¹`` coefficient and the stresses ``C(ξ/h − X₀)`` (into the block's scratch
+    ``XI [7, CHUNK]``, ``QS [6, CHUNK]``, flags, which stay in the cache), the tail terms
+    ``OUT`` and head terms ``INC`` (``Ad_Gᵀ OUT``); the edges beyond the series' range by the
+    closed forms.  Chunks in ``nblocks`` contiguous blocks, one per thread."""
+    X0 = P[I_X0]
+    C = P[I_C]
+    diag = P[I_DIAG]
+    h = P[I_H]
+    hinv = 1.0 / h
+    ne = g.shape[1]
+    n = D.shape[1]
+    nch = (ne + CHUNK - 1) // CHUNK
+    for b in prange(nblocks):
+        XI, QS, bad = scratch[0][b], scratch[1][b], scratch[2][b]
+        for c in range(*_blocks(b, nblocks, nch)):
+            lo, hi = _chunk(c, ne)
+            if conj:
+                # translations first: they read the old rotation; the last edge of a ring closes onto node 0
+                top = min(hi, n - 1)
+                _conjugate(g, D, lo, top - lo, lo + 1)
+                if hi == ne and ne == n:
+                    _conjugate(g, D, ne - 1, 1, 0)
+            nbad = 0
+            for e0 in range(hi - lo):
+                e = lo + e0
+                m00, m01, m02 = g[3, e], g[4, e], g[5, e]
+                m10, m11, m12 = g[6, e], g[7, e], g[8, e]
+                m20, m21, m22 = g[9, e], g[10, e], g[11, e]
+                tr = m00 + m11 + m22
+                qw = 1.0 + tr
+                qx, qy, qz = m21 - m12, m02 - m20, m10 - m01
+                x2 = (qx * qx + qy * qy + qz * qz) / (qw * qw)
+                f = (2.0 / qw) * horner(x2, ATAN_SERIES)
+                w0, w1, w2 = f * qx, f * qy, f * qz
+                t2 = w0 * w0 + w1 * w1 + w2 * w2
+                cinv = horner(t2, TAYLOR_CINV)
+                t = _V_apply(w0, w1, w2, -0.5, cinv, g[0, e], g[1, e], g[2, e])
+                XI[0, e0] = t[0]
+                XI[1, e0] = t[1]
+                XI[2, e0] = t[2]
+                XI[3, e0] = w0
+                XI[4, e0] = w1
+                XI[5, e0] = w2
+                XI[6, e0] = cinv
+                flag = (x2 >= ATAN_SERIES_X2) | (t2 >= SMALL_THETA2) | (m00 > tr) | (m11 > tr) | (m22 > tr)
+                bad[e0] = flag
+                nbad += flag
+            if nbad:
+                for e0 in range(hi - lo):
+                    e = lo + e0
+                    if bad[e0]:
+                        v = _se3_log12(g[0, e], g[1, e], g[2, e], g[3, e], g[4, e], g[5, e], g[6, e], g[7, e], g[8, e],
+                                       g[9, e], g[10, e], g[11, e])
+                        for k in range(7):
+                            XI[k, e0] = v[k]
+            if diag:
+                for k in range(6):
+                    ck = C[k, k]
+                    x0 = X0[k]
+                    for e0 in range(hi - lo):
+                        e = lo + e0
+                        QS[k, e0] = ck * (XI[k, e0] * hinv - x0)
+            else:
+                for e0 in range(hi - lo):
+                    e = lo + e0
+                    q = _stress6(X0, C, False, 1.0, XI[0, e0], XI[1, e0], XI[2, e0], XI[3, e0], XI[4, e0], XI[5, e0], h)
+                    for k in range(6):
+                        QS[k, e0] = q[k]
+            # tail terms, then head terms: two short loops vectorise where one long one does not
+            for e0 in range(hi - lo):
+                e = lo + e0
+                r0, r1, r2, p0, p1, p2 = XI[0, e0], XI[1, e0], XI[2, e0], XI[3, e0], XI[4, e0], XI[5, e0]
+                cinv = XI[6, e0]
+                t2 = p0 * p0 + p1 * p1 + p2 * p2
+                o = _se3_dexp_inv_T(r0, r1, r2, p0, p1, p2, cinv, horner(t2, TAYLOR_C), horner(t2, TAYLOR_D),
+                                    horner(t2, TAYLOR_E), QS[0, e0], QS[1, e0], QS[2, e0], QS[3, e0], QS[4, e0],
+                                    QS[5, e0])
+                OUT[0, e] = o[0]
+                OUT[1, e] = o[1]
+                OUT[2, e] = o[2]
+                OUT[3, e] = o[3]
+                OUT[4, e] = o[4]
+                OUT[5, e] = o[5]
+            for e0 in range(hi - lo):
+                e = lo + e0
+                v = _ad_T(g[0, e], g[1, e], g[2, e], g[3, e], g[4, e], g[5, e], g[6, e], g[7, e], g[8, e], g[9, e],
+                          g[10, e], g[11, e], OUT[0, e], OUT[1, e], OUT[2, e], OUT[3, e], OUT[4, e], OUT[5, e])
+                INC[0, e] = v[0]
+                INC[1, e] = v[1]
+                INC[2, e] = v[2]
+                INC[3, e] = v[3]
+                INC[4, e] = v[4]
+                INC[5, e] = v[5]
+            if nbad:
+                for e0 in range(hi - lo):
+                    e = lo + e0
+                    if bad[e0]:
+                        r0, r1, r2, p0, p1, p2 = XI[0, e0], XI[1, e0], XI[2, e0], XI[3, e0], XI[4, e0], XI[5, e0]
+                        cinv = XI[6, e0]
+                        q0, q1, q2, q3, q4, q5 = _stress6(X0, C, diag, 1.0, r0, r1, r2, p0, p1, p2, h)
+                        cc, dd, ee = _q_coeffs(p0 * p0 + p1 * p1 + p2 * p2)
+                        v = _edge_terms6(r0, r1, r2, p0, p1, p2, cinv, cc, dd, ee, q0, q1, q2, q3, q4, q5,
+                                         g[0, e], g[1, e], g[2, e], g[3, e], g[4, e], g[5, e],
+                                         g[6, e], g[7, e], g[8, e], g[9, e], g[10, e], g[11, e])
+                        for k in range(6):
+                            OUT[k, e] = v[k]
+                            INC[k, e] = v[k + 6]
+
+
+@_inline
+def _conj_translation(m00, m01, m02, m10, m11, m12, m20, m21, m22, b0, b1, b2,
+                      ti0, ti1, ti2, r00, r01, r02, r10, r11, r12, r20, r21, r22, tj0, tj1, tj2):
+    """Translation of ``D_i⁻¹ G D_j``: ``R_iᵀ(M t_j + b − t_i)`` for ``G = (b; M)``."""
+    u0 = m00 * tj0 + m01 * tj1 + m02 * tj2 + b0 - ti0
+    u1 = m10 * tj0 + m11 * tj1 + m12 * tj2 + b1 - ti1
+    u2 = m20 * tj0 + m21 * tj1 + m22 * tj2 + b2 - ti2
+    return (r00 * u0 + r10 * u1 + r20 * u2, r01 * u0 + r11 * u1 + r21 * u2, r02 * u0 + r12 * u1 + r22 * u2)
+
+
+@_jit
+def _conjugate(g, D, e0, count, head0):
+    """``G_e ← D_i⁻¹ G_e D_j`` for the edges ``e = e0 + k`` (``k < count``), tail node ``i = e``,
+    head node ``j = head0 + k``: translations first (they read the old rotation), then
+    rotations ``R_iᵀ M R_j``."""
+    e0 = max(e0, 0)  # (stated: no negative-index test)
+    head0 = max(head0, 0)
+    for k in range(count):
+        e = e0 + k
+        j = head0 + k
+        u = _conj_translation(g[3, e], g[4, e], g[5, e], g[6, e], g[7, e], g[8, e], g[9, e], g[10, e], g[11, e],
+                              g[0, e], g[1, e], g[2, e], D[0, e], D[1, e], D[2, e], D[3, e], D[4, e], D[5, e],
+                              D[6, e], D[7, e], D[8, e], D[9, e], D[10, e], D[11, e], D[0, j], D[1, j], D[2, j])
+        g[0, e] = u[0]
+        g[1, e] = u[1]
+        g[2, e] = u[2]
+    for k in range(count):
+        e = e0 + k
+        j = head0 + k
+        m00, m01, m02 = g[3, e], g[4, e], g[5, e]
+        m10, m11, m12 = g[6, e], g[7, e], g[8, e]
+        m20, m21, m22 = g[9, e], g[10, e], g[11, e]
+        a00, a01, a02 = D[3, j], D[4, j], D[5, j]
+        a10, a11, a12 = D[6, j], D[7, j], D[8, j]
+        a20, a21, a22 = D[9, j], D[10, j], D[11, j]
+        n00 = m00 * a00 + m01 * a10 + m02 * a20
+        n01 = m00 * a01 + m01 * a11 + m02 * a21
+        n02 = m00 * a02 + m01 * a12 + m02 * a22
+        n10 = m10 * a00 + m11 * a10 + m12 * a20
+        n11 = m10 * a01 + m11 * a11 + m12 * a21
+        n12 = m10 * a02 + m11 * a12 + m12 * a22
+        n20 = m20 * a00 + m21 * a10 + m22 * a20
+        n21 = m20 * a01 + m21 * a11 + m22 * a21
+        n22 = m20 * a02 + m21 * a12 + m22 * a22
+        r00, r01, r02 = D[3, e], D[4, e], D[5, e]
+        r10, r11, r12 = D[6, e], D[7, e], D[8, e]
+        r20, r21, r22 = D[9, e], D[10, e], D[11, e]
+        g[3, e] = r00 * n00 + r10 * n10 + r20 * n20
+        g[4, e] = r00 * n01 + r10 * n11 + r20 * n21
+        g[5, e] = r00 * n02 + r10 * n12 + r20 * n22
+        g[6, e] = r01 * n00 + r11 * n10 + r21 * n20
+        g[7, e] = r01 * n01 + r11 * n11 + r21 * n21
+        g[8, e] = r01 * n02 + r11 * n12 + r21 * n22
+        g[9, e] = r02 * n00 + r12 * n10 + r22 * n20
+        g[10, e] = r02 * n01 + r12 * n11 + r22 * n21
+        g[11, e] = r02 * n02 + r12 * n12 + r22 * n22
+
+
+@_inline
+def _blocks(b, nblocks, nch):
+    """The chunks ``c0 ≤ c < c1`` of block ``b`` (contiguous blocks, one per thread)."""
+    return b * nch // nblocks, (b + 1) * nch // nblocks
+
+
+# ---------------------------------------------------------------------------- nodes
+@_inline
+def _soa_end_load(P, phi, q):
+    """Body components of end load ``q``: the load (follower) or ``(Rᵀf; Rᵀm)`` (dead), R the
+    rotation of the end frame."""
+    load = P[I_END_LOAD][q]
+    if P[I_END_FOLLOW][q]:
+        return load[0], load[1], load[2], load[3], load[4], load[5]
+    i = P[I_END_IDX][q]
+    R = (phi[3, i], phi[4, i], phi[5, i], phi[6, i], phi[7, i], phi[8, i], phi[9, i], phi[10, i], phi[11, i])
+    return (R[0] * load[0] + R[3] * load[1] + R[6] * load[2], R[1] * load[0] + R[4] * load[1] + R[7] * load[2],
+            R[2] * load[0] + R[5] * load[1] + R[8] * load[2], R[0] * load[3] + R[3] * load[4] + R[6] * load[5],
+            R[1] * load[3] + R[4] * load[4] + R[7] * load[5], R[2] * load[3] + R[5] * load[4] + R[8] * load[5])
+
+
+@_inline
+def _soa_turn_node(s, D, i, pp, qq, cs, sn):
+    """Rotate node i about e_k by (cos, sin): ``S ← Ad*S`` on the plane (pp, qq), ``R ← R Rot``."""
+    s[pp, i], s[qq, i] = _turn(cs, sn, s[pp, i], s[qq, i])
+    s[3 + pp, i], s[3 + qq, i] = _turn(cs, sn, s[3 + pp, i], s[3 + qq, i])
+    D[3 + pp, i], D[3 + qq, i] = _turn(cs, sn, D[3 + pp, i], D[3 + qq, i])
+    D[6 + pp, i], D[6 + qq, i] = _turn(cs, sn, D[6 + pp, i], D[6 + qq, i])
+    D[9 + pp, i], D[9 + qq, i] = _turn(cs, sn, D[9 + pp, i], D[9 + qq, i])
+
+
+@_jit
+def _soa_drift_nodes(P, s, w, half, D, phi, fac, kinds, axes, velocity, Nv):
+    """First half of a step, per chunk of nodes: ``S += half·W`` and constraints; the
+    palindromic free flow composed into ``D[:, i] = (t; R)``, piece by piece — translations
+    ``(a; I)`` with ``L ← L − a × P``, rotations about ``e_k`` of cosine ``1 − Bθ²`` and sine
+    ``Aθ`` (``fac[p, k] = τ_p/m_k``; clamped nodes have zero momentum, so every piece is the
+    identity there) —; constraints; frames ``Φ_i ← Φ_i D_i``; and, when ``velocity``,
+    ``N = ∂K*/∂S``."""
+    mass = P[I_MASS]
+    live = P[I_LIVE]
+    clamped = P[I_CLAMPED]
+    constrained = P[I_CONSTRAINED]
+    n = s.shape[1]
+    nf = phi.shape[1]
+    for c in prange((n + CHUNK - 1) // CHUNK):
+        lo, hi = _chunk(c, n)
+        for k in range(6):
+            for i0 in range(hi - lo):
+                i = lo + i0
+                s[k, i] = s[k, i] + half * w[k, i]
+        if constrained:
+            for k in range(6):
+                for i0 in range(hi - lo):
+                    i = lo + i0
+                    if clamped[i] or not live[k]:
+                        s[k, i] = 0.0
+        for i0 in range(hi - lo):
+            i = lo + i0
+            for a in range(12):
+                D[a, i] = 0.0
+            D[3, i] = 1.0
+            D[7, i] = 1.0
+            D[11, i] = 1.0
+        for p in range(kinds.shape[0]):
+            if kinds[p] == KIND_SE3_TRANSLATION:
+                f0, f1, f2 = fac[p, 0], fac[p, 1], fac[p, 2]
+                for i0 in range(hi - lo):
+                    i = lo + i0
+                    P0, P1, P2 = s[0, i], s[1, i], s[2, i]
+                    a0, a1, a2 = f0 * P0, f1 * P1, f2 * P2
+                    c0, c1, c2 = cross3(a0, a1, a2, P0, P1, P2)
+                    s[3, i] -= c0
+                    s[4, i] -= c1
+                    s[5, i] -= c2
+                    D[0, i] += D[3, i] * a0 + D[4, i] * a1 + D[5, i] * a2
+                    D[1, i] += D[6, i] * a0 + D[7, i] * a1 + D[8, i] * a2
+                    D[2, i] += D[9, i] * a0 + D[10, i] * a1 + D[11, i] * a2
+                continue
+            k = axes[p]
+            pp = k + 1 if k < 2 else 0  # the plane (e_pp, e_qq) turned about e_k
+            qq = k + 2 if k < 1 else k - 1
+            f = fac[p, 3 + k]
+            big = 0
+            for i0 in range(hi - lo):
+                i = lo + i0
+                th = f * s[3 + k, i]
+                big += th * th >= SMALL_THETA2
+            if big:  # some angle beyond the series: closed forms for this piece of this chunk
+                for i0 in range(hi - lo):
+                    i = lo + i0
+                    th = f * s[3 + k, i]
+                    q2 = th * th
+                    a, b = _rot_coeffs(q2)
+                    _soa_turn_node(s, D, i, pp, qq, 1.0 - b * q2, a * th)
+            else:
+                for i0 in range(hi - lo):
+                    i = lo + i0
+                    th = f * s[3 + k, i]
+                    q2 = th * th
+                    _soa_turn_node(s, D, i, pp, qq, 1.0 - horner(q2, TAYLOR_B) * q2, horner(q2, TAYLOR_A) * th)
+        if constrained:
+            for k in range(6):
+                for i0 in range(hi - lo):
+                    i = lo + i0
+                    if clamped[i] or not live[k]:
+                        s[k, i] = 0.0
+        if velocity:
+            _soa_velocity(mass, live, clamped, constrained, s, Nv, lo, hi)
+        for i0 in range(min(hi, nf) - lo):
+            i = lo + i0
+            for a in range(3):
+                f0, f1, f2 = phi[3 + 3 * a, i], phi[4 + 3 * a, i], phi[5 + 3 * a, i]
+                phi[a, i] = f0 * D[0, i] + f1 * D[1, i] + f2 * D[2, i] + phi[a, i]
+                phi[3 + 3 * a, i] = f0 * D[3, i] + f1 * D[6, i] + f2 * D[9, i]
+                phi[4 + 3 * a, i] = f0 * D[4, i] + f1 * D[7, i] + f2 * D[10, i]
+                phi[5 + 3 * a, i] = f0 * D[5, i] + f1 * D[8, i] + f2 * D[11, i]
+
+
+@_inline
+def _soa_velocity(mass, live, clamped, constrained, s, Nv, lo, hi):
+    """``N = ∂K*/∂S`` on the nodes ``lo ≤ i < hi``."""
+    for k in range(6):
+        if not live[k]:
+            for i0 in range(hi - lo):
+                i = lo + i0
+                Nv[k, i] = 0.0
+            continue
+        m = mass[k]
+        for i0 in range(hi - lo):
+            i = lo + i0
+            Nv[k, i] = s[k, i] / m
+    if constrained:
+        for i0 in range(hi - lo):
+            i = lo + i0
+            if clamped[i]:
+                for k in range(6):
+                    Nv[k, i] = 0.0
+
+
+@_jit
+def _soa_close(P, OUT, INC, phi, s, Nv, w, half, close, velocity, inv, need_kin, PART):
+    """Per chunk of nodes, component by component: ``w = Lattice.force`` from the edge terms —
+    ``F_i = out_i − in_{i−1}`` over the weight, damping, body-frame force, field, end loads,
+    constraints —; then, when ``close``, ``S += half·W``, constraints, the velocity
+    (``velocity``) and the partial sums of the powers, ΣS and (``need_kin``) Σw S²/m.
+    Returns ``(dissipated, external, ΣS, Σw S²/m)`` (zeros without ``close``)."""
+    wts = P[I_W]
+    winv = P[I_WINV]
+    mass = P[I_MASS]
+    live = P[I_LIVE]
+    clamped = P[I_CLAMPED]
+    constrained = P[I_CONSTRAINED]
+    has_damp = P[I_HAS_DAMP]
+    damp = P[I_DAMP]
+    has_ubody = P[I_HAS_UBODY]
+    ubody = P[I_UBODY]
+    has_field = P[I_HAS_FIELD]
+    has_power = P[I_HAS_POWER]
+    end_idx = P[I_END_IDX]
+    end_div = P[I_END_DIV]
+    end_face = P[I_END_FACE]
+    end_chunk = P[I_END_CHUNK]
+    n = w.shape[1]
+    ne = OUT.shape[1]
+    ring = ne == n
+    f0, f1, f2 = P[I_FIELD][0], P[I_FIELD][1], P[I_FIELD][2]
+    nch = (n + CHUNK - 1) // CHUNK
+    plain = not (has_damp or has_ubody or has_field or constrained)
+    for c in prange(nch):
+        lo, hi = _chunk(c, n)
+        a = max(lo, 1)
+        b = min(hi, n - 1)
+        pd = 0.0
+        pe = 0.0
+        tot = 0.0
+        # a free chunk (no loads, end loads or constraints): the force and the kick in one loop
+        free = close and plain and end_chunk[c] == end_chunk[c + 1]
+        for k in range(6):
+            if free:
+                t = 0.0
+                for i0 in range(b - a):
+                    i = a + i0
+                    v = (OUT[k, i] - INC[k, i - 1]) * winv[i]
+                    w[k, i] = v
+                    x = s[k, i] + half * v
+                    s[k, i] = x
+                    t += x
+                if lo == 0:
+                    v = ((OUT[k, 0] - INC[k, ne - 1]) if ring else OUT[k, 0]) * winv[0]
+                    w[k, 0] = v
+                    s[k, 0] = s[k, 0] + half * v
+                    t += s[k, 0]
+                if hi == n:
+                    v = ((OUT[k, n - 1] - INC[k, n - 2]) if ring else -INC[k, n - 2]) * winv[n - 1]
+                    w[k, n - 1] = v
+                    s[k, n - 1] = s[k, n - 1] + half * v
+                    t += s[k, n - 1]
+                tot += t
+                continue
+            # node i: tail of edge i, head of edge i − 1 (F_i = out_i − inc_{i−1}), over w_i
+            for i0 in range(b - a):
+                i = a + i0
+                w[k, i] = (OUT[k, i] - INC[k, i - 1]) * winv[i]
+            if lo == 0:
+                w[k, 0] = ((OUT[k, 0] - INC[k, ne - 1]) if ring else OUT[k, 0]) * winv[0]
+            if hi == n:
+                w[k, n - 1] = ((OUT[k, n - 1] - INC[k, n - 2]) if ring else -INC[k, n - 2]) * winv[n - 1]
+            if has_damp:
+                ck = damp[k]
+                for i0 in range(hi - lo):
+                    w[k, lo + i0] += -Nv[k, lo + i0] * ck
+            if has_ubody:
+                uk = ubody[k]
+                for i0 in range(hi - lo):
+                    w[k, lo + i0] += uk
+            if has_field and k < 3:
+                for i0 in range(hi - lo):
+                    i = lo + i0
+                    w[k, i] += phi[3 + k, i] * f0 + phi[6 + k, i] * f1 + phi[9 + k, i] * f2
+            for q in range(end_chunk[c], end_chunk[c + 1]):
+                w[k, end_idx[q]] += _soa_end_load(P, phi, q)[k] / end_div[q]
+            if constrained:
+                for i0 in range(hi - lo):
+                    i = lo + i0
+                    if clamped[i] or not live[k]:
+                        w[k, i] = 0.0
+            if not close:
+                continue
+            t = 0.0
+            for i0 in range(hi - lo):
+                i = lo + i0
+                v = s[k, i] + half * w[k, i]
+                if constrained and (clamped[i] or not live[k]):
+                    v = 0.0
+                s[k, i] = v
+                t += v
+            tot += t
+            if velocity:
+                m = mass[k]
+                for i0 in range(hi - lo):
+                    i = lo + i0
+                    Nv[k, i] = 0.0 if (constrained and clamped[i]) or not live[k] else s[k, i] / m
+            if has_power:
+                if has_damp:
+                    ck = damp[k]
+                    t = 0.0
+                    for i0 in range(hi - lo):
+                        i = lo + i0
+                        t += wts[i] * ((-Nv[k, i] * ck) * Nv[k, i])
+                    pd += t
+                if has_ubody:
+                    uk = ubody[k]
+                    t = 0.0
+                    for i0 in range(hi - lo):
+                        i = lo + i0
+                        t += wts[i] * (uk * Nv[k, i])
+                    pe += t
+        if close:
+            if has_power:
+                for q in range(end_chunk[c], end_chunk[c + 1]):
+                    v = _soa_end_load(P, phi, q)
+                    t = 0.0
+                    for k in range(6):
+                        t += v[k] * Nv[k, end_idx[q]]
+                    pe += end_face[q] * t
+            kin = 0.0
+            if need_kin:
+                for i0 in range(hi - lo):
+                    i = lo + i0
+                    t = 0.0
+                    for k in range(6):
+                        t += s[k, i] * s[k, i] * inv[k]
+                    kin += wts[i] * t
+            PART[c, 0] = pd
+            PART[c, 1] = pe
+            PART[c, 2] = tot
+            PART[c, 3] = kin
+    if not close:
+        return 0.0, 0.0, 0.0, 0.0
+    return _sum_parts(PART, nch)
+
+
+@_jit
+def _soa_powers(P, Nv, phi, PART):
+    """(dissipated, external) power at velocity ``Nv`` (``Scheme.powers``), by chunks."""
+    if not P[I_HAS_POWER]:
+        return 0.0, 0.0
+    wts = P[I_W]
+    damp = P[I_DAMP]
+    ubody = P[I_UBODY]
+    end_idx = P[I_END_IDX]
+    end_face = P[I_END_FACE]
+    end_chunk = P[I_END_CHUNK]
+    n = Nv.shape[1]
+    nch = (n + CHUNK - 1) // CHUNK
+    for c in range(nch):
+        pd = 0.0
+        pe = 0.0
+        for i in range(*_chunk(c, n)):
+            if P[I_HAS_DAMP]:
+                t = 0.0
+                for k in range(6):
+                    t += (-Nv[k, i] * damp[k]) * Nv[k, i]
+                pd += wts[i] * t
+            if P[I_HAS_UBODY]:
+                t = 0.0
+                for k in range(6):
+                    t += ubody[k] * Nv[k, i]
+                pe += wts[i] * t
+        for q in range(end_chunk[c], end_chunk[c + 1]):
+            v = _soa_end_load(P, phi, q)
+            t = 0.0
+            for k in range(6):
+                t += v[k] * Nv[k, end_idx[q]]
+            pe += end_face[q] * t
+        PART[c, 0] = pd
+        PART[c, 1] = pe
+    total = _sum_parts(PART, nch)
+    return total[0], total[1]
+
+
+@_jit
+def _to_soa(A, a):
+    """``a[:, i]`` ← rows 1–3 of ``A[i]`` = (translation; rotation row-major)."""
+    for i in range(A.shape[0]):
+        for r in range(3):
+            a[r, i] = A[i, r + 1, 0]
+            for c in range(3):
+                a[3 + 3 * r + c, i] = A[i, r + 1, c + 1]
+
+
+@_jit
+def _from_soa(a, A):
+    for i in range(A.shape[0]):
+        for r in range(3):
+            A[i, r + 1, 0] = a[r, i]
+            for c in range(3):
+                A[i, r + 1, c + 1] = a[3 + 3 * r + c, i]
+
+
+@_jit
+def lie_verlet_se3_loop(P, S, G, Phi, W, have_force, velocity_free, fac, kinds, axes,
+                        t, dt, nsteps, dissipated, external, check, kinetic_limit, inv, nblocks):
+    """``nsteps`` steps of ``LieVerlet`` on an SE(3) rod (d = 1) with closed-form free-flow
+    pieces, on structure-of-arrays copies of ``S [n, 6]``, ``G [ne, 4, 4]``, ``Phi`` and
+    ``W`` (copied back on return).  Arguments and result as
+    :func:`cartan.schemes._lattice_compiled.lie_verlet_loop`."""
+    n = S.shape[0]
+    ne = G.shape[0]
+    s = np.empty((6, n))
+    w = np.empty((6, n))
+    g = np.empty((12, ne))
+    phi = np.empty((12, Phi.shape[0]))
+    D = np.empty((12, n))
+    Nv = np.zeros((6, n))
+    OUT = np.empty((6, ne))
+    INC = np.empty((6, ne))
+    scratch = (np.empty((nblocks, 7, CHUNK)), np.empty((nblocks, 6, CHUNK)),
+               np.zeros((nblocks, CHUNK), dtype=np.int64))
+    PART = np.zeros(((n + CHUNK - 1) // CHUNK, 4))
+    for i in range(n):
+        for k in range(6):
+            s[k, i] = S[i, k]
+            w[k, i] = W[i, k]
+    _to_soa(G, g)
+    _to_soa(Phi, phi)
+    need_N = P[I_HAS_DAMP] or P[I_HAS_POWER]
+    need_kin = kinetic_limit < np.inf
+    nforce = 0
+    half = 0.5 * dt
+    if need_N:
+        _soa_velocity(P[I_MASS], P[I_LIVE], P[I_CLAMPED], P[I_CONSTRAINED], s, Nv, 0, n)
+    p0d, p0e = _soa_powers(P, Nv, phi, PART)
+    done = 0
+    for _ in range(nsteps):
+        if not (have_force and velocity_free):
+            _soa_edges(P, g, D, False, OUT, INC, nblocks, scratch)
+            _soa_close(P, OUT, INC, phi, s, Nv, w, half, False, False, inv, False, PART)
+            nforce += 1
+        _soa_drift_nodes(P, s, w, half, D, phi, fac, kinds, axes, need_N, Nv)
+        _soa_edges(P, g, D, True, OUT, INC, nblocks, scratch)
+        nforce += 1
+        have_force = True
+        p1d, p1e, tot, kin = _soa_close(P, OUT, INC, phi, s, Nv, w, half, True, need_N, inv, need_kin, PART)
+        t = t + dt
+        dissipated = dissipated + 0.5 * dt * (p0d + p1d)
+        external = external + 0.5 * dt * (p0e + p1e)
+        p0d, p0e = p1d, p1e
+        done += 1
+        if check == CHECK_MOMENTUM and (
+                not np.isfinite(tot) or (kinetic_limit < np.inf and not 0.5 * kin <= kinetic_limit)):
+            break
+    for i in range(n):
+        for k in range(6):
+            S[i, k] = s[k, i]
+            W[i, k] = w[k, i]
+    _from_soa(g, G)
+    _from_soa(phi, Phi)
+    return done, nforce, t, dissipated, external
+
+
+#: the threaded variants (``prange`` in parallel) of the passes and of the loop
+THREADED = threaded_twins(globals(), ("_soa_edges", "_soa_drift_nodes", "_soa_close", "lie_verlet_se3_loop"))
