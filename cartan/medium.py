@@ -215,9 +215,9 @@ class Medium(abc.ABC):
     def quadratic_energy(self) -> tuple[np.ndarray, np.ndarray] | None:
         """The potential as data, when it is quadratic: ``(X0, C)`` or None (default).
 
-        A medium of material dimension d = 1 whose potential is
-        ``U(X) = ½ (X − X₀)ᵀ C (X − X₀)`` with a constant symmetric ``C`` may return
-        ``X0`` of shape ``(r,)`` and ``C`` of shape ``(r, r)``; :meth:`potential` and
+        A medium whose potential is ``U(X) = ½ Σ_α (X_α − X₀_α)ᵀ C (X_α − X₀_α)`` with a
+        constant symmetric ``C`` may return ``X0`` of shape ``(r,)`` (d = 1) or ``(d, r)`` and
+        ``C`` of shape ``(r, r)``; :meth:`potential` and
         :meth:`stress` must agree with them (``Q = C (X − X₀)``).  Schemes use the data to
         run whole step loops in compiled code (``docs/performance.md``); None means "not
         quadratic" and keeps the medium on the generic path, which calls :meth:`stress`.
@@ -405,7 +405,9 @@ class QuadraticMedium(Medium):
         return H
 
     def quadratic_energy(self) -> tuple[np.ndarray, np.ndarray] | None:
-        """``(X₀, C)`` for d = 1; None otherwise (the compiled loops are one-dimensional)."""
+        """``(X₀, C)`` for d = 1; None for d ≥ 2, where the compiled lattice loops read the
+        rest strain per axis and ``C`` of a :class:`QuadraticMedium` directly (when it does
+        not override the energy methods)."""
         if self._X0.shape[0] != 1:
             return None
         return self._X0[0].copy(), self._C.copy()
