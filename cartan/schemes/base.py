@@ -183,6 +183,24 @@ class Scheme(abc.ABC):
         """Temporal integrability residual: stored X against X recomputed from Φ."""
 
     # ------------------------------------------------------------------ shared
+    def _run_compiled(self, module: str, integrator: Any, state: State, dt: float, nsteps: int,
+                      kinetic_limit: float) -> bool:
+        """The body of a scheme's ``compiled_advance``: build its compiled plan once
+        (``cartan.schemes.<module>.build_plan(self)``, None when the problem does not qualify)
+        and run ``<module>.advance``; False when the numpy backend is selected or the problem
+        does not qualify (nothing touched)."""
+        if get_backend() != "numba":
+            return False
+        import importlib
+
+        compiled = importlib.import_module(f"{__package__}.{module}")
+        plan = self.__dict__.get("_compiled_plan", False)
+        if plan is False:
+            plan = self._compiled_plan = compiled.build_plan(self)
+        if plan is None:
+            return False
+        return compiled.advance(self, plan, integrator, state, dt, nsteps, kinetic_limit)
+
     def _clamp_mask(self) -> np.ndarray:
         mask = np.zeros(self.grid.shape, dtype=bool)
         for axis in range(self.grid.d):

@@ -71,7 +71,6 @@ from typing import Any
 
 import numpy as np
 
-from .._backend import get_backend
 from ..problem import Clamped, Free, dead_to_body
 from .base import Scheme, State, prefix_products
 
@@ -341,18 +340,7 @@ class Collocation(Scheme):
         finite, or whose kinetic energy ``½Σ w S²/m`` exceeds ``kinetic_limit``; the number of
         steps done is the increase of ``state.scalars["nstep"]``.
         """
-        if get_backend() != "numba":
-            return False
-        plan = self.__dict__.get("_compiled_plan", False)
-        if plan is False:
-            from ._collocation_compiled import build_plan
-
-            plan = self._compiled_plan = build_plan(self)
-        if plan is None:
-            return False
-        from ._collocation_compiled import advance
-
-        return advance(self, plan, integrator, state, dt, nsteps, kinetic_limit)
+        return self._run_compiled("_collocation_compiled", integrator, state, dt, nsteps, kinetic_limit)
 
     # ------------------------------------------------------------------ strains from frames
     def strain_from_frames(self, Phi: np.ndarray, check: bool = False) -> np.ndarray:

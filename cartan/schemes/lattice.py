@@ -41,7 +41,6 @@ from typing import Any
 
 import numpy as np
 
-from .._backend import get_backend
 from ..problem import Free, dead_to_body
 from .base import Scheme, State, prefix_products
 
@@ -102,18 +101,7 @@ class Lattice(Scheme):
         momentum, configuration) is not finite, or whose kinetic energy ``½Σ w S²/m`` exceeds
         ``kinetic_limit``; the number of steps done is the increase of ``state.scalars["nstep"]``.
         """
-        if get_backend() != "numba":
-            return False
-        plan = self.__dict__.get("_compiled_plan", False)
-        if plan is False:
-            from ._lattice_compiled import build_plan
-
-            plan = self._compiled_plan = build_plan(self)
-        if plan is None:
-            return False
-        from ._lattice_compiled import advance
-
-        return advance(self, plan, integrator, state, dt, nsteps, kinetic_limit)
+        return self._run_compiled("_lattice_compiled", integrator, state, dt, nsteps, kinetic_limit)
 
     # ------------------------------------------------------------------ layout helpers
     def _key(self, axis: int) -> str:
