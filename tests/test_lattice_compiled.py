@@ -22,6 +22,7 @@ import pytest
 from toys import QuadraticMedium, arc_problem
 
 import cartan
+from cartan import _threads
 from cartan.api import InstabilityError, StabilityWarning, simulate
 from cartan.grid import Grid
 from cartan.integrators import RKMK4, ForwardEuler, Kinematic, LieEuler, LieVerlet, Overdamped
@@ -199,6 +200,123 @@ def test_fast_spin_uses_the_closed_forms():
     init = rod.initial_state(grid, "arc", curvature=0.5, velocity=[0.0, 0.0, 0.0, 400.0, 30.0, 0.0])
     _, (ref, _), (fast, _) = run_both(Problem(rod, grid, init), LieVerlet, 1e-3, 40)
     assert_close_states(fast, ref)
+
+
+# ---------------------------------------------------------------------------- vectorised overdamped loop
+def _spy(monkeypatch, name: str) -> list:
+    """Record the calls of the structure-of-arrays loop ``name`` (serial or threaded build)
+    made by ``compiled_advance``: ``(threaded, blocks)``."""
+    calls = []
+
+    def wrap(loop, threaded):
+        def spy(*args):
+            calls.append((threaded, args[-1]))
+            return loop(*args)
+        return spy
+
+    monkeypatch.setattr(lc.soa, name, wrap(getattr(lc.soa, name), False))
+    monkeypatch.setitem(lc.soa.THREADED, name, wrap(lc.soa.THREADED[name], True))
+    return calls
+
+
+@pytest.mark.parametrize("n", [11, 2100], ids=["one-chunk", "three-chunks"])
+@pytest.mark.parametrize("kind", ["dead", "follower", "ring"])
+def test_overdamped_se3_runs_the_vectorised_loop(kind, n, monkeypatch):
+    """``overdamped`` (order 1) on SE(3) rods — clamped with a dead or a follower end load, or a
+    ring; damping and gravity — runs the structure-of-arrays loop, in blocks, and agrees with
+    the Python path, counters included; Δt scales with h² (the stable range of the flow)."""
+    calls = _spy(monkeypatch, "overdamped_se3_loop")
+    make, dt, nsteps = INTEGRATORS["overdamped-1"]
+    dt *= (10.0 / n) ** 2
+    nsteps = nsteps if n < 100 else 6
+    _, (ref, ri), (fast, fi) = run_both(rod_problem(kind, n=n), make, dt, nsteps, blocks=(1, nsteps - 1))
+    assert calls == [(False, 1)] * 2
+    assert_close_states(fast, ref)
+    assert (fi.nstep, fi.nforce) == (ri.nstep, ri.nforce)
+    assert not np.any(fast.S)
+    # the velocity handed over to a following step, N = Γ⁻¹W(N = 0) at the final state: W is a
+    # difference quotient of the edge stresses over h, so its round-off grows like 1/h (from
+    # 1e-13 on the 11-node rods)
+    assert fi._cache[0][1:] == ri._cache[0][1:] and _rel(fi._cache[1], ri._cache[1]) <= TOL * max(1.0, n / 11)
+
+
+def test_overdamped_se3_stops_after_the_first_non_finite_step(monkeypatch):
+    """Far beyond its stable Δt the flow of the clamped rod overflows; the vectorised loop
+    stops after the first step that leaves a non-finite edge or frame (the step at which
+    overflow sets in is round-off dependent, so the loop is compared with itself)."""
+    calls = _spy(monkeypatch, "overdamped_se3_loop")
+    scheme = Lattice(rod_problem("dead", n=11))
+    start = scheme.initial_state()
+    start.scalars["nstep"] = 0
+    dt, limit = 2e-3, 2000
+
+    def run(nsteps):
+        state = start.copy()
+        with np.errstate(all="ignore"):
+            assert scheme.compiled_advance(Overdamped(order=1), state, dt, nsteps)
+        return state, all(np.all(np.isfinite(a)) for a in state.arrays.values())
+
+    blown, finite = run(limit)
+    k = blown.scalars["nstep"]
+    assert 1 < k < limit and not finite
+    before, finite = run(k - 1)
+    assert before.scalars["nstep"] == k - 1 and finite
+    assert len(calls) == 2
+
+
+def test_overdamped_se3_with_root_frame_only(monkeypatch):
+    """Without frames to step beyond the root (follower loads only), on the vectorised loop."""
+    calls = _spy(monkeypatch, "overdamped_se3_loop")
+    rod = _rod(False)
+    grid = Grid(9)
+    problem = Problem(rod, grid, rod.initial_state(grid, "arc", curvature=1.5),
+                      {"start": Clamped(), "end": Free(load=[0, 0, 1.0, 0, 0.2, 0], follower=True)},
+                      [Damping([1.0, 1.0, 1.0, 0.1, 0.1, 0.1])])
+    _, (ref, ri), (fast, fi) = run_both(problem, lambda: Overdamped(order=1), 2e-6, 30, track_frames=False)
+    assert calls and set(fast.arrays) == {"G_u", "Phi_root"}
+    assert_close_states(fast, ref)
+    assert fi.nforce == ri.nforce
+
+
+def test_vectorised_exp_matches_the_group_exp():
+    """``D_i = exp(τN_i)`` of the vectorised loop against the group's exp: a chunk of nodes
+    turning by less than 0.1 rad (the series) and one with larger angles (the closed forms);
+    the frames, starting from the identity, become ``D``.  Round-off: ≤ 1e-13."""
+    rng = np.random.default_rng(5)
+    n = lc.soa.CHUNK + 300
+    N = rng.standard_normal((n, 6))
+    N[: lc.soa.CHUNK, 3:] *= 0.02
+    tau = 0.7
+    nv = np.ascontiguousarray(N.T)
+    D = np.empty((12, n))
+    phi = np.zeros((12, n))
+    phi[[3, 7, 11]] = 1.0
+    lc.soa._soa_exp_nodes(nv, tau, D, phi)
+    E = cartan.group("SE3").exp(tau * N)
+    expected = np.concatenate([E[:, 1:, 0].T, E[:, 1:, 1:].reshape(n, 9).T])
+    assert np.max(np.abs(D - expected)) <= 1e-13
+    assert np.array_equal(phi, D)
+
+
+@pytest.mark.skipif(_threads.max_threads() < 2, reason="numba has a single thread here (NUMBA_NUM_THREADS = 1)")
+def test_overdamped_se3_threaded_build_equals_the_serial_one(monkeypatch):
+    """The threaded build of the vectorised overdamped loop (two blocks of edge chunks) gives
+    the serial results bit for bit."""
+    problem = rod_problem("ring", n=2100)
+    scheme = Lattice(problem)
+    start = scheme.initial_state()
+    states = []
+    for threads in (1, 2):
+        calls = _spy(monkeypatch, "overdamped_se3_loop")
+        monkeypatch.setattr(lc, "loop_threads", lambda nodes, k=threads: k)
+        state = start.copy()
+        with cartan.use_threads(threads):
+            assert scheme.compiled_advance(Overdamped(order=1), state, 2e-6 * (10.0 / 2100) ** 2, 4)
+        assert calls == [(threads > 1, threads)]
+        states.append(state)
+    a, b = states
+    assert all(np.array_equal(a.arrays[k], b.arrays[k]) for k in a.arrays)
+    assert np.array_equal(a.S, b.S) and a.scalars == b.scalars
 
 
 @pytest.mark.parametrize("periodic", [False, True])

@@ -49,8 +49,8 @@ Design
   integrators that keep G on the group (all but ``forward-euler``); one conjugation by the
   composed free flow per edge.
 * **Vectorised SE(3) rods.**  ``lie-verlet`` on SE(3) with d = 1 and closed-form pieces
-  (every Cosserat rod with positive inertias) runs the structure-of-arrays loop of
-  :mod:`cartan.schemes._lattice_compiled_soa`.
+  (every Cosserat rod with positive inertias), and ``overdamped`` of order 1 on SE(3) with
+  d = 1, run the structure-of-arrays loops of :mod:`cartan.schemes._lattice_compiled_soa`.
 * **No per-step allocation.**  Work arrays are allocated once per call; the state arrays are
   updated in place.
 * **Per-step blow-up test.**  After every step the loop tests what the run's guard tests
@@ -162,7 +162,7 @@ from ._lattice_compiled_plan import (
     _same_methods,
     build_plan,
 )
-from ._lattice_compiled_soa import lie_verlet_se3_loop
+from ._lattice_compiled_soa import lie_verlet_se3_loop, overdamped_se3_loop
 
 __all__ = [
     "GROUP_IDS",
@@ -174,6 +174,7 @@ __all__ = [
     "lie_verlet_loop",
     "lie_verlet_se3_loop",
     "overdamped_loop",
+    "overdamped_se3_loop",
     "overdamped_velocity",
     "rkmk_loop",
 ]
@@ -1193,7 +1194,11 @@ def advance(scheme, plan: tuple, integrator, state, dt: float, nsteps: int, kine
                 if not hit:
                     overdamped_velocity(plan, Gs, Phi3, N.reshape(n, r), gam)
             N2 = N.reshape(n, r)
-            if order == 1:
+            if order == 1 and plan[I_GID] == GID_SE3 and d == 1:
+                loop = soa.THREADED["overdamped_se3_loop"] if threads > 1 else soa.overdamped_se3_loop
+                done, t, diss, ext = loop(plan, S2, Gs[0], Phi3, N2, gam, t0, dt, nsteps, diss, ext, check, inv,
+                                          threads)
+            elif order == 1:
                 done, t, diss, ext = loops["overdamped_loop"](plan, S2, Gs, Phi3, N2, gam, t0, dt, nsteps, diss, ext,
                                                               check, limit, inv)
             else:

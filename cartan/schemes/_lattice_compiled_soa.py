@@ -22,6 +22,11 @@ stresses of a chunk in its block's small scratch, so that, however long the rod,
 in the cache.  The arithmetic is that of :mod:`cartan.schemes._lattice_compiled_kernels`
 (round-off agreement with the reference path).
 
+``overdamped`` of order 1 on SE(3) rods (d = 1) reuses these passes: the exponentials of the
+node velocities with the frames (series or closed forms per chunk, as the free flow), the
+edge pass, the force of the closing node pass without its kick (damping at zero velocity),
+then ``N = Γ⁻¹W`` with the partial sums of the powers.
+
 Writing these loops: helpers inlined into a vectorised loop take and return scalars (an
 inlined helper that takes arrays keeps LLVM from vectorising the loop), and an offset added
 to a loop index is stated non-negative (``max(lo, 0)``, :func:`_chunk`) so that LLVM can
@@ -48,8 +53,10 @@ from ._lattice_compiled_kernels import (
     _ad_T,
     _chunk,
     _edge_terms6,
+    _exp3_coeffs,
     _inline,
     _jit,
+    _poly_entries,
     _q_coeffs,
     _rot_coeffs,
     _se3_dexp_inv_T,
@@ -88,10 +95,12 @@ from ._lattice_compiled_plan import (
     I_X0,
 )
 
-__all__ = ["THREADED", "lie_verlet_se3_loop"]
+__all__ = ["THREADED", "lie_verlet_se3_loop", "overdamped_se3_loop"]
 
-#: blow-up test on the momentum (the value of ``_lattice_compiled.CHECK_MOMENTUM``)
+#: blow-up tests on the momentum and on the configuration (the values of
+#: ``_lattice_compiled.CHECK_MOMENTUM``, ``CHECK_CONFIGURATION``)
 CHECK_MOMENTUM = 1
+CHECK_CONFIGURATION = 2
 
 
 # ---------------------------------------------------------------------------- edges
@@ -374,14 +383,156 @@ def _soa_drift_nodes(P, s, w, half, D, phi, fac, kinds, axes, velocity, Nv):
                         s[k, i] = 0.0
         if velocity:
             _soa_velocity(mass, live, clamped, constrained, s, Nv, lo, hi)
-        for i0 in range(min(hi, nf) - lo):
+        _soa_frames(phi, D, lo, min(hi, nf))
+
+
+@_jit
+def _soa_frames(phi, D, lo, hi):
+    """Frames ``Φ_i ← Φ_i D_i`` for the nodes ``lo ≤ i < hi`` (every node, or the root)."""
+    lo = max(lo, 0)  # (stated: no negative-index test)
+    for i0 in range(hi - lo):
+        i = lo + i0
+        for a in range(3):
+            f0, f1, f2 = phi[3 + 3 * a, i], phi[4 + 3 * a, i], phi[5 + 3 * a, i]
+            phi[a, i] = f0 * D[0, i] + f1 * D[1, i] + f2 * D[2, i] + phi[a, i]
+            phi[3 + 3 * a, i] = f0 * D[3, i] + f1 * D[6, i] + f2 * D[9, i]
+            phi[4 + 3 * a, i] = f0 * D[4, i] + f1 * D[7, i] + f2 * D[10, i]
+            phi[5 + 3 * a, i] = f0 * D[5, i] + f1 * D[8, i] + f2 * D[11, i]
+
+
+@_inline
+def _soa_exp_node(tau, x0, x1, x2, w0, w1, w2, a, b, c):
+    """``exp(τ(x; w)) = (V τx; R)`` from the SE(3) coefficients ``(A, B, C)`` of ``θ = τ|w|``:
+    translation, then the rotation row-major (12 scalars)."""
+    R = _poly_entries(tau * w0, tau * w1, tau * w2, a, b, 1.0)
+    t = _V_apply(tau * w0, tau * w1, tau * w2, b, c, tau * x0, tau * x1, tau * x2)
+    return t[0], t[1], t[2], R[0], R[1], R[2], R[3], R[4], R[5], R[6], R[7], R[8]
+
+
+@_jit
+def _soa_exp_nodes(nv, tau, D, phi):
+    """Per chunk of nodes: ``D_i = exp(τN_i)`` (SE(3); the Taylor coefficients, or the closed
+    forms for a chunk with a node turning by 0.1 rad or more) and the frames ``Φ_i ← Φ_i D_i``."""
+    n = nv.shape[1]
+    nf = phi.shape[1]
+    for c in prange((n + CHUNK - 1) // CHUNK):
+        lo, hi = _chunk(c, n)
+        big = 0
+        for i0 in range(hi - lo):
             i = lo + i0
-            for a in range(3):
-                f0, f1, f2 = phi[3 + 3 * a, i], phi[4 + 3 * a, i], phi[5 + 3 * a, i]
-                phi[a, i] = f0 * D[0, i] + f1 * D[1, i] + f2 * D[2, i] + phi[a, i]
-                phi[3 + 3 * a, i] = f0 * D[3, i] + f1 * D[6, i] + f2 * D[9, i]
-                phi[4 + 3 * a, i] = f0 * D[4, i] + f1 * D[7, i] + f2 * D[10, i]
-                phi[5 + 3 * a, i] = f0 * D[5, i] + f1 * D[8, i] + f2 * D[11, i]
+            w0, w1, w2 = tau * nv[3, i], tau * nv[4, i], tau * nv[5, i]
+            big += w0 * w0 + w1 * w1 + w2 * w2 >= SMALL_THETA2
+        if big:
+            for i0 in range(hi - lo):
+                i = lo + i0
+                w0, w1, w2 = tau * nv[3, i], tau * nv[4, i], tau * nv[5, i]
+                a, b, cc = _exp3_coeffs(w0 * w0 + w1 * w1 + w2 * w2)
+                e = _soa_exp_node(tau, nv[0, i], nv[1, i], nv[2, i], nv[3, i], nv[4, i], nv[5, i], a, b, cc)
+                for k in range(12):
+                    D[k, i] = e[k]
+        else:
+            for i0 in range(hi - lo):
+                i = lo + i0
+                w0, w1, w2 = tau * nv[3, i], tau * nv[4, i], tau * nv[5, i]
+                q2 = w0 * w0 + w1 * w1 + w2 * w2
+                e = _soa_exp_node(tau, nv[0, i], nv[1, i], nv[2, i], nv[3, i], nv[4, i], nv[5, i],
+                                  horner(q2, TAYLOR_A), horner(q2, TAYLOR_B), horner(q2, TAYLOR_C))
+                D[0, i] = e[0]
+                D[1, i] = e[1]
+                D[2, i] = e[2]
+                D[3, i] = e[3]
+                D[4, i] = e[4]
+                D[5, i] = e[5]
+                D[6, i] = e[6]
+                D[7, i] = e[7]
+                D[8, i] = e[8]
+                D[9, i] = e[9]
+                D[10, i] = e[10]
+                D[11, i] = e[11]
+        _soa_frames(phi, D, lo, min(hi, nf))
+
+
+@_jit
+def _soa_drag(P, w, gam, nv, phi, PART):
+    """Per chunk of nodes, component by component: the overdamped velocity ``N = Γ⁻¹W`` (zero on
+    clamped nodes and gauge components) and the partial sums of the powers at ``N`` (as
+    :func:`_soa_powers`).  Returns ``(dissipated, external)``."""
+    wts = P[I_W]
+    live = P[I_LIVE]
+    clamped = P[I_CLAMPED]
+    damp = P[I_DAMP]
+    ubody = P[I_UBODY]
+    has_power = P[I_HAS_POWER]
+    has_damp = has_power and P[I_HAS_DAMP]
+    has_ubody = has_power and P[I_HAS_UBODY]
+    end_idx = P[I_END_IDX]
+    end_face = P[I_END_FACE]
+    end_chunk = P[I_END_CHUNK]
+    n = w.shape[1]
+    nch = (n + CHUNK - 1) // CHUNK
+    for c in prange(nch):
+        lo, hi = _chunk(c, n)
+        pd = 0.0
+        pe = 0.0
+        for k in range(6):
+            if not live[k]:
+                for i0 in range(hi - lo):
+                    nv[k, lo + i0] = 0.0
+                continue
+            gk = gam[k]
+            for i0 in range(hi - lo):
+                i = lo + i0
+                nv[k, i] = 0.0 if clamped[i] else w[k, i] / gk
+            if has_damp:
+                ck = damp[k]
+                t = 0.0
+                for i0 in range(hi - lo):
+                    i = lo + i0
+                    t += wts[i] * ((-nv[k, i] * ck) * nv[k, i])
+                pd += t
+            if has_ubody:
+                uk = ubody[k]
+                t = 0.0
+                for i0 in range(hi - lo):
+                    i = lo + i0
+                    t += wts[i] * (uk * nv[k, i])
+                pe += t
+        if has_power:
+            for q in range(end_chunk[c], end_chunk[c + 1]):
+                v = _soa_end_load(P, phi, q)
+                t = 0.0
+                for k in range(6):
+                    t += v[k] * nv[k, end_idx[q]]
+                pe += end_face[q] * t
+        PART[c, 0] = pd
+        PART[c, 1] = pe
+        PART[c, 2] = 0.0
+        PART[c, 3] = 0.0
+    total = _sum_parts(PART, nch)
+    return total[0], total[1]
+
+
+@_jit
+def _soa_finite(g, phi, PART):
+    """True when any entry of the edges or the frames is not finite (``x − x ≠ 0``), counted per chunk of edges."""
+    ne = g.shape[1]
+    nf = phi.shape[1]
+    nch = (max(ne, nf) + CHUNK - 1) // CHUNK
+    for c in prange(nch):
+        acc = 0
+        lo, hi = _chunk(c, max(ne, nf))
+        for k in range(12):
+            for i0 in range(max(min(hi, ne) - lo, 0)):
+                i = lo + i0
+                acc += g[k, i] - g[k, i] != 0.0
+            for i0 in range(max(min(hi, nf) - lo, 0)):
+                i = lo + i0
+                acc += phi[k, i] - phi[k, i] != 0.0
+        PART[c, 0] = acc
+    for c in range(nch):
+        if PART[c, 0] != 0.0:
+            return True
+    return False
 
 
 @_inline
@@ -667,5 +818,57 @@ def lie_verlet_se3_loop(P, S, G, Phi, W, have_force, velocity_free, fac, kinds, 
     return done, nforce, t, dissipated, external
 
 
-#: the threaded variants (``prange`` in parallel) of the passes and of the loop
-THREADED = threaded_twins(globals(), ("_soa_edges", "_soa_drift_nodes", "_soa_close", "lie_verlet_se3_loop"))
+@_jit
+def overdamped_se3_loop(P, S, G, Phi, N, gam, t, dt, nsteps, dissipated, external, check, inv, nblocks):
+    """``nsteps`` steps of ``Overdamped(order=1)`` on an SE(3) rod (d = 1), on
+    structure-of-arrays copies of ``G [ne, 4, 4]``, ``Phi`` and ``N [n, 6]`` (copied back on
+    return; S = 0 after a step): ``D_i = exp(ΔtN_i)``, ``Φ_i ← Φ_i D_i``, ``G_e ← D_i⁻¹G_eD_j``,
+    then ``N = Γ⁻¹W(N = 0)`` with the force of :func:`_soa_close` (damping at zero velocity).
+    ``N`` holds the velocity of the current state on entry.  Arguments and result as
+    :func:`cartan.schemes._lattice_compiled.overdamped_loop` (no kinetic limit: S = 0)."""
+    n = S.shape[0]
+    ne = G.shape[0]
+    nv = np.empty((6, n))
+    zero = np.zeros((6, n))
+    w = np.empty((6, n))
+    g = np.empty((12, ne))
+    phi = np.empty((12, Phi.shape[0]))
+    D = np.empty((12, n))
+    OUT = np.empty((6, ne))
+    INC = np.empty((6, ne))
+    scratch = (np.empty((nblocks, 7, CHUNK)), np.empty((nblocks, 6, CHUNK)),
+               np.zeros((nblocks, CHUNK), dtype=np.int64))
+    PART = np.zeros(((n + CHUNK - 1) // CHUNK, 4))
+    for i in range(n):
+        for k in range(6):
+            nv[k, i] = N[i, k]
+    _to_soa(G, g)
+    _to_soa(Phi, phi)
+    p0d, p0e = _soa_powers(P, nv, phi, PART)
+    done = 0
+    for _ in range(nsteps):
+        _soa_exp_nodes(nv, dt, D, phi)
+        _soa_edges(P, g, D, True, OUT, INC, nblocks, scratch)
+        # W at N = 0: the damping term reads the zero velocity
+        _soa_close(P, OUT, INC, phi, zero, zero, w, 0.0, False, False, inv, False, PART)
+        p1d, p1e = _soa_drag(P, w, gam, nv, phi, PART)
+        t = t + dt
+        dissipated = dissipated + 0.5 * dt * (p0d + p1d)
+        external = external + 0.5 * dt * (p0e + p1e)
+        p0d, p0e = p1d, p1e
+        done += 1
+        if check == CHECK_CONFIGURATION and _soa_finite(g, phi, PART):
+            break
+    if done:
+        S[:] = 0.0
+    for i in range(n):
+        for k in range(6):
+            N[i, k] = nv[k, i]
+    _from_soa(g, G)
+    _from_soa(phi, Phi)
+    return done, t, dissipated, external
+
+
+#: the threaded variants (``prange`` in parallel) of the passes and of the loops
+THREADED = threaded_twins(globals(), ("_soa_edges", "_soa_drift_nodes", "_soa_close", "_soa_exp_nodes", "_soa_drag",
+                                      "_soa_finite", "lie_verlet_se3_loop", "overdamped_se3_loop"))
