@@ -88,6 +88,7 @@ from ._lattice_compiled import (
     I_UBODY,
     I_W,
     I_X0,
+    _book,
     _constrain,
     _end_load,
     _group_id,
@@ -111,6 +112,7 @@ from ._lattice_compiled_kernels import (
     g_hat,
     g_inverse,
 )
+from ._lattice_compiled_plan import _compiled_loads
 
 __all__ = [
     "FOURIER_MAX_NODES",
@@ -575,8 +577,7 @@ def lie_verlet_loop(P, Dc, S, X, Phi, W, have_force, velocity_free, seq_mask, se
         if need_N:
             _velocity(P, S, N)
         p1d, p1e = _powers(P, N, Phi, scr)
-        dissipated = dissipated + 0.5 * dt * (p0d + p1d)
-        external = external + 0.5 * dt * (p0e + p1e)
+        dissipated, external = _book(dt, dissipated, external, p0d, p0e, p1d, p1e)
         p0d, p0e = p1d, p1e
         done += 1
         if _unstable(check, kinetic_limit, S, X, Phi, w, inv):
@@ -609,8 +610,7 @@ def lie_euler_loop(P, Dc, S, X, Phi, t, dt, nsteps, dissipated, external, check,
         t = t + dt
         _velocity(P, S, N)
         p1d, p1e = _powers(P, N, Phi, scr)
-        dissipated = dissipated + 0.5 * dt * (p0d + p1d)
-        external = external + 0.5 * dt * (p0e + p1e)
+        dissipated, external = _book(dt, dissipated, external, p0d, p0e, p1d, p1e)
         p0d, p0e = p1d, p1e
         done += 1
         if _unstable(check, kinetic_limit, S, X, Phi, w, inv):
@@ -655,8 +655,7 @@ def forward_euler_loop(P, Dc, S, X, Phi, t, dt, nsteps, dissipated, external, ch
         t = t + dt
         _velocity(P, S, N)
         p1d, p1e = _powers(P, N, Phi, scr)
-        dissipated = dissipated + 0.5 * dt * (p0d + p1d)
-        external = external + 0.5 * dt * (p0e + p1e)
+        dissipated, external = _book(dt, dissipated, external, p0d, p0e, p1d, p1e)
         p0d, p0e = p1d, p1e
         done += 1
         if _unstable(check, kinetic_limit, S, X, Phi, w, inv):
@@ -714,8 +713,7 @@ def overdamped_loop(P, Dc, S, X, Phi, N, gam, t, dt, nsteps, dissipated, externa
         t = t + dt
         _drift_velocity(P, Dc, X, Phi, Z, W, Q, N, gam, scr)
         p1d, p1e = _powers(P, N, Phi, scr)
-        dissipated = dissipated + 0.5 * dt * (p0d + p1d)
-        external = external + 0.5 * dt * (p0e + p1e)
+        dissipated, external = _book(dt, dissipated, external, p0d, p0e, p1d, p1e)
         p0d, p0e = p1d, p1e
         done += 1
         if _unstable(check, kinetic_limit, S, X, Phi, w, inv):
@@ -830,8 +828,7 @@ def rkmk_loop(P, Dc, S, X, Phi, N, gam, dynamics, A, b, t, dt, nsteps, dissipate
         else:
             _drift_velocity(P, Dc, X, Phi, Z, W, Q, N, gam, scr)
         p1d, p1e = _powers(P, N, Phi, scr)
-        dissipated = dissipated + 0.5 * dt * (p0d + p1d)
-        external = external + 0.5 * dt * (p0e + p1e)
+        dissipated, external = _book(dt, dissipated, external, p0d, p0e, p1d, p1e)
         p0d, p0e = p1d, p1e
         done += 1
         if _unstable(check, kinetic_limit, S, X, Phi, w, inv):
@@ -1007,7 +1004,7 @@ def _soa_nodes(x, s, f, nv, dn, tau, mode, xo, so, phi):
         xo[4, i] = Xn[4]
         xo[5, i] = Xn[5]
         nbad += t2 >= SMALL_THETA2
-    if mode == MODE_COAD:
+    if mode == MODE_COAD or mode == MODE_LIE_EULER:
         for i in range(n):
             v0, v1, v2 = tau * nv[0, i], tau * nv[1, i], tau * nv[2, i]
             w0, w1, w2 = tau * nv[3, i], tau * nv[4, i], tau * nv[5, i]
@@ -1016,23 +1013,7 @@ def _soa_nodes(x, s, f, nv, dn, tau, mode, xo, so, phi):
                                     (x[0, i], x[1, i], x[2, i], x[3, i], x[4, i], x[5, i]),
                                     (dn[0, i], dn[1, i], dn[2, i], dn[3, i], dn[4, i], dn[5, i]),
                                     (s[0, i], s[1, i], s[2, i], s[3, i], s[4, i], s[5, i]),
-                                    (f[0, i], f[1, i], f[2, i], f[3, i], f[4, i], f[5, i]), MODE_COAD)
-            so[0, i] = Sn[0]
-            so[1, i] = Sn[1]
-            so[2, i] = Sn[2]
-            so[3, i] = Sn[3]
-            so[4, i] = Sn[4]
-            so[5, i] = Sn[5]
-    elif mode == MODE_LIE_EULER:
-        for i in range(n):
-            v0, v1, v2 = tau * nv[0, i], tau * nv[1, i], tau * nv[2, i]
-            w0, w1, w2 = tau * nv[3, i], tau * nv[4, i], tau * nv[5, i]
-            A, B, C, Dq, Eq = _series(w0 * w0 + w1 * w1 + w2 * w2)
-            _, Sn, _, _ = _se3_node(v0, v1, v2, w0, w1, w2, tau, A, B, C, Dq, Eq,
-                                    (x[0, i], x[1, i], x[2, i], x[3, i], x[4, i], x[5, i]),
-                                    (dn[0, i], dn[1, i], dn[2, i], dn[3, i], dn[4, i], dn[5, i]),
-                                    (s[0, i], s[1, i], s[2, i], s[3, i], s[4, i], s[5, i]),
-                                    (f[0, i], f[1, i], f[2, i], f[3, i], f[4, i], f[5, i]), MODE_LIE_EULER)
+                                    (f[0, i], f[1, i], f[2, i], f[3, i], f[4, i], f[5, i]), mode)
             so[0, i] = Sn[0]
             so[1, i] = Sn[1]
             so[2, i] = Sn[2]
@@ -1365,8 +1346,7 @@ def lie_euler_se3_loop(P, Dc, S, X, Phi, t, dt, nsteps, dissipated, external, ch
         t = t + dt
         _soa_velocity(P, s, nv)
         p1d, p1e = _soa_powers(P, nv, phi)
-        dissipated = dissipated + 0.5 * dt * (p0d + p1d)
-        external = external + 0.5 * dt * (p0e + p1e)
+        dissipated, external = _book(dt, dissipated, external, p0d, p0e, p1d, p1e)
         p0d, p0e = p1d, p1e
         done += 1
         if check == CHECK_MOMENTUM and _soa_unstable(kinetic_limit, s, wts, inv):
@@ -1429,8 +1409,7 @@ def lie_verlet_se3_loop(P, Dc, S, X, Phi, W, have_force, velocity_free, seq_mask
         if need_N:
             _soa_velocity(P, s, nv)
         p1d, p1e = _soa_powers(P, nv, phi)
-        dissipated = dissipated + 0.5 * dt * (p0d + p1d)
-        external = external + 0.5 * dt * (p0e + p1e)
+        dissipated, external = _book(dt, dissipated, external, p0d, p0e, p1d, p1e)
         p0d, p0e = p1d, p1e
         done += 1
         if check == CHECK_MOMENTUM and _soa_unstable(kinetic_limit, s, wts, inv):
@@ -1478,8 +1457,7 @@ def overdamped_se3_loop(P, Dc, S, X, Phi, N, gam, t, dt, nsteps, dissipated, ext
                     for k in range(6):
                         nv[k, i] = 0.0
         p1d, p1e = _soa_powers(P, nv, phi)
-        dissipated = dissipated + 0.5 * dt * (p0d + p1d)
-        external = external + 0.5 * dt * (p0e + p1e)
+        dissipated, external = _book(dt, dissipated, external, p0d, p0e, p1d, p1e)
         p0d, p0e = p1d, p1e
         done += 1
         if _soa_nonfinite(x, phi):
@@ -1617,7 +1595,6 @@ def build_plan(scheme) -> tuple[tuple, tuple] | None:
         When the medium's ``quadratic_energy`` is malformed or disagrees with its ``stress``.
     """
     from ..medium import Medium
-    from ..problem import Clamped, ConstantFieldPotential, Damping, Free, PotentialLoad, UniformForce
     from .base import Scheme
     from .collocation import Collocation
 
@@ -1641,27 +1618,10 @@ def build_plan(scheme) -> tuple[tuple, tuple] | None:
     if quad is None:
         return None
     X0, C = quad
-    k = group.space_dim if getattr(group, "affine", False) else 1
-    damp, ubody, field = np.zeros(r), np.zeros(r), np.zeros(k)
-    has_damp = has_ubody = has_field = False
-    for load in problem.loads:
-        if type(load) is Damping:
-            damp = damp + np.asarray(load.coefficients, dtype=float)
-            has_damp = True
-        elif type(load) is UniformForce and load.frame == "body":
-            ubody = ubody + np.asarray(load.components, dtype=float)
-            has_ubody = True
-        elif (
-            isinstance(load, ConstantFieldPotential)
-            and type(load).force is PotentialLoad.force
-            and _same_methods(load, ConstantFieldPotential, ("potential_gradient", "position", "_matrix"))
-        ):
-            field = field + load.density * np.asarray(load.field, dtype=float)
-            has_field = True
-        else:
-            return None
-    if any(type(b) not in (Free, Clamped) for b in problem.boundaries.values()):
+    loads = _compiled_loads(problem, group, r)
+    if loads is None:
         return None
+    damp, has_damp, ubody, has_ubody, field, has_field = loads
     n = grid.shape[0]
     free = [(0 if sl[0] == 0 else n - 1, sign, H, b) for _, sl, sign, H, b, _ in scheme._free_ends]
     loaded = [(i, b) for i, _, _, b in free if b.load is not None]

@@ -168,9 +168,8 @@ __all__ = [
     "GROUP_IDS",
     "advance",
     "build_plan",
+    "euler_loop",
     "force_once",
-    "forward_euler_loop",
-    "lie_euler_loop",
     "lie_verlet_loop",
     "lie_verlet_se3_loop",
     "overdamped_loop",
@@ -860,9 +859,10 @@ def lie_verlet_loop(P, S, Gs, Phi, W, have_force, velocity_free, seq_mask, seq_f
 
 
 @_jit
-def lie_euler_loop(P, S, Gs, Phi, t, dt, nsteps, dissipated, external, check, kinetic_limit, inv):
-    """``nsteps`` steps of ``LieEuler``: ``S⁺ = Ad*_{exp ΔtN}S + 𝓔(Δt,N)ᵀW``, ``Φ⁺ = Φ exp(ΔtN)``.
-    Returns ``(steps done, t, dissipated, external)``."""
+def euler_loop(P, S, Gs, Phi, t, dt, nsteps, dissipated, external, check, kinetic_limit, inv, geometric):
+    """``nsteps`` steps of ``LieEuler`` (``geometric``: ``S⁺ = Ad*_{exp ΔtN}S + 𝓔(Δt,N)ᵀW``,
+    ``Φ⁺ = Φ exp(ΔtN)``) or of ``ForwardEuler`` (``Φ += ΔtΦN̂``, edges ``G += Δt(−N̂_iG + GN̂_j)``,
+    ``S += Δt(ad_NᵀS + W)``).  Returns ``(steps done, t, dissipated, external)``."""
     n, r = S.shape
     m = Phi.shape[1]
     N = np.empty((n, r))
@@ -875,39 +875,13 @@ def lie_euler_loop(P, S, Gs, Phi, t, dt, nsteps, dissipated, external, check, ki
                                 PART, scr)
     done = 0
     for _ in range(nsteps):
-        _force(P, Gs, Phi, S, N, W, gam, VEL_NONE, True, D, OUT, INC, PART, scr)
-        _lie_euler_pass(P, S, N, W, dt, D, Phi, scr)
-        _edge_pass(P, Gs, D, DRIFT_EXACT, False, True, OUT, INC, scr)
-        p1d, p1e, tot, kin = _node_pass(P, OUT, INC, Phi, S, N, W, gam, 0.0, False, True, False, True, VEL_MOMENTUM,
-                                        inv, PART, scr)
-        t = t + dt
-        dissipated, external = _book(dt, dissipated, external, p0d, p0e, p1d, p1e)
-        p0d, p0e = p1d, p1e
-        done += 1
-        if _fails(P, check, kinetic_limit, tot, kin, S, Gs, Phi, PART):
-            break
-    return done, t, dissipated, external
-
-
-@_jit
-def forward_euler_loop(P, S, Gs, Phi, t, dt, nsteps, dissipated, external, check, kinetic_limit, inv):
-    """``nsteps`` steps of ``ForwardEuler``: ``Φ += ΔtΦN̂`` (edges ``G += Δt(−N̂_iG + GN̂_j)``),
-    ``S += Δt(ad_NᵀS + W)``.  Returns ``(steps done, t, dissipated, external)``."""
-    n, r = S.shape
-    m = Phi.shape[1]
-    N = np.empty((n, r))
-    W = np.empty((n, r))
-    D = np.empty((n, m, m))
-    gam = np.ones(r)
-    OUT, INC, PART, scr = _work(P, n, r, m)
-    _velocity(P, S, N)
-    p0d, p0e, _, _ = _node_pass(P, OUT, INC, Phi, S, N, W, gam, 0.0, False, True, False, False, VEL_NONE, inv,
-                                PART, scr)
-    done = 0
-    for _ in range(nsteps):
-        _force(P, Gs, Phi, S, N, W, gam, VEL_NONE, False, D, OUT, INC, PART, scr)
-        _euler_pass(P, S, N, W, dt, D, Phi, scr)
-        _edge_pass(P, Gs, D, DRIFT_EULER, False, False, OUT, INC, scr)
+        _force(P, Gs, Phi, S, N, W, gam, VEL_NONE, geometric, D, OUT, INC, PART, scr)
+        if geometric:
+            _lie_euler_pass(P, S, N, W, dt, D, Phi, scr)
+            _edge_pass(P, Gs, D, DRIFT_EXACT, False, True, OUT, INC, scr)
+        else:
+            _euler_pass(P, S, N, W, dt, D, Phi, scr)
+            _edge_pass(P, Gs, D, DRIFT_EULER, False, False, OUT, INC, scr)
         p1d, p1e, tot, kin = _node_pass(P, OUT, INC, Phi, S, N, W, gam, 0.0, False, True, False, True, VEL_MOMENTUM,
                                         inv, PART, scr)
         t = t + dt
@@ -1037,7 +1011,7 @@ def _force_once(P, Gs, Phi, N, W, on_group):
 
 
 # ---------------------------------------------------------------------------- threaded variants
-_LOOPS = ("lie_verlet_loop", "lie_euler_loop", "forward_euler_loop", "overdamped_loop", "rkmk_loop")
+_LOOPS = ("lie_verlet_loop", "euler_loop", "overdamped_loop", "rkmk_loop")
 #: the threaded variants of the passes and of the loops that call them (``prange`` in parallel)
 THREADED = threaded_twins(globals(), (
     "_velocity", "_constrain", "_kick", "_edge_pass", "_node_pass", "_lv_drift_pass", "_exp_pass",
@@ -1178,8 +1152,8 @@ def advance(scheme, plan: tuple, integrator, state, dt: float, nsteps: int, kine
                     np.ascontiguousarray(kinds[:, 0]), np.ascontiguousarray(kinds[:, 1]), t0, dt, nsteps, diss, ext,
                     check, limit, inv)
         elif kind is LieEuler or kind is ForwardEuler:
-            loop = loops["lie_euler_loop" if kind is LieEuler else "forward_euler_loop"]
-            done, t, diss, ext = loop(plan, S2, Gs, Phi3, t0, dt, nsteps, diss, ext, check, limit, inv)
+            done, t, diss, ext = loops["euler_loop"](plan, S2, Gs, Phi3, t0, dt, nsteps, diss, ext, check, limit, inv,
+                                                     kind is LieEuler)
             nforce = done
         else:
             dynamics = kind is RKMK4

@@ -20,6 +20,37 @@ from ._lattice_compiled_kernels import CHUNK, GID_SE2, GID_SE3, GID_SO2, GID_SO3
  I_END_CHUNK, I_WINV) = range(36)
 
 
+def _compiled_loads(problem, group, r: int) -> tuple | None:
+    """The loads and boundaries the compiled loops (lattice and collocation) can run, as data:
+    ``(damp, has_damp, ubody, has_ubody, field, has_field)`` — summed ``Damping`` coefficients
+    ``(r,)``, body-frame ``UniformForce`` components ``(r,)``, ``ConstantFieldPotential``
+    density × field ``(k,)`` — or None when a load or a boundary is of another kind."""
+    from ..problem import Clamped, ConstantFieldPotential, Damping, Free, PotentialLoad, UniformForce
+
+    k = group.space_dim if getattr(group, "affine", False) else 1
+    damp, ubody, field = np.zeros(r), np.zeros(r), np.zeros(k)
+    has_damp = has_ubody = has_field = False
+    for load in problem.loads:
+        if type(load) is Damping:
+            damp = damp + np.asarray(load.coefficients, dtype=float)
+            has_damp = True
+        elif type(load) is UniformForce and load.frame == "body":
+            ubody = ubody + np.asarray(load.components, dtype=float)
+            has_ubody = True
+        elif (
+            isinstance(load, ConstantFieldPotential)
+            and type(load).force is PotentialLoad.force
+            and _same_methods(load, ConstantFieldPotential, ("potential_gradient", "position", "_matrix"))
+        ):
+            field = field + load.density * np.asarray(load.field, dtype=float)
+            has_field = True
+        else:
+            return None
+    if any(type(b) not in (Free, Clamped) for b in problem.boundaries.values()):
+        return None
+    return damp, has_damp, ubody, has_ubody, field, has_field
+
+
 def _group_id(group) -> int | None:
     from ..groups.se2 import SE2
     from ..groups.se3 import SE3
@@ -86,7 +117,6 @@ def build_plan(scheme) -> tuple | None:
         When the medium's ``quadratic_energy`` is malformed or disagrees with its ``stress``.
     """
     from ..medium import Medium
-    from ..problem import Clamped, ConstantFieldPotential, Damping, Free, PotentialLoad, UniformForce
     from .base import Scheme
     from .lattice import Lattice
 
@@ -109,27 +139,10 @@ def build_plan(scheme) -> tuple | None:
     if quad is None:
         return None
     X0s, C = quad
-    k = group.space_dim if getattr(group, "affine", False) else 1
-    damp, ubody, field = np.zeros(r), np.zeros(r), np.zeros(k)
-    has_damp = has_ubody = has_field = False
-    for load in problem.loads:
-        if type(load) is Damping:
-            damp = damp + np.asarray(load.coefficients, dtype=float)
-            has_damp = True
-        elif type(load) is UniformForce and load.frame == "body":
-            ubody = ubody + np.asarray(load.components, dtype=float)
-            has_ubody = True
-        elif (
-            isinstance(load, ConstantFieldPotential)
-            and type(load).force is PotentialLoad.force
-            and _same_methods(load, ConstantFieldPotential, ("potential_gradient", "position", "_matrix"))
-        ):
-            field = field + load.density * np.asarray(load.field, dtype=float)
-            has_field = True
-        else:
-            return None
-    if any(type(b) not in (Free, Clamped) for b in problem.boundaries.values()):
+    loads = _compiled_loads(problem, group, r)
+    if loads is None:
         return None
+    damp, has_damp, ubody, has_ubody, field, has_field = loads
     if (has_field or any(not b.follower for _, b in scheme._end_loads)) and not scheme.track:
         return None
     shape = tuple(int(s) for s in grid.shape)
