@@ -99,6 +99,7 @@ from ._lattice_compiled import (
     _unstable,
     _velocity,
     _writable,
+    finish_advance,
 )
 from ._lattice_compiled_kernels import (
     _copy_matrix,
@@ -1763,13 +1764,4 @@ def advance(scheme, plan: tuple, integrator, state, dt: float, nsteps: int, kine
         nforce = (4 if (dynamics or order == 2) else 2) * done - (1 if hit else 0)
         if not dynamics:
             integrator._cache = ((id(state), t, nstep0 + done - 1), N.copy())
-    state.t = t
-    state.scalars["dissipated_energy"] = diss
-    state.scalars["external_work"] = ext
-    state.scalars["nstep"] = nstep0 + done
-    if W is not None:
-        integrator._fsal = ((id(state), t, nstep0 + done), W)
-    integrator.nstep += done
-    integrator.nforce += nforce
-    integrator.wall_time += time.perf_counter() - t_start
-    return True
+    return finish_advance(integrator, state, t, diss, ext, nstep0, done, nforce, W, t_start)

@@ -169,6 +169,7 @@ __all__ = [
     "advance",
     "build_plan",
     "euler_loop",
+    "finish_advance",
     "force_once",
     "lie_verlet_loop",
     "lie_verlet_se3_loop",
@@ -1187,6 +1188,14 @@ def advance(scheme, plan: tuple, integrator, state, dt: float, nsteps: int, kine
             nforce = (4 if (dynamics or order == 2) else 2) * done - (1 if hit else 0)
             if not dynamics:
                 integrator._cache = ((id(state), t, nstep0 + done - 1), N.copy())
+    return finish_advance(integrator, state, t, diss, ext, nstep0, done, nforce, W, t_start)
+
+
+def finish_advance(integrator, state, t: float, diss: float, ext: float, nstep0: int, done: int, nforce: int,
+                   W, t_start: float) -> bool:
+    """Book ``done`` compiled steps as ``integrator.step`` would: ``state.t``, the energy
+    accumulators and ``"nstep"`` of ``state.scalars``, the FSAL force ``W`` (or None), and the
+    integrator's counters (``wall_time`` since ``t_start``).  Returns True (steps were taken)."""
     state.t = t
     state.scalars["dissipated_energy"] = diss
     state.scalars["external_work"] = ext
@@ -1197,5 +1206,3 @@ def advance(scheme, plan: tuple, integrator, state, dt: float, nsteps: int, kine
     integrator.nforce += nforce
     integrator.wall_time += time.perf_counter() - t_start
     return True
-
-
