@@ -1085,6 +1085,17 @@ def _lie_verlet_sequence(integrator, scheme, gid: int, dt: float, cache: dict):
     return cache[key]
 
 
+def _soa_workspace(cache: dict, n: int, ne: int, nf: int, nblocks: int) -> tuple:
+    """The work arrays of the structure-of-arrays loops (:func:`~cartan.schemes._lattice_compiled_soa.workspace`),
+    kept in the scheme's cache between calls so that a run touches their pages once (the
+    latest size only)."""
+    key = (n, ne, nf, nblocks)
+    held = cache.get("soa_work")
+    if held is None or held[0] != key:
+        held = cache["soa_work"] = (key, soa.workspace(n, ne, nf, nblocks))
+    return held[1]
+
+
 def advance(scheme, plan: tuple, integrator, state, dt: float, nsteps: int, kinetic_limit: float) -> bool:
     """Run up to ``nsteps`` steps of ``integrator`` on ``state`` in compiled code (see
     :meth:`cartan.schemes.lattice.Lattice.compiled_advance`); False, touching nothing, when
@@ -1146,7 +1157,7 @@ def advance(scheme, plan: tuple, integrator, state, dt: float, nsteps: int, kine
                 done, nforce, t, diss, ext = loop(
                     plan, S2, Gs[0], Phi3, W.reshape(n, r), have, bool(velocity_free), fac,
                     np.ascontiguousarray(kinds[:, 0]), np.ascontiguousarray(kinds[:, 1]), t0, dt, nsteps, diss, ext,
-                    check, limit, inv, threads)
+                    check, limit, inv, _soa_workspace(cache, n, Gs[0].shape[0], Phi3.shape[0], threads), threads)
             else:
                 done, nforce, t, diss, ext = loops["lie_verlet_loop"](
                     plan, S2, Gs, Phi3, W.reshape(n, r), have, bool(velocity_free), mask, frac, fac,
@@ -1172,7 +1183,7 @@ def advance(scheme, plan: tuple, integrator, state, dt: float, nsteps: int, kine
             if order == 1 and plan[I_GID] == GID_SE3 and d == 1:
                 loop = soa.THREADED["overdamped_se3_loop"] if threads > 1 else soa.overdamped_se3_loop
                 done, t, diss, ext = loop(plan, S2, Gs[0], Phi3, N2, gam, t0, dt, nsteps, diss, ext, check, inv,
-                                          threads)
+                                          _soa_workspace(cache, n, Gs[0].shape[0], Phi3.shape[0], threads), threads)
             elif order == 1:
                 done, t, diss, ext = loops["overdamped_loop"](plan, S2, Gs, Phi3, N2, gam, t0, dt, nsteps, diss, ext,
                                                               check, limit, inv)

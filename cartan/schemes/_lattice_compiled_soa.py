@@ -10,17 +10,21 @@ trace quaternion; each pass flags the elements outside that range (an edge turni
 0.1 rad or more; a node turning by 0.1 rad or more in one piece of the free flow, decided
 per chunk of nodes) and recomputes them with the closed forms of the scalar kernels.
 
-A step is three passes over fixed chunks of :data:`~cartan.schemes._lattice_compiled_plan.CHUNK`
-nodes or edges (``prange``; serial unless threads are enabled, and then with the same
-results): the nodes (half kick, constraints, free flow composed into one element per node,
-frames, velocity), the edges (conjugation ``G_e ← D_i⁻¹G_eD_j`` by the composed free flow, then
-the logarithms and force terms of the new edges), the nodes again (force density with
-loads and end loads, constraints, half kick, velocity, power and blow-up partial sums; for
-a chunk without loads or constraints the force and the kick in one loop).  The edge pass
-groups its chunks in contiguous blocks, one per thread, and keeps the logarithms and
-stresses of a chunk in its block's small scratch, so that, however long the rod, they stay
-in the cache.  The arithmetic is that of :mod:`cartan.schemes._lattice_compiled_kernels`
-(round-off agreement with the reference path).
+A step does three things to every fixed chunk of :data:`~cartan.schemes._lattice_compiled_plan.CHUNK`
+nodes or edges: the nodes (half kick, constraints, free flow composed into one element per
+node, frames, velocity: :func:`_drift_chunk`), the edges (conjugation ``G_e ← D_i⁻¹G_eD_j`` by
+the composed free flow, then the logarithms and force terms of the new edges:
+:func:`_edges_chunk`), the nodes again (force density with loads and end loads, constraints,
+half kick, velocity, power and blow-up partial sums; for a chunk without loads or
+constraints the force and the kick in one loop: :func:`_close_chunk`).  :func:`_soa_step`
+pipelines them chunk by chunk — drift chunk ``c``, then the edges and the closing of chunk
+``c − 1`` — so that the work set of a step is two chunks (about 1 MB, in the L2 cache)
+however long the rod: each row of the state is read from memory once per step, not three
+times (a rod of 10⁶ elements: 50 → 43 ns per element-step; 10⁴ elements, in the L3 cache:
+31–32 ns either way).  The chunks form contiguous blocks, one per thread (``prange``; serial unless threads are
+enabled, and then with the same results); the edge pass keeps the logarithms and stresses
+of a chunk in its block's small scratch.  The arithmetic is that of
+:mod:`cartan.schemes._lattice_compiled_kernels` (round-off agreement with the reference path).
 
 ``overdamped`` of order 1 on SE(3) rods (d = 1) reuses these passes: the exponentials of the
 node velocities with the frames (series or closed forms per chunk, as the free flow), the
@@ -95,7 +99,7 @@ from ._lattice_compiled_plan import (
     I_X0,
 )
 
-__all__ = ["THREADED", "lie_verlet_se3_loop", "overdamped_se3_loop"]
+__all__ = ["THREADED", "lie_verlet_se3_loop", "overdamped_se3_loop", "workspace"]
 
 #: blow-up tests on the momentum and on the configuration (the values of
 #: ``_lattice_compiled.CHECK_MOMENTUM``, ``CHECK_CONFIGURATION``)
@@ -106,11 +110,21 @@ CHECK_CONFIGURATION = 2
 # ---------------------------------------------------------------------------- edges
 @_jit
 def _soa_edges(P, g, D, conj, OUT, INC, nblocks, scratch):
-    """Per chunk of edges: (``conj``) ``G_e ← D_i⁻¹ G_e D_j``; then the logarithms of the edges
-    with their ``J⁻¹`` coefficient and the stresses ``C(ξ/h − X₀)`` (into the block's scratch
-    ``XI [7, CHUNK]``, ``QS [6, CHUNK]``, flags, which stay in the cache), the tail terms
-    ``OUT`` and head terms ``INC`` (``Ad_Gᵀ OUT``); the edges beyond the series' range by the
-    closed forms.  Chunks in ``nblocks`` contiguous blocks, one per thread."""
+    """The edges in chunks (:func:`_edges_chunk`), grouped in ``nblocks`` contiguous blocks, one
+    per thread, each with its scratch."""
+    nch = (g.shape[1] + CHUNK - 1) // CHUNK
+    for b in prange(nblocks):
+        for c in range(*_blocks(b, nblocks, nch)):
+            _edges_chunk(P, g, D, conj, OUT, INC, c, scratch[0][b], scratch[1][b], scratch[2][b])
+
+
+@_jit
+def _edges_chunk(P, g, D, conj, OUT, INC, c, XI, QS, bad):
+    """Chunk ``c`` of edges: (``conj``) ``G_e ← D_i⁻¹ G_e D_j``; then the logarithms of the edges
+    with their ``J⁻¹`` coefficient and the stresses ``C(ξ/h − X₀)`` (into the scratch
+    ``XI [7, CHUNK]``, ``QS [6, CHUNK]``, ``bad [CHUNK]``, which stay in the cache), the tail
+    terms ``OUT`` and head terms ``INC`` (``Ad_Gᵀ OUT``); the edges beyond the series' range by
+    the closed forms."""
     X0 = P[I_X0]
     C = P[I_C]
     diag = P[I_DIAG]
@@ -118,102 +132,98 @@ def _soa_edges(P, g, D, conj, OUT, INC, nblocks, scratch):
     hinv = 1.0 / h
     ne = g.shape[1]
     n = D.shape[1]
-    nch = (ne + CHUNK - 1) // CHUNK
-    for b in prange(nblocks):
-        XI, QS, bad = scratch[0][b], scratch[1][b], scratch[2][b]
-        for c in range(*_blocks(b, nblocks, nch)):
-            lo, hi = _chunk(c, ne)
-            if conj:
-                # translations first: they read the old rotation; the last edge of a ring closes onto node 0
-                top = min(hi, n - 1)
-                _conjugate(g, D, lo, top - lo, lo + 1)
-                if hi == ne and ne == n:
-                    _conjugate(g, D, ne - 1, 1, 0)
-            nbad = 0
+    lo, hi = _chunk(c, ne)
+    if conj:
+        # translations first: they read the old rotation; the last edge of a ring closes onto node 0
+        top = min(hi, n - 1)
+        _conjugate(g, D, lo, top - lo, lo + 1)
+        if hi == ne and ne == n:
+            _conjugate(g, D, ne - 1, 1, 0)
+    nbad = 0
+    for e0 in range(hi - lo):
+        e = lo + e0
+        m00, m01, m02 = g[3, e], g[4, e], g[5, e]
+        m10, m11, m12 = g[6, e], g[7, e], g[8, e]
+        m20, m21, m22 = g[9, e], g[10, e], g[11, e]
+        tr = m00 + m11 + m22
+        qw = 1.0 + tr
+        qx, qy, qz = m21 - m12, m02 - m20, m10 - m01
+        x2 = (qx * qx + qy * qy + qz * qz) / (qw * qw)
+        f = (2.0 / qw) * horner(x2, ATAN_SERIES)
+        w0, w1, w2 = f * qx, f * qy, f * qz
+        t2 = w0 * w0 + w1 * w1 + w2 * w2
+        cinv = horner(t2, TAYLOR_CINV)
+        t = _V_apply(w0, w1, w2, -0.5, cinv, g[0, e], g[1, e], g[2, e])
+        XI[0, e0] = t[0]
+        XI[1, e0] = t[1]
+        XI[2, e0] = t[2]
+        XI[3, e0] = w0
+        XI[4, e0] = w1
+        XI[5, e0] = w2
+        XI[6, e0] = cinv
+        flag = (x2 >= ATAN_SERIES_X2) | (t2 >= SMALL_THETA2) | (m00 > tr) | (m11 > tr) | (m22 > tr)
+        bad[e0] = flag
+        nbad += flag
+    if nbad:
+        for e0 in range(hi - lo):
+            e = lo + e0
+            if bad[e0]:
+                v = _se3_log12(g[0, e], g[1, e], g[2, e], g[3, e], g[4, e], g[5, e], g[6, e], g[7, e], g[8, e],
+                               g[9, e], g[10, e], g[11, e])
+                for k in range(7):
+                    XI[k, e0] = v[k]
+    if diag:
+        for k in range(6):
+            ck = C[k, k]
+            x0 = X0[k]
             for e0 in range(hi - lo):
                 e = lo + e0
-                m00, m01, m02 = g[3, e], g[4, e], g[5, e]
-                m10, m11, m12 = g[6, e], g[7, e], g[8, e]
-                m20, m21, m22 = g[9, e], g[10, e], g[11, e]
-                tr = m00 + m11 + m22
-                qw = 1.0 + tr
-                qx, qy, qz = m21 - m12, m02 - m20, m10 - m01
-                x2 = (qx * qx + qy * qy + qz * qz) / (qw * qw)
-                f = (2.0 / qw) * horner(x2, ATAN_SERIES)
-                w0, w1, w2 = f * qx, f * qy, f * qz
-                t2 = w0 * w0 + w1 * w1 + w2 * w2
-                cinv = horner(t2, TAYLOR_CINV)
-                t = _V_apply(w0, w1, w2, -0.5, cinv, g[0, e], g[1, e], g[2, e])
-                XI[0, e0] = t[0]
-                XI[1, e0] = t[1]
-                XI[2, e0] = t[2]
-                XI[3, e0] = w0
-                XI[4, e0] = w1
-                XI[5, e0] = w2
-                XI[6, e0] = cinv
-                flag = (x2 >= ATAN_SERIES_X2) | (t2 >= SMALL_THETA2) | (m00 > tr) | (m11 > tr) | (m22 > tr)
-                bad[e0] = flag
-                nbad += flag
-            if nbad:
-                for e0 in range(hi - lo):
-                    e = lo + e0
-                    if bad[e0]:
-                        v = _se3_log12(g[0, e], g[1, e], g[2, e], g[3, e], g[4, e], g[5, e], g[6, e], g[7, e], g[8, e],
-                                       g[9, e], g[10, e], g[11, e])
-                        for k in range(7):
-                            XI[k, e0] = v[k]
-            if diag:
-                for k in range(6):
-                    ck = C[k, k]
-                    x0 = X0[k]
-                    for e0 in range(hi - lo):
-                        e = lo + e0
-                        QS[k, e0] = ck * (XI[k, e0] * hinv - x0)
-            else:
-                for e0 in range(hi - lo):
-                    e = lo + e0
-                    q = _stress6(X0, C, False, 1.0, XI[0, e0], XI[1, e0], XI[2, e0], XI[3, e0], XI[4, e0], XI[5, e0], h)
-                    for k in range(6):
-                        QS[k, e0] = q[k]
-            # tail terms, then head terms: two short loops vectorise where one long one does not
-            for e0 in range(hi - lo):
-                e = lo + e0
+                QS[k, e0] = ck * (XI[k, e0] * hinv - x0)
+    else:
+        for e0 in range(hi - lo):
+            e = lo + e0
+            q = _stress6(X0, C, False, 1.0, XI[0, e0], XI[1, e0], XI[2, e0], XI[3, e0], XI[4, e0], XI[5, e0], h)
+            for k in range(6):
+                QS[k, e0] = q[k]
+    # tail terms, then head terms: two short loops vectorise where one long one does not
+    for e0 in range(hi - lo):
+        e = lo + e0
+        r0, r1, r2, p0, p1, p2 = XI[0, e0], XI[1, e0], XI[2, e0], XI[3, e0], XI[4, e0], XI[5, e0]
+        cinv = XI[6, e0]
+        t2 = p0 * p0 + p1 * p1 + p2 * p2
+        o = _se3_dexp_inv_T(r0, r1, r2, p0, p1, p2, cinv, horner(t2, TAYLOR_C), horner(t2, TAYLOR_D),
+                            horner(t2, TAYLOR_E), QS[0, e0], QS[1, e0], QS[2, e0], QS[3, e0], QS[4, e0],
+                            QS[5, e0])
+        OUT[0, e] = o[0]
+        OUT[1, e] = o[1]
+        OUT[2, e] = o[2]
+        OUT[3, e] = o[3]
+        OUT[4, e] = o[4]
+        OUT[5, e] = o[5]
+    for e0 in range(hi - lo):
+        e = lo + e0
+        v = _ad_T(g[0, e], g[1, e], g[2, e], g[3, e], g[4, e], g[5, e], g[6, e], g[7, e], g[8, e], g[9, e],
+                  g[10, e], g[11, e], OUT[0, e], OUT[1, e], OUT[2, e], OUT[3, e], OUT[4, e], OUT[5, e])
+        INC[0, e] = v[0]
+        INC[1, e] = v[1]
+        INC[2, e] = v[2]
+        INC[3, e] = v[3]
+        INC[4, e] = v[4]
+        INC[5, e] = v[5]
+    if nbad:
+        for e0 in range(hi - lo):
+            e = lo + e0
+            if bad[e0]:
                 r0, r1, r2, p0, p1, p2 = XI[0, e0], XI[1, e0], XI[2, e0], XI[3, e0], XI[4, e0], XI[5, e0]
                 cinv = XI[6, e0]
-                t2 = p0 * p0 + p1 * p1 + p2 * p2
-                o = _se3_dexp_inv_T(r0, r1, r2, p0, p1, p2, cinv, horner(t2, TAYLOR_C), horner(t2, TAYLOR_D),
-                                    horner(t2, TAYLOR_E), QS[0, e0], QS[1, e0], QS[2, e0], QS[3, e0], QS[4, e0],
-                                    QS[5, e0])
-                OUT[0, e] = o[0]
-                OUT[1, e] = o[1]
-                OUT[2, e] = o[2]
-                OUT[3, e] = o[3]
-                OUT[4, e] = o[4]
-                OUT[5, e] = o[5]
-            for e0 in range(hi - lo):
-                e = lo + e0
-                v = _ad_T(g[0, e], g[1, e], g[2, e], g[3, e], g[4, e], g[5, e], g[6, e], g[7, e], g[8, e], g[9, e],
-                          g[10, e], g[11, e], OUT[0, e], OUT[1, e], OUT[2, e], OUT[3, e], OUT[4, e], OUT[5, e])
-                INC[0, e] = v[0]
-                INC[1, e] = v[1]
-                INC[2, e] = v[2]
-                INC[3, e] = v[3]
-                INC[4, e] = v[4]
-                INC[5, e] = v[5]
-            if nbad:
-                for e0 in range(hi - lo):
-                    e = lo + e0
-                    if bad[e0]:
-                        r0, r1, r2, p0, p1, p2 = XI[0, e0], XI[1, e0], XI[2, e0], XI[3, e0], XI[4, e0], XI[5, e0]
-                        cinv = XI[6, e0]
-                        q0, q1, q2, q3, q4, q5 = _stress6(X0, C, diag, 1.0, r0, r1, r2, p0, p1, p2, h)
-                        cc, dd, ee = _q_coeffs(p0 * p0 + p1 * p1 + p2 * p2)
-                        v = _edge_terms6(r0, r1, r2, p0, p1, p2, cinv, cc, dd, ee, q0, q1, q2, q3, q4, q5,
-                                         g[0, e], g[1, e], g[2, e], g[3, e], g[4, e], g[5, e],
-                                         g[6, e], g[7, e], g[8, e], g[9, e], g[10, e], g[11, e])
-                        for k in range(6):
-                            OUT[k, e] = v[k]
-                            INC[k, e] = v[k + 6]
+                q0, q1, q2, q3, q4, q5 = _stress6(X0, C, diag, 1.0, r0, r1, r2, p0, p1, p2, h)
+                cc, dd, ee = _q_coeffs(p0 * p0 + p1 * p1 + p2 * p2)
+                v = _edge_terms6(r0, r1, r2, p0, p1, p2, cinv, cc, dd, ee, q0, q1, q2, q3, q4, q5,
+                                 g[0, e], g[1, e], g[2, e], g[3, e], g[4, e], g[5, e],
+                                 g[6, e], g[7, e], g[8, e], g[9, e], g[10, e], g[11, e])
+                for k in range(6):
+                    OUT[k, e] = v[k]
+                    INC[k, e] = v[k + 6]
 
 
 @_inline
@@ -306,8 +316,8 @@ def _soa_turn_node(s, D, i, pp, qq, cs, sn):
 
 
 @_jit
-def _soa_drift_nodes(P, s, w, half, D, phi, fac, kinds, axes, velocity, Nv):
-    """First half of a step, per chunk of nodes: ``S += half·W`` and constraints; the
+def _drift_chunk(P, s, w, half, D, phi, fac, kinds, axes, velocity, Nv, c):
+    """First half of a step on chunk ``c`` of nodes: ``S += half·W`` and constraints; the
     palindromic free flow composed into ``D[:, i] = (t; R)``, piece by piece — translations
     ``(a; I)`` with ``L ← L − a × P``, rotations about ``e_k`` of cosine ``1 − Bθ²`` and sine
     ``Aθ`` (``fac[p, k] = τ_p/m_k``; clamped nodes have zero momentum, so every piece is the
@@ -319,71 +329,70 @@ def _soa_drift_nodes(P, s, w, half, D, phi, fac, kinds, axes, velocity, Nv):
     constrained = P[I_CONSTRAINED]
     n = s.shape[1]
     nf = phi.shape[1]
-    for c in prange((n + CHUNK - 1) // CHUNK):
-        lo, hi = _chunk(c, n)
+    lo, hi = _chunk(c, n)
+    for k in range(6):
+        for i0 in range(hi - lo):
+            i = lo + i0
+            s[k, i] = s[k, i] + half * w[k, i]
+    if constrained:
         for k in range(6):
             for i0 in range(hi - lo):
                 i = lo + i0
-                s[k, i] = s[k, i] + half * w[k, i]
-        if constrained:
-            for k in range(6):
-                for i0 in range(hi - lo):
-                    i = lo + i0
-                    if clamped[i] or not live[k]:
-                        s[k, i] = 0.0
+                if clamped[i] or not live[k]:
+                    s[k, i] = 0.0
+    for i0 in range(hi - lo):
+        i = lo + i0
+        for a in range(12):
+            D[a, i] = 0.0
+        D[3, i] = 1.0
+        D[7, i] = 1.0
+        D[11, i] = 1.0
+    for p in range(kinds.shape[0]):
+        if kinds[p] == KIND_SE3_TRANSLATION:
+            f0, f1, f2 = fac[p, 0], fac[p, 1], fac[p, 2]
+            for i0 in range(hi - lo):
+                i = lo + i0
+                P0, P1, P2 = s[0, i], s[1, i], s[2, i]
+                a0, a1, a2 = f0 * P0, f1 * P1, f2 * P2
+                c0, c1, c2 = cross3(a0, a1, a2, P0, P1, P2)
+                s[3, i] -= c0
+                s[4, i] -= c1
+                s[5, i] -= c2
+                D[0, i] += D[3, i] * a0 + D[4, i] * a1 + D[5, i] * a2
+                D[1, i] += D[6, i] * a0 + D[7, i] * a1 + D[8, i] * a2
+                D[2, i] += D[9, i] * a0 + D[10, i] * a1 + D[11, i] * a2
+            continue
+        k = axes[p]
+        pp = k + 1 if k < 2 else 0  # the plane (e_pp, e_qq) turned about e_k
+        qq = k + 2 if k < 1 else k - 1
+        f = fac[p, 3 + k]
+        big = 0
         for i0 in range(hi - lo):
             i = lo + i0
-            for a in range(12):
-                D[a, i] = 0.0
-            D[3, i] = 1.0
-            D[7, i] = 1.0
-            D[11, i] = 1.0
-        for p in range(kinds.shape[0]):
-            if kinds[p] == KIND_SE3_TRANSLATION:
-                f0, f1, f2 = fac[p, 0], fac[p, 1], fac[p, 2]
-                for i0 in range(hi - lo):
-                    i = lo + i0
-                    P0, P1, P2 = s[0, i], s[1, i], s[2, i]
-                    a0, a1, a2 = f0 * P0, f1 * P1, f2 * P2
-                    c0, c1, c2 = cross3(a0, a1, a2, P0, P1, P2)
-                    s[3, i] -= c0
-                    s[4, i] -= c1
-                    s[5, i] -= c2
-                    D[0, i] += D[3, i] * a0 + D[4, i] * a1 + D[5, i] * a2
-                    D[1, i] += D[6, i] * a0 + D[7, i] * a1 + D[8, i] * a2
-                    D[2, i] += D[9, i] * a0 + D[10, i] * a1 + D[11, i] * a2
-                continue
-            k = axes[p]
-            pp = k + 1 if k < 2 else 0  # the plane (e_pp, e_qq) turned about e_k
-            qq = k + 2 if k < 1 else k - 1
-            f = fac[p, 3 + k]
-            big = 0
+            th = f * s[3 + k, i]
+            big += th * th >= SMALL_THETA2
+        if big:  # some angle beyond the series: closed forms for this piece of this chunk
             for i0 in range(hi - lo):
                 i = lo + i0
                 th = f * s[3 + k, i]
-                big += th * th >= SMALL_THETA2
-            if big:  # some angle beyond the series: closed forms for this piece of this chunk
-                for i0 in range(hi - lo):
-                    i = lo + i0
-                    th = f * s[3 + k, i]
-                    q2 = th * th
-                    a, b = _rot_coeffs(q2)
-                    _soa_turn_node(s, D, i, pp, qq, 1.0 - b * q2, a * th)
-            else:
-                for i0 in range(hi - lo):
-                    i = lo + i0
-                    th = f * s[3 + k, i]
-                    q2 = th * th
-                    _soa_turn_node(s, D, i, pp, qq, 1.0 - horner(q2, TAYLOR_B) * q2, horner(q2, TAYLOR_A) * th)
-        if constrained:
-            for k in range(6):
-                for i0 in range(hi - lo):
-                    i = lo + i0
-                    if clamped[i] or not live[k]:
-                        s[k, i] = 0.0
-        if velocity:
-            _soa_velocity(mass, live, clamped, constrained, s, Nv, lo, hi)
-        _soa_frames(phi, D, lo, min(hi, nf))
+                q2 = th * th
+                a, b = _rot_coeffs(q2)
+                _soa_turn_node(s, D, i, pp, qq, 1.0 - b * q2, a * th)
+        else:
+            for i0 in range(hi - lo):
+                i = lo + i0
+                th = f * s[3 + k, i]
+                q2 = th * th
+                _soa_turn_node(s, D, i, pp, qq, 1.0 - horner(q2, TAYLOR_B) * q2, horner(q2, TAYLOR_A) * th)
+    if constrained:
+        for k in range(6):
+            for i0 in range(hi - lo):
+                i = lo + i0
+                if clamped[i] or not live[k]:
+                    s[k, i] = 0.0
+    if velocity:
+        _soa_velocity(mass, live, clamped, constrained, s, Nv, lo, hi)
+    _soa_frames(phi, D, lo, min(hi, nf))
 
 
 @_jit
@@ -558,11 +567,23 @@ def _soa_velocity(mass, live, clamped, constrained, s, Nv, lo, hi):
 
 @_jit
 def _soa_close(P, OUT, INC, phi, s, Nv, w, half, close, velocity, inv, need_kin, PART):
-    """Per chunk of nodes, component by component: ``w = Lattice.force`` from the edge terms —
+    """The force and (``close``) the closing half of a step (:func:`_close_chunk`) on every chunk
+    of nodes.  Returns ``(dissipated, external, ΣS, Σw S²/m)`` (zeros without ``close``)."""
+    nch = (w.shape[1] + CHUNK - 1) // CHUNK
+    for c in prange(nch):
+        _close_chunk(P, OUT, INC, phi, s, Nv, w, half, close, velocity, inv, need_kin, PART, c)
+    if not close:
+        return 0.0, 0.0, 0.0, 0.0
+    return _sum_parts(PART, nch)
+
+
+@_jit
+def _close_chunk(P, OUT, INC, phi, s, Nv, w, half, close, velocity, inv, need_kin, PART, c):
+    """Chunk ``c`` of nodes, component by component: ``w = Lattice.force`` from the edge terms —
     ``F_i = out_i − in_{i−1}`` over the weight, damping, body-frame force, field, end loads,
     constraints —; then, when ``close``, ``S += half·W``, constraints, the velocity
     (``velocity``) and the partial sums of the powers, ΣS and (``need_kin``) Σw S²/m.
-    Returns ``(dissipated, external, ΣS, Σw S²/m)`` (zeros without ``close``)."""
+    The partial sums go to ``PART[c]`` (with ``close``)."""
     wts = P[I_W]
     winv = P[I_WINV]
     mass = P[I_MASS]
@@ -583,119 +604,154 @@ def _soa_close(P, OUT, INC, phi, s, Nv, w, half, close, velocity, inv, need_kin,
     ne = OUT.shape[1]
     ring = ne == n
     f0, f1, f2 = P[I_FIELD][0], P[I_FIELD][1], P[I_FIELD][2]
-    nch = (n + CHUNK - 1) // CHUNK
     plain = not (has_damp or has_ubody or has_field or constrained)
-    for c in prange(nch):
-        lo, hi = _chunk(c, n)
-        a = max(lo, 1)
-        b = min(hi, n - 1)
-        pd = 0.0
-        pe = 0.0
-        tot = 0.0
-        # a free chunk (no loads, end loads or constraints): the force and the kick in one loop
-        free = close and plain and end_chunk[c] == end_chunk[c + 1]
-        for k in range(6):
-            if free:
-                t = 0.0
-                for i0 in range(b - a):
-                    i = a + i0
-                    v = (OUT[k, i] - INC[k, i - 1]) * winv[i]
-                    w[k, i] = v
-                    x = s[k, i] + half * v
-                    s[k, i] = x
-                    t += x
-                if lo == 0:
-                    v = ((OUT[k, 0] - INC[k, ne - 1]) if ring else OUT[k, 0]) * winv[0]
-                    w[k, 0] = v
-                    s[k, 0] = s[k, 0] + half * v
-                    t += s[k, 0]
-                if hi == n:
-                    v = ((OUT[k, n - 1] - INC[k, n - 2]) if ring else -INC[k, n - 2]) * winv[n - 1]
-                    w[k, n - 1] = v
-                    s[k, n - 1] = s[k, n - 1] + half * v
-                    t += s[k, n - 1]
-                tot += t
-                continue
-            # node i: tail of edge i, head of edge i − 1 (F_i = out_i − inc_{i−1}), over w_i
+    lo, hi = _chunk(c, n)
+    a = max(lo, 1)
+    b = min(hi, n - 1)
+    pd = 0.0
+    pe = 0.0
+    tot = 0.0
+    # a free chunk (no loads, end loads or constraints): the force and the kick in one loop
+    free = close and plain and end_chunk[c] == end_chunk[c + 1]
+    for k in range(6):
+        if free:
+            t = 0.0
             for i0 in range(b - a):
                 i = a + i0
-                w[k, i] = (OUT[k, i] - INC[k, i - 1]) * winv[i]
+                v = (OUT[k, i] - INC[k, i - 1]) * winv[i]
+                w[k, i] = v
+                x = s[k, i] + half * v
+                s[k, i] = x
+                t += x
             if lo == 0:
-                w[k, 0] = ((OUT[k, 0] - INC[k, ne - 1]) if ring else OUT[k, 0]) * winv[0]
+                v = ((OUT[k, 0] - INC[k, ne - 1]) if ring else OUT[k, 0]) * winv[0]
+                w[k, 0] = v
+                s[k, 0] = s[k, 0] + half * v
+                t += s[k, 0]
             if hi == n:
-                w[k, n - 1] = ((OUT[k, n - 1] - INC[k, n - 2]) if ring else -INC[k, n - 2]) * winv[n - 1]
-            if has_damp:
-                ck = damp[k]
-                for i0 in range(hi - lo):
-                    w[k, lo + i0] += -Nv[k, lo + i0] * ck
-            if has_ubody:
-                uk = ubody[k]
-                for i0 in range(hi - lo):
-                    w[k, lo + i0] += uk
-            if has_field and k < 3:
-                for i0 in range(hi - lo):
-                    i = lo + i0
-                    w[k, i] += phi[3 + k, i] * f0 + phi[6 + k, i] * f1 + phi[9 + k, i] * f2
-            for q in range(end_chunk[c], end_chunk[c + 1]):
-                w[k, end_idx[q]] += _soa_end_load(P, phi, q)[k] / end_div[q]
-            if constrained:
-                for i0 in range(hi - lo):
-                    i = lo + i0
-                    if clamped[i] or not live[k]:
-                        w[k, i] = 0.0
-            if not close:
-                continue
-            t = 0.0
+                v = ((OUT[k, n - 1] - INC[k, n - 2]) if ring else -INC[k, n - 2]) * winv[n - 1]
+                w[k, n - 1] = v
+                s[k, n - 1] = s[k, n - 1] + half * v
+                t += s[k, n - 1]
+            tot += t
+            continue
+        # node i: tail of edge i, head of edge i − 1 (F_i = out_i − inc_{i−1}), over w_i
+        for i0 in range(b - a):
+            i = a + i0
+            w[k, i] = (OUT[k, i] - INC[k, i - 1]) * winv[i]
+        if lo == 0:
+            w[k, 0] = ((OUT[k, 0] - INC[k, ne - 1]) if ring else OUT[k, 0]) * winv[0]
+        if hi == n:
+            w[k, n - 1] = ((OUT[k, n - 1] - INC[k, n - 2]) if ring else -INC[k, n - 2]) * winv[n - 1]
+        if has_damp:
+            ck = damp[k]
+            for i0 in range(hi - lo):
+                w[k, lo + i0] += -Nv[k, lo + i0] * ck
+        if has_ubody:
+            uk = ubody[k]
+            for i0 in range(hi - lo):
+                w[k, lo + i0] += uk
+        if has_field and k < 3:
             for i0 in range(hi - lo):
                 i = lo + i0
-                v = s[k, i] + half * w[k, i]
-                if constrained and (clamped[i] or not live[k]):
-                    v = 0.0
-                s[k, i] = v
-                t += v
-            tot += t
-            if velocity:
-                m = mass[k]
+                w[k, i] += phi[3 + k, i] * f0 + phi[6 + k, i] * f1 + phi[9 + k, i] * f2
+        for q in range(end_chunk[c], end_chunk[c + 1]):
+            w[k, end_idx[q]] += _soa_end_load(P, phi, q)[k] / end_div[q]
+        if constrained:
+            for i0 in range(hi - lo):
+                i = lo + i0
+                if clamped[i] or not live[k]:
+                    w[k, i] = 0.0
+        if not close:
+            continue
+        t = 0.0
+        for i0 in range(hi - lo):
+            i = lo + i0
+            v = s[k, i] + half * w[k, i]
+            if constrained and (clamped[i] or not live[k]):
+                v = 0.0
+            s[k, i] = v
+            t += v
+        tot += t
+        if velocity:
+            m = mass[k]
+            for i0 in range(hi - lo):
+                i = lo + i0
+                Nv[k, i] = 0.0 if (constrained and clamped[i]) or not live[k] else s[k, i] / m
+        if has_power:
+            if has_damp:
+                ck = damp[k]
+                t = 0.0
                 for i0 in range(hi - lo):
                     i = lo + i0
-                    Nv[k, i] = 0.0 if (constrained and clamped[i]) or not live[k] else s[k, i] / m
-            if has_power:
-                if has_damp:
-                    ck = damp[k]
-                    t = 0.0
-                    for i0 in range(hi - lo):
-                        i = lo + i0
-                        t += wts[i] * ((-Nv[k, i] * ck) * Nv[k, i])
-                    pd += t
-                if has_ubody:
-                    uk = ubody[k]
-                    t = 0.0
-                    for i0 in range(hi - lo):
-                        i = lo + i0
-                        t += wts[i] * (uk * Nv[k, i])
-                    pe += t
-        if close:
-            if has_power:
-                for q in range(end_chunk[c], end_chunk[c + 1]):
-                    v = _soa_end_load(P, phi, q)
-                    t = 0.0
-                    for k in range(6):
-                        t += v[k] * Nv[k, end_idx[q]]
-                    pe += end_face[q] * t
-            kin = 0.0
-            if need_kin:
+                    t += wts[i] * ((-Nv[k, i] * ck) * Nv[k, i])
+                pd += t
+            if has_ubody:
+                uk = ubody[k]
+                t = 0.0
                 for i0 in range(hi - lo):
                     i = lo + i0
-                    t = 0.0
-                    for k in range(6):
-                        t += s[k, i] * s[k, i] * inv[k]
-                    kin += wts[i] * t
-            PART[c, 0] = pd
-            PART[c, 1] = pe
-            PART[c, 2] = tot
-            PART[c, 3] = kin
-    if not close:
-        return 0.0, 0.0, 0.0, 0.0
+                    t += wts[i] * (uk * Nv[k, i])
+                pe += t
+    if close:
+        if has_power:
+            for q in range(end_chunk[c], end_chunk[c + 1]):
+                v = _soa_end_load(P, phi, q)
+                t = 0.0
+                for k in range(6):
+                    t += v[k] * Nv[k, end_idx[q]]
+                pe += end_face[q] * t
+        kin = 0.0
+        if need_kin:
+            for i0 in range(hi - lo):
+                i = lo + i0
+                t = 0.0
+                for k in range(6):
+                    t += s[k, i] * s[k, i] * inv[k]
+                kin += wts[i] * t
+        PART[c, 0] = pd
+        PART[c, 1] = pe
+        PART[c, 2] = tot
+        PART[c, 3] = kin
+
+
+@_jit
+def _soa_step(P, s, w, half, D, phi, fac, kinds, axes, velocity, Nv, g, OUT, INC, inv, need_kin, PART, nblocks,
+              scratch):
+    """One ``lie-verlet`` step after its force is known: :func:`_drift_chunk`, :func:`_edges_chunk`
+    (conjugation) and :func:`_close_chunk` on every chunk, pipelined so that a chunk's data is
+    used by the three while it is in the cache.
+
+    The chunks of nodes form ``nblocks`` contiguous blocks (one per thread).  Edge chunk ``c``
+    needs the drifted nodes of chunk ``c`` and the first node of chunk ``c + 1``; node chunk
+    ``c`` closes with edge chunks ``c − 1`` and ``c``.  So a block drifts its chunk ``c``, then
+    takes the edges of chunk ``c − 1`` and closes chunk ``c − 1`` (not the block's first);
+    the edges of each block's last chunk and the closing of its first and last chunks follow
+    once every block has drifted.  Every chunk does the arithmetic of the unpipelined passes
+    (:func:`_soa_drift_nodes`, :func:`_soa_edges`, :func:`_soa_close`) with the same partial
+    sums, so the results are bitwise those of the passes and independent of ``nblocks``.
+    Returns ``(dissipated, external, ΣS, Σw S²/m)`` at the end of the step."""
+    nch = (s.shape[1] + CHUNK - 1) // CHUNK
+    nche = (g.shape[1] + CHUNK - 1) // CHUNK
+    for b in prange(nblocks):
+        c0, c1 = _blocks(b, nblocks, nch)
+        XI, QS, bad = scratch[0][b], scratch[1][b], scratch[2][b]
+        for c in range(c0, c1):
+            _drift_chunk(P, s, w, half, D, phi, fac, kinds, axes, velocity, Nv, c)
+            if c > c0:
+                _edges_chunk(P, g, D, True, OUT, INC, c - 1, XI, QS, bad)
+                if c - 1 > c0:
+                    _close_chunk(P, OUT, INC, phi, s, Nv, w, half, True, velocity, inv, need_kin, PART, c - 1)
+    for b in prange(nblocks):
+        c0, c1 = _blocks(b, nblocks, nch)
+        if c0 < c1 and c1 - 1 < nche:
+            _edges_chunk(P, g, D, True, OUT, INC, c1 - 1, scratch[0][b], scratch[1][b], scratch[2][b])
+    for b in prange(nblocks):
+        c0, c1 = _blocks(b, nblocks, nch)
+        if c0 < c1:
+            _close_chunk(P, OUT, INC, phi, s, Nv, w, half, True, velocity, inv, need_kin, PART, c0)
+            if c1 - 1 > c0:
+                _close_chunk(P, OUT, INC, phi, s, Nv, w, half, True, velocity, inv, need_kin, PART, c1 - 1)
     return _sum_parts(PART, nch)
 
 
@@ -738,6 +794,32 @@ def _soa_powers(P, Nv, phi, PART):
     return total[0], total[1]
 
 
+def workspace(n: int, ne: int, nf: int, nblocks: int) -> tuple:
+    """Work arrays of the structure-of-arrays loops for ``n`` nodes, ``ne`` edges and ``nf``
+    frames, in the order the loops unpack them: ``(s [6, n], w [6, n], g [12, ne],
+    phi [12, nf], D [12, n], N [6, n], OUT [6, ne], INC [6, ne], (XI [nblocks, 7, CHUNK],
+    QS [nblocks, 6, CHUNK], bad [nblocks, CHUNK]), PART [chunks, 4])``.
+
+    The float arrays are views of one numpy buffer (rows aligned to 64 bytes), which numpy
+    backs with transparent huge pages where the kernel offers them (``madvise``, buffers of
+    4 MiB and more; fewer address translations for the forty-odd rows a chunk streams).  A
+    scheme keeps its workspace between calls (``_soa_workspace`` in
+    :mod:`cartan.schemes._lattice_compiled`), so that a run touches its pages once.
+    """
+    nch = (n + CHUNK - 1) // CHUNK
+    shapes = [(6, n), (6, n), (12, ne), (12, nf), (12, n), (6, n), (6, ne), (6, ne),
+              (nblocks, 7, CHUNK), (nblocks, 6, CHUNK), (nch, 4)]
+    sizes = [-(-int(np.prod(sh)) // 8) * 8 for sh in shapes]
+    buf = np.zeros(sum(sizes))
+    views = []
+    at = 0
+    for sh, size in zip(shapes, sizes, strict=True):
+        views.append(buf[at:at + int(np.prod(sh))].reshape(sh))
+        at += size
+    s, w, g, phi, D, N, OUT, INC, XI, QS, PART = views
+    return s, w, g, phi, D, N, OUT, INC, (XI, QS, np.zeros((nblocks, CHUNK), dtype=np.int64)), PART
+
+
 @_jit
 def _to_soa(A, a):
     """``a[:, i]`` ← rows 1–3 of ``A[i]`` = (translation; rotation row-major)."""
@@ -759,24 +841,14 @@ def _from_soa(a, A):
 
 @_jit
 def lie_verlet_se3_loop(P, S, G, Phi, W, have_force, velocity_free, fac, kinds, axes,
-                        t, dt, nsteps, dissipated, external, check, kinetic_limit, inv, nblocks):
+                        t, dt, nsteps, dissipated, external, check, kinetic_limit, inv, work, nblocks):
     """``nsteps`` steps of ``LieVerlet`` on an SE(3) rod (d = 1) with closed-form free-flow
     pieces, on structure-of-arrays copies of ``S [n, 6]``, ``G [ne, 4, 4]``, ``Phi`` and
     ``W`` (copied back on return).  Arguments and result as
     :func:`cartan.schemes._lattice_compiled.lie_verlet_loop`."""
     n = S.shape[0]
-    ne = G.shape[0]
-    s = np.empty((6, n))
-    w = np.empty((6, n))
-    g = np.empty((12, ne))
-    phi = np.empty((12, Phi.shape[0]))
-    D = np.empty((12, n))
-    Nv = np.zeros((6, n))
-    OUT = np.empty((6, ne))
-    INC = np.empty((6, ne))
-    scratch = (np.empty((nblocks, 7, CHUNK)), np.empty((nblocks, 6, CHUNK)),
-               np.zeros((nblocks, CHUNK), dtype=np.int64))
-    PART = np.zeros(((n + CHUNK - 1) // CHUNK, 4))
+    s, w, g, phi, D, Nv, OUT, INC, scratch, PART = work
+    Nv[:] = 0.0
     for i in range(n):
         for k in range(6):
             s[k, i] = S[i, k]
@@ -796,11 +868,10 @@ def lie_verlet_se3_loop(P, S, G, Phi, W, have_force, velocity_free, fac, kinds, 
             _soa_edges(P, g, D, False, OUT, INC, nblocks, scratch)
             _soa_close(P, OUT, INC, phi, s, Nv, w, half, False, False, inv, False, PART)
             nforce += 1
-        _soa_drift_nodes(P, s, w, half, D, phi, fac, kinds, axes, need_N, Nv)
-        _soa_edges(P, g, D, True, OUT, INC, nblocks, scratch)
+        p1d, p1e, tot, kin = _soa_step(P, s, w, half, D, phi, fac, kinds, axes, need_N, Nv, g, OUT, INC, inv,
+                                       need_kin, PART, nblocks, scratch)
         nforce += 1
         have_force = True
-        p1d, p1e, tot, kin = _soa_close(P, OUT, INC, phi, s, Nv, w, half, True, need_N, inv, need_kin, PART)
         t = t + dt
         dissipated = dissipated + 0.5 * dt * (p0d + p1d)
         external = external + 0.5 * dt * (p0e + p1e)
@@ -819,7 +890,7 @@ def lie_verlet_se3_loop(P, S, G, Phi, W, have_force, velocity_free, fac, kinds, 
 
 
 @_jit
-def overdamped_se3_loop(P, S, G, Phi, N, gam, t, dt, nsteps, dissipated, external, check, inv, nblocks):
+def overdamped_se3_loop(P, S, G, Phi, N, gam, t, dt, nsteps, dissipated, external, check, inv, work, nblocks):
     """``nsteps`` steps of ``Overdamped(order=1)`` on an SE(3) rod (d = 1), on
     structure-of-arrays copies of ``G [ne, 4, 4]``, ``Phi`` and ``N [n, 6]`` (copied back on
     return; S = 0 after a step): ``D_i = exp(ΔtN_i)``, ``Φ_i ← Φ_i D_i``, ``G_e ← D_i⁻¹G_eD_j``,
@@ -827,18 +898,8 @@ def overdamped_se3_loop(P, S, G, Phi, N, gam, t, dt, nsteps, dissipated, externa
     ``N`` holds the velocity of the current state on entry.  Arguments and result as
     :func:`cartan.schemes._lattice_compiled.overdamped_loop` (no kinetic limit: S = 0)."""
     n = S.shape[0]
-    ne = G.shape[0]
-    nv = np.empty((6, n))
-    zero = np.zeros((6, n))
-    w = np.empty((6, n))
-    g = np.empty((12, ne))
-    phi = np.empty((12, Phi.shape[0]))
-    D = np.empty((12, n))
-    OUT = np.empty((6, ne))
-    INC = np.empty((6, ne))
-    scratch = (np.empty((nblocks, 7, CHUNK)), np.empty((nblocks, 6, CHUNK)),
-               np.zeros((nblocks, CHUNK), dtype=np.int64))
-    PART = np.zeros(((n + CHUNK - 1) // CHUNK, 4))
+    nv, w, g, phi, D, zero, OUT, INC, scratch, PART = work
+    zero[:] = 0.0
     for i in range(n):
         for k in range(6):
             nv[k, i] = N[i, k]
@@ -870,5 +931,5 @@ def overdamped_se3_loop(P, S, G, Phi, N, gam, t, dt, nsteps, dissipated, externa
 
 
 #: the threaded variants (``prange`` in parallel) of the passes and of the loops
-THREADED = threaded_twins(globals(), ("_soa_edges", "_soa_drift_nodes", "_soa_close", "_soa_exp_nodes", "_soa_drag",
+THREADED = threaded_twins(globals(), ("_soa_edges", "_soa_close", "_soa_step", "_soa_exp_nodes", "_soa_drag",
                                       "_soa_finite", "lie_verlet_se3_loop", "overdamped_se3_loop"))
