@@ -75,6 +75,23 @@ the last good state saved.
 Cost per step: 2–5 residual evaluations (one force evaluation, one drift to the midpoint and
 batched ``r × r`` algebra each) plus, when the Jacobian is refreshed, ``2·3^d·r`` residual
 evaluations and a sparse LU of a banded matrix (lattice, d = 1).
+
+Compiled residual
+-----------------
+When the scheme has the compiled plan of its step loops (``lattice``, d = 1–3, and
+``collocation``, d = 1, on SO(2), SE(2), SO(3), SE(3) with the loads those loops run;
+``docs/performance.md``) and :attr:`~cartan.schemes.base.Scheme.compiled_diagnostics` is set,
+every residual evaluation — those of the finite-difference Jacobian included — is one numba
+call (:mod:`cartan.integrators._implicit_compiled`: drift of a work copy of the configuration
+to the midpoint, the compiled force, the per-node algebra), the norms of the iteration and
+the substitutions of the sparse LU run compiled too, and so does the end of the step.  The
+numpy path (:meth:`ImplicitMidpoint._residual`, ``Scheme.drift``, ``Scheme.force``) stays the
+reference: it runs for every other problem, with the numpy backend, for a subclass that
+overrides :meth:`~ImplicitMidpoint._residual` or :meth:`~Integrator.force`, and under
+``cartan.simulate(..., compiled=False)``.  The two residuals agree to round-off (≤ 1e-12
+relative, ``tests/test_implicit_compiled.py``); the Newton logic, its tolerances and the
+restart semantics are the same on both paths, and a step agrees with the reference to the
+Newton tolerance.
 """
 
 from __future__ import annotations
@@ -144,6 +161,10 @@ class _Plan:
         self.w_over_m = np.broadcast_to(w * inv, (*shape, r))[unknown]  # ‖R‖_*² = Σ w R²/m
         self.w_times_m = np.broadcast_to(w * m, (*shape, r))[unknown]  # ‖N‖_M² = Σ w m N²
         self.length = max(1.0, float(np.max(scheme.grid.length)))
+        self.flat_unknown = np.flatnonzero(unknown)  # the unknowns in y.ravel() (the order of y[unknown])
+        #: the compiled stage residual (:func:`cartan.integrators._implicit_compiled.stage_residual`),
+        #: built at the first step that may use it; None when the scheme has none
+        self.compiled: Any = False
 
 
 class ImplicitMidpoint(Integrator):
@@ -249,8 +270,33 @@ class ImplicitMidpoint(Integrator):
             self._cache = None
         return self._plan[1]
 
+    def _compiled(self, scheme: Scheme, state: State, plan: _Plan):
+        """The compiled stage residual bound to ``state``, or None for the numpy reference
+        (:meth:`_residual`): ``scheme.compiled_diagnostics`` cleared (``simulate(...,
+        compiled=False)``), the numpy backend, no compiled plan for the problem, another state
+        layout, or a subclass overriding :meth:`_residual` or :meth:`force`."""
+        if not getattr(scheme, "compiled_diagnostics", True):
+            return None
+        if type(self)._residual is not ImplicitMidpoint._residual or type(self).force is not Integrator.force:
+            return None
+        from .._backend import get_backend
+
+        if get_backend() != "numba":
+            return None
+        if plan.compiled is False:
+            from ._implicit_compiled import stage_residual
+
+            plan.compiled = stage_residual(scheme)
+        kernel = plan.compiled
+        if kernel is None or not kernel.accepts(state):
+            return None
+        kernel.bind(state)
+        return kernel
+
     def _residual(self, scheme: Scheme, state: State, xi: np.ndarray, dt: float) -> dict[str, np.ndarray] | None:
-        """Stage residual R(ξ) and its pieces; None when ξ is outside the domain of dexp⁻¹."""
+        """Stage residual R(ξ) and its pieces; None when ξ is outside the domain of dexp⁻¹
+        (the numpy reference: :meth:`Scheme.drift`, :meth:`Scheme.force` and the batched group
+        operations)."""
         g = scheme.group
         if np.any(g.log_domain_norm(xi) >= g.injectivity_radius):
             return None
@@ -265,13 +311,15 @@ class ImplicitMidpoint(Integrator):
         R = Dmu - dt * BW - state.S
         return {"R": R, "W": W, "BW": BW, "mu": mu, "Dmu": Dmu, "mid": mid}
 
-    def _jacobian(self, scheme: Scheme, state: State, xi: np.ndarray, dt: float, plan: _Plan):
+    def _jacobian(self, residual, xi: np.ndarray, plan: _Plan, compiled: bool):
+        """The factorised Jacobian ∂R/∂ξ at ξ by coloured central differences of ``residual``
+        (``ξ ↦`` :meth:`_residual`'s dict); its ``solve`` in compiled code when ``compiled``."""
         import scipy.sparse.linalg as spla
 
         from ..statics import _coloured_jacobian
 
         def displaced(direction: np.ndarray, eps: float) -> np.ndarray:
-            res = self._residual(scheme, state, xi + eps * direction, dt)
+            res = residual(xi + eps * direction)
             if res is None:
                 raise FloatingPointError("finite-difference point outside the domain of exp")
             return res["R"]
@@ -281,6 +329,10 @@ class ImplicitMidpoint(Integrator):
         self.jacobians += 1
         with np.errstate(all="ignore"):
             lu = spla.splu(J.tocsc())
+        if compiled:
+            from ._implicit_compiled import LUSolve
+
+            lu = LUSolve(lu)
         return lu
 
     # ------------------------------------------------------------------ step
@@ -293,11 +345,30 @@ class ImplicitMidpoint(Integrator):
         lu = cache["lu"] if cache is not None and self.reuse_jacobian and cache["dt"] == dt else None
         fresh = False
 
-        def dnorm(y: np.ndarray) -> float:  # ‖y‖_* of a momentum density y [*shape, r]
-            return float(np.sqrt(np.sum(plan.w_over_m * y[unk] ** 2)))
+        kernel = self._compiled(scheme, state, plan)
+        if kernel is None:
+            def dnorm(y: np.ndarray) -> float:  # ‖y‖_* of a momentum density y [*shape, r]
+                return float(np.sqrt(np.sum(plan.w_over_m * y[unk] ** 2)))
 
-        def vnorm(v: np.ndarray) -> float:  # ‖v‖_M of a velocity v [*shape, r]
-            return float(np.sqrt(np.sum(plan.w_times_m * v[unk] ** 2)))
+            def vnorm(v: np.ndarray) -> float:  # ‖v‖_M of a velocity v [*shape, r]
+                return float(np.sqrt(np.sum(plan.w_times_m * v[unk] ** 2)))
+
+            def residual(x: np.ndarray) -> dict[str, np.ndarray] | None:
+                return self._residual(scheme, state, x, dt)
+        else:
+            from ._implicit_compiled import weighted_norm
+
+            def dnorm(y: np.ndarray) -> float:  # the same norms, summed in compiled code
+                return weighted_norm(plan.w_over_m, plan.flat_unknown, np.ravel(y))
+
+            def vnorm(v: np.ndarray) -> float:
+                return weighted_norm(plan.w_times_m, plan.flat_unknown, np.ravel(v))
+
+            def residual(x: np.ndarray) -> dict[str, np.ndarray] | None:
+                res = kernel(x, dt)
+                if res is not None:
+                    self.nforce += 1  # one force evaluation, as Integrator.force counts it
+                return res
 
         xi = np.zeros_like(state.S)
         res = None
@@ -306,17 +377,17 @@ class ImplicitMidpoint(Integrator):
             # momentum S_k carries the unresolved stiff oscillation when Δt·ω_max ≫ 1
             guess = xi.copy()
             guess[unk] = (dt / cache["dt"]) * cache["xi"][unk]
-            res = self._residual(scheme, state, guess, dt)
+            res = residual(guess)
             if res is not None:
                 xi = guess
         if res is None:
             # no previous step: the better of ξ = ΔtN_k and ξ = 0 (the former is poor, or even
             # beyond the injectivity radius of exp, when S_k carries a stiff oscillation)
             xi[unk] = dt * scheme.velocity(state)[unk]
-            res = self._residual(scheme, state, xi, dt)
+            res = residual(xi)
             if np.any(xi):
                 zero = np.zeros_like(xi)
-                res0 = self._residual(scheme, state, zero, dt)
+                res0 = residual(zero)
                 if res is None or dnorm(res0["R"]) < dnorm(res["R"]):
                     xi, res = zero, res0
         rn = dnorm(res["R"])
@@ -334,7 +405,7 @@ class ImplicitMidpoint(Integrator):
                                     f"the iteration limit max_iter = {self.max_iter} was reached")
             if lu is None:
                 try:
-                    lu = self._jacobian(scheme, state, xi, dt, plan)
+                    lu = self._jacobian(residual, xi, plan, kernel is not None)
                 except (RuntimeError, FloatingPointError) as exc:
                     raise self._failure(state, dt, it, rn, history, f"the Jacobian is singular ({exc})") from None
                 fresh = True
@@ -348,7 +419,7 @@ class ImplicitMidpoint(Integrator):
             for _ in range(MAX_HALVINGS + 1 if fresh else 1):
                 trial = xi.copy()
                 trial[unk] += alpha * delta
-                res_t = self._residual(scheme, state, trial, dt)
+                res_t = residual(trial)
                 rn_t = math.inf if res_t is None else dnorm(res_t["R"])
                 it += 1
                 if negligible and res_t is not None:
@@ -381,11 +452,15 @@ class ImplicitMidpoint(Integrator):
         self.newton_iterations += it
         # the powers at the midpoint, for the energy bookkeeping of step()
         if scheme.has_external_power():
-            self._mid_powers = scheme.powers(res["mid"], xi / dt, state.t + 0.5 * dt)
+            mid = res["mid"] if kernel is None else kernel.midpoint(state, xi)  # (the kernel keeps none)
+            self._mid_powers = scheme.powers(mid, xi / dt, state.t + 0.5 * dt)
         # advance: Φ ← Φ exp(ξ), S ← dexp⁻¹_{−ξ}ᵀ μ + Δt (I − B)ᵀ W
-        S_new = np.einsum("...ji,...j->...i", g.dexp_inv(-xi), res["mu"]) + dt * (res["W"] - res["BW"])
-        scheme.drift(state, 1.0, xi)
-        state.S = S_new
+        if kernel is None:
+            S_new = np.einsum("...ji,...j->...i", g.dexp_inv(-xi), res["mu"]) + dt * (res["W"] - res["BW"])
+            scheme.drift(state, 1.0, xi)
+            state.S = S_new
+        else:
+            kernel.advance(state, xi, res, dt)
         scheme.constrain(state)
         self._cache = {"key": (id(state), state.t + dt, state.scalars.get("nstep", 0) + 1), "dt": dt, "xi": xi,
                        "lu": lu if self.reuse_jacobian else None}
