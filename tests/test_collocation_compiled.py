@@ -182,10 +182,11 @@ def test_velocity_free_lie_verlet_uses_one_force_per_step():
     assert fi.nforce == ri.nforce == 51
 
 
-@pytest.mark.parametrize("name", ["lie-verlet", "lie-euler", "overdamped-1", "rkmk4"])
+@pytest.mark.parametrize("name", ["lie-verlet", "lie-euler", "overdamped-1", "overdamped-2", "rkmk4"])
 def test_fast_spin_uses_the_closed_forms(name):
     """Turns of up to 0.3 rad per step: beyond the series of the vectorised SE(3) pass
-    (θ < 0.1), those nodes are recomputed with the closed forms."""
+    (θ < 0.1), those nodes are recomputed with the closed forms (for the RKMK stages also the
+    slopes dexp⁻¹_{−σ}N with stage increments σ beyond 0.1 rad)."""
     make, dt, _ = INTEGRATORS[name]
     base = toy_problem("SE3", "clamped", n=12)  # N = 0 at the clamped node: nodes of both kinds
     if name.startswith("overdamped"):
@@ -208,7 +209,63 @@ def test_fast_spin_uses_the_closed_forms(name):
     assert_close_states(fast, ref)
 
 
-@pytest.mark.parametrize("name", ["lie-verlet", "lie-euler", "overdamped-1"])
+def _rkmk_arguments(scheme, name: str, dt: float, nsteps: int) -> tuple:
+    """The arguments ``advance`` hands to the RKMK loops (``rkmk4`` or ``overdamped-2``) for the
+    initial state of ``scheme``: fresh copies of the state arrays on every call."""
+    from cartan.integrators.explicit import _TABLEAUX
+
+    P, Dc = cc.build_plan(scheme)
+    state = scheme.initial_state()
+    n, r = state.S.shape
+    S = state.S.copy()
+    X = state.arrays["X"].reshape(n, r).copy()
+    Phi = (state.arrays["Phi"] if scheme.track else state.arrays["Phi_root"][None]).copy()
+    dynamics = name == "rkmk4"
+    gam = np.ones(r) if dynamics else np.asarray(scheme.drag(), dtype=float)
+    N = np.zeros((n, r))
+    if not dynamics:
+        cc.overdamped_velocity(P, Dc, X, Phi, N, gam)
+    A, b, _ = _TABLEAUX[4 if dynamics else 2]
+    inv = np.where(scheme.live, 1.0 / np.where(scheme.live, scheme.mass, 1.0), 0.0)
+    check = 1 if dynamics else 2  # CHECK_MOMENTUM, CHECK_CONFIGURATION
+    return (P, Dc, S, X, Phi, N, gam, dynamics, np.ascontiguousarray(A), np.ascontiguousarray(b), 0.0, dt, nsteps,
+            0.0, 0.0, check, np.inf, inv)
+
+
+@pytest.mark.parametrize(("kind", "derivative"), [*CASES, ("rod", "fd4")], ids=[f"{k}-{d}" for k, d in CASES] + ["rod"])
+@pytest.mark.parametrize("name", ["rkmk4", "overdamped-2"])
+def test_vectorised_rkmk_agrees_with_the_scalar_loop(name, kind, derivative):
+    """The structure-of-arrays SE(3) RKMK loop against the scalar one on the same data: state
+    arrays (and the returned velocity) to 1e-12, the same steps, time and energy books; and
+    ``advance`` routes SE(3) to it (the Python reference is compared above)."""
+    problem = rod_problem(False) if kind == "rod" else toy_problem("SE3", kind)
+    scheme = Collocation(problem, derivative=derivative)
+    _, dt, nsteps = INTEGRATORS[name]
+    scalar = _rkmk_arguments(scheme, name, dt, nsteps)
+    vector = _rkmk_arguments(scheme, name, dt, nsteps)
+    done_s, t_s, diss_s, ext_s = cc.rkmk_loop(*scalar)
+    done_v, t_v, diss_v, ext_v = cc.rkmk_se3_loop(*vector)
+    assert (done_v, t_v) == (done_s, t_s) and done_v == nsteps  # t: the same sum of Δt
+    for a, b in zip(vector[2:6], scalar[2:6], strict=True):  # S, X, Phi, N
+        assert _rel(a, b) <= TOL
+    assert _rel(diss_v, diss_s) <= TOL and _rel(ext_v, ext_s) <= TOL
+    assert _rel(vector[3], _rkmk_arguments(scheme, name, dt, nsteps)[3]) > 1e-9  # the strains moved
+
+
+def test_advance_routes_se3_rkmk_to_the_vectorised_loop(monkeypatch):
+    calls = []
+    real = cc.rkmk_se3_loop
+    monkeypatch.setattr(cc, "rkmk_se3_loop", lambda *a: calls.append(a[7]) or real(*a))
+    for make in (RKMK4, lambda: Overdamped(order=2)):
+        _, (ref, ri), (fast, fi) = run_both(rod_problem(False), make, 1e-5, 5, blocks=(2, 3))
+        assert_close_states(fast, ref)
+        assert (fi.nstep, fi.nforce) == (ri.nstep, ri.nforce)
+    assert calls == [True, True, False, False]
+    run_both(toy_problem("SO3", "clamped"), RKMK4, 1e-3, 2)  # other groups: the scalar loop
+    assert len(calls) == 4
+
+
+@pytest.mark.parametrize("name", ["lie-verlet", "lie-euler", "overdamped-1", "overdamped-2", "rkmk4"])
 def test_se3_with_a_gauge_component(name):
     """A zero inertia: the lie-verlet pieces have no reduced form (general vectorised pass),
     and the gauge component of N and S stays zero."""
@@ -273,7 +330,7 @@ def test_force_and_drift_match_the_scheme(kind, group):
 
 
 def test_kinetic_limit_stops_after_the_failing_step():
-    for make in (LieVerlet, LieEuler):  # the vectorised SE(3) loops
+    for make in (LieVerlet, LieEuler, RKMK4):  # the vectorised SE(3) loops
         scheme = Collocation(rod_problem(False))
         state = scheme.initial_state()
         state.scalars["nstep"] = 0

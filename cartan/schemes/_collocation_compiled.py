@@ -37,13 +37,17 @@ Design
   for ``X = (v; ω)``, ``Q = (F; M)``, without 6 × 6 matrices; the free-flow pieces of
   ``lie-verlet`` (the translations, single body rotations) use their reduced forms.  The
   other groups use the matrix kernels.
-* **Vectorised SE(3) loops.**  ``lie-euler``, ``lie-verlet`` and ``overdamped`` (order 1) on
-  SE(3) work on structure-of-arrays copies of the state (one row per component, one column
-  per node), made once per call; every pass over the nodes is a loop that LLVM vectorises:
-  one written array per loop, the SO(3)/SE(3) coefficients from their Taylor series, and the
-  nodes turning by 0.1 rad or more in one drift recomputed afterwards with the closed forms.
-  ``rkmk4``, ``forward-euler``, ``overdamped`` of order 2 and the other groups run scalar
-  loops on the state arrays.
+* **Vectorised SE(3) loops.**  ``lie-euler``, ``lie-verlet``, ``rkmk4`` and ``overdamped``
+  (orders 1 and 2) on SE(3) work on structure-of-arrays copies of the state (one row per
+  component, one column per node), made once per call; every pass over the nodes is a loop
+  that LLVM vectorises: one written array per loop, the SO(3)/SE(3) coefficients from their
+  Taylor series, and the nodes turning by 0.1 rad or more in one drift (or with a stage
+  increment σ of 0.1 rad or more, for the ``dexp⁻¹`` of the RKMK stages) recomputed
+  afterwards with the closed forms.  The RKMK stages are the same passes: the increments
+  ``σ_i`` and ``S_i``, a drift of stage copies of the strains and frames, the velocity, the
+  slope ``dexp⁻¹_{−σ_i}N_i`` in closed form (``(J⁻¹(a − QJ⁻¹b); J⁻¹b)``), the force and the
+  momentum slope ``ad_NᵀS + W = (F × ω; F × v + M × ω) + W``.  ``forward-euler`` and the other
+  groups run scalar loops on the state arrays.
 * **No per-step allocation.**  Work arrays are allocated once per call; ``S [n, r]``, the
   strains ``X [n, r]`` (a view of the state's ``[n, 1, r]``) and the frames ``Phi [n, m, m]``
   (or the root frame as ``[1, m, m]``) are updated in place (or copied back on return).
@@ -61,7 +65,17 @@ from numba import njit, uint64
 from numba.extending import register_jitable
 
 from ..groups.se3 import TAYLOR_D, TAYLOR_E, _dexp_coeffs_direct, _exp_coeffs3_direct, _V_apply
-from ..groups.so3 import SMALL_THETA2, TAYLOR_A, TAYLOR_B, TAYLOR_C, _poly_entries, cross3, horner
+from ..groups.so3 import (
+    SMALL_THETA2,
+    TAYLOR_A,
+    TAYLOR_B,
+    TAYLOR_C,
+    TAYLOR_CINV,
+    _cinv_direct,
+    _poly_entries,
+    cross3,
+    horner,
+)
 from ._lattice_compiled import (
     CHECK_CONFIGURATION,
     CHECK_MOMENTUM,
@@ -131,6 +145,8 @@ __all__ = [
     "overdamped_se3_loop",
     "overdamped_velocity",
     "rkmk_loop",
+    "rkmk_se3_loop",
+    "stiffness_once",
 ]
 
 #: the Fourier derivative costs O(n²) per application here (a circulant) against O(n log n)
@@ -521,6 +537,25 @@ def _naive_drift(P, Dc, X, Phi, N, tau, DN, D, scr):
         _copy_matrix(A1, Phi[i])
 
 
+# ---------------------------------------------------------------------------- scalar loops: shared pieces
+@_jit
+def _work(n, r, m):
+    """Per-call work arrays of the scalar loops: the force ``W``, the stress ``Q`` and the
+    derivative ``DN`` ``[n, r]``, the node exponentials ``D [n, m, m]``, the helpers' scratch."""
+    return np.empty((n, r)), np.empty((n, r)), np.empty((n, r)), np.empty((n, m, m)), _scratch(r, m, 0)
+
+
+@_jit
+def _end_step(P, S, X, Phi, N, scr, dt, books, check, kinetic_limit, w, inv):
+    """The close of a scalar loop's step at its final velocity ``N``: the powers booked by the
+    trapezoidal rule (``books = (dissipated, external, p0d, p0e)``, the powers at the step's
+    start; returned updated) and the per-step blow-up test (True: stop)."""
+    dissipated, external, p0d, p0e = books
+    p1d, p1e = _powers(P, N, Phi, scr)
+    dissipated, external = _book(dt, dissipated, external, p0d, p0e, p1d, p1e)
+    return (dissipated, external, p1d, p1e), _unstable(check, kinetic_limit, S, X, Phi, w, inv)
+
+
 # ---------------------------------------------------------------------------- lie-verlet
 @_jit
 def lie_verlet_loop(P, Dc, S, X, Phi, W, have_force, velocity_free, seq_mask, seq_frac,
@@ -536,17 +571,13 @@ def lie_verlet_loop(P, Dc, S, X, Phi, W, have_force, velocity_free, seq_mask, se
     m = Phi.shape[1]
     N = np.zeros((n, r))
     Np = np.zeros((n, r))
-    Q = np.empty((n, r))
-    DN = np.empty((n, r))
-    D = np.empty((n, m, m))
-    scr = _scratch(r, m, 0)
-    w = P[I_W]
+    _, Q, DN, D, scr = _work(n, r, m)
     need_N = P[I_HAS_DAMP] or P[I_HAS_POWER]
     nforce = 0
     half = 0.5 * dt
     if need_N:
         _velocity(P, S, N)
-    p0d, p0e = _powers(P, N, Phi, scr)
+    books = (dissipated, external) + _powers(P, N, Phi, scr)
     done = 0
     for _ in range(nsteps):
         if not (have_force and velocity_free):
@@ -577,32 +608,24 @@ def lie_verlet_loop(P, Dc, S, X, Phi, W, have_force, velocity_free, seq_mask, se
         t = t + dt
         if need_N:
             _velocity(P, S, N)
-        p1d, p1e = _powers(P, N, Phi, scr)
-        dissipated, external = _book(dt, dissipated, external, p0d, p0e, p1d, p1e)
-        p0d, p0e = p1d, p1e
+        books, stop = _end_step(P, S, X, Phi, N, scr, dt, books, check, kinetic_limit, P[I_W], inv)
         done += 1
-        if _unstable(check, kinetic_limit, S, X, Phi, w, inv):
+        if stop:
             break
-    return done, nforce, t, dissipated, external
+    return done, nforce, t, books[0], books[1]
 
 
-# ---------------------------------------------------------------------------- lie-euler
+# ---------------------------------------------------------------------------- lie-euler, forward-euler
 @_jit
 def lie_euler_loop(P, Dc, S, X, Phi, t, dt, nsteps, dissipated, external, check, kinetic_limit, inv):
     """``nsteps`` steps of ``LieEuler`` (paper §V): ``S⁺ = Ad*_{exp ΔtN}S + 𝓔*(Δt, N)W``,
     ``X⁺ = Ad_{exp(−ΔtN)}X + 𝓔(Δt, −N)∂N``, ``Φ⁺ = Φ exp(ΔtN)``.
     Returns ``(steps done, t, dissipated, external)``."""
     n, r = S.shape
-    m = Phi.shape[1]
     N = np.empty((n, r))
-    W = np.empty((n, r))
-    Q = np.empty((n, r))
-    DN = np.empty((n, r))
-    D = np.empty((n, m, m))
-    scr = _scratch(r, m, 0)
-    w = P[I_W]
+    W, Q, DN, D, scr = _work(n, r, Phi.shape[1])
     _velocity(P, S, N)
-    p0d, p0e = _powers(P, N, Phi, scr)
+    books = (dissipated, external) + _powers(P, N, Phi, scr)
     done = 0
     for _ in range(nsteps):
         _force(P, Dc, X, Phi, N, W, Q, scr)
@@ -610,44 +633,40 @@ def lie_euler_loop(P, Dc, S, X, Phi, t, dt, nsteps, dissipated, external, check,
         _constrain(P, S)
         t = t + dt
         _velocity(P, S, N)
-        p1d, p1e = _powers(P, N, Phi, scr)
-        dissipated, external = _book(dt, dissipated, external, p0d, p0e, p1d, p1e)
-        p0d, p0e = p1d, p1e
+        books, stop = _end_step(P, S, X, Phi, N, scr, dt, books, check, kinetic_limit, P[I_W], inv)
         done += 1
-        if _unstable(check, kinetic_limit, S, X, Phi, w, inv):
+        if stop:
             break
-    return done, t, dissipated, external
+    return done, t, books[0], books[1]
 
 
-# ---------------------------------------------------------------------------- forward-euler
+@_jit
+def _lie_poisson(gid, N, S, W, out, M):
+    """``out = ad_NᵀS + W`` at every node (``Ṡ`` of the momentum balance), ``M`` r × r work space."""
+    n, r = S.shape
+    for i in range(n):
+        g_ad(gid, N[i], M)
+        for a in range(r):
+            acc = 0.0
+            for b in range(r):
+                acc += M[b, a] * S[i, b]
+            out[i, a] = acc + W[i, a]
+
+
 @_jit
 def forward_euler_loop(P, Dc, S, X, Phi, t, dt, nsteps, dissipated, external, check, kinetic_limit, inv):
     """``nsteps`` steps of ``ForwardEuler``: ``X += Δt(∂N − ad_N X)``, ``Φ += ΔtΦN̂``,
     ``S += Δt(ad_NᵀS + W)``.  Returns ``(steps done, t, dissipated, external)``."""
-    gid = P[I_GID]
     n, r = S.shape
-    m = Phi.shape[1]
     N = np.empty((n, r))
-    W = np.empty((n, r))
-    Q = np.empty((n, r))
     Sd = np.empty((n, r))
-    DN = np.empty((n, r))
-    D = np.empty((n, m, m))
-    scr = _scratch(r, m, 0)
-    M = scr[3]
-    w = P[I_W]
+    W, Q, DN, D, scr = _work(n, r, Phi.shape[1])
     _velocity(P, S, N)
-    p0d, p0e = _powers(P, N, Phi, scr)
+    books = (dissipated, external) + _powers(P, N, Phi, scr)
     done = 0
     for _ in range(nsteps):
         _force(P, Dc, X, Phi, N, W, Q, scr)
-        for i in range(n):
-            g_ad(gid, N[i], M)
-            for a in range(r):
-                acc = 0.0
-                for b in range(r):
-                    acc += M[b, a] * S[i, b]
-                Sd[i, a] = acc + W[i, a]
+        _lie_poisson(P[I_GID], N, S, W, Sd, scr[3])
         _naive_drift(P, Dc, X, Phi, N, dt, DN, D, scr)
         for i in range(n):
             for k in range(r):
@@ -655,13 +674,11 @@ def forward_euler_loop(P, Dc, S, X, Phi, t, dt, nsteps, dissipated, external, ch
         _constrain(P, S)
         t = t + dt
         _velocity(P, S, N)
-        p1d, p1e = _powers(P, N, Phi, scr)
-        dissipated, external = _book(dt, dissipated, external, p0d, p0e, p1d, p1e)
-        p0d, p0e = p1d, p1e
+        books, stop = _end_step(P, S, X, Phi, N, scr, dt, books, check, kinetic_limit, P[I_W], inv)
         done += 1
-        if _unstable(check, kinetic_limit, S, X, Phi, w, inv):
+        if stop:
             break
-    return done, t, dissipated, external
+    return done, t, books[0], books[1]
 
 
 # ---------------------------------------------------------------------------- overdamped, RKMK
@@ -696,30 +713,39 @@ def overdamped_loop(P, Dc, S, X, Phi, N, gam, t, dt, nsteps, dissipated, externa
     Returns ``(steps done, t, dissipated, external)``.
     """
     n, r = S.shape
-    m = Phi.shape[1]
     Z = np.zeros((n, r))
-    W = np.empty((n, r))
-    Q = np.empty((n, r))
-    DN = np.empty((n, r))
-    D = np.empty((n, m, m))
-    scr = _scratch(r, m, 0)
-    w = P[I_W]
-    p0d, p0e = _powers(P, N, Phi, scr)
+    W, Q, DN, D, scr = _work(n, r, Phi.shape[1])
+    books = (dissipated, external) + _powers(P, N, Phi, scr)
     done = 0
     for _ in range(nsteps):
         _drift(P, Dc, X, Phi, S, W, N, dt, DN, D, scr, MODE_NONE)
-        for i in range(n):
-            for k in range(r):
-                S[i, k] = 0.0
+        S[:] = 0.0
         t = t + dt
         _drift_velocity(P, Dc, X, Phi, Z, W, Q, N, gam, scr)
-        p1d, p1e = _powers(P, N, Phi, scr)
-        dissipated, external = _book(dt, dissipated, external, p0d, p0e, p1d, p1e)
-        p0d, p0e = p1d, p1e
+        books, stop = _end_step(P, S, X, Phi, N, scr, dt, books, check, kinetic_limit, P[I_W], inv)
         done += 1
-        if _unstable(check, kinetic_limit, S, X, Phi, w, inv):
+        if stop:
             break
-    return done, t, dissipated, external
+    return done, t, books[0], books[1]
+
+
+@_jit
+def _increment(k, coef, m, dt, out):
+    """``out = Σ_{j < m, coef_j ≠ 0} (Δt coef_j) k[j]`` (``k`` ``[s, ...]``, ``out`` its
+    ``[...]``), summed from zero in the order of ``j`` as the reference ``_rkmk`` does; True
+    when an entry of the sum is not zero."""
+    a = out.reshape(-1)
+    a[:] = 0.0
+    for j in range(m):
+        if coef[j] != 0.0:
+            c = dt * coef[j]
+            kj = k[j].reshape(-1)
+            for i in range(a.shape[0]):
+                a[i] = a[i] + c * kj[i]
+    nz = 0
+    for i in range(a.shape[0]):
+        nz += a[i] != 0.0
+    return nz > 0
 
 
 @_jit
@@ -735,7 +761,6 @@ def rkmk_loop(P, Dc, S, X, Phi, N, gam, dynamics, A, b, t, dt, nsteps, dissipate
     """
     gid = P[I_GID]
     n, r = S.shape
-    m = Phi.shape[1]
     s = b.shape[0]
     ksig = np.empty((s, n, r))
     kS = np.empty((s, n, r))
@@ -743,39 +768,22 @@ def rkmk_loop(P, Dc, S, X, Phi, N, gam, dynamics, A, b, t, dt, nsteps, dissipate
     Sst = np.empty((n, r))
     Nst = np.empty((n, r))
     Z = np.zeros((n, r))
-    W = np.empty((n, r))
-    Q = np.empty((n, r))
-    DN = np.empty((n, r))
-    D = np.empty((n, m, m))
+    W, Q, DN, D, scr = _work(n, r, Phi.shape[1])
     Xst = np.empty_like(X)
     Phist = np.empty_like(Phi)
-    scr = _scratch(r, m, 0)
     xi, Qv, tr, M, M2, A1, A2, A3, XI = scr
-    w = P[I_W]
     if dynamics:
         _velocity(P, S, N)
-    p0d, p0e = _powers(P, N, Phi, scr)
+    books = (dissipated, external) + _powers(P, N, Phi, scr)
     done = 0
     for _ in range(nsteps):
         for st in range(s):
-            moved = False
-            for i in range(n):
-                for k in range(r):
-                    acc = 0.0
-                    for j in range(st):
-                        if A[st, j] != 0.0:
-                            acc = acc + dt * A[st, j] * ksig[j, i, k]
-                    sigma[i, k] = acc
-                    if acc != 0.0:
-                        moved = True
+            moved = _increment(ksig, A[st], st, dt, sigma)
             if dynamics:
+                _increment(kS, A[st], st, dt, Sst)
                 for i in range(n):
                     for k in range(r):
-                        acc = 0.0
-                        for j in range(st):
-                            if A[st, j] != 0.0:
-                                acc = acc + dt * A[st, j] * kS[j, i, k]
-                        Sst[i, k] = S[i, k] + acc
+                        Sst[i, k] = S[i, k] + Sst[i, k]
             Xst[:] = X
             Phist[:] = Phi
             if moved:
@@ -797,59 +805,44 @@ def rkmk_loop(P, Dc, S, X, Phi, N, gam, dynamics, A, b, t, dt, nsteps, dissipate
                     ksig[st, i, a] = acc
             if dynamics:
                 _force(P, Dc, Xst, Phist, Nst, W, Q, scr)
-                for i in range(n):
-                    g_ad(gid, Nst[i], M)
-                    for a in range(r):
-                        acc = 0.0
-                        for c in range(r):
-                            acc += M[c, a] * Sst[i, c]
-                        kS[st, i, a] = acc + W[i, a]
-        for i in range(n):
-            for k in range(r):
-                acc = 0.0
-                for j in range(s):
-                    acc = acc + dt * b[j] * ksig[j, i, k]
-                sigma[i, k] = acc
+                _lie_poisson(gid, Nst, Sst, W, kS[st], M)
+        _increment(ksig, b, s, dt, sigma)
         _drift(P, Dc, X, Phi, S, W, sigma, 1.0, DN, D, scr, MODE_NONE)
         if dynamics:
+            _increment(kS, b, s, dt, Sst)
             for i in range(n):
                 for k in range(r):
-                    acc = 0.0
-                    for j in range(s):
-                        acc = acc + dt * b[j] * kS[j, i, k]
-                    S[i, k] = S[i, k] + acc
+                    S[i, k] = S[i, k] + Sst[i, k]
             _constrain(P, S)
-        else:
-            for i in range(n):
-                for k in range(r):
-                    S[i, k] = 0.0
-        t = t + dt
-        if dynamics:
             _velocity(P, S, N)
         else:
+            S[:] = 0.0
             _drift_velocity(P, Dc, X, Phi, Z, W, Q, N, gam, scr)
-        p1d, p1e = _powers(P, N, Phi, scr)
-        dissipated, external = _book(dt, dissipated, external, p0d, p0e, p1d, p1e)
-        p0d, p0e = p1d, p1e
+        t = t + dt
+        books, stop = _end_step(P, S, X, Phi, N, scr, dt, books, check, kinetic_limit, P[I_W], inv)
         done += 1
-        if _unstable(check, kinetic_limit, S, X, Phi, w, inv):
+        if stop:
             break
-    return done, t, dissipated, external
+    return done, t, books[0], books[1]
 
 
 # ---------------------------------------------------------------------------- SE(3), structure of arrays
-# For SE(3), lie-euler, lie-verlet and overdamped (order 1) work on structure-of-arrays copies
-# of the state — one row per component, one column per node, made once per call — so that
-# LLVM vectorises the passes over the nodes.  The node pass of a drift has no branches: the
-# coefficients come from their Taylor series, and the nodes where those do not apply (a
-# turn of 0.1 rad or more in one drift) are flagged and recomputed with the closed forms
-# from the unchanged inputs (the pass writes to second buffers, swapped afterwards).
+# For SE(3), lie-euler, lie-verlet, rkmk4 and overdamped (orders 1 and 2) work on
+# structure-of-arrays copies of the state — one row per component, one column per node, made
+# once per call — so that LLVM vectorises the passes over the nodes.  The node passes have no
+# branches: the coefficients come from their Taylor series, and the nodes where those do not
+# apply (a turn of 0.1 rad or more in one drift, a stage increment of 0.1 rad or more) are
+# flagged and recomputed with the closed forms from the unchanged inputs (the passes write to
+# second buffers — strains, momentum, frames — swapped afterwards).  Helpers inlined into a
+# vectorised loop take and return scalars or read and write one column (``_col6``, ``_put6``);
+# an inlined helper that both reads the arrays and computes keeps LLVM from vectorising.
 @_jit
 def _soa_deriv(Dc, A, out, rows):
     """``out[k] = D A[k]`` for the rows ``k`` with ``rows[k]``, zero for the others (``A``,
     ``out`` ``[6, n]``); the same stencils and summation order as :func:`_deriv`.  The interior
     indices are unsigned (``i + o ≥ 0`` there), which spares numba's negative-index wrap-around
-    test and lets LLVM vectorise the loop."""
+    test and lets LLVM vectorise the loop; the CSR rows are summed for the six components at
+    once (one pass over each row's entries)."""
     indptr = Dc[J_PTR]
     indices = Dc[J_IND]
     data = Dc[J_DAT]
@@ -859,20 +852,22 @@ def _soa_deriv(Dc, A, out, rows):
     ns = off.shape[0]
     n = A.shape[1]
     d = Dc[J_CIRC]
-    for k in range(A.shape[0]):
-        if not rows[k] or d.shape[0]:
+    if d.shape[0]:
+        # the Fourier derivative: circulant, D[i, j] = d[(j − i) mod n]
+        for k in range(6):
             for i in range(n):
                 out[k, i] = 0.0
-        if not rows[k]:
-            continue
-        if d.shape[0]:
-            # the Fourier derivative: circulant, D[i, j] = d[(j − i) mod n]
+            if not rows[k]:
+                continue
             for m in range(n):
                 c = d[m]
                 for i in range(n - m):
                     out[k, i] += c * A[k, uint64(i + m)]
                 for i in range(n - m, n):
                     out[k, i] += c * A[k, uint64(i + m - n)]
+        return
+    for k in range(6):
+        if not rows[k]:
             continue
         if ns == 2:
             o0, o1 = off[0], off[1]
@@ -885,12 +880,23 @@ def _soa_deriv(Dc, A, out, rows):
             for i in range(lo, hi):
                 out[k, i] = (c0 * A[k, uint64(i + o0)] + c1 * A[k, uint64(i + o1)] + c2 * A[k, uint64(i + o2)]
                              + c3 * A[k, uint64(i + o3)])
-        for b in range(n - (hi - lo)):
-            i = b if b < lo else b + hi - lo  # the rows before lo, then from hi on
-            acc = 0.0
-            for p in range(indptr[i], indptr[i + 1]):
-                acc += data[p] * A[k, indices[p]]
-            out[k, i] = acc
+    for b in range(n - (hi - lo)):
+        i = b if b < lo else b + hi - lo  # the rows before lo, then from hi on
+        a0 = a1 = a2 = a3 = a4 = a5 = 0.0
+        for p in range(indptr[i], indptr[i + 1]):
+            c = data[p]
+            j = uint64(indices[p])
+            a0 += c * A[0, j]
+            a1 += c * A[1, j]
+            a2 += c * A[2, j]
+            a3 += c * A[3, j]
+            a4 += c * A[4, j]
+            a5 += c * A[5, j]
+        _put6(out, i, (a0, a1, a2, a3, a4, a5))
+    for k in range(6):
+        if not rows[k]:
+            for i in range(n):
+                out[k, i] = 0.0
 
 
 @_jit
@@ -959,91 +965,150 @@ def _soa_force(P, Dc, x, phi, nv, w, q, rows):
 
 
 @_inline
+def _col6(a, i):
+    """Column ``i`` of a ``[6, n]`` array as a 6-tuple."""
+    return a[0, i], a[1, i], a[2, i], a[3, i], a[4, i], a[5, i]
+
+
+@_inline
+def _put6(a, i, v):
+    """Column ``i`` of a ``[6, n]`` array ← the 6-tuple ``v``."""
+    a[0, i] = v[0]
+    a[1, i] = v[1]
+    a[2, i] = v[2]
+    a[3, i] = v[3]
+    a[4, i] = v[4]
+    a[5, i] = v[5]
+
+
+@_inline
+def _scale6(tau, v):
+    """``τv`` for a 6-tuple ``v`` = (translation; rotation), and θ² of its rotation."""
+    v0, v1, v2, w0, w1, w2 = tau * v[0], tau * v[1], tau * v[2], tau * v[3], tau * v[4], tau * v[5]
+    return v0, v1, v2, w0, w1, w2, w0 * w0 + w1 * w1 + w2 * w2
+
+
+@_inline
 def _soa_node(i, x, s, f, nv, dn, tau, mode):
     """:func:`_se3_node` at node ``i`` of the structure-of-arrays state with the coefficients
-    of :func:`_coeffs` (series or closed forms); also returns θ²."""
-    v0, v1, v2 = tau * nv[0, i], tau * nv[1, i], tau * nv[2, i]
-    w0, w1, w2 = tau * nv[3, i], tau * nv[4, i], tau * nv[5, i]
-    t2 = w0 * w0 + w1 * w1 + w2 * w2
+    of :func:`_coeffs` (series or closed forms); also returns θ² (for the loops that are not
+    vectorised: the nodes beyond the series)."""
+    v0, v1, v2, w0, w1, w2, t2 = _scale6(tau, _col6(nv, i))
     A, B, C, Dq, Eq = _coeffs(t2)
-    Xn, Sn, t, R = _se3_node(v0, v1, v2, w0, w1, w2, tau, A, B, C, Dq, Eq,
-                             (x[0, i], x[1, i], x[2, i], x[3, i], x[4, i], x[5, i]),
-                             (dn[0, i], dn[1, i], dn[2, i], dn[3, i], dn[4, i], dn[5, i]),
-                             (s[0, i], s[1, i], s[2, i], s[3, i], s[4, i], s[5, i]),
-                             (f[0, i], f[1, i], f[2, i], f[3, i], f[4, i], f[5, i]), mode)
+    Xn, Sn, t, R = _se3_node(v0, v1, v2, w0, w1, w2, tau, A, B, C, Dq, Eq, _col6(x, i), _col6(dn, i), _col6(s, i),
+                             _col6(f, i), mode)
     return Xn, Sn, t, R, t2
 
 
 @_jit
-def _soa_nodes(x, s, f, nv, dn, tau, mode, xo, so, phi):
+def _soa_nodes(x, s, f, nv, dn, tau, mode, xo, so, phi, phio):
     """The node pass of a drift by ``τ nv`` (``dn = ∂nv``) with the momentum update of
-    ``mode``: strains into ``xo``, momentum into ``so`` (``mode`` ≠ ``MODE_NONE``), frames
-    ``phi`` (the first ``phi.shape[1]`` nodes) in place.
+    ``mode``: strains into ``xo``, momentum into ``so`` (``mode`` ≠ ``MODE_NONE``), the frames
+    ``phi`` of the first ``phi.shape[1]`` nodes into ``phio``.
 
     LLVM vectorises a loop that writes one array and calls :func:`_se3_node` directly (with
     two written arrays its run-time overlap tests exceed its limit; a further inlined wrapper
-    also stops it), hence one loop per written array, each with the series coefficients; the
-    nodes beyond the series' range are then recomputed with the closed forms from the
-    unchanged inputs.  Returns the number of those nodes.
+    that reads the arrays also stops it), hence one loop per written array, each with the
+    series coefficients; the nodes beyond the series' range are then recomputed with the
+    closed forms from the unchanged inputs.  Returns the number of those nodes.
     """
     n = x.shape[1]
     nbad = 0
     for i in range(n):
-        v0, v1, v2 = tau * nv[0, i], tau * nv[1, i], tau * nv[2, i]
-        w0, w1, w2 = tau * nv[3, i], tau * nv[4, i], tau * nv[5, i]
-        t2 = w0 * w0 + w1 * w1 + w2 * w2
+        v0, v1, v2, w0, w1, w2, t2 = _scale6(tau, _col6(nv, i))
         A, B, C, Dq, Eq = _series(t2)
-        Xn, _, _, _ = _se3_node(v0, v1, v2, w0, w1, w2, tau, A, B, C, Dq, Eq,
-                                (x[0, i], x[1, i], x[2, i], x[3, i], x[4, i], x[5, i]),
-                                (dn[0, i], dn[1, i], dn[2, i], dn[3, i], dn[4, i], dn[5, i]),
-                                (s[0, i], s[1, i], s[2, i], s[3, i], s[4, i], s[5, i]),
-                                (f[0, i], f[1, i], f[2, i], f[3, i], f[4, i], f[5, i]), MODE_NONE)
-        xo[0, i] = Xn[0]
-        xo[1, i] = Xn[1]
-        xo[2, i] = Xn[2]
-        xo[3, i] = Xn[3]
-        xo[4, i] = Xn[4]
-        xo[5, i] = Xn[5]
+        Xn, _, _, _ = _se3_node(v0, v1, v2, w0, w1, w2, tau, A, B, C, Dq, Eq, _col6(x, i), _col6(dn, i),
+                                _col6(s, i), _col6(f, i), MODE_NONE)
+        _put6(xo, i, Xn)
         nbad += t2 >= SMALL_THETA2
-    if mode == MODE_COAD or mode == MODE_LIE_EULER:
+    if mode != MODE_NONE:
         for i in range(n):
-            v0, v1, v2 = tau * nv[0, i], tau * nv[1, i], tau * nv[2, i]
-            w0, w1, w2 = tau * nv[3, i], tau * nv[4, i], tau * nv[5, i]
-            A, B, C, Dq, Eq = _series(w0 * w0 + w1 * w1 + w2 * w2)
-            _, Sn, _, _ = _se3_node(v0, v1, v2, w0, w1, w2, tau, A, B, C, Dq, Eq,
-                                    (x[0, i], x[1, i], x[2, i], x[3, i], x[4, i], x[5, i]),
-                                    (dn[0, i], dn[1, i], dn[2, i], dn[3, i], dn[4, i], dn[5, i]),
-                                    (s[0, i], s[1, i], s[2, i], s[3, i], s[4, i], s[5, i]),
-                                    (f[0, i], f[1, i], f[2, i], f[3, i], f[4, i], f[5, i]), mode)
-            so[0, i] = Sn[0]
-            so[1, i] = Sn[1]
-            so[2, i] = Sn[2]
-            so[3, i] = Sn[3]
-            so[4, i] = Sn[4]
-            so[5, i] = Sn[5]
+            v0, v1, v2, w0, w1, w2, t2 = _scale6(tau, _col6(nv, i))
+            A, B, C, Dq, Eq = _series(t2)
+            _, Sn, _, _ = _se3_node(v0, v1, v2, w0, w1, w2, tau, A, B, C, Dq, Eq, _col6(x, i), _col6(dn, i),
+                                    _col6(s, i), _col6(f, i), mode)
+            _put6(so, i, Sn)
     if nbad:
         for i in range(n):
             Xn, Sn, _, _, t2 = _soa_node(i, x, s, f, nv, dn, tau, mode)
             if t2 < SMALL_THETA2:
                 continue
-            for k in range(6):
-                xo[k, i] = Xn[k]
-                if mode != MODE_NONE:
-                    so[k, i] = Sn[k]
-    # Φ (t; R) = (P t + p; P R) for Φ = (p; P)
-    for i in range(phi.shape[1]):
-        _, _, t, R, _ = _soa_node(i, x, s, f, nv, dn, tau, MODE_NONE)
-        for a in range(3):
-            f0, f1, f2 = phi[3 + 3 * a, i], phi[4 + 3 * a, i], phi[5 + 3 * a, i]
-            phi[a, i] = f0 * t[0] + f1 * t[1] + f2 * t[2] + phi[a, i]
-            phi[3 + 3 * a, i] = f0 * R[0] + f1 * R[3] + f2 * R[6]
-            phi[4 + 3 * a, i] = f0 * R[1] + f1 * R[4] + f2 * R[7]
-            phi[5 + 3 * a, i] = f0 * R[2] + f1 * R[5] + f2 * R[8]
+            _put6(xo, i, Xn)
+            if mode != MODE_NONE:
+                _put6(so, i, Sn)
+    _soa_frames(nv, tau, phi, phio, nbad == 0)
     return nbad
 
 
+@_inline
+def _frame_times_exp(f, v0, v1, v2, w0, w1, w2, A, B, C):
+    """``Φ exp(v; w)`` for the 12-tuple ``f`` = (p; P row-major) of ``Φ = (p; P)``, with the
+    coefficients ``(A, B, C)`` of θ² = |w|²: ``exp(v; w) = (t; R)`` as :func:`_se3_node` forms
+    it, and ``Φ(t; R) = (Pt + p; PR)``."""
+    R = _poly_entries(w0, w1, w2, A, B, 1.0)
+    t = _V_apply(w0, w1, w2, B, C, v0, v1, v2)
+    return (f[3] * t[0] + f[4] * t[1] + f[5] * t[2] + f[0], f[6] * t[0] + f[7] * t[1] + f[8] * t[2] + f[1],
+            f[9] * t[0] + f[10] * t[1] + f[11] * t[2] + f[2],
+            f[3] * R[0] + f[4] * R[3] + f[5] * R[6], f[3] * R[1] + f[4] * R[4] + f[5] * R[7],
+            f[3] * R[2] + f[4] * R[5] + f[5] * R[8],
+            f[6] * R[0] + f[7] * R[3] + f[8] * R[6], f[6] * R[1] + f[7] * R[4] + f[8] * R[7],
+            f[6] * R[2] + f[7] * R[5] + f[8] * R[8],
+            f[9] * R[0] + f[10] * R[3] + f[11] * R[6], f[9] * R[1] + f[10] * R[4] + f[11] * R[7],
+            f[9] * R[2] + f[10] * R[5] + f[11] * R[8])
+
+
+@_inline
+def _col12(a, i):
+    """Column ``i`` of a ``[12, n]`` array as a 12-tuple."""
+    return (a[0, i], a[1, i], a[2, i], a[3, i], a[4, i], a[5, i], a[6, i], a[7, i], a[8, i], a[9, i], a[10, i],
+            a[11, i])
+
+
+@_inline
+def _put6_at(a, row, i, v):
+    """Rows ``row … row + 5`` of column ``i`` of ``a`` ← the 6-tuple ``v``."""
+    a[row, i] = v[0]
+    a[row + 1, i] = v[1]
+    a[row + 2, i] = v[2]
+    a[row + 3, i] = v[3]
+    a[row + 4, i] = v[4]
+    a[row + 5, i] = v[5]
+
+
 @_jit
-def _soa_piece(x, s, f, nv, dn, tau, piece, axis, xo, so, phi):
+def _soa_frames(nv, tau, phi, out, series):
+    """``out ← Φ exp(τ nv)`` for the frames ``Φ = phi`` of the first ``phi.shape[1]`` nodes.
+    ``series``: every node turns by less than 0.1 rad, so the coefficients come from their
+    Taylor series in loops LLVM vectorises, one for each half of the rows (it vectorises a
+    loop that writes six rows, not one that writes twelve); otherwise from :func:`_coeffs`,
+    node by node."""
+    if not series:
+        for i in range(phi.shape[1]):
+            v0, v1, v2, w0, w1, w2, t2 = _scale6(tau, _col6(nv, i))
+            A, B, C, _, _ = _coeffs(t2)
+            g = _frame_times_exp(_col12(phi, i), v0, v1, v2, w0, w1, w2, A, B, C)
+            _put6_at(out, 0, i, g[:6])
+            _put6_at(out, 6, i, g[6:])
+        return
+    for i in range(phi.shape[1]):
+        v0, v1, v2, w0, w1, w2, t2 = _scale6(tau, _col6(nv, i))
+        A, B, C, _, _ = _series(t2)
+        _put6_at(out, 0, i, _frame_times_exp(_col12(phi, i), v0, v1, v2, w0, w1, w2, A, B, C)[:6])
+    for i in range(phi.shape[1]):
+        v0, v1, v2, w0, w1, w2, t2 = _scale6(tau, _col6(nv, i))
+        A, B, C, _, _ = _series(t2)
+        _put6_at(out, 6, i, _frame_times_exp(_col12(phi, i), v0, v1, v2, w0, w1, w2, A, B, C)[6:])
+
+
+@_inline
+def _rotation_node(th, axis, tau, A, B, C, x, a, s):
+    """:func:`_se3_node_rotation` for the turn ``th`` about the body axis ``axis``."""
+    return _se3_node_rotation(th if axis == 0 else 0.0, th if axis == 1 else 0.0, th if axis == 2 else 0.0, tau,
+                              A, B, C, x, a, s)
+
+
+@_jit
+def _soa_piece(x, s, f, nv, dn, tau, piece, axis, xo, so, phi, phio):
     """:func:`_soa_nodes` with ``mode = MODE_COAD`` for the free-flow pieces of ``lie-verlet``
     on SE(3) that have closed forms: the translations (``piece = PIECE_TRANSLATION``) and a
     rotation about the body axis ``axis`` (``piece = PIECE_ROTATION``); the other components
@@ -1052,79 +1117,90 @@ def _soa_piece(x, s, f, nv, dn, tau, piece, axis, xo, so, phi):
     nbad = 0
     if piece == PIECE_TRANSLATION:
         for i in range(n):
-            Xn, _ = _se3_node_translation(tau * nv[0, i], tau * nv[1, i], tau * nv[2, i], tau,
-                                          (x[0, i], x[1, i], x[2, i], x[3, i], x[4, i], x[5, i]),
-                                          (dn[0, i], dn[1, i], dn[2, i], dn[3, i], dn[4, i], dn[5, i]),
-                                          (s[0, i], s[1, i], s[2, i], s[3, i], s[4, i], s[5, i]))
-            xo[0, i] = Xn[0]
-            xo[1, i] = Xn[1]
-            xo[2, i] = Xn[2]
-            xo[3, i] = Xn[3]
-            xo[4, i] = Xn[4]
-            xo[5, i] = Xn[5]
+            Xn, _ = _se3_node_translation(tau * nv[0, i], tau * nv[1, i], tau * nv[2, i], tau, _col6(x, i),
+                                          _col6(dn, i), _col6(s, i))
+            _put6(xo, i, Xn)
         for i in range(n):
-            _, Sn = _se3_node_translation(tau * nv[0, i], tau * nv[1, i], tau * nv[2, i], tau,
-                                          (x[0, i], x[1, i], x[2, i], x[3, i], x[4, i], x[5, i]),
-                                          (dn[0, i], dn[1, i], dn[2, i], dn[3, i], dn[4, i], dn[5, i]),
-                                          (s[0, i], s[1, i], s[2, i], s[3, i], s[4, i], s[5, i]))
-            so[0, i] = Sn[0]
-            so[1, i] = Sn[1]
-            so[2, i] = Sn[2]
-            so[3, i] = Sn[3]
-            so[4, i] = Sn[4]
-            so[5, i] = Sn[5]
+            _, Sn = _se3_node_translation(tau * nv[0, i], tau * nv[1, i], tau * nv[2, i], tau, _col6(x, i),
+                                          _col6(dn, i), _col6(s, i))
+            _put6(so, i, Sn)
     else:
-        e0, e1, e2 = 1.0 if axis == 0 else 0.0, 1.0 if axis == 1 else 0.0, 1.0 if axis == 2 else 0.0
-        for i in range(n):
-            th = tau * nv[3 + axis, i]
-            t2 = th * th
-            A, B, C, _, _ = _series(t2)
-            Xn, _ = _se3_node_rotation(th * e0, th * e1, th * e2, tau, A, B, C,
-                                       (x[0, i], x[1, i], x[2, i], x[3, i], x[4, i], x[5, i]),
-                                       (dn[0, i], dn[1, i], dn[2, i], dn[3, i], dn[4, i], dn[5, i]),
-                                       (s[0, i], s[1, i], s[2, i], s[3, i], s[4, i], s[5, i]))
-            xo[0, i] = Xn[0]
-            xo[1, i] = Xn[1]
-            xo[2, i] = Xn[2]
-            xo[3, i] = Xn[3]
-            xo[4, i] = Xn[4]
-            xo[5, i] = Xn[5]
-            nbad += t2 >= SMALL_THETA2
         for i in range(n):
             th = tau * nv[3 + axis, i]
             A, B, C, _, _ = _series(th * th)
-            _, Sn = _se3_node_rotation(th * e0, th * e1, th * e2, tau, A, B, C,
-                                       (x[0, i], x[1, i], x[2, i], x[3, i], x[4, i], x[5, i]),
-                                       (dn[0, i], dn[1, i], dn[2, i], dn[3, i], dn[4, i], dn[5, i]),
-                                       (s[0, i], s[1, i], s[2, i], s[3, i], s[4, i], s[5, i]))
-            so[0, i] = Sn[0]
-            so[1, i] = Sn[1]
-            so[2, i] = Sn[2]
-            so[3, i] = Sn[3]
-            so[4, i] = Sn[4]
-            so[5, i] = Sn[5]
+            Xn, _ = _rotation_node(th, axis, tau, A, B, C, _col6(x, i), _col6(dn, i), _col6(s, i))
+            _put6(xo, i, Xn)
+            nbad += th * th >= SMALL_THETA2
+        for i in range(n):
+            th = tau * nv[3 + axis, i]
+            A, B, C, _, _ = _series(th * th)
+            _, Sn = _rotation_node(th, axis, tau, A, B, C, _col6(x, i), _col6(dn, i), _col6(s, i))
+            _put6(so, i, Sn)
         if nbad:
             for i in range(n):
                 th = tau * nv[3 + axis, i]
                 if th * th < SMALL_THETA2:
                     continue
                 A, B, C, _, _ = _coeffs(th * th)
-                Xn, Sn = _se3_node_rotation(th * e0, th * e1, th * e2, tau, A, B, C,
-                                            (x[0, i], x[1, i], x[2, i], x[3, i], x[4, i], x[5, i]),
-                                            (dn[0, i], dn[1, i], dn[2, i], dn[3, i], dn[4, i], dn[5, i]),
-                                            (s[0, i], s[1, i], s[2, i], s[3, i], s[4, i], s[5, i]))
-                for k in range(6):
-                    xo[k, i] = Xn[k]
-                    so[k, i] = Sn[k]
-    for i in range(phi.shape[1]):
-        _, _, t, R, _ = _soa_node(i, x, s, f, nv, dn, tau, MODE_NONE)
-        for a in range(3):
-            f0, f1, f2 = phi[3 + 3 * a, i], phi[4 + 3 * a, i], phi[5 + 3 * a, i]
-            phi[a, i] = f0 * t[0] + f1 * t[1] + f2 * t[2] + phi[a, i]
-            phi[3 + 3 * a, i] = f0 * R[0] + f1 * R[3] + f2 * R[6]
-            phi[4 + 3 * a, i] = f0 * R[1] + f1 * R[4] + f2 * R[7]
-            phi[5 + 3 * a, i] = f0 * R[2] + f1 * R[5] + f2 * R[8]
+                Xn, Sn = _rotation_node(th, axis, tau, A, B, C, _col6(x, i), _col6(dn, i), _col6(s, i))
+                _put6(xo, i, Xn)
+                _put6(so, i, Sn)
+    _soa_frames(nv, tau, phi, phio, nbad == 0)
     return nbad
+
+
+@_inline
+def _dexp_inv_neg(sig, cinv, c, d, e, a):
+    """``dexp⁻¹(−σ) a`` for 6-tuples ``σ`` and ``a = (a_t; a_r)``: with ``ξ = −σ = (r; p)``,
+    ``dexp⁻¹(ξ) = [[J⁻¹, −J⁻¹QJ⁻¹], [0, J⁻¹]]``, ``J⁻¹u = u − ½p × u + c_inv p × (p × u)`` and
+    Barfoot–Furgale's ``Q = Q(r, p)`` (coefficients ``c, d, e``), it is
+    ``(J⁻¹(a_t − QJ⁻¹a_r); J⁻¹a_r)``."""
+    r0, r1, r2, p0, p1, p2 = -sig[0], -sig[1], -sig[2], -sig[3], -sig[4], -sig[5]
+    j = _V_apply(p0, p1, p2, -0.5, cinv, a[3], a[4], a[5])
+    q = _q_block(r0, r1, r2, p0, p1, p2, c, d, e, j[0], j[1], j[2])
+    o = _V_apply(p0, p1, p2, -0.5, cinv, a[0] - q[0], a[1] - q[1], a[2] - q[2])
+    return o[0], o[1], o[2], j[0], j[1], j[2]
+
+
+@_jit
+def _soa_dexp_inv(sig, nv, out):
+    """``out = dexp⁻¹(−σ) nv`` at every node, the slope ``σ̇ = dexp⁻¹_{−σ}N`` of an RKMK stage
+    (``_rkmk`` of :mod:`cartan.integrators.explicit`), ``σ = sig``: a vectorised pass with the
+    Taylor series of the coefficients, then the nodes with θ = |σ_ω| ≥ 0.1 recomputed with the
+    closed forms (``so3_dexp_inv_coeff``, ``se3_dexp_coeffs``).  Returns their number."""
+    n = sig.shape[1]
+    nbad = 0
+    for i in range(n):
+        sg = _col6(sig, i)
+        t2 = sg[3] * sg[3] + sg[4] * sg[4] + sg[5] * sg[5]
+        _put6(out, i, _dexp_inv_neg(sg, horner(t2, TAYLOR_CINV), horner(t2, TAYLOR_C), horner(t2, TAYLOR_D),
+                                    horner(t2, TAYLOR_E), _col6(nv, i)))
+        nbad += t2 >= SMALL_THETA2
+    if nbad:
+        for i in range(n):
+            sg = _col6(sig, i)
+            t2 = sg[3] * sg[3] + sg[4] * sg[4] + sg[5] * sg[5]
+            if t2 < SMALL_THETA2:
+                continue
+            _, c, d, e = _dexp_coeffs_direct(t2)
+            _put6(out, i, _dexp_inv_neg(sg, _cinv_direct(t2), c, d, e, _col6(nv, i)))
+    return nbad
+
+
+@_jit
+def _soa_lie_poisson(nv, s, f, out):
+    """``out = ad_NᵀS + W`` at every node (``Ṡ`` of the momentum balance): for ``N = (v; ω)``
+    and ``S = (F; M)``, ``ad_NᵀS = (F × ω; F × v + M × ω)``."""
+    for i in range(nv.shape[1]):
+        a = cross3(s[0, i], s[1, i], s[2, i], nv[3, i], nv[4, i], nv[5, i])
+        b = cross3(s[0, i], s[1, i], s[2, i], nv[0, i], nv[1, i], nv[2, i])
+        c = cross3(s[3, i], s[4, i], s[5, i], nv[3, i], nv[4, i], nv[5, i])
+        out[0, i] = a[0] + f[0, i]
+        out[1, i] = a[1] + f[1, i]
+        out[2, i] = a[2] + f[2, i]
+        out[3, i] = (b[0] + c[0]) + f[3, i]
+        out[4, i] = (b[1] + c[1]) + f[4, i]
+        out[5, i] = (b[2] + c[2]) + f[5, i]
 
 
 @_jit
@@ -1158,73 +1234,60 @@ def _from_soa(a, A):
 
 
 @_jit
-def _frames_to_soa(A, a):
-    """``a[:, i]`` ← rows 1–3 of the SE(3) element ``A[i]`` = (translation; rotation row-major)."""
-    for i in range(A.shape[0]):
+def _soa_state(S, X, Phi):
+    """Structure-of-arrays copies ``(s [6, n], x [6, n], phi [12, nf])`` of the state: one row
+    per component, one column per node; ``phi[:, i]`` = rows 1–3 of the SE(3) element
+    ``Phi[i]`` = (translation; rotation row-major)."""
+    n = S.shape[0]
+    s, x, phi = np.empty((6, n)), np.empty((6, n)), np.empty((12, Phi.shape[0]))
+    _to_soa(S, s)
+    _to_soa(X, x)
+    for i in range(Phi.shape[0]):
         for r in range(3):
-            a[r, i] = A[i, r + 1, 0]
+            phi[r, i] = Phi[i, r + 1, 0]
             for c in range(3):
-                a[3 + 3 * r + c, i] = A[i, r + 1, c + 1]
+                phi[3 + 3 * r + c, i] = Phi[i, r + 1, c + 1]
+    return s, x, phi
 
 
 @_jit
-def _frames_from_soa(a, A):
-    """Inverse of :func:`_frames_to_soa` (the first row of ``A[i]`` is left as it is)."""
-    for i in range(A.shape[0]):
+def _soa_store(s, x, phi, S, X, Phi):
+    """Inverse of :func:`_soa_state` (the first row of ``Phi[i]`` is left as it is)."""
+    _from_soa(s, S)
+    _from_soa(x, X)
+    for i in range(Phi.shape[0]):
         for r in range(3):
-            A[i, r + 1, 0] = a[r, i]
+            Phi[i, r + 1, 0] = phi[r, i]
             for c in range(3):
-                A[i, r + 1, c + 1] = a[3 + 3 * r + c, i]
+                Phi[i, r + 1, c + 1] = phi[3 + 3 * r + c, i]
 
 
 @_jit
-def _soa_velocity(P, s, nv):
-    """``nv = s/m`` on live components, zero on gauge components and at clamped nodes."""
-    mass = P[I_MASS]
+def _soa_scaled(P, a, out, div, mask):
+    """``out[k] = a[k]/div[k]`` on the live components ``k`` in ``mask``, zero on the others and
+    at clamped nodes: the velocity ``S/m`` (with ``mask`` a ``lie-verlet`` piece, its
+    components ``N[..., piece]`` only) or the overdamped velocity ``Γ⁻¹W``.  True when an
+    entry of ``out`` is not zero."""
     live = P[I_LIVE]
     clamped = P[I_CLAMPED]
-    n = s.shape[1]
-    for k in range(6):
-        if not live[k]:
-            for i in range(n):
-                nv[k, i] = 0.0
-            continue
-        m = mass[k]
-        for i in range(n):
-            nv[k, i] = s[k, i] / m
-    if P[I_CONSTRAINED]:
-        for i in range(n):
-            if clamped[i]:
-                for k in range(6):
-                    nv[k, i] = 0.0
-
-
-@_jit
-def _soa_piece_velocity(P, s, nv, mask):
-    """The velocity's components in ``mask`` (zero elsewhere, on gauge components and at
-    clamped nodes), as ``N[..., piece]`` of ``LieVerlet``; True when one of them is not zero."""
-    mass = P[I_MASS]
-    live = P[I_LIVE]
-    clamped = P[I_CLAMPED]
-    n = s.shape[1]
+    n = a.shape[1]
     for k in range(6):
         if not (mask[k] and live[k]):
             for i in range(n):
-                nv[k, i] = 0.0
+                out[k, i] = 0.0
             continue
-        m = mass[k]
+        d = div[k]
         for i in range(n):
-            nv[k, i] = s[k, i] / m
+            out[k, i] = a[k, i] / d
     if P[I_CONSTRAINED]:
         for i in range(n):
             if clamped[i]:
                 for k in range(6):
-                    nv[k, i] = 0.0
+                    out[k, i] = 0.0
     moving = 0
     for k in range(6):
-        if mask[k]:
-            for i in range(n):
-                moving += nv[k, i] != 0.0
+        for i in range(n):
+            moving += out[k, i] != 0.0
     return moving > 0
 
 
@@ -1322,40 +1385,50 @@ def _soa_unstable(kinetic_limit, s, w, inv):
 
 
 @_jit
+def _soa_end_step(P, s, x, phi, nv, dt, books, check, kinetic_limit, inv):
+    """:func:`_end_step` on the structure-of-arrays state: the powers at the final velocity
+    ``nv`` booked into ``books``, and the blow-up test of ``check`` (momentum, or a finite
+    configuration for integrators without momentum)."""
+    dissipated, external, p0d, p0e = books
+    p1d, p1e = _soa_powers(P, nv, phi)
+    dissipated, external = _book(dt, dissipated, external, p0d, p0e, p1d, p1e)
+    if check == CHECK_MOMENTUM:
+        stop = _soa_unstable(kinetic_limit, s, P[I_W], inv)
+    else:
+        stop = check == CHECK_CONFIGURATION and _soa_nonfinite(x, phi)
+    return (dissipated, external, p1d, p1e), stop
+
+
+@_jit
 def lie_euler_se3_loop(P, Dc, S, X, Phi, t, dt, nsteps, dissipated, external, check, kinetic_limit, inv):
     """:func:`lie_euler_loop` for SE(3) on structure-of-arrays copies of ``S``, ``X``, ``Phi``
     (copied back on return)."""
     n = S.shape[0]
-    s, so, x, xo = np.empty((6, n)), np.empty((6, n)), np.empty((6, n)), np.empty((6, n))
-    f, q, nv, dn = np.empty((6, n)), np.empty((6, n)), np.empty((6, n)), np.empty((6, n))
-    phi = np.empty((12, Phi.shape[0]))
+    s, x, phi = _soa_state(S, X, Phi)
+    phio = np.empty_like(phi)
+    so, xo, f, q = np.empty((6, n)), np.empty((6, n)), np.empty((6, n)), np.empty((6, n))
+    nv, dn = np.empty((6, n)), np.empty((6, n))
     rows = np.ones(6, dtype=np.bool_)
-    _to_soa(S, s)
-    _to_soa(X, x)
-    _frames_to_soa(Phi, phi)
-    wts = P[I_W]
-    _soa_velocity(P, s, nv)
-    p0d, p0e = _soa_powers(P, nv, phi)
+    mass = P[I_MASS]
+    _soa_scaled(P, s, nv, mass, rows)
+    books = (dissipated, external) + _soa_powers(P, nv, phi)
     done = 0
     for _ in range(nsteps):
         _soa_force(P, Dc, x, phi, nv, f, q, rows)
         _soa_deriv(Dc, nv, dn, rows)
-        _soa_nodes(x, s, f, nv, dn, dt, MODE_LIE_EULER, xo, so, phi)
+        _soa_nodes(x, s, f, nv, dn, dt, MODE_LIE_EULER, xo, so, phi, phio)
         x, xo = xo, x
         s, so = so, s
+        phi, phio = phio, phi
         _soa_constrain(P, s)
         t = t + dt
-        _soa_velocity(P, s, nv)
-        p1d, p1e = _soa_powers(P, nv, phi)
-        dissipated, external = _book(dt, dissipated, external, p0d, p0e, p1d, p1e)
-        p0d, p0e = p1d, p1e
+        _soa_scaled(P, s, nv, mass, rows)
+        books, stop = _soa_end_step(P, s, x, phi, nv, dt, books, check, kinetic_limit, inv)
         done += 1
-        if check == CHECK_MOMENTUM and _soa_unstable(kinetic_limit, s, wts, inv):
+        if stop:
             break
-    _from_soa(s, S)
-    _from_soa(x, X)
-    _frames_from_soa(phi, Phi)
-    return done, t, dissipated, external
+    _soa_store(s, x, phi, S, X, Phi)
+    return done, t, books[0], books[1]
 
 
 @_jit
@@ -1365,21 +1438,20 @@ def lie_verlet_se3_loop(P, Dc, S, X, Phi, W, have_force, velocity_free, seq_mask
     and ``W`` (copied back on return); the derivative of each free-flow piece's velocity is
     taken on that piece's components only (the others are zero)."""
     n = S.shape[0]
-    s, so, x, xo = np.empty((6, n)), np.empty((6, n)), np.empty((6, n)), np.empty((6, n))
-    f, q, nv, npc, dn = np.empty((6, n)), np.empty((6, n)), np.zeros((6, n)), np.empty((6, n)), np.empty((6, n))
-    phi = np.empty((12, Phi.shape[0]))
+    s, x, phi = _soa_state(S, X, Phi)
+    phio = np.empty_like(phi)
+    so, xo, f, q = np.empty((6, n)), np.empty((6, n)), np.empty((6, n)), np.empty((6, n))
+    npc, dn = np.empty((6, n)), np.empty((6, n))
+    nv = np.zeros((6, n))
     rows = np.ones(6, dtype=np.bool_)
-    _to_soa(S, s)
-    _to_soa(X, x)
+    mass = P[I_MASS]
     _to_soa(W, f)
-    _frames_to_soa(Phi, phi)
-    wts = P[I_W]
     need_N = P[I_HAS_DAMP] or P[I_HAS_POWER]
     nforce = 0
     half = 0.5 * dt
     if need_N:
-        _soa_velocity(P, s, nv)
-    p0d, p0e = _soa_powers(P, nv, phi)
+        _soa_scaled(P, s, nv, mass, rows)
+    books = (dissipated, external) + _soa_powers(P, nv, phi)
     done = 0
     for _ in range(nsteps):
         if not (have_force and velocity_free):
@@ -1388,19 +1460,20 @@ def lie_verlet_se3_loop(P, Dc, S, X, Phi, W, have_force, velocity_free, seq_mask
         _soa_kick(s, f, half)
         _soa_constrain(P, s)
         for p in range(seq_frac.shape[0]):
-            if not _soa_piece_velocity(P, s, npc, seq_mask[p]):
+            if not _soa_scaled(P, s, npc, mass, seq_mask[p]):
                 continue  # exp(0) = I: nothing moves
             _soa_deriv(Dc, npc, dn, seq_mask[p])
             tau = seq_frac[p] * dt
             if seq_kind[p, 0] == PIECE_GENERAL:
-                _soa_nodes(x, s, f, npc, dn, tau, MODE_COAD, xo, so, phi)
+                _soa_nodes(x, s, f, npc, dn, tau, MODE_COAD, xo, so, phi, phio)
             else:
-                _soa_piece(x, s, f, npc, dn, tau, seq_kind[p, 0], seq_kind[p, 1], xo, so, phi)
+                _soa_piece(x, s, f, npc, dn, tau, seq_kind[p, 0], seq_kind[p, 1], xo, so, phi, phio)
             x, xo = xo, x
             s, so = so, s
+            phi, phio = phio, phi
         _soa_constrain(P, s)
         if need_N:
-            _soa_velocity(P, s, nv)
+            _soa_scaled(P, s, nv, mass, rows)
         _soa_force(P, Dc, x, phi, nv, f, q, rows)
         nforce += 1
         have_force = True
@@ -1408,71 +1481,125 @@ def lie_verlet_se3_loop(P, Dc, S, X, Phi, W, have_force, velocity_free, seq_mask
         _soa_constrain(P, s)
         t = t + dt
         if need_N:
-            _soa_velocity(P, s, nv)
-        p1d, p1e = _soa_powers(P, nv, phi)
-        dissipated, external = _book(dt, dissipated, external, p0d, p0e, p1d, p1e)
-        p0d, p0e = p1d, p1e
+            _soa_scaled(P, s, nv, mass, rows)
+        books, stop = _soa_end_step(P, s, x, phi, nv, dt, books, check, kinetic_limit, inv)
         done += 1
-        if check == CHECK_MOMENTUM and _soa_unstable(kinetic_limit, s, wts, inv):
+        if stop:
             break
-    _from_soa(s, S)
-    _from_soa(x, X)
+    _soa_store(s, x, phi, S, X, Phi)
     _from_soa(f, W)
-    _frames_from_soa(phi, Phi)
-    return done, nforce, t, dissipated, external
+    return done, nforce, t, books[0], books[1]
 
 
 @_jit
-def overdamped_se3_loop(P, Dc, S, X, Phi, N, gam, t, dt, nsteps, dissipated, external):
+def overdamped_se3_loop(P, Dc, S, X, Phi, N, gam, t, dt, nsteps, dissipated, external, check, kinetic_limit, inv):
     """:func:`overdamped_loop` for SE(3) on structure-of-arrays copies of ``X``, ``Phi`` and
     ``N`` (copied back on return; ``S`` is zero)."""
     n = S.shape[0]
-    live = P[I_LIVE]
-    clamped = P[I_CLAMPED]
-    s, x, xo = np.zeros((6, n)), np.empty((6, n)), np.empty((6, n))
-    f, q, z, nv, dn = np.empty((6, n)), np.empty((6, n)), np.zeros((6, n)), np.empty((6, n)), np.empty((6, n))
-    phi = np.empty((12, Phi.shape[0]))
+    S[:] = 0.0
+    s, x, phi = _soa_state(S, X, Phi)
+    phio = np.empty_like(phi)
+    xo, f, q, nv, dn = np.empty((6, n)), np.empty((6, n)), np.empty((6, n)), np.empty((6, n)), np.empty((6, n))
+    z = np.zeros((6, n))
     rows = np.ones(6, dtype=np.bool_)
-    _to_soa(X, x)
     _to_soa(N, nv)
-    _frames_to_soa(Phi, phi)
-    p0d, p0e = _soa_powers(P, nv, phi)
+    books = (dissipated, external) + _soa_powers(P, nv, phi)
     done = 0
     for _ in range(nsteps):
         _soa_deriv(Dc, nv, dn, rows)
-        _soa_nodes(x, s, f, nv, dn, dt, MODE_NONE, xo, s, phi)
+        _soa_nodes(x, s, f, nv, dn, dt, MODE_NONE, xo, s, phi, phio)
         x, xo = xo, x
+        phi, phio = phio, phi
         t = t + dt
         _soa_force(P, Dc, x, phi, z, f, q, rows)
-        for k in range(6):
-            if not live[k]:
-                for i in range(n):
-                    nv[k, i] = 0.0
-                continue
-            g = gam[k]
-            for i in range(n):
-                nv[k, i] = f[k, i] / g
-        if P[I_CONSTRAINED]:
-            for i in range(n):
-                if clamped[i]:
-                    for k in range(6):
-                        nv[k, i] = 0.0
-        p1d, p1e = _soa_powers(P, nv, phi)
-        dissipated, external = _book(dt, dissipated, external, p0d, p0e, p1d, p1e)
-        p0d, p0e = p1d, p1e
+        _soa_scaled(P, f, nv, gam, rows)
+        books, stop = _soa_end_step(P, s, x, phi, nv, dt, books, check, kinetic_limit, inv)
         done += 1
-        if _soa_nonfinite(x, phi):
+        if stop:
             break
-    for i in range(n):
-        for k in range(6):
-            S[i, k] = 0.0
-    _from_soa(x, X)
+    _soa_store(s, x, phi, S, X, Phi)
     _from_soa(nv, N)
-    _frames_from_soa(phi, Phi)
-    return done, t, dissipated, external
+    return done, t, books[0], books[1]
 
 
-# ---------------------------------------------------------------------------- single operations (tests)
+@_jit
+def rkmk_se3_loop(P, Dc, S, X, Phi, N, gam, dynamics, A, b, t, dt, nsteps, dissipated, external, check,
+                  kinetic_limit, inv):
+    """:func:`rkmk_loop` for SE(3) on structure-of-arrays copies of ``S``, ``X``, ``Phi`` and
+    ``N`` (copied back on return): ``rkmk4`` (``dynamics``) or the overdamped flow of order 2.
+
+    Stage ``i``: ``σ_i = Δt Σ_j a_ij kσ_j`` (and ``S_i = S + Δt Σ_j a_ij kS_j``); unless
+    ``σ_i = 0``, the configuration drifted by ``σ_i`` with τ = 1 into the stage buffers (the
+    state is left as it is); ``N_i`` = velocity(``S_i``) (or ``Γ⁻¹W(N = 0)`` at the stage, the
+    current ``N`` at the first); ``kσ_i = dexp⁻¹_{−σ_i}N_i`` and ``kS_i = ad_{N_i}ᵀS_i + W_i``.
+    Then the state drifts by ``σ = Δt Σ_i b_i kσ_i`` and ``S += Δt Σ_i b_i kS_i``.  Every pass is
+    one of the vectorised node passes above.  Returns ``(steps done, t, dissipated, external)``.
+    """
+    n = S.shape[0]
+    ns = b.shape[0]
+    if not dynamics:
+        S[:] = 0.0
+    s, x, phi = _soa_state(S, X, Phi)
+    phio = np.empty_like(phi)
+    xo, xst, sst, nst, sig = np.empty((6, n)), np.empty((6, n)), np.empty((6, n)), np.empty((6, n)), np.empty((6, n))
+    f, q, nv, dn = np.empty((6, n)), np.empty((6, n)), np.empty((6, n)), np.empty((6, n))
+    z = np.zeros((6, n))
+    ksig, kS = np.empty((ns, 6, n)), np.empty((ns, 6, n))
+    phist = np.empty_like(phi)
+    rows = np.ones(6, dtype=np.bool_)
+    mass = P[I_MASS]
+    if dynamics:
+        _soa_scaled(P, s, nv, mass, rows)
+    else:
+        _to_soa(N, nv)
+    books = (dissipated, external) + _soa_powers(P, nv, phi)
+    done = 0
+    for _ in range(nsteps):
+        for st in range(ns):
+            moved = _increment(ksig, A[st], st, dt, sig)
+            if dynamics:
+                _increment(kS, A[st], st, dt, sst)
+                sst += s
+            xs, ps = x, phi
+            if moved:
+                _soa_deriv(Dc, sig, dn, rows)
+                _soa_nodes(x, s, f, sig, dn, 1.0, MODE_NONE, xst, s, phi, phist)
+                xs, ps = xst, phist
+            if dynamics:
+                _soa_scaled(P, sst, nst, mass, rows)
+                _soa_dexp_inv(sig, nst, ksig[st])
+                _soa_force(P, Dc, xs, ps, nst, f, q, rows)
+                _soa_lie_poisson(nst, sst, f, kS[st])
+            elif st == 0:
+                _soa_dexp_inv(sig, nv, ksig[st])
+            else:
+                _soa_force(P, Dc, xs, ps, z, f, q, rows)
+                _soa_scaled(P, f, nst, gam, rows)
+                _soa_dexp_inv(sig, nst, ksig[st])
+        _increment(ksig, b, ns, dt, sig)
+        _soa_deriv(Dc, sig, dn, rows)
+        _soa_nodes(x, s, f, sig, dn, 1.0, MODE_NONE, xo, s, phi, phio)
+        x, xo = xo, x
+        phi, phio = phio, phi
+        if dynamics:
+            _increment(kS, b, ns, dt, sst)
+            s += sst
+            _soa_constrain(P, s)
+            _soa_scaled(P, s, nv, mass, rows)
+        else:
+            _soa_force(P, Dc, x, phi, z, f, q, rows)
+            _soa_scaled(P, f, nv, gam, rows)
+        t = t + dt
+        books, stop = _soa_end_step(P, s, x, phi, nv, dt, books, check, kinetic_limit, inv)
+        done += 1
+        if stop:
+            break
+    _soa_store(s, x, phi, S, X, Phi)
+    _from_soa(nv, N)
+    return done, t, books[0], books[1]
+
+
+# ---------------------------------------------------------------------------- single operations (tests, CFL estimate)
 @_jit
 def force_once(P, Dc, X, Phi, N, W):
     """One force evaluation ``W`` at ``(X, Phi, N)`` (compared with ``Collocation.force``)."""
@@ -1491,6 +1618,28 @@ def drift_once(P, Dc, X, Phi, N, tau, exact):
         _drift(P, Dc, X, Phi, Z, Z, N, tau, np.empty((n, r)), np.empty((n, m, m)), scr, MODE_NONE)
     else:
         _naive_drift(P, Dc, X, Phi, N, tau, np.empty((n, r)), np.empty((n, m, m)), scr)
+
+
+@_jit
+def stiffness_once(P, Dc, X, Phi, v, eps, K):
+    """One product ``K = −[W(Φ exp(εv)) − W(Φ exp(−εv))]/(2ε)`` of the stiffness with ``v``
+    ``[n, r]`` (``Scheme.stiffness_probe``): W the force at N = 0 after an exact drift of a
+    copy of ``(X [n, r], Phi [nf, m, m])`` by ``±εv`` (left as they are)."""
+    n, r = X.shape
+    m = Phi.shape[1]
+    W, Q, DN, D, scr = _work(n, r, m)
+    Z = np.zeros((n, r))
+    Wm = np.empty((n, r))
+    Xs = np.empty_like(X)
+    Phis = np.empty_like(Phi)
+    for tau, Ws in ((eps, W), (-eps, Wm)):
+        Xs[:] = X
+        Phis[:] = Phi
+        _drift(P, Dc, Xs, Phis, Z, Z, v, tau, DN, D, scr, MODE_NONE)
+        _force(P, Dc, Xs, Phis, Z, Ws, Q, scr)
+    for i in range(n):
+        for k in range(r):
+            K[i, k] = -(W[i, k] - Wm[i, k]) / (2.0 * eps)
 
 
 @_jit
@@ -1747,14 +1896,13 @@ def advance(scheme, plan: tuple, integrator, state, dt: float, nsteps: int, kine
             N = np.array(ocache[1], dtype=float, order="C") if hit else np.empty_like(S)
             if not hit:
                 overdamped_velocity(P, Dc, X, Phi3, N, gam)
-        if order == 1 and se3:
-            done, t, diss, ext = overdamped_se3_loop(P, Dc, S, X, Phi3, N, gam, t0, dt, nsteps, diss, ext)
-        elif order == 1:
-            done, t, diss, ext = overdamped_loop(P, Dc, S, X, Phi3, N, gam, t0, dt, nsteps, diss, ext, check,
-                                                 limit, inv)
+        if order == 1:
+            loop = overdamped_se3_loop if se3 else overdamped_loop
+            done, t, diss, ext = loop(P, Dc, S, X, Phi3, N, gam, t0, dt, nsteps, diss, ext, check, limit, inv)
         else:
             A, b, _ = _TABLEAUX[order]
-            done, t, diss, ext = rkmk_loop(
+            loop = rkmk_se3_loop if se3 else rkmk_loop
+            done, t, diss, ext = loop(
                 P, Dc, S, X, Phi3, N, np.ones(r) if gam is None else gam, dynamics,
                 np.ascontiguousarray(A, dtype=float), np.ascontiguousarray(b, dtype=float),
                 t0, dt, nsteps, diss, ext, check, limit, inv)

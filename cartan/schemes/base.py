@@ -309,17 +309,19 @@ class Scheme(abc.ABC):
         -------
         callable
             ``probe(v)`` for v ``[*shape, r]`` → K v ``[*shape, r]`` (a new array).  When
-            :attr:`compiled_diagnostics` is set and the lattice scheme has a compiled plan for
-            the problem (``docs/performance.md``), the forces and drifts are evaluated by its
-            compiled kernels (the same formulas; round-off apart), otherwise by
-            :meth:`drift` and :meth:`force`.
+            :attr:`compiled_diagnostics` is set and the lattice or collocation scheme has a
+            compiled plan for the problem (``docs/performance.md``, ``docs/schemes.md``), the
+            forces and drifts are evaluated by its compiled kernels (the same formulas;
+            round-off apart), otherwise by :meth:`drift` and :meth:`force`.
         """
         if self.compiled_diagnostics:
-            from ._lattice_diagnostics import compiled_stiffness_probe
+            from ._collocation_diagnostics import compiled_stiffness_probe as collocation_probe
+            from ._lattice_diagnostics import compiled_stiffness_probe as lattice_probe
 
-            probe = compiled_stiffness_probe(self, state, eps)
-            if probe is not None:
-                return probe
+            for compiled_probe in (lattice_probe, collocation_probe):
+                probe = compiled_probe(self, state, eps)
+                if probe is not None:
+                    return probe
         zero = np.zeros((*self.grid.shape, self.group.dim))
 
         def probe(v: np.ndarray) -> np.ndarray:
@@ -343,7 +345,7 @@ class Scheme(abc.ABC):
         quotients agree to 1e-3; typical rods stop after 17 or 18 products at any n, and the
         estimate lies within 1 % above the exact 1/ω_max (the Rayleigh quotient approaches
         λ_max from below).  Each product is one call of :meth:`stiffness_probe` (two force
-        evaluations), compiled for lattice problems with a compiled plan.
+        evaluations), compiled for lattice and collocation problems with a compiled plan.
 
         Parameters
         ----------

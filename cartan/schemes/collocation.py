@@ -50,7 +50,9 @@ Compiled loops
     ``fd2``, ``fd4`` or ``fourier`` (up to 512 nodes) when the medium's potential is quadratic
     and the loads are data (damping, body-frame uniform force, constant-field potentials, end
     loads, clamps); everything else stays on this module's numpy path, the reference the
-    compiled loops are tested against (``docs/schemes.md``).
+    compiled loops are tested against (``docs/schemes.md``).  The CFL estimate
+    (:meth:`~cartan.schemes.base.Scheme.dt_max`) of those problems takes its stiffness products
+    from the same kernels (:mod:`cartan.schemes._collocation_diagnostics`).
 
 What is exact and what is not
     Unlike the ``lattice`` scheme, the stored strains are independent unknowns: temporal
@@ -384,21 +386,25 @@ class Collocation(Scheme):
             X = np.zeros((*P.shape[:-2], g.dim))
             (off, c), boundary = D.rows()
             n = D.n
-            terms = []  # (target rows, coefficient, source rows i, source rows i + o)
+            # every stencil term as a pair (node i, node i + o, coefficient): one compose and
+            # one log for all of them, summed into node i in the order of the terms (the
+            # interior stencil's terms, then the closure rows')
+            nodes = np.arange(n)
             if D.periodic:
-                for o, ck in zip(off, c, strict=True):
-                    terms.append((slice(None), ck, slice(None), np.roll(np.arange(n), -o)))
+                target = np.tile(nodes, len(off))
+                source = np.concatenate([np.roll(nodes, -o) for o in off])
+                coef = np.repeat(c, n)
             else:
                 b = D.halfwidth
-                for o, ck in zip(off, c, strict=True):
-                    terms.append((slice(b, n - b), ck, slice(b, n - b), slice(b + o, n - b + o)))
-                for i, o_row, c_row in boundary:
-                    terms.extend((i, ck, i, i + o) for o, ck in zip(o_row, c_row, strict=True) if o != 0)
-            for target, ck, i_sl, j_sl in terms:
-                xi = g.log(g.compose(Pi[i_sl], P[j_sl]))
-                X[target] += ck * xi
-                if check and xi.size:
-                    worst = max(worst, float(np.max(g.log_domain_norm(xi))))
+                inner = nodes[b:n - b]
+                terms = [(inner, inner + o, np.full(inner.size, ck)) for o, ck in zip(off, c, strict=True)]
+                terms += [(np.array([i]), np.array([i + o]), np.array([ck])) for i, o_row, c_row in boundary
+                          for o, ck in zip(o_row, c_row, strict=True) if o != 0]
+                target, source, coef = (np.concatenate(parts) for parts in zip(*terms, strict=True))
+            xi = g.log(g.compose(Pi[target], P[source]))
+            np.add.at(X, target, coef.reshape(-1, *(1,) * (xi.ndim - 1)) * xi)
+            if check and xi.size:
+                worst = max(worst, float(np.max(g.log_domain_norm(xi))))
             out[..., axis, :] = np.moveaxis(X, 0, axis)
         if check and worst > 0.9 * g.injectivity_radius:
             raise ValueError(
