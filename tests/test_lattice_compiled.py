@@ -336,6 +336,73 @@ def test_lie_verlet_se3_results_do_not_depend_on_the_blocks(kind, monkeypatch):
         assert np.array_equal(first.S, other.S) and first.scalars == other.scalars
 
 
+def _free_of_velocity(n: int) -> Problem:
+    """A clamped rod bent into an arc under gravity, a body-frame force and a dead end load:
+    no velocity-dependent force, so the serial loop steps it in blocks of steps."""
+    rod = _rod(False)
+    grid = Grid(n, length=1.0)
+    init = rod.initial_state(grid, "arc", curvature=2.0, velocity=np.linspace(0.1, 0.3, 6))
+    loads = [rod.make_load("gravity", g=[0.0, -9.81, 0.0]), UniformForce(np.linspace(-0.2, 0.3, 6))]
+    return Problem(rod, grid, init, {"start": Clamped(), "end": Free(load=np.linspace(0.5, 1.0, 6), follower=False)},
+                   loads)
+
+
+def _serial_blocks(monkeypatch, blocks: int) -> None:
+    """Make ``compiled_advance`` run the serial build of the vectorised loop with ``blocks``
+    blocks of chunks (one block: steps in blocks of TIME_BLOCK; more: one step at a time)."""
+    monkeypatch.setitem(lc.soa.THREADED, "lie_verlet_se3_loop", lc.soa.lie_verlet_se3_loop)
+    monkeypatch.setattr(lc, "numba_threads", lambda k: contextlib.nullcontext())
+    monkeypatch.setattr(lc, "loop_threads", lambda nodes: blocks)
+
+
+def test_blocked_steps_agree_with_single_steps(monkeypatch):
+    """Steps advanced together chunk by chunk (an open rod, velocity-free loads, one block of
+    chunks: 8 + 3 steps) give the states of single pipelined steps bit for bit, and the
+    Python path's to round-off."""
+    problem = _free_of_velocity(3073)
+    dt = 1e-3 * 11.0 / 3073
+    _, (ref, ri), (fast, fi) = run_both(problem, LieVerlet, dt, 11)
+    assert_close_states(fast, ref)
+    assert (fi.nstep, fi.nforce) == (ri.nstep, ri.nforce)
+    _serial_blocks(monkeypatch, 2)
+    scheme = Lattice(problem)
+    single = scheme.initial_state()
+    single.scalars.setdefault("nstep", 0)
+    assert scheme.compiled_advance(LieVerlet(), single, dt, 11)
+    assert all(np.array_equal(fast.arrays[k], single.arrays[k]) for k in fast.arrays)
+    assert np.array_equal(fast.S, single.S) and fast.scalars == single.scalars
+
+
+@pytest.mark.parametrize("fail_at", [3, 8])
+def test_blocked_steps_stop_at_the_failing_step(fail_at, monkeypatch):
+    """A kinetic-energy limit crossed inside a block of steps: the loop returns the state after
+    the failing step (the block is replayed from its start), as single steps do."""
+    problem = _free_of_velocity(2100)
+    dt = 1e-3 * 11.0 / 2100
+    scheme = Lattice(problem)
+    start = scheme.initial_state()
+    start.scalars.setdefault("nstep", 0)
+    energies = []
+    state = start.copy()
+    integ = LieVerlet()
+    for _ in range(9):
+        integ.step(scheme, state, dt)
+        energies.append(scheme.kinetic_energy(state))
+    assert np.all(np.diff(energies) > 0)  # the rod falls: the limit is crossed once
+    limit = 0.5 * (energies[fail_at - 2] + energies[fail_at - 1])
+    results = []
+    for blocks in (1, 2):
+        _serial_blocks(monkeypatch, blocks)
+        state = start.copy()
+        integ = LieVerlet()
+        assert scheme.compiled_advance(integ, state, dt, 12, kinetic_limit=limit)
+        results.append((state, integ))
+    (a, ai), (b, bi) = results
+    assert a.scalars["nstep"] == fail_at == b.scalars["nstep"] and ai.nforce == bi.nforce
+    assert all(np.array_equal(a.arrays[k], b.arrays[k]) for k in a.arrays)
+    assert np.array_equal(a.S, b.S) and a.scalars == b.scalars
+
+
 @pytest.mark.skipif(_threads.max_threads() < 2, reason="numba has a single thread here (NUMBA_NUM_THREADS = 1)")
 def test_overdamped_se3_threaded_build_equals_the_serial_one(monkeypatch):
     """The threaded build of the vectorised overdamped loop (two blocks of edge chunks) gives

@@ -106,6 +106,11 @@ __all__ = ["THREADED", "lie_verlet_se3_loop", "overdamped_se3_loop", "workspace"
 CHECK_MOMENTUM = 1
 CHECK_CONFIGURATION = 2
 
+#: steps advanced together, chunk by chunk, by the serial loop on open rods
+#: (:func:`_soa_steps_blocked`): the work set is ``TIME_BLOCK + 1`` chunks (≈ 6 MB, in the
+#: L3 cache), so each row of the state comes from memory once per block of steps
+TIME_BLOCK = 8
+
 
 # ---------------------------------------------------------------------------- edges
 @_jit
@@ -756,6 +761,44 @@ def _soa_step(P, s, w, half, D, phi, fac, kinds, axes, velocity, Nv, g, OUT, INC
 
 
 @_jit
+def _soa_steps_blocked(P, s, w, half, D, phi, fac, kinds, axes, velocity, Nv, g, OUT, INC, inv, need_kin, PARTT, T,
+                       scratch):
+    """``T`` ``lie-verlet`` steps of an open rod (serial; the force of the current state known),
+    the partial sums of step ``j`` into ``PARTT[j]``.
+
+    The pipeline of :func:`_soa_step` (at position ``p``: the nodes of chunk ``p``, the edges
+    and the closing of chunk ``p − 1``) run for the ``T`` steps at once, step ``j`` one
+    position behind step ``j − 1``: the closing of chunk ``p`` in step ``j − 1`` (position
+    ``p + 1``) comes just before the nodes of chunk ``p`` in step ``j`` (position ``p``), in
+    the same sweep.  Every chunk does the arithmetic of the one-step pipeline, so the states
+    and the sums are bitwise those of ``T`` calls of :func:`_soa_step`; the sweep keeps
+    ``T + 1`` chunks in the cache instead of streaming the whole rod ``T`` times.  (A ring
+    cannot: its first chunk closes with its last one.)"""
+    nch = (s.shape[1] + CHUNK - 1) // CHUNK
+    nche = (g.shape[1] + CHUNK - 1) // CHUNK
+    XI, QS, bad = scratch[0][0], scratch[1][0], scratch[2][0]
+    for c in range(nch + T):
+        for j in range(T):
+            p = c - j
+            if p < 0 or p > nch:
+                continue
+            if p < nch:
+                _drift_chunk(P, s, w, half, D, phi, fac, kinds, axes, velocity, Nv, p)
+            if p >= 1:
+                if p - 1 < nche:
+                    _edges_chunk(P, g, D, True, OUT, INC, p - 1, XI, QS, bad)
+                _close_chunk(P, OUT, INC, phi, s, Nv, w, half, True, velocity, inv, need_kin, PARTT[j], p - 1)
+
+
+@_jit
+def _copy_rows(src, dst):
+    """``dst[...] = src`` for 2-D arrays of the same shape."""
+    for k in range(src.shape[0]):
+        for i in range(src.shape[1]):
+            dst[k, i] = src[k, i]
+
+
+@_jit
 def _soa_powers(P, Nv, phi, PART):
     """(dissipated, external) power at velocity ``Nv`` (``Scheme.powers``), by chunks."""
     if not P[I_HAS_POWER]:
@@ -798,7 +841,10 @@ def workspace(n: int, ne: int, nf: int, nblocks: int) -> tuple:
     """Work arrays of the structure-of-arrays loops for ``n`` nodes, ``ne`` edges and ``nf``
     frames, in the order the loops unpack them: ``(s [6, n], w [6, n], g [12, ne],
     phi [12, nf], D [12, n], N [6, n], OUT [6, ne], INC [6, ne], (XI [nblocks, 7, CHUNK],
-    QS [nblocks, 6, CHUNK], bad [nblocks, CHUNK]), PART [chunks, 4])``.
+    QS [nblocks, 6, CHUNK], bad [nblocks, CHUNK]), PART [chunks, 4], PARTT [TIME_BLOCK,
+    chunks, 4], snapshot (s, w, g, phi, N))`` — the snapshot of the state that a block of
+    steps starts from (:func:`lie_verlet_se3_loop`) is empty unless ``nblocks = 1`` and the
+    rod is open.
 
     The float arrays are views of one numpy buffer (rows aligned to 64 bytes), which numpy
     backs with transparent huge pages where the kernel offers them (``madvise``, buffers of
@@ -807,8 +853,11 @@ def workspace(n: int, ne: int, nf: int, nblocks: int) -> tuple:
     :mod:`cartan.schemes._lattice_compiled`), so that a run touches its pages once.
     """
     nch = (n + CHUNK - 1) // CHUNK
+    snap = nblocks == 1 and ne < n  # the serial loop on an open rod steps in blocks (snapshots)
+    m, me, mf = (n, ne, nf) if snap else (0, 0, 0)
     shapes = [(6, n), (6, n), (12, ne), (12, nf), (12, n), (6, n), (6, ne), (6, ne),
-              (nblocks, 7, CHUNK), (nblocks, 6, CHUNK), (nch, 4)]
+              (nblocks, 7, CHUNK), (nblocks, 6, CHUNK), (nch, 4), (TIME_BLOCK, nch, 4),
+              (6, m), (6, m), (12, me), (12, mf), (6, m)]
     sizes = [-(-int(np.prod(sh)) // 8) * 8 for sh in shapes]
     buf = np.zeros(sum(sizes))
     views = []
@@ -816,8 +865,9 @@ def workspace(n: int, ne: int, nf: int, nblocks: int) -> tuple:
     for sh, size in zip(shapes, sizes, strict=True):
         views.append(buf[at:at + int(np.prod(sh))].reshape(sh))
         at += size
-    s, w, g, phi, D, N, OUT, INC, XI, QS, PART = views
-    return s, w, g, phi, D, N, OUT, INC, (XI, QS, np.zeros((nblocks, CHUNK), dtype=np.int64)), PART
+    s, w, g, phi, D, N, OUT, INC, XI, QS, PART, PARTT = views[:12]
+    return (s, w, g, phi, D, N, OUT, INC, (XI, QS, np.zeros((nblocks, CHUNK), dtype=np.int64)), PART, PARTT,
+            tuple(views[12:]))
 
 
 @_jit
@@ -847,7 +897,7 @@ def lie_verlet_se3_loop(P, S, G, Phi, W, have_force, velocity_free, fac, kinds, 
     ``W`` (copied back on return).  Arguments and result as
     :func:`cartan.schemes._lattice_compiled.lie_verlet_loop`."""
     n = S.shape[0]
-    s, w, g, phi, D, Nv, OUT, INC, scratch, PART = work
+    s, w, g, phi, D, Nv, OUT, INC, scratch, PART, PARTT, snap = work
     Nv[:] = 0.0
     for i in range(n):
         for k in range(6):
@@ -859,26 +909,51 @@ def lie_verlet_se3_loop(P, S, G, Phi, W, have_force, velocity_free, fac, kinds, 
     need_kin = kinetic_limit < np.inf
     nforce = 0
     half = 0.5 * dt
+    nch = (n + CHUNK - 1) // CHUNK
+    # blocks of steps: serial, an open rod of two chunks or more, a force that the step's
+    # closing kick leaves for the next (velocity-free)
+    blocked = velocity_free and nblocks == 1 and G.shape[0] < n and nch >= 2 and snap[0].shape[1] == n
     if need_N:
         _soa_velocity(P[I_MASS], P[I_LIVE], P[I_CLAMPED], P[I_CONSTRAINED], s, Nv, 0, n)
     p0d, p0e = _soa_powers(P, Nv, phi, PART)
     done = 0
-    for _ in range(nsteps):
+    while done < nsteps:
         if not (have_force and velocity_free):
             _soa_edges(P, g, D, False, OUT, INC, nblocks, scratch)
             _soa_close(P, OUT, INC, phi, s, Nv, w, half, False, False, inv, False, PART)
             nforce += 1
-        p1d, p1e, tot, kin = _soa_step(P, s, w, half, D, phi, fac, kinds, axes, need_N, Nv, g, OUT, INC, inv,
-                                       need_kin, PART, nblocks, scratch)
-        nforce += 1
-        have_force = True
-        t = t + dt
-        dissipated = dissipated + 0.5 * dt * (p0d + p1d)
-        external = external + 0.5 * dt * (p0e + p1e)
-        p0d, p0e = p1d, p1e
-        done += 1
-        if check == CHECK_MOMENTUM and (
-                not np.isfinite(tot) or (kinetic_limit < np.inf and not 0.5 * kin <= kinetic_limit)):
+            have_force = True
+        T = min(TIME_BLOCK, nsteps - done) if blocked else 1
+        if T > 1:
+            for a, b in ((s, snap[0]), (w, snap[1]), (g, snap[2]), (phi, snap[3]), (Nv, snap[4])):
+                _copy_rows(a, b)
+            _soa_steps_blocked(P, s, w, half, D, phi, fac, kinds, axes, need_N, Nv, g, OUT, INC, inv, need_kin,
+                               PARTT, T, scratch)
+        failed = False
+        for j in range(T):
+            if T > 1:
+                p1d, p1e, tot, kin = _sum_parts(PARTT[j], nch)
+            else:
+                p1d, p1e, tot, kin = _soa_step(P, s, w, half, D, phi, fac, kinds, axes, need_N, Nv, g, OUT, INC,
+                                               inv, need_kin, PART, nblocks, scratch)
+            nforce += 1
+            t = t + dt
+            dissipated = dissipated + 0.5 * dt * (p0d + p1d)
+            external = external + 0.5 * dt * (p0e + p1e)
+            p0d, p0e = p1d, p1e
+            done += 1
+            if check == CHECK_MOMENTUM and (
+                    not np.isfinite(tot) or (kinetic_limit < np.inf and not 0.5 * kin <= kinetic_limit)):
+                failed = True
+                if T > 1 and j < T - 1:
+                    # the block went on past the failing step: back to its start, then its first j + 1 steps
+                    for a, b in ((snap[0], s), (snap[1], w), (snap[2], g), (snap[3], phi), (snap[4], Nv)):
+                        _copy_rows(a, b)
+                    for _ in range(j + 1):
+                        _soa_step(P, s, w, half, D, phi, fac, kinds, axes, need_N, Nv, g, OUT, INC, inv, need_kin,
+                                  PART, nblocks, scratch)
+                break
+        if failed:
             break
     for i in range(n):
         for k in range(6):
@@ -898,7 +973,7 @@ def overdamped_se3_loop(P, S, G, Phi, N, gam, t, dt, nsteps, dissipated, externa
     ``N`` holds the velocity of the current state on entry.  Arguments and result as
     :func:`cartan.schemes._lattice_compiled.overdamped_loop` (no kinetic limit: S = 0)."""
     n = S.shape[0]
-    nv, w, g, phi, D, zero, OUT, INC, scratch, PART = work
+    nv, w, g, phi, D, zero, OUT, INC, scratch, PART = work[:10]
     zero[:] = 0.0
     for i in range(n):
         for k in range(6):
