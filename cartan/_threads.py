@@ -4,10 +4,12 @@ The compiled loops run serially by default.  With ``k > 1`` threads, set by the 
 variable ``CARTAN_THREADS=k`` or in-process by :func:`set_threads` (or the :func:`use_threads`
 context manager), a loop whose grid has at least :data:`MIN_NODES` nodes runs its passes over
 the nodes and edges as numba ``prange`` loops on ``k`` threads; smaller grids stay serial,
-where starting a parallel region would cost more than it saves.  Results do not depend on
-the number of threads: every pass works on fixed chunks of nodes or edges, and sums over
-the grid (powers, the kinetic energy of the blow-up test) add the chunks' partial sums in
-chunk order.
+where starting a parallel region would cost more than it saves (:func:`use_min_nodes` changes
+the threshold for a block of code; :func:`threaded_everywhere` lowers it to one node, which
+``cartan warm`` uses to compile the threaded builds on small problems).  Results do not
+depend on the number of threads: every pass works on fixed chunks of nodes or edges, and sums
+over the grid (powers, the kinetic energy of the blow-up test) add the chunks' partial sums
+in chunk order.
 
 The threads come from numba's threading layer (``NUMBA_THREADING_LAYER``: ``omp``, ``tbb``
 or ``workqueue``); ``k`` can be at most ``NUMBA_NUM_THREADS``, which numba fixes when it
@@ -33,6 +35,8 @@ ENV = "CARTAN_THREADS"
 #: chunks of nodes (4 per thread for 2 threads)
 MIN_NODES = 8192
 _override: int | None = None
+#: calls of :func:`loop_threads` in this process (see :func:`thread_queries`)
+_queries = 0
 
 
 def max_threads() -> int:
@@ -96,9 +100,66 @@ def use_threads(k: int) -> Iterator[None]:
 
 def loop_threads(nodes: int) -> int:
     """Threads for a loop over a grid of ``nodes`` nodes: :func:`get_threads` when it is more
-    than 1 and ``nodes ≥ MIN_NODES``, else 1."""
+    than 1 and ``nodes ≥ MIN_NODES``, else 1.  Every compiled loop that has a threaded build
+    asks here before it runs (counted by :func:`thread_queries`)."""
+    global _queries
+    _queries += 1
     k = get_threads()
     return k if k > 1 and nodes >= MIN_NODES else 1
+
+
+def thread_queries() -> int:
+    """How many times compiled loops have asked :func:`loop_threads` for their thread count in
+    this process: a workload that leaves it unchanged never reaches a loop with a threaded
+    build (``cartan warm`` runs only the others threaded)."""
+    return _queries
+
+
+@contextlib.contextmanager
+def use_min_nodes(n: int) -> Iterator[None]:
+    """Context manager: run its body with the node threshold :data:`MIN_NODES` set to ``n``
+    (restored afterwards, also on error).
+
+    The threshold is process-wide: other threads of the process see it too while the body
+    runs.
+
+    Raises
+    ------
+    ValueError
+        When ``n`` is not an integer ≥ 1.
+    """
+    global MIN_NODES
+    if isinstance(n, bool) or not isinstance(n, int) or n < 1:
+        raise ValueError(f"min_nodes must be an integer ≥ 1, got {n!r}")
+    previous = MIN_NODES
+    MIN_NODES = n
+    try:
+        yield
+    finally:
+        MIN_NODES = previous
+
+
+@contextlib.contextmanager
+def threaded_everywhere(k: int = 2) -> Iterator[None]:
+    """Context manager: the compiled loops of its body run their threaded builds with ``k``
+    threads on every grid, however small (:func:`use_threads` with the threshold lowered to one
+    node by :func:`use_min_nodes`).
+
+    Results are the same as with the serial builds (module docstring); what changes is only
+    which build runs.  ``cartan warm`` uses it to compile the threaded builds into numba's
+    cache from its small verification problems, so that a later threaded run loads them.
+
+    Raises
+    ------
+    ValueError
+        When ``k`` is not an integer in ``2..NUMBA_NUM_THREADS`` (one thread would run the
+        serial builds).
+    """
+    top = max_threads()
+    if isinstance(k, bool) or not isinstance(k, int) or not 2 <= k <= top:
+        raise ValueError(f"threads must be an integer in 2..{top} (NUMBA_NUM_THREADS = {top}), got {k!r}")
+    with use_threads(k), use_min_nodes(1):
+        yield
 
 
 def threaded_twins(namespace: dict[str, Any], names: Sequence[str]) -> dict[str, Any]:

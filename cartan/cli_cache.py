@@ -19,10 +19,23 @@ warmed too):
     and the frame output, on every group the media use; combinations a case does not
     support (e.g. ``overdamped`` without drag) are skipped.  A static case (``case.static``)
     is solved once by its own solver (``case.run``).
+``threads``
+    the threaded builds of the compiled loops (the ``prange`` twins of
+    :func:`cartan._threads.threaded_twins`, which a loop runs with ``CARTAN_THREADS`` > 1 on
+    grids of at least :data:`cartan._threads.MIN_NODES` nodes): a case runs again, on its
+    small grid, inside :func:`cartan._threads.threaded_everywhere` (two threads, the node
+    threshold lowered to one node), so that no large problem is needed.  With ``cases`` in
+    the same call, only the runs whose serial run reached a loop with a threaded build (one
+    that asked :func:`cartan._threads.loop_threads` for its thread count) run again;
+    alone, every dynamic case × integrator × scheme does.  These runs take one step (enough
+    for numba, which compiles a whole loop for its argument types at the first call), through
+    :func:`cartan.simulate` like a threaded run.  Skipped when numba has a single thread
+    (``NUMBA_NUM_THREADS = 1``: no run can use them); ``cartan warm --no-threads`` leaves them
+    out (a loop's threaded build then compiles on its first threaded run, about a minute).
 
-:func:`kernel_inventory` lists the cached kernels of the loaded cartan modules with their
-compiled signatures and cache hits and misses (after a warm process, a second one has no
-misses).  Bad input raises ``ValueError`` naming the parameter.
+:func:`kernel_inventory` lists the cached kernels of the loaded cartan modules (the threaded
+twins included) with their compiled signatures and cache hits and misses (after a warm
+process, a second one has no misses).  Bad input raises ``ValueError`` naming the parameter.
 """
 
 from __future__ import annotations
@@ -40,13 +53,19 @@ import numpy as np
 __all__ = ["KernelInfo", "WarmStep", "kernel_inventory", "register", "warm", "warm_cmd"]
 
 #: what :func:`warm` can compile
-PARTS = ("groups", "cases")
+PARTS = ("groups", "cases", "threads")
+#: threads of the ``threads`` workload (the compiled code does not depend on the count)
+WARM_THREADS = 2
 #: parameters of registered groups that need them (name → list of keyword sets)
 GROUP_PARAMETERS: dict[str, list[dict[str, Any]]] = {"SO": [{"n": 4}, {"n": 5}]}
 #: integrators that need options a generic case cannot supply
 SKIP_INTEGRATORS = ("kinematic",)
 #: steps per warm-up run (three steps reach every code path of the loops and the guard)
 WARM_STEPS = 3
+#: steps per threaded warm-up run: numba compiles a whole loop for its argument types at the
+#: first call, so one step compiles (or loads) it; each step opens parallel regions, which on
+#: a busy machine wait for a core
+WARM_THREADED_STEPS = 1
 
 
 @dataclass
@@ -56,7 +75,7 @@ class WarmStep:
     Attributes
     ----------
     part : str
-        ``"groups"`` or ``"cases"``.
+        ``"groups"``, ``"cases"`` or ``"threads"``.
     name : str
         What ran, e.g. ``"SE3"`` or ``"rod-axial-wave / lie-verlet / lattice"``.
     seconds : float
@@ -108,7 +127,9 @@ def kernel_inventory() -> list[KernelInfo]:
     -------
     list of KernelInfo
         One entry per kernel, in module order; kernels imported into another module are
-        listed once, under the module that defines them.
+        listed once, under the module that defines them.  Kernels kept in a module-level
+        dict (the threaded twins, ``THREADED``) are listed under their qualified name
+        (``<name>__threaded``).
     """
     from numba.core.caching import NullCache
     from numba.core.dispatcher import Dispatcher
@@ -116,10 +137,15 @@ def kernel_inventory() -> list[KernelInfo]:
     seen: set[int] = set()
     out = []
     for module in _cartan_modules():
+        found = []
         for name, obj in list(vars(module).items()):
-            if not isinstance(obj, Dispatcher) or id(obj) in seen:
-                continue
-            if getattr(obj.py_func, "__module__", None) != module.__name__:
+            if isinstance(obj, Dispatcher):
+                found.append((name, obj))
+            elif isinstance(obj, dict):
+                found.extend((kernel.py_func.__qualname__, kernel) for kernel in list(obj.values())
+                             if isinstance(kernel, Dispatcher))
+        for name, obj in found:
+            if id(obj) in seen or getattr(obj.py_func, "__module__", None) != module.__name__:
                 continue
             seen.add(id(obj))
             if isinstance(getattr(obj, "_cache", None), NullCache):
@@ -188,9 +214,15 @@ def _selection(kind: str, select: Sequence[str] | None, skip: Sequence[str] = ()
 
 
 def _case_runs(select: Sequence[str] | None, integrators: Sequence[str] | None = None,
-               schemes: Sequence[str] | None = None) -> Iterable[tuple[str, Callable[[], Any]]]:
-    """``(label, run)`` for every registered case × integrator × scheme (or the selected ones)."""
+               schemes: Sequence[str] | None = None, threaded: bool = False
+               ) -> Iterable[tuple[str, Callable[[], Any]]]:
+    """``(label, run)`` for every registered case × integrator × scheme (or the selected ones).
+
+    With ``threaded``, the dynamic cases only, for :data:`WARM_THREADED_STEPS` steps inside
+    :func:`cartan._threads.threaded_everywhere` (:data:`WARM_THREADS` threads on any grid).
+    """
     import cartan
+    from cartan._threads import threaded_everywhere
 
     cases = cartan.registry("cases")
     names = _selection("cases", select)
@@ -199,6 +231,8 @@ def _case_runs(select: Sequence[str] | None, integrators: Sequence[str] | None =
     for name in names:
         case = cases[name]() if isinstance(cases[name], type) else cases[name]
         level = min(getattr(case, "levels", (0,)) or (0,))
+        if getattr(case, "static", False) and threaded:  # no step loop
+            continue
         if getattr(case, "static", False):  # solved for equilibria by the case's own solver
             def solve(case=case, level=level):
                 case.run(*case.problem(level, "lattice"))
@@ -208,25 +242,36 @@ def _case_runs(select: Sequence[str] | None, integrators: Sequence[str] | None =
         for scheme in schemes:
             for integrator in integrators:
                 def run(case=case, level=level, scheme=scheme, integrator=integrator):
-                    problem, settings = case.problem(level, scheme)
-                    options = dict(settings.get("integrator_options") or {})
-                    if options and integrator != (getattr(case, "default_integrators", None) or ("",))[0]:
-                        options = {}
-                    # the case's Δt, or half the CFL estimate of this integrator when smaller
-                    sch = cartan.registry("schemes")[scheme](problem)
-                    integ = cartan.registry("integrators")[integrator](**options)
-                    dt = float(settings["dt"])
-                    with np.errstate(all="ignore"):
-                        cfl = float(integ.dt_max(sch, sch.initial_state()))
-                    if 0 < cfl < 2 * dt:
-                        dt = 0.5 * cfl
-                    with warnings.catch_warnings():
-                        warnings.simplefilter("ignore")
-                        cartan.simulate(problem, integrator=integrator, scheme=scheme, dt=dt,
-                                        t_end=WARM_STEPS * dt, save_every=1, progress=False,
-                                        integrator_options=options or None)
+                    if not threaded:
+                        _simulate_case(case, level, scheme, integrator, WARM_STEPS)
+                        return
+                    with threaded_everywhere(WARM_THREADS):
+                        _simulate_case(case, level, scheme, integrator, WARM_THREADED_STEPS)
 
                 yield f"{name} / {integrator} / {scheme}", run
+
+
+def _simulate_case(case: Any, level: int, scheme: str, integrator: str, steps: int) -> None:
+    """``steps`` steps of a verification case at ``level`` through :func:`cartan.simulate` (the
+    case's integrator options apply to its default integrator only)."""
+    import cartan
+
+    problem, settings = case.problem(level, scheme)
+    options = dict(settings.get("integrator_options") or {})
+    if options and integrator != (getattr(case, "default_integrators", None) or ("",))[0]:
+        options = {}
+    sch = cartan.registry("schemes")[scheme](problem)
+    integ = cartan.registry("integrators")[integrator](**options)
+    # the case's Δt, or half the CFL estimate of this integrator when smaller
+    dt = float(settings["dt"])
+    with np.errstate(all="ignore"):
+        cfl = float(integ.dt_max(sch, sch.initial_state()))
+    if 0 < cfl < 2 * dt:
+        dt = 0.5 * cfl
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        cartan.simulate(problem, integrator=integrator, scheme=scheme, dt=dt, t_end=steps * dt, save_every=1,
+                        progress=False, integrator_options=options or None)
 
 
 def warm(parts: Sequence[str] = PARTS, *, groups: Sequence[str] | None = None, cases: Sequence[str] | None = None,
@@ -236,15 +281,15 @@ def warm(parts: Sequence[str] = PARTS, *, groups: Sequence[str] | None = None, c
 
     Parameters
     ----------
-    parts : sequence of {"groups", "cases"}
-        The workloads to run (module docstring); default both.
+    parts : sequence of {"groups", "cases", "threads"}
+        The workloads to run (module docstring); default all three.
     groups : sequence of str, optional
         Registered group names to warm (default: all).
     cases : sequence of str, optional
         Registered verification cases to run (default: all).
     integrators, schemes : sequence of str, optional
-        Registered integrators and schemes the cases run with (default: all integrators but
-        ``kinematic``, all schemes).
+        Registered integrators and schemes the cases run with, serially and threaded
+        (default: all integrators but ``kinematic``, all schemes).
     log : callable, optional
         Called with one line per workload.
 
@@ -272,7 +317,7 @@ def warm(parts: Sequence[str] = PARTS, *, groups: Sequence[str] | None = None, c
         steps.append(step)
         if log is not None:
             extra = f" ({step.message})" if step.message else ""
-            log(f"{step.part:6s} {step.name:58s} {step.seconds:7.2f} s  {step.status}{extra}")
+            log(f"{step.part:7s} {step.name:58s} {step.seconds:7.2f} s  {step.status}{extra}")
 
     with cartan.use_backend("numba"):
         if "groups" in parts:
@@ -287,18 +332,44 @@ def warm(parts: Sequence[str] = PARTS, *, groups: Sequence[str] | None = None, c
                 except Exception as exc:  # noqa: BLE001 - report and carry on
                     record(WarmStep("groups", label, time.perf_counter() - t0, "failed",
                                     f"{type(exc).__name__}: {_first_line(exc)}"))
+        threaded: set[str] | None = None  # the runs that reached a loop with a threaded build
         if "cases" in parts:
-            for label, run in _case_runs(cases, integrators, schemes):
-                t0 = time.perf_counter()
-                try:
-                    run()
-                    record(WarmStep("cases", label, time.perf_counter() - t0))
-                except (ValueError, NotImplementedError) as exc:
-                    record(WarmStep("cases", label, time.perf_counter() - t0, "skipped", _first_line(exc)))
-                except Exception as exc:  # noqa: BLE001 - report and carry on
-                    record(WarmStep("cases", label, time.perf_counter() - t0, "failed",
-                                    f"{type(exc).__name__}: {_first_line(exc)}"))
+            threaded = _run_cases("cases", _case_runs(cases, integrators, schemes), record)
+        if "threads" in parts:
+            from cartan._threads import max_threads
+
+            if max_threads() < WARM_THREADS:
+                record(WarmStep("threads", "threaded builds", 0.0, "skipped",
+                                f"numba has {max_threads()} thread(s) here (NUMBA_NUM_THREADS): no run can use them"))
+            else:
+                runs = _case_runs(cases, integrators, schemes, threaded=True)
+                _run_cases("threads", (r for r in runs if threaded is None or r[0] in threaded), record)
     return steps
+
+
+def _run_cases(part: str, runs: Iterable[tuple[str, Callable[[], Any]]], record: Callable[[WarmStep], None]
+               ) -> set[str]:
+    """Run each ``(label, run)`` and record it: ``"skipped"`` for the ``ValueError`` or
+    ``NotImplementedError`` of a combination the case does not support, ``"failed"`` for any
+    other error (the other runs still run).  Returns the labels of the runs during which a
+    compiled loop asked for its thread count (:func:`cartan._threads.thread_queries`)."""
+    from cartan._threads import thread_queries
+
+    asked = set()
+    for label, run in runs:
+        t0 = time.perf_counter()
+        queries = thread_queries()
+        try:
+            run()
+            record(WarmStep(part, label, time.perf_counter() - t0))
+        except (ValueError, NotImplementedError) as exc:
+            record(WarmStep(part, label, time.perf_counter() - t0, "skipped", _first_line(exc)))
+        except Exception as exc:  # noqa: BLE001 - report and carry on
+            record(WarmStep(part, label, time.perf_counter() - t0, "failed",
+                            f"{type(exc).__name__}: {_first_line(exc)}"))
+        if thread_queries() != queries:
+            asked.add(label)
+    return asked
 
 
 def _first_line(exc: BaseException) -> str:
@@ -309,23 +380,30 @@ def _first_line(exc: BaseException) -> str:
 # ---------------------------------------------------------------------------- command
 @click.command("warm")
 @click.option("--part", "parts", multiple=True, type=click.Choice(PARTS),
-              help="Only these workloads (repeatable; default: groups and cases).")
+              help="Only these workloads (repeatable; default: groups, cases and threads).")
 @click.option("--group", "groups", multiple=True, help="Only these registered groups (repeatable).")
 @click.option("--case", "cases", multiple=True, help="Only these registered verification cases (repeatable).")
 @click.option("--integrator", "integrators", multiple=True, help="Run the cases with these integrators (repeatable).")
 @click.option("--scheme", "schemes", multiple=True, help="Run the cases on these schemes only (repeatable).")
+@click.option("--no-threads", is_flag=True,
+              help="Leave out the threaded builds (used with CARTAN_THREADS > 1; they then compile on first use).")
 @click.option("--strict", is_flag=True, help="Exit with status 1 when a workload fails.")
 @click.option("-v", "--verbose", is_flag=True, help="One line per workload and the kernel inventory.")
 def warm_cmd(parts: tuple[str, ...], groups: tuple[str, ...], cases: tuple[str, ...], integrators: tuple[str, ...],
-             schemes: tuple[str, ...], strict: bool, verbose: bool) -> None:
+             schemes: tuple[str, ...], no_threads: bool, strict: bool, verbose: bool) -> None:
     """Compile every numba kernel into the on-disk cache, so that no run compiles.
 
     Run once after installing (make install does); later runs load the machine code from
-    the cache.  A second cartan warm loads everything and takes seconds.
+    the cache.  A second cartan warm loads everything and takes seconds.  The threaded
+    builds of the step loops (CARTAN_THREADS > 1) are compiled too, on small problems,
+    unless --no-threads is given.
     """
     t0 = time.perf_counter()
+    selected = [p for p in (parts or PARTS) if not (no_threads and p == "threads")]
+    if not selected:
+        raise click.UsageError("--no-threads leaves no workload of the selected --part")
     try:
-        steps = warm(parts or PARTS, groups=groups or None, cases=cases or None, integrators=integrators or None,
+        steps = warm(selected, groups=groups or None, cases=cases or None, integrators=integrators or None,
                      schemes=schemes or None, log=click.echo if verbose else None)
     except ValueError as exc:
         raise click.UsageError(str(exc)) from None
