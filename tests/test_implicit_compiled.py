@@ -14,42 +14,19 @@ from __future__ import annotations
 import numpy as np
 import pytest
 from cartan_verification.stiff import stiff_rod
-from toys import QuadraticMedium
+from toys import QuadraticMedium, rod_problem
 
 import cartan
 from cartan import _backend
 from cartan.grid import Grid
 from cartan.integrators._implicit_compiled import LUSolve, stage_residual
 from cartan.integrators.implicit import ImplicitMidpoint
-from cartan.problem import Clamped, Damping, Free, InitialState, Problem, UniformForce
+from cartan.problem import Clamped, Damping, InitialState, Problem, UniformForce
 from cartan.schemes.collocation import Collocation
 from cartan.schemes.lattice import Lattice
 
 #: agreement of one residual evaluation: round-off of the compiled kernels (measured ≤ 3e-15)
 TOL = 1e-12
-
-
-def _rod(planar: bool):
-    rod = cartan.medium("cosserat-rod", stretch_shear=[100.0, 50.0, 50.0], bend_twist=[1.0, 2.0, 2.0], mass=1.0,
-                        rotational_inertia=[0.02, 0.01, 0.01])
-    return rod.planar() if planar else rod
-
-
-def _rod_problem(kind: str, planar: bool = False, n: int = 11) -> Problem:
-    """An arc, moving, with damping and gravity: clamped with a dead end load, clamped with a
-    follower end load and a body-frame force, or a ring."""
-    rod = _rod(planar)
-    r = rod.group.dim
-    grid = Grid(n, length=1.0, periodic=kind == "ring")
-    init = rod.initial_state(grid, "arc", curvature=2.0, velocity=np.linspace(0.1, 0.3, r))
-    loads = [Damping(np.linspace(0.1, 0.2, r)), rod.make_load("gravity", g=[0.0, -9.81, 0.0][: 2 if planar else 3])]
-    boundaries = {}
-    if kind == "dead":
-        boundaries = {"start": Clamped(), "end": Free(load=np.linspace(0.5, 1.0, r), follower=False)}
-    elif kind == "follower":
-        boundaries = {"start": Clamped(), "end": Free(load=np.linspace(0.5, 1.0, r), follower=True)}
-        loads.append(UniformForce(np.linspace(-0.2, 0.3, r)))
-    return Problem(rod, grid, init, boundaries, loads)
 
 
 class _Toy2(QuadraticMedium):
@@ -104,15 +81,15 @@ def _sigma_problem() -> Problem:
 
 #: scheme factories and a Δt (a few times the explicit limit of each problem)
 CASES = {
-    "lattice-SE3-dead": (lambda: Lattice(_rod_problem("dead")), 2e-2),
-    "lattice-SE3-follower": (lambda: Lattice(_rod_problem("follower")), 2e-2),
-    "lattice-SE2-ring": (lambda: Lattice(_rod_problem("ring", planar=True)), 2e-2),
+    "lattice-SE3-dead": (lambda: Lattice(rod_problem("dead")), 2e-2),
+    "lattice-SE3-follower": (lambda: Lattice(rod_problem("follower")), 2e-2),
+    "lattice-SE2-ring": (lambda: Lattice(rod_problem("ring", planar=True)), 2e-2),
     "lattice-SO3-sphere-rod": (lambda: Lattice(_sphere_problem()), 0.5),
     "lattice-SO2": (lambda: Lattice(_so2_problem()), 1.5e-2),
     "lattice-d2-SO3-sigma": (lambda: Lattice(_sigma_problem()), 2e-2),
     "lattice-d2-SE2": (lambda: Lattice(_toy2_problem("SE2")), 5e-2),
-    "collocation-SE3-dead": (lambda: Collocation(_rod_problem("dead")), 2.5e-2),
-    "collocation-SE2-follower": (lambda: Collocation(_rod_problem("follower", planar=True)), 2.5e-2),
+    "collocation-SE3-dead": (lambda: Collocation(rod_problem("dead")), 2.5e-2),
+    "collocation-SE2-follower": (lambda: Collocation(rod_problem("follower", planar=True)), 2.5e-2),
 }
 
 
@@ -251,7 +228,7 @@ def test_the_compiled_path_does_not_call_the_reference(monkeypatch):
 
 def test_without_a_compiled_plan_the_reference_runs():
     """A spatial (dead) uniform force is not among the loads of the compiled plans."""
-    base = _rod_problem("dead")
+    base = rod_problem("dead")
     problem = Problem(base.medium, base.grid, base.initial, {"start": Clamped()},
                       [UniformForce([0.0, -1.0, 0.0, 0.0, 0.0, 0.0], frame="spatial")])
     scheme = Lattice(problem)

@@ -20,7 +20,7 @@ import textwrap
 
 import numpy as np
 import pytest
-from toys import QuadraticMedium, arc_problem
+from toys import QuadraticMedium, arc_problem, moving_rod, rod_problem
 
 import cartan
 from cartan import _threads
@@ -45,31 +45,6 @@ INTEGRATORS = {
     "overdamped-1": (lambda: Overdamped(order=1), 2e-6, 40),
     "overdamped-2": (lambda: Overdamped(order=2), 2e-6, 30),
 }
-
-
-def _rod(planar: bool):
-    rod = cartan.medium(
-        "cosserat-rod", stretch_shear=[100.0, 50.0, 50.0], bend_twist=[1.0, 2.0, 2.0], mass=1.0,
-        rotational_inertia=[0.02, 0.01, 0.01],
-    )
-    return rod.planar() if planar else rod
-
-
-def rod_problem(kind: str, planar: bool = False, n: int = 11) -> Problem:
-    """Rods bent into an arc and moving: clamped with a dead end load, clamped with a follower
-    end load and a body-frame force, or a ring; damping and gravity on all of them."""
-    rod = _rod(planar)
-    r = rod.group.dim
-    grid = Grid(n, length=1.0, periodic=kind == "ring")
-    init = rod.initial_state(grid, "arc", curvature=2.0, velocity=np.linspace(0.1, 0.3, r))
-    loads = [Damping(np.linspace(0.1, 0.2, r)), rod.make_load("gravity", g=[0.0, -9.81, 0.0][: 2 if planar else 3])]
-    boundaries = {}
-    if kind == "dead":
-        boundaries = {"start": Clamped(), "end": Free(load=np.linspace(0.5, 1.0, r), follower=False)}
-    elif kind == "follower":
-        boundaries = {"start": Clamped(), "end": Free(load=np.linspace(0.5, 1.0, r), follower=True)}
-        loads.append(UniformForce(np.linspace(-0.2, 0.3, r)))
-    return Problem(rod, grid, init, boundaries, loads)
 
 
 def _rel(a, b) -> float:
@@ -134,7 +109,7 @@ def test_blocks_and_caches_match_the_step_loop(name):
 
 
 def test_velocity_free_lie_verlet_uses_one_force_per_step():
-    rod = _rod(False)
+    rod = moving_rod(False)
     grid = Grid(9)
     problem = Problem(rod, grid, rod.initial_state(grid, "arc", curvature=1.0, velocity=[0, 0.1, 0, 0, 0, 0.3]))
     _, (ref, ri), (fast, fi) = run_both(problem, LieVerlet, 1e-3, 50, blocks=(10, 40))
@@ -144,7 +119,7 @@ def test_velocity_free_lie_verlet_uses_one_force_per_step():
 
 def test_root_frame_only():
     """Follower loads need no frames: only the root frame is stepped, on both paths."""
-    rod = _rod(False)
+    rod = moving_rod(False)
     grid = Grid(9)
     init = rod.initial_state(grid, "arc", curvature=1.5, velocity=[0.1, 0.2, 0, 0.3, 0, 0.1])
     problem = Problem(rod, grid, init, {"start": Clamped(), "end": Free(load=[0, 0, 1.0, 0, 0.2, 0], follower=True)})
@@ -196,7 +171,7 @@ def test_se3_with_a_gauge_component():
 
 def test_fast_spin_uses_the_closed_forms():
     """Rotation angles per free-flow piece beyond the series' range (θ ≥ 0.1)."""
-    rod = _rod(False)
+    rod = moving_rod(False)
     grid = Grid(9)
     init = rod.initial_state(grid, "arc", curvature=0.5, velocity=[0.0, 0.0, 0.0, 400.0, 30.0, 0.0])
     _, (ref, _), (fast, _) = run_both(Problem(rod, grid, init), LieVerlet, 1e-3, 40)
@@ -268,7 +243,7 @@ def test_overdamped_se3_stops_after_the_first_non_finite_step(monkeypatch):
 def test_overdamped_se3_with_root_frame_only(monkeypatch):
     """Without frames to step beyond the root (follower loads only), on the vectorised loop."""
     calls = _spy(monkeypatch, "overdamped_se3_loop")
-    rod = _rod(False)
+    rod = moving_rod(False)
     grid = Grid(9)
     problem = Problem(rod, grid, rod.initial_state(grid, "arc", curvature=1.5),
                       {"start": Clamped(), "end": Free(load=[0, 0, 1.0, 0, 0.2, 0], follower=True)},
@@ -339,7 +314,7 @@ def test_lie_verlet_se3_results_do_not_depend_on_the_blocks(kind, monkeypatch):
 def _free_of_velocity(n: int) -> Problem:
     """A clamped rod bent into an arc under gravity, a body-frame force and a dead end load:
     no velocity-dependent force, so the serial loop steps it in blocks of steps."""
-    rod = _rod(False)
+    rod = moving_rod(False)
     grid = Grid(n, length=1.0)
     init = rod.initial_state(grid, "arc", curvature=2.0, velocity=np.linspace(0.1, 0.3, 6))
     loads = [rod.make_load("gravity", g=[0.0, -9.81, 0.0]), UniformForce(np.linspace(-0.2, 0.3, 6))]
@@ -491,7 +466,7 @@ def _declines(problem, integ, **scheme_options):
 
 
 def test_unsupported_combinations_decline():
-    rod = _rod(False)
+    rod = moving_rod(False)
     grid = Grid(9)
     init = rod.initial_state(grid, "arc", curvature=1.0)
     gravity = rod.make_load("gravity", g=[0, 0, -9.81])
@@ -515,7 +490,7 @@ def test_unsupported_combinations_decline():
 
 
 def test_fallback_runs_give_the_python_results():
-    rod = _rod(False)
+    rod = moving_rod(False)
     grid = Grid(9)
     problem = Problem(rod, grid, rod.initial_state(grid, "arc", curvature=1.0, velocity=[0, 0.1, 0, 0, 0, 0.2]),
                       loads=[UniformForce([0, 0, 0.5, 0, 0, 0], frame="spatial")])
@@ -611,7 +586,7 @@ def test_blow_up_is_named_at_the_same_step(tmp_path, save_every):
 
 # ---------------------------------------------------------------------------- field potentials
 def test_constant_field_potential_pulls_back_to_body_force():
-    rod = _rod(False)
+    rod = moving_rod(False)
     grid = Grid(7)
     init = rod.initial_state(grid, "arc", curvature=1.0)
     field = ConstantFieldPotential([0.0, -2.0, 1.0], density=3.0)

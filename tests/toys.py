@@ -8,7 +8,7 @@ import cartan
 from cartan.grid import Grid
 from cartan.medium import Medium as _Medium
 from cartan.medium import QuadraticMedium as _Quadratic
-from cartan.problem import Damping, InitialState, Problem, UniformForce
+from cartan.problem import Clamped, Damping, Free, InitialState, Problem, UniformForce
 
 
 class QuadraticMedium(_Quadratic):
@@ -110,3 +110,29 @@ def chain_problem(n=41, length=2.0, periodic=False, boundaries=None, loads=(), *
     grid = Grid(n, length, periodic=periodic)
     Phi = medium.group.exp(np.zeros((n, 1)))
     return Problem(medium, grid, InitialState(Phi=Phi), dict(boundaries or {}), list(loads))
+
+
+def moving_rod(planar: bool):
+    """A Cosserat rod (SE(3)) or its planar restriction (SE(2)) with unequal stiffnesses and inertias."""
+    rod = cartan.medium(
+        "cosserat-rod", stretch_shear=[100.0, 50.0, 50.0], bend_twist=[1.0, 2.0, 2.0], mass=1.0,
+        rotational_inertia=[0.02, 0.01, 0.01],
+    )
+    return rod.planar() if planar else rod
+
+
+def rod_problem(kind: str, planar: bool = False, n: int = 11) -> Problem:
+    """Rods bent into an arc and moving: clamped with a dead end load, clamped with a follower
+    end load and a body-frame force, or a ring; damping and gravity on all of them."""
+    rod = moving_rod(planar)
+    r = rod.group.dim
+    grid = Grid(n, length=1.0, periodic=kind == "ring")
+    init = rod.initial_state(grid, "arc", curvature=2.0, velocity=np.linspace(0.1, 0.3, r))
+    loads = [Damping(np.linspace(0.1, 0.2, r)), rod.make_load("gravity", g=[0.0, -9.81, 0.0][: 2 if planar else 3])]
+    boundaries = {}
+    if kind == "dead":
+        boundaries = {"start": Clamped(), "end": Free(load=np.linspace(0.5, 1.0, r), follower=False)}
+    elif kind == "follower":
+        boundaries = {"start": Clamped(), "end": Free(load=np.linspace(0.5, 1.0, r), follower=True)}
+        loads.append(UniformForce(np.linspace(-0.2, 0.3, r)))
+    return Problem(rod, grid, init, boundaries, loads)

@@ -11,7 +11,7 @@ is one numba call: the drift of a copy of the step's configuration to the midpoi
 drift and the force are the kernels of the compiled step loops of the scheme
 (:mod:`cartan.schemes._lattice_compiled` for the lattice, d = 1, 2, 3;
 :mod:`cartan.schemes._collocation_compiled` for collocation, d = 1) with the plan those loops
-use (``scheme._compiled_plan``), so the problems that qualify are the ones the compiled
+use (:meth:`~cartan.schemes.base.Scheme.compiled_plan`), so the problems that qualify are the ones the compiled
 loops run (``docs/performance.md``): SO(2), SE(2), SO(3), SE(3); a quadratic potential;
 damping, body-frame uniform forces, constant fields, end loads and clamps.  The loads of such
 plans do not depend on time, so the midpoint time ``t_k + Δt/2`` is not needed.
@@ -476,7 +476,7 @@ class StageResidual:
 def stage_residual(scheme: Any) -> StageResidual | None:
     """The compiled stage residual of ``scheme``, or None: the numpy backend, a scheme other
     than ``lattice`` and ``collocation``, a problem without a compiled plan (the plan of the
-    compiled step loops, built once and kept on the scheme as ``_compiled_plan``), or a medium
+    compiled step loops, :meth:`~cartan.schemes.base.Scheme.compiled_plan`), or a medium
     whose momentum is not the base ``m N``."""
     from ..medium import Medium
     from ..schemes.collocation import Collocation
@@ -492,11 +492,7 @@ def stage_residual(scheme: Any) -> StageResidual | None:
         kind, module = "collocation", "_collocation_compiled"
     else:
         return None
-    plan = scheme.__dict__.get("_compiled_plan", False)
-    if plan is False:
-        import importlib
-
-        plan = scheme._compiled_plan = importlib.import_module(f"cartan.schemes.{module}").build_plan(scheme)
+    plan = scheme.compiled_plan(module)
     if plan is None:
         return None
     return StageResidual(scheme, kind, plan)

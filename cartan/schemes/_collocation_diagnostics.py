@@ -24,7 +24,6 @@ from collections.abc import Callable
 
 import numpy as np
 
-from .._backend import get_backend
 from .base import State
 
 __all__ = ["collocation_plan", "compiled_stiffness_probe"]
@@ -43,14 +42,9 @@ def collocation_plan(scheme) -> tuple | None:
     """
     from .collocation import Collocation
 
-    if not isinstance(scheme, Collocation) or get_backend() != "numba":
+    if not isinstance(scheme, Collocation):
         return None
-    plan = scheme.__dict__.get("_compiled_plan", False)
-    if plan is False:
-        from ._collocation_compiled import build_plan
-
-        plan = scheme._compiled_plan = build_plan(scheme)
-    return plan
+    return scheme.compiled_plan("_collocation_compiled")
 
 
 def _arrays(scheme, state: State) -> tuple[np.ndarray, np.ndarray] | None:

@@ -252,6 +252,23 @@ def _chunk(c, n):
     return lo, min(lo + CHUNK, n)
 
 
+@_inline
+def so3_log_series(m00, m01, m02, m10, m11, m12, m20, m21, m22):
+    """The rotation vector of ``M`` from its trace quaternion ``(1 + tr M, vee(M − Mᵀ))`` by the
+    arctangent series (for the vectorised edge loops, branch-free): ``(w0, w1, w2, tr, x2, t2,
+    cinv)`` with ``x2`` the squared tangent ratio, ``t2 = |w|²`` and ``cinv`` the ``J⁻¹``
+    coefficient.  Valid (to round-off) for ``x2 < ATAN_SERIES_X2``, ``t2 < SMALL_THETA2`` and
+    a trace dominating the diagonal; the callers flag the other edges for the closed forms."""
+    tr = m00 + m11 + m22
+    qw = 1.0 + tr
+    qx, qy, qz = m21 - m12, m02 - m20, m10 - m01
+    x2 = (qx * qx + qy * qy + qz * qz) / (qw * qw)
+    f = (2.0 / qw) * horner(x2, ATAN_SERIES)
+    w0, w1, w2 = f * qx, f * qy, f * qz
+    t2 = w0 * w0 + w1 * w1 + w2 * w2
+    return w0, w1, w2, tr, x2, t2, horner(t2, TAYLOR_CINV)
+
+
 @_jit
 def _sum_parts(PART, nch):
     """The chunks' partial sums added in chunk order: ``(−Σ damping power, Σ external power,
@@ -614,14 +631,7 @@ def edges_so3(G, lo, hi, a, E1, E2, n1, n2, na, st, D, conj, force, X0, C, diag,
         m00, m01, m02 = G[e, 0, 0], G[e, 0, 1], G[e, 0, 2]
         m10, m11, m12 = G[e, 1, 0], G[e, 1, 1], G[e, 1, 2]
         m20, m21, m22 = G[e, 2, 0], G[e, 2, 1], G[e, 2, 2]
-        tr = m00 + m11 + m22
-        qw = 1.0 + tr
-        qx, qy, qz = m21 - m12, m02 - m20, m10 - m01
-        x2 = (qx * qx + qy * qy + qz * qz) / (qw * qw)
-        f = (2.0 / qw) * horner(x2, ATAN_SERIES)
-        w0, w1, w2 = f * qx, f * qy, f * qz
-        t2 = w0 * w0 + w1 * w1 + w2 * w2
-        cinv = horner(t2, TAYLOR_CINV)
+        w0, w1, w2, tr, x2, t2, cinv = so3_log_series(m00, m01, m02, m10, m11, m12, m20, m21, m22)
         d0, d1, d2 = w0 * hinv - x00, w1 * hinv - x01, w2 * hinv - x02
         q0 = scale * (c00 * d0 + c01 * d1 + c02 * d2)
         q1 = scale * (c10 * d0 + c11 * d1 + c12 * d2)

@@ -44,14 +44,12 @@ from numba import prange
 
 from .._threads import threaded_twins
 from ._lattice_compiled_kernels import (
-    ATAN_SERIES,
     ATAN_SERIES_X2,
     KIND_SE3_TRANSLATION,
     SMALL_THETA2,
     TAYLOR_A,
     TAYLOR_B,
     TAYLOR_C,
-    TAYLOR_CINV,
     TAYLOR_D,
     TAYLOR_E,
     _ad_T,
@@ -71,6 +69,7 @@ from ._lattice_compiled_kernels import (
     _V_apply,
     cross3,
     horner,
+    so3_log_series,
 )
 from ._lattice_compiled_plan import (
     CHUNK,
@@ -150,14 +149,7 @@ def _edges_chunk(P, g, D, conj, OUT, INC, c, XI, QS, bad):
         m00, m01, m02 = g[3, e], g[4, e], g[5, e]
         m10, m11, m12 = g[6, e], g[7, e], g[8, e]
         m20, m21, m22 = g[9, e], g[10, e], g[11, e]
-        tr = m00 + m11 + m22
-        qw = 1.0 + tr
-        qx, qy, qz = m21 - m12, m02 - m20, m10 - m01
-        x2 = (qx * qx + qy * qy + qz * qz) / (qw * qw)
-        f = (2.0 / qw) * horner(x2, ATAN_SERIES)
-        w0, w1, w2 = f * qx, f * qy, f * qz
-        t2 = w0 * w0 + w1 * w1 + w2 * w2
-        cinv = horner(t2, TAYLOR_CINV)
+        w0, w1, w2, tr, x2, t2, cinv = so3_log_series(m00, m01, m02, m10, m11, m12, m20, m21, m22)
         t = _V_apply(w0, w1, w2, -0.5, cinv, g[0, e], g[1, e], g[2, e])
         XI[0, e0] = t[0]
         XI[1, e0] = t[1]
@@ -340,11 +332,7 @@ def _drift_chunk(P, s, w, half, D, phi, fac, kinds, axes, velocity, Nv, c):
             i = lo + i0
             s[k, i] = s[k, i] + half * w[k, i]
     if constrained:
-        for k in range(6):
-            for i0 in range(hi - lo):
-                i = lo + i0
-                if clamped[i] or not live[k]:
-                    s[k, i] = 0.0
+        _soa_constrain(clamped, live, s, lo, hi)
     for i0 in range(hi - lo):
         i = lo + i0
         for a in range(12):
@@ -390,11 +378,7 @@ def _drift_chunk(P, s, w, half, D, phi, fac, kinds, axes, velocity, Nv, c):
                 q2 = th * th
                 _soa_turn_node(s, D, i, pp, qq, 1.0 - horner(q2, TAYLOR_B) * q2, horner(q2, TAYLOR_A) * th)
     if constrained:
-        for k in range(6):
-            for i0 in range(hi - lo):
-                i = lo + i0
-                if clamped[i] or not live[k]:
-                    s[k, i] = 0.0
+        _soa_constrain(clamped, live, s, lo, hi)
     if velocity:
         _soa_velocity(mass, live, clamped, constrained, s, Nv, lo, hi)
     _soa_frames(phi, D, lo, min(hi, nf))
@@ -547,6 +531,16 @@ def _soa_finite(g, phi, PART):
         if PART[c, 0] != 0.0:
             return True
     return False
+
+
+@_inline
+def _soa_constrain(clamped, live, s, lo, hi):
+    """Zero the components of ``s`` on clamped nodes and gauge components, nodes ``lo ≤ i < hi``."""
+    for k in range(6):
+        for i0 in range(hi - lo):
+            i = lo + i0
+            if clamped[i] or not live[k]:
+                s[k, i] = 0.0
 
 
 @_inline

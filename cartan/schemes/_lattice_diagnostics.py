@@ -26,7 +26,6 @@ from collections.abc import Callable
 
 import numpy as np
 
-from .._backend import get_backend
 from .base import State
 
 __all__ = ["compiled_stiffness_probe", "guard_energies", "lattice_plan"]
@@ -38,14 +37,9 @@ def lattice_plan(scheme) -> tuple | None:
     reads), the numpy backend, or a problem that does not qualify."""
     from .lattice import Lattice
 
-    if not isinstance(scheme, Lattice) or scheme.grid.d != 1 or get_backend() != "numba":
+    if not isinstance(scheme, Lattice) or scheme.grid.d != 1:
         return None
-    plan = scheme.__dict__.get("_compiled_plan", False)
-    if plan is False:
-        from ._lattice_compiled import build_plan
-
-        plan = scheme._compiled_plan = build_plan(scheme)
-    return plan
+    return scheme.compiled_plan("_lattice_compiled")
 
 
 def _arrays(scheme, state: State) -> tuple[np.ndarray, np.ndarray] | None:

@@ -189,17 +189,26 @@ class Scheme(abc.ABC):
         (``cartan.schemes.<module>.build_plan(self)``, None when the problem does not qualify)
         and run ``<module>.advance``; False when the numpy backend is selected or the problem
         does not qualify (nothing touched)."""
-        if get_backend() != "numba":
+        plan = self.compiled_plan(module)
+        if plan is None:
             return False
         import importlib
 
-        compiled = importlib.import_module(f"{__package__}.{module}")
+        return importlib.import_module(f"{__package__}.{module}").advance(self, plan, integrator, state, dt, nsteps,
+                                                                          kinetic_limit)
+
+    def compiled_plan(self, module: str) -> tuple | None:
+        """The compiled plan of this scheme's problem, built once by
+        ``cartan.schemes.<module>.build_plan(self)`` and kept on the scheme; None with the
+        numpy backend or when the problem does not qualify."""
+        if get_backend() != "numba":
+            return None
         plan = self.__dict__.get("_compiled_plan", False)
         if plan is False:
-            plan = self._compiled_plan = compiled.build_plan(self)
-        if plan is None:
-            return False
-        return compiled.advance(self, plan, integrator, state, dt, nsteps, kinetic_limit)
+            import importlib
+
+            plan = self._compiled_plan = importlib.import_module(f"{__package__}.{module}").build_plan(self)
+        return plan
 
     def _clamp_mask(self) -> np.ndarray:
         mask = np.zeros(self.grid.shape, dtype=bool)
