@@ -324,36 +324,44 @@ def _free_of_velocity(n: int) -> Problem:
 
 def _serial_blocks(monkeypatch, blocks: int) -> None:
     """Make ``compiled_advance`` run the serial build of the vectorised loop with ``blocks``
-    blocks of chunks (one block: steps in blocks of TIME_BLOCK; more: one step at a time)."""
+    blocks of chunks, stepping in blocks of steps from two chunks per block."""
     monkeypatch.setitem(lc.soa.THREADED, "lie_verlet_se3_loop", lc.soa.lie_verlet_se3_loop)
+    monkeypatch.setattr(lc.soa, "THREAD_BLOCK_CHUNKS", 2)
     monkeypatch.setattr(lc, "numba_threads", lambda k: contextlib.nullcontext())
     monkeypatch.setattr(lc, "loop_threads", lambda nodes: blocks)
 
 
 def test_blocked_steps_agree_with_single_steps(monkeypatch):
-    """Steps advanced together chunk by chunk (an open rod, velocity-free loads, one block of
-    chunks: 8 + 3 steps) give the states of single pipelined steps bit for bit, and the
-    Python path's to round-off."""
+    """Steps advanced together chunk by chunk (an open rod of 4 chunks, velocity-free loads:
+    8 + 3 steps) in one block of chunks, or in two with the work around their boundary done
+    afterwards, give the states of single pipelined steps (three blocks: fewer than two
+    chunks each, so one step at a time) bit for bit, and the Python path's to round-off."""
     problem = _free_of_velocity(3073)
     dt = 1e-3 * 11.0 / 3073
     _, (ref, ri), (fast, fi) = run_both(problem, LieVerlet, dt, 11)
     assert_close_states(fast, ref)
     assert (fi.nstep, fi.nforce) == (ri.nstep, ri.nforce)
-    _serial_blocks(monkeypatch, 2)
-    scheme = Lattice(problem)
-    single = scheme.initial_state()
-    single.scalars.setdefault("nstep", 0)
-    assert scheme.compiled_advance(LieVerlet(), single, dt, 11)
-    assert all(np.array_equal(fast.arrays[k], single.arrays[k]) for k in fast.arrays)
-    assert np.array_equal(fast.S, single.S) and fast.scalars == single.scalars
+    states = []
+    for blocks in (1, 2, 3):
+        _serial_blocks(monkeypatch, blocks)
+        scheme = Lattice(problem)
+        state = scheme.initial_state()
+        state.scalars.setdefault("nstep", 0)
+        assert scheme.compiled_advance(LieVerlet(), state, dt, 11)
+        states.append(state)
+    single = states[-1]
+    for other in (fast, *states[:-1]):
+        assert all(np.array_equal(other.arrays[k], single.arrays[k]) for k in single.arrays)
+        assert np.array_equal(other.S, single.S) and other.scalars == single.scalars
 
 
-@pytest.mark.parametrize("fail_at", [3, 8])
-def test_blocked_steps_stop_at_the_failing_step(fail_at, monkeypatch):
+@pytest.mark.parametrize(("n", "blocks", "fail_at"), [(2100, (1, 2), 3), (2100, (1, 2), 8), (5000, (2, 3), 5)])
+def test_blocked_steps_stop_at_the_failing_step(n, blocks, fail_at, monkeypatch):
     """A kinetic-energy limit crossed inside a block of steps: the loop returns the state after
-    the failing step (the block is replayed from its start), as single steps do."""
-    problem = _free_of_velocity(2100)
-    dt = 1e-3 * 11.0 / 2100
+    the failing step (the block is replayed from its start), as single steps do (the second
+    block count: fewer than two chunks per block)."""
+    problem = _free_of_velocity(n)
+    dt = 1e-3 * 11.0 / n
     scheme = Lattice(problem)
     start = scheme.initial_state()
     start.scalars.setdefault("nstep", 0)
@@ -366,8 +374,8 @@ def test_blocked_steps_stop_at_the_failing_step(fail_at, monkeypatch):
     assert np.all(np.diff(energies) > 0)  # the rod falls: the limit is crossed once
     limit = 0.5 * (energies[fail_at - 2] + energies[fail_at - 1])
     results = []
-    for blocks in (1, 2):
-        _serial_blocks(monkeypatch, blocks)
+    for k in blocks:
+        _serial_blocks(monkeypatch, k)
         state = start.copy()
         integ = LieVerlet()
         assert scheme.compiled_advance(integ, state, dt, 12, kinetic_limit=limit)

@@ -118,6 +118,11 @@ THREADS_SCRIPT = textwrap.dedent(
                       {"start": Clamped(), "end": Free(load=[0, 0, -1e-3, 0, 0, 0], follower=False)},
                       [Damping(0.5), rod.make_load("gravity", g=[0.0, 0.0, -9.81])])
     results["rod lie-verlet"] = same(run(problem, LieVerlet, 1e-8, 4, 1), run(problem, LieVerlet, 1e-8, 4, 2))
+    # without damping: steps in blocks of steps, chunk by chunk, on each thread's half (from 2
+    # chunks per thread here)
+    free = Problem(rod, grid, problem.initial, problem.boundaries, [rod.make_load("gravity", g=[0.0, 0.0, -9.81])])
+    lc.soa.THREAD_BLOCK_CHUNKS = 2
+    results["rod lie-verlet blocked"] = same(run(free, LieVerlet, 1e-8, 11, 1), run(free, LieVerlet, 1e-8, 11, 2))
     if every:
         results["rod overdamped"] = same(run(problem, Overdamped, 1e-10, 3, 1), run(problem, Overdamped, 1e-10, 3, 2))
     used = [name for name, f in {**lc.THREADED, **lc.soa.THREADED}.items() if f.signatures]
@@ -151,4 +156,4 @@ def test_every_threaded_integrator_equals_the_serial_one():
     out = _run_threaded("every")
     assert {"lie_verlet_loop", "overdamped_loop", "rkmk_loop", "euler_loop", "lie_verlet_se3_loop"} <= set(
         out["threaded"])
-    assert len(out["same"]) == 7 and all(out["same"].values()), out["same"]
+    assert len(out["same"]) == 8 and all(out["same"].values()), out["same"]

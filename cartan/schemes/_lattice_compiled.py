@@ -1157,7 +1157,8 @@ def advance(scheme, plan: tuple, integrator, state, dt: float, nsteps: int, kine
                 done, nforce, t, diss, ext = loop(
                     plan, S2, Gs[0], Phi3, W.reshape(n, r), have, bool(velocity_free), fac,
                     np.ascontiguousarray(kinds[:, 0]), np.ascontiguousarray(kinds[:, 1]), t0, dt, nsteps, diss, ext,
-                    check, limit, inv, _soa_workspace(cache, n, Gs[0].shape[0], Phi3.shape[0], threads), threads)
+                    check, limit, inv, soa.THREAD_BLOCK_CHUNKS,
+                    _soa_workspace(cache, n, Gs[0].shape[0], Phi3.shape[0], threads), threads)
             else:
                 done, nforce, t, diss, ext = loops["lie_verlet_loop"](
                     plan, S2, Gs, Phi3, W.reshape(n, r), have, bool(velocity_free), mask, frac, fac,

@@ -105,10 +105,12 @@ __all__ = ["THREADED", "lie_verlet_se3_loop", "overdamped_se3_loop", "workspace"
 CHECK_MOMENTUM = 1
 CHECK_CONFIGURATION = 2
 
-#: steps advanced together, chunk by chunk, by the serial loop on open rods
-#: (:func:`_soa_steps_blocked`): the work set is ``TIME_BLOCK + 1`` chunks (≈ 6 MB, in the
-#: L3 cache), so each row of the state comes from memory once per block of steps
+#: steps advanced together, chunk by chunk, by the loop on open rods
+#: (:func:`_soa_steps_blocked`): the work set is ``TIME_BLOCK + 1`` chunks per thread
+#: (≈ 6 MB, in the L3 cache), so each row of the state comes from memory once per block of steps
 TIME_BLOCK = 8
+#: chunks per thread from which the threaded loop steps in blocks of steps too
+THREAD_BLOCK_CHUNKS = 8 * TIME_BLOCK
 
 
 # ---------------------------------------------------------------------------- edges
@@ -754,34 +756,113 @@ def _soa_step(P, s, w, half, D, phi, fac, kinds, axes, velocity, Nv, g, OUT, INC
     return _sum_parts(PART, nch)
 
 
+@_inline
+def _block_drift(P, s, w, half, D, phi, fac, kinds, axes, velocity, Nv, prog, c, T):
+    """The nodes of chunk ``c`` in its next step, when they may go: closed through the step
+    before (``prog`` rows: steps drifted, edged, closed).  Returns True when done."""
+    j = prog[0, c]
+    if j >= T or prog[2, c] != j:
+        return False
+    _drift_chunk(P, s, w, half, D, phi, fac, kinds, axes, velocity, Nv, c)
+    prog[0, c] = j + 1
+    return True
+
+
+@_inline
+def _block_edges(P, g, D, OUT, INC, prog, c, hi, nch, XI, QS, bad):
+    """The edges of chunk ``c`` in its next step, when its nodes and the first node of chunk
+    ``c + 1`` have drifted in that step (and not beyond); a chunk ``c + 1 ≥ hi`` (another
+    thread's) counts as not ready.  Returns True when done."""
+    j = prog[1, c]
+    if prog[0, c] != j + 1:
+        return False
+    if c + 1 < nch and (c + 1 >= hi or prog[0, c + 1] != j + 1):
+        return False
+    _edges_chunk(P, g, D, True, OUT, INC, c, XI, QS, bad)
+    prog[1, c] = j + 1
+    return True
+
+
+@_inline
+def _block_close(P, OUT, INC, phi, s, Nv, w, half, velocity, inv, need_kin, PARTT, prog, c, lo, nche):
+    """The closing of chunk ``c`` in its step, when its edges (if it has some) and those of
+    chunk ``c − 1`` are done in that step; a chunk ``c − 1 < lo`` (another thread's) counts as
+    not ready.  Returns True when done."""
+    j = prog[2, c]
+    if prog[0, c] != j + 1 or (c < nche and prog[1, c] != j + 1):
+        return False
+    if c >= 1 and (c - 1 < lo or prog[1, c - 1] != j + 1):
+        return False
+    _close_chunk(P, OUT, INC, phi, s, Nv, w, half, True, velocity, inv, need_kin, PARTT[j], c)
+    prog[2, c] = j + 1
+    return True
+
+
 @_jit
 def _soa_steps_blocked(P, s, w, half, D, phi, fac, kinds, axes, velocity, Nv, g, OUT, INC, inv, need_kin, PARTT, T,
-                       scratch):
-    """``T`` ``lie-verlet`` steps of an open rod (serial; the force of the current state known),
-    the partial sums of step ``j`` into ``PARTT[j]``.
+                       prog, nblocks, scratch):
+    """``T`` ``lie-verlet`` steps of an open rod (the force of the current state known), the
+    partial sums of step ``j`` into ``PARTT[j]``.
 
     The pipeline of :func:`_soa_step` (at position ``p``: the nodes of chunk ``p``, the edges
     and the closing of chunk ``p − 1``) run for the ``T`` steps at once, step ``j`` one
     position behind step ``j − 1``: the closing of chunk ``p`` in step ``j − 1`` (position
     ``p + 1``) comes just before the nodes of chunk ``p`` in step ``j`` (position ``p``), in
-    the same sweep.  Every chunk does the arithmetic of the one-step pipeline, so the states
-    and the sums are bitwise those of ``T`` calls of :func:`_soa_step`; the sweep keeps
-    ``T + 1`` chunks in the cache instead of streaming the whole rod ``T`` times.  (A ring
-    cannot: its first chunk closes with its last one.)"""
+    the same sweep, which keeps ``T + 1`` chunks in the cache instead of streaming the whole
+    rod ``T`` times.  ``prog [3, chunks]`` counts each chunk's steps (nodes, edges,
+    closing), and a piece of work goes only when what it reads is at its step and what it
+    overwrites has been read — the nodes of chunk ``c`` in step ``j`` after its closing in
+    step ``j − 1``, its edges after the nodes of chunks ``c`` and ``c + 1``, its closing after
+    the edges of chunks ``c − 1`` and ``c``.  With ``nblocks`` blocks of chunks (one per
+    thread), a block sweeps its own chunks; the work that needs a neighbour block's chunks
+    (a cone of up to ``T`` chunks on either side of each boundary between blocks) is done
+    afterwards, serially, in as many sweeps as it takes.  Every chunk does the arithmetic of
+    the one-step pipeline, so the states and the sums are bitwise those of ``T`` calls of
+    :func:`_soa_step`, whatever ``nblocks``.  (A ring cannot: its first chunk closes with
+    its last one.)"""
     nch = (s.shape[1] + CHUNK - 1) // CHUNK
     nche = (g.shape[1] + CHUNK - 1) // CHUNK
+    prog[:] = 0
+    for b in prange(nblocks):
+        c0, c1 = _blocks(b, nblocks, nch)
+        XI, QS, bad = scratch[0][b], scratch[1][b], scratch[2][b]
+        for c in range(c0, c1 + T + 1):
+            for j in range(T):
+                p = c - j
+                if c0 <= p < c1 and prog[0, p] == j:
+                    _block_drift(P, s, w, half, D, phi, fac, kinds, axes, velocity, Nv, prog, p, T)
+                q = p - 1
+                if c0 <= q < c1:
+                    if q < nche and prog[1, q] == j:
+                        _block_edges(P, g, D, OUT, INC, prog, q, c1, nch, XI, QS, bad)
+                    if prog[2, q] == j:
+                        _block_close(P, OUT, INC, phi, s, Nv, w, half, velocity, inv, need_kin, PARTT, prog, q, c0,
+                                     nche)
+    # what waited for a neighbour block: serial sweeps over the whole rod until every chunk
+    # has closed its T steps
     XI, QS, bad = scratch[0][0], scratch[1][0], scratch[2][0]
-    for c in range(nch + T):
-        for j in range(T):
-            p = c - j
-            if p < 0 or p > nch:
-                continue
-            if p < nch:
-                _drift_chunk(P, s, w, half, D, phi, fac, kinds, axes, velocity, Nv, p)
-            if p >= 1:
-                if p - 1 < nche:
-                    _edges_chunk(P, g, D, True, OUT, INC, p - 1, XI, QS, bad)
-                _close_chunk(P, OUT, INC, phi, s, Nv, w, half, True, velocity, inv, need_kin, PARTT[j], p - 1)
+    left = 0
+    for c in range(nch):
+        left += T - prog[2, c]
+    while left > 0:
+        moved = False
+        for c in range(nch):
+            if c < nche and prog[1, c] < prog[0, c]:
+                moved |= _block_edges(P, g, D, OUT, INC, prog, c, nch, nch, XI, QS, bad)
+            if c >= 1 and prog[2, c - 1] < prog[0, c - 1]:
+                if _block_close(P, OUT, INC, phi, s, Nv, w, half, velocity, inv, need_kin, PARTT, prog, c - 1, 0,
+                                nche):
+                    moved = True
+                    left -= 1
+            if _block_drift(P, s, w, half, D, phi, fac, kinds, axes, velocity, Nv, prog, c, T):
+                moved = True
+        c = nch - 1
+        if prog[2, c] < prog[0, c] and _block_close(P, OUT, INC, phi, s, Nv, w, half, velocity, inv, need_kin,
+                                                    PARTT, prog, c, 0, nche):
+            moved = True
+            left -= 1
+        if not moved:
+            raise RuntimeError("blocked lie-verlet steps: no piece of work can go (a dependency cycle)")
 
 
 @_jit
@@ -836,9 +917,9 @@ def workspace(n: int, ne: int, nf: int, nblocks: int) -> tuple:
     frames, in the order the loops unpack them: ``(s [6, n], w [6, n], g [12, ne],
     phi [12, nf], D [12, n], N [6, n], OUT [6, ne], INC [6, ne], (XI [nblocks, 7, CHUNK],
     QS [nblocks, 6, CHUNK], bad [nblocks, CHUNK]), PART [chunks, 4], PARTT [TIME_BLOCK,
-    chunks, 4], snapshot (s, w, g, phi, N))`` — the snapshot of the state that a block of
-    steps starts from (:func:`lie_verlet_se3_loop`) is empty unless ``nblocks = 1`` and the
-    rod is open.
+    chunks, 4], snapshot (s, w, g, phi, N), prog [3, chunks])`` — the snapshot of the state
+    that a block of steps starts from (:func:`lie_verlet_se3_loop`) is empty unless the rod
+    is open; ``prog`` counts the steps of each chunk in a block of steps.
 
     The float arrays are views of one numpy buffer (rows aligned to 64 bytes), which numpy
     backs with transparent huge pages where the kernel offers them (``madvise``, buffers of
@@ -847,7 +928,7 @@ def workspace(n: int, ne: int, nf: int, nblocks: int) -> tuple:
     :mod:`cartan.schemes._lattice_compiled`), so that a run touches its pages once.
     """
     nch = (n + CHUNK - 1) // CHUNK
-    snap = nblocks == 1 and ne < n  # the serial loop on an open rod steps in blocks (snapshots)
+    snap = ne < n  # an open rod steps in blocks of steps (snapshots)
     m, me, mf = (n, ne, nf) if snap else (0, 0, 0)
     shapes = [(6, n), (6, n), (12, ne), (12, nf), (12, n), (6, n), (6, ne), (6, ne),
               (nblocks, 7, CHUNK), (nblocks, 6, CHUNK), (nch, 4), (TIME_BLOCK, nch, 4),
@@ -861,7 +942,7 @@ def workspace(n: int, ne: int, nf: int, nblocks: int) -> tuple:
         at += size
     s, w, g, phi, D, N, OUT, INC, XI, QS, PART, PARTT = views[:12]
     return (s, w, g, phi, D, N, OUT, INC, (XI, QS, np.zeros((nblocks, CHUNK), dtype=np.int64)), PART, PARTT,
-            tuple(views[12:]))
+            tuple(views[12:]), np.zeros((3, nch), dtype=np.int64))
 
 
 @_jit
@@ -885,13 +966,16 @@ def _from_soa(a, A):
 
 @_jit
 def lie_verlet_se3_loop(P, S, G, Phi, W, have_force, velocity_free, fac, kinds, axes,
-                        t, dt, nsteps, dissipated, external, check, kinetic_limit, inv, work, nblocks):
+                        t, dt, nsteps, dissipated, external, check, kinetic_limit, inv, block_chunks, work, nblocks):
     """``nsteps`` steps of ``LieVerlet`` on an SE(3) rod (d = 1) with closed-form free-flow
     pieces, on structure-of-arrays copies of ``S [n, 6]``, ``G [ne, 4, 4]``, ``Phi`` and
-    ``W`` (copied back on return).  Arguments and result as
+    ``W`` (copied back on return); open rods in blocks of :data:`TIME_BLOCK` steps
+    (:func:`_soa_steps_blocked`) when the force is velocity-free and the rod has two chunks
+    or more (one block of chunks) or ``block_chunks`` per block (:data:`THREAD_BLOCK_CHUNKS`).
+    ``work``: :func:`workspace`.  Other arguments and the result as
     :func:`cartan.schemes._lattice_compiled.lie_verlet_loop`."""
     n = S.shape[0]
-    s, w, g, phi, D, Nv, OUT, INC, scratch, PART, PARTT, snap = work
+    s, w, g, phi, D, Nv, OUT, INC, scratch, PART, PARTT, snap, prog = work
     Nv[:] = 0.0
     for i in range(n):
         for k in range(6):
@@ -904,9 +988,11 @@ def lie_verlet_se3_loop(P, S, G, Phi, W, have_force, velocity_free, fac, kinds, 
     nforce = 0
     half = 0.5 * dt
     nch = (n + CHUNK - 1) // CHUNK
-    # blocks of steps: serial, an open rod of two chunks or more, a force that the step's
-    # closing kick leaves for the next (velocity-free)
-    blocked = velocity_free and nblocks == 1 and G.shape[0] < n and nch >= 2 and snap[0].shape[1] == n
+    # blocks of steps: an open rod, a force that the step's closing kick leaves for the next
+    # (velocity-free), two chunks or more (serial) or block_chunks per thread (the work
+    # around the boundaries between threads, ≈ TIME_BLOCK² chunk-steps each, runs serially)
+    blocked = velocity_free and G.shape[0] < n and snap[0].shape[1] == n and (
+        nch >= 2 if nblocks == 1 else nch >= block_chunks * nblocks)
     if need_N:
         _soa_velocity(P[I_MASS], P[I_LIVE], P[I_CLAMPED], P[I_CONSTRAINED], s, Nv, 0, n)
     p0d, p0e = _soa_powers(P, Nv, phi, PART)
@@ -922,7 +1008,7 @@ def lie_verlet_se3_loop(P, S, G, Phi, W, have_force, velocity_free, fac, kinds, 
             for a, b in ((s, snap[0]), (w, snap[1]), (g, snap[2]), (phi, snap[3]), (Nv, snap[4])):
                 _copy_rows(a, b)
             _soa_steps_blocked(P, s, w, half, D, phi, fac, kinds, axes, need_N, Nv, g, OUT, INC, inv, need_kin,
-                               PARTT, T, scratch)
+                               PARTT, T, prog, nblocks, scratch)
         failed = False
         for j in range(T):
             if T > 1:
@@ -1000,5 +1086,5 @@ def overdamped_se3_loop(P, S, G, Phi, N, gam, t, dt, nsteps, dissipated, externa
 
 
 #: the threaded variants (``prange`` in parallel) of the passes and of the loops
-THREADED = threaded_twins(globals(), ("_soa_edges", "_soa_close", "_soa_step", "_soa_exp_nodes", "_soa_drag",
-                                      "_soa_finite", "lie_verlet_se3_loop", "overdamped_se3_loop"))
+THREADED = threaded_twins(globals(), ("_soa_edges", "_soa_close", "_soa_step", "_soa_steps_blocked", "_soa_exp_nodes",
+                                      "_soa_drag", "_soa_finite", "lie_verlet_se3_loop", "overdamped_se3_loop"))
