@@ -148,6 +148,26 @@ def _quat_from_matrix(r00, r01, r02, r10, r11, r12, r20, r21, r22, case):
 
 
 @register_jitable
+def quat_of_matrix(r00, r01, r02, r10, r11, r12, r20, r21, r22):
+    """The unit quaternion ``(w, x, y, z)`` of a rotation matrix with ``w ≥ 0``, from the largest
+    of the trace and the diagonal entries (Shepperd's choice: accurate for every angle)."""
+    case = 0
+    best = r00 + r11 + r22
+    if r00 > best:
+        case = 1
+        best = r00
+    if r11 > best:
+        case = 2
+        best = r11
+    if r22 > best:
+        case = 3
+    qw, qx, qy, qz = _quat_from_matrix(r00, r01, r02, r10, r11, r12, r20, r21, r22, case)
+    if qw < 0.0:
+        return -qw, -qx, -qy, -qz
+    return qw, qx, qy, qz
+
+
+@register_jitable
 def _log_factor_series(s, c):
     """``θ/|q_v|`` for ``|q_v| ≤ 1e-4 |q_w|``: ``(2/c) atan(x)/x``, ``x = s/c``."""
     x = s / c
@@ -286,19 +306,7 @@ def so3_log_point(R, out):
     r00, r01, r02 = R[0, 0], R[0, 1], R[0, 2]
     r10, r11, r12 = R[1, 0], R[1, 1], R[1, 2]
     r20, r21, r22 = R[2, 0], R[2, 1], R[2, 2]
-    case = 0
-    best = r00 + r11 + r22
-    if r00 > best:
-        case = 1
-        best = r00
-    if r11 > best:
-        case = 2
-        best = r11
-    if r22 > best:
-        case = 3
-    qw, qx, qy, qz = _quat_from_matrix(r00, r01, r02, r10, r11, r12, r20, r21, r22, case)
-    if qw < 0.0:
-        qw, qx, qy, qz = -qw, -qx, -qy, -qz
+    qw, qx, qy, qz = quat_of_matrix(r00, r01, r02, r10, r11, r12, r20, r21, r22)
     s = np.sqrt(qx * qx + qy * qy + qz * qz)
     if s <= LOG_SMALL_RATIO * qw:
         f = _log_factor_series(s, qw)

@@ -113,6 +113,7 @@ from ._lattice_compiled import (
     _unstable,
     _velocity,
     _writable,
+    advance_context,
     finish_advance,
 )
 from ._lattice_compiled_kernels import (
@@ -128,6 +129,7 @@ from ._lattice_compiled_kernels import (
     g_inverse,
 )
 from ._lattice_compiled_plan import _compiled_loads
+from ._lattice_compiled_soa import _soa_end_load
 
 __all__ = [
     "FOURIER_MAX_NODES",
@@ -136,8 +138,7 @@ __all__ = [
     "derivative_once",
     "drift_once",
     "force_once",
-    "forward_euler_loop",
-    "lie_euler_loop",
+    "euler_loop",
     "lie_euler_se3_loop",
     "lie_verlet_loop",
     "lie_verlet_se3_loop",
@@ -617,30 +618,6 @@ def lie_verlet_loop(P, Dc, S, X, Phi, W, have_force, velocity_free, seq_mask, se
 
 # ---------------------------------------------------------------------------- lie-euler, forward-euler
 @_jit
-def lie_euler_loop(P, Dc, S, X, Phi, t, dt, nsteps, dissipated, external, check, kinetic_limit, inv):
-    """``nsteps`` steps of ``LieEuler`` (paper §V): ``S⁺ = Ad*_{exp ΔtN}S + 𝓔*(Δt, N)W``,
-    ``X⁺ = Ad_{exp(−ΔtN)}X + 𝓔(Δt, −N)∂N``, ``Φ⁺ = Φ exp(ΔtN)``.
-    Returns ``(steps done, t, dissipated, external)``."""
-    n, r = S.shape
-    N = np.empty((n, r))
-    W, Q, DN, D, scr = _work(n, r, Phi.shape[1])
-    _velocity(P, S, N)
-    books = (dissipated, external) + _powers(P, N, Phi, scr)
-    done = 0
-    for _ in range(nsteps):
-        _force(P, Dc, X, Phi, N, W, Q, scr)
-        _drift(P, Dc, X, Phi, S, W, N, dt, DN, D, scr, MODE_LIE_EULER)
-        _constrain(P, S)
-        t = t + dt
-        _velocity(P, S, N)
-        books, stop = _end_step(P, S, X, Phi, N, scr, dt, books, check, kinetic_limit, P[I_W], inv)
-        done += 1
-        if stop:
-            break
-    return done, t, books[0], books[1]
-
-
-@_jit
 def _lie_poisson(gid, N, S, W, out, M):
     """``out = ad_NᵀS + W`` at every node (``Ṡ`` of the momentum balance), ``M`` r × r work space."""
     n, r = S.shape
@@ -654,9 +631,11 @@ def _lie_poisson(gid, N, S, W, out, M):
 
 
 @_jit
-def forward_euler_loop(P, Dc, S, X, Phi, t, dt, nsteps, dissipated, external, check, kinetic_limit, inv):
-    """``nsteps`` steps of ``ForwardEuler``: ``X += Δt(∂N − ad_N X)``, ``Φ += ΔtΦN̂``,
-    ``S += Δt(ad_NᵀS + W)``.  Returns ``(steps done, t, dissipated, external)``."""
+def euler_loop(P, Dc, S, X, Phi, t, dt, nsteps, dissipated, external, check, kinetic_limit, inv, geometric):
+    """``nsteps`` steps of ``LieEuler`` (``geometric``, paper §V: ``S⁺ = Ad*_{exp ΔtN}S +
+    𝓔*(Δt, N)W``, ``X⁺ = Ad_{exp(−ΔtN)}X + 𝓔(Δt, −N)∂N``, ``Φ⁺ = Φ exp(ΔtN)``) or of
+    ``ForwardEuler`` (``X += Δt(∂N − ad_N X)``, ``Φ += ΔtΦN̂``, ``S += Δt(ad_NᵀS + W)``).
+    Returns ``(steps done, t, dissipated, external)``."""
     n, r = S.shape
     N = np.empty((n, r))
     Sd = np.empty((n, r))
@@ -666,11 +645,14 @@ def forward_euler_loop(P, Dc, S, X, Phi, t, dt, nsteps, dissipated, external, ch
     done = 0
     for _ in range(nsteps):
         _force(P, Dc, X, Phi, N, W, Q, scr)
-        _lie_poisson(P[I_GID], N, S, W, Sd, scr[3])
-        _naive_drift(P, Dc, X, Phi, N, dt, DN, D, scr)
-        for i in range(n):
-            for k in range(r):
-                S[i, k] = S[i, k] + dt * Sd[i, k]
+        if geometric:
+            _drift(P, Dc, X, Phi, S, W, N, dt, DN, D, scr, MODE_LIE_EULER)
+        else:
+            _lie_poisson(P[I_GID], N, S, W, Sd, scr[3])
+            _naive_drift(P, Dc, X, Phi, N, dt, DN, D, scr)
+            for i in range(n):
+                for k in range(r):
+                    S[i, k] = S[i, k] + dt * Sd[i, k]
         _constrain(P, S)
         t = t + dt
         _velocity(P, S, N)
@@ -1311,20 +1293,6 @@ def _soa_kick(s, f, half):
             s[k, i] = s[k, i] + half * f[k, i]
 
 
-@_inline
-def _soa_end_load(P, phi, q):
-    """Body components of the loaded end ``q`` of the plan: the load (follower) or
-    ``(Rᵀf; Rᵀm)`` (dead), R the rotation of the end frame."""
-    load = P[I_END_LOAD][q]
-    if P[I_END_FOLLOW][q]:
-        return load[0], load[1], load[2], load[3], load[4], load[5]
-    i = P[I_END_IDX][q]
-    R = (phi[3, i], phi[4, i], phi[5, i], phi[6, i], phi[7, i], phi[8, i], phi[9, i], phi[10, i], phi[11, i])
-    return (R[0] * load[0] + R[3] * load[1] + R[6] * load[2], R[1] * load[0] + R[4] * load[1] + R[7] * load[2],
-            R[2] * load[0] + R[5] * load[1] + R[8] * load[2], R[0] * load[3] + R[3] * load[4] + R[6] * load[5],
-            R[1] * load[3] + R[4] * load[4] + R[7] * load[5], R[2] * load[3] + R[5] * load[4] + R[8] * load[5])
-
-
 @_jit
 def _soa_powers(P, nv, phi):
     """(dissipated, external) power at velocity ``nv`` (``Scheme.powers``)."""
@@ -1401,7 +1369,7 @@ def _soa_end_step(P, s, x, phi, nv, dt, books, check, kinetic_limit, inv):
 
 @_jit
 def lie_euler_se3_loop(P, Dc, S, X, Phi, t, dt, nsteps, dissipated, external, check, kinetic_limit, inv):
-    """:func:`lie_euler_loop` for SE(3) on structure-of-arrays copies of ``S``, ``X``, ``Phi``
+    """:func:`euler_loop` (Lie–Euler) for SE(3) on structure-of-arrays copies of ``S``, ``X``, ``Phi``
     (copied back on return)."""
     n = S.shape[0]
     s, x, phi = _soa_state(S, X, Phi)
@@ -1849,17 +1817,8 @@ def advance(scheme, plan: tuple, integrator, state, dt: float, nsteps: int, kine
     X = X3.reshape(n, r)
     Phi = state.arrays[frame_key] = _writable(state.arrays[frame_key])
     Phi3 = Phi if scheme.track else Phi.reshape(1, *Phi.shape)
-    nstep0 = state.scalars.get("nstep", 0)
-    stamp = (id(state), state.t, nstep0)
-    t0 = float(state.t)
-    diss = float(state.scalars.get("dissipated_energy", 0.0))
-    ext = float(state.scalars.get("external_work", 0.0))
-    check = CHECK_MOMENTUM if integrator.uses_momentum else CHECK_CONFIGURATION
-    limit = float(kinetic_limit)
-    cache = scheme.__dict__.setdefault("_compiled_cache", {})
-    inv = cache.get("inv")
-    if inv is None:
-        inv = cache["inv"] = np.where(scheme.live, 1.0 / np.where(scheme.live, scheme.mass, 1.0), 0.0)
+    nstep0, stamp, t0, diss, ext, check, limit, cache, inv = advance_context(scheme, integrator, state,
+                                                                             kinetic_limit)
     W = None
     se3 = P[I_GID] == GID_SE3
     if kind is LieVerlet:
@@ -1878,11 +1837,11 @@ def advance(scheme, plan: tuple, integrator, state, dt: float, nsteps: int, kine
                 P, Dc, S, X, Phi3, W, have, bool(velocity_free), mask, frac, t0, dt, nsteps, diss, ext, check,
                 limit, inv)
     elif kind is LieEuler or kind is ForwardEuler:
-        if kind is LieEuler:
-            loop = lie_euler_se3_loop if se3 else lie_euler_loop
+        if kind is LieEuler and se3:
+            done, t, diss, ext = lie_euler_se3_loop(P, Dc, S, X, Phi3, t0, dt, nsteps, diss, ext, check, limit, inv)
         else:
-            loop = forward_euler_loop
-        done, t, diss, ext = loop(P, Dc, S, X, Phi3, t0, dt, nsteps, diss, ext, check, limit, inv)
+            done, t, diss, ext = euler_loop(P, Dc, S, X, Phi3, t0, dt, nsteps, diss, ext, check, limit, inv,
+                                            kind is LieEuler)
         nforce = done
     else:
         dynamics = kind is RKMK4

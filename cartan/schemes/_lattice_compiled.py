@@ -121,6 +121,8 @@ from ._lattice_compiled_kernels import (
     g_log,
 )
 from ._lattice_compiled_plan import (
+    CHECK_CONFIGURATION,
+    CHECK_MOMENTUM,
     CHUNK,
     I_AFFINE,
     I_C,
@@ -183,11 +185,6 @@ __all__ = [
 GROUP_IDS = {"SO2": GID_SO2, "SE2": GID_SE2, "SO3": GID_SO3, "SE3": GID_SE3}
 #: the former name of :data:`KIND_ROTATION` (rotations about one body axis)
 KIND_SE3_ROTATION = KIND_ROTATION
-
-#: blow-up tests after each step: none, momentum (finite, kinetic energy), configuration
-CHECK_NONE = 0
-CHECK_MOMENTUM = 1
-CHECK_CONFIGURATION = 2
 
 #: edge drifts: none, exact conjugation ``G ← D_i⁻¹GD_j``, naive Euler ``G ← G − D_iG + GD_j``
 DRIFT_NONE = 0
@@ -1130,17 +1127,8 @@ def advance(scheme, plan: tuple, integrator, state, dt: float, nsteps: int, kine
     Gs = tuple(Gs)
     Phi = state.arrays[frame_key] = _writable(state.arrays[frame_key])
     Phi3 = Phi.reshape(-1, m, m)
-    nstep0 = state.scalars.get("nstep", 0)
-    stamp = (id(state), state.t, nstep0)
-    t0 = float(state.t)
-    diss = float(state.scalars.get("dissipated_energy", 0.0))
-    ext = float(state.scalars.get("external_work", 0.0))
-    check = CHECK_MOMENTUM if integrator.uses_momentum else CHECK_CONFIGURATION
-    limit = float(kinetic_limit)
-    cache = scheme.__dict__.setdefault("_compiled_cache", {})
-    inv = cache.get("inv")
-    if inv is None:
-        inv = cache["inv"] = np.where(scheme.live, 1.0 / np.where(scheme.live, scheme.mass, 1.0), 0.0)
+    nstep0, stamp, t0, diss, ext, check, limit, cache, inv = advance_context(scheme, integrator, state,
+                                                                             kinetic_limit)
     threads = loop_threads(n)
     loops = THREADED if threads > 1 else SERIAL
     W = None
@@ -1201,6 +1189,23 @@ def advance(scheme, plan: tuple, integrator, state, dt: float, nsteps: int, kine
             if not dynamics:
                 integrator._cache = ((id(state), t, nstep0 + done - 1), N.copy())
     return finish_advance(integrator, state, t, diss, ext, nstep0, done, nforce, W, t_start)
+
+
+def advance_context(scheme, integrator, state, kinetic_limit: float) -> tuple:
+    """What a compiled ``advance`` reads from ``state`` and the scheme before its loop:
+    ``(nstep0, stamp, t0, dissipated, external, check, kinetic_limit, cache, inv)`` — the step
+    count, the continuation stamp of the integrator's caches, the time and energy
+    accumulators, the blow-up test (:data:`CHECK_MOMENTUM` for integrators that carry momenta,
+    else :data:`CHECK_CONFIGURATION`), the scheme's cache of compiled data and ``1/m`` on the
+    live components (0 on gauge ones)."""
+    nstep0 = state.scalars.get("nstep", 0)
+    cache = scheme.__dict__.setdefault("_compiled_cache", {})
+    inv = cache.get("inv")
+    if inv is None:
+        inv = cache["inv"] = np.where(scheme.live, 1.0 / np.where(scheme.live, scheme.mass, 1.0), 0.0)
+    return (nstep0, (id(state), state.t, nstep0), float(state.t), float(state.scalars.get("dissipated_energy", 0.0)),
+            float(state.scalars.get("external_work", 0.0)),
+            CHECK_MOMENTUM if integrator.uses_momentum else CHECK_CONFIGURATION, float(kinetic_limit), cache, inv)
 
 
 def finish_advance(integrator, state, t: float, diss: float, ext: float, nstep0: int, done: int, nforce: int,

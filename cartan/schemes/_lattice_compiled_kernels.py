@@ -80,9 +80,9 @@ from ..groups.so3 import (
     _exp_coeffs_direct,
     _log_factor_direct,
     _poly_entries,
-    _quat_from_matrix,
     cross3,
     horner,
+    quat_of_matrix,
     so3_Ad_point,
     so3_ad_point,
     so3_compose_point,
@@ -372,19 +372,7 @@ def _so3_log9(r00, r01, r02, r10, r11, r12, r20, r21, r22):
     """``log R`` as 3 scalars and the coefficient ``c`` of ``J⁻¹``: ``so3_log_point`` on
     scalars, with the quaternion factor ``θ/|q_v| = (2/q_w) atan(x)/x`` from its series for
     ``x = |q_v|/q_w < 1/20``."""
-    case = 0
-    best = r00 + r11 + r22
-    if r00 > best:
-        case = 1
-        best = r00
-    if r11 > best:
-        case = 2
-        best = r11
-    if r22 > best:
-        case = 3
-    qw, qx, qy, qz = _quat_from_matrix(r00, r01, r02, r10, r11, r12, r20, r21, r22, case)
-    if qw < 0.0:
-        qw, qx, qy, qz = -qw, -qx, -qy, -qz
+    qw, qx, qy, qz = quat_of_matrix(r00, r01, r02, r10, r11, r12, r20, r21, r22)
     v2 = qx * qx + qy * qy + qz * qz
     w2 = qw * qw
     if v2 < ATAN_SERIES5_X2 * w2:

@@ -12,6 +12,11 @@ import numpy as np
 
 from ._lattice_compiled_kernels import CHUNK, GID_SE2, GID_SE3, GID_SO2, GID_SO3
 
+#: blow-up tests after each step: none, momentum (finite, kinetic energy), configuration
+CHECK_NONE = 0
+CHECK_MOMENTUM = 1
+CHECK_CONFIGURATION = 2
+
 #: layout of the plan tuple P (see :func:`build_plan`)
 (I_GID, I_TRACK, I_AFFINE, I_H, I_X0, I_C, I_DIAG, I_W, I_MASS, I_LIVE, I_CLAMPED, I_CONSTRAINED,
  I_DAMP, I_HAS_DAMP, I_UBODY, I_HAS_UBODY, I_FIELD, I_HAS_FIELD, I_END_IDX, I_END_LOAD, I_END_FOLLOW,

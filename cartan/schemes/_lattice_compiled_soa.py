@@ -72,6 +72,8 @@ from ._lattice_compiled_kernels import (
     so3_log_series,
 )
 from ._lattice_compiled_plan import (
+    CHECK_CONFIGURATION,
+    CHECK_MOMENTUM,
     CHUNK,
     I_C,
     I_CLAMPED,
@@ -100,10 +102,6 @@ from ._lattice_compiled_plan import (
 
 __all__ = ["THREADED", "lie_verlet_se3_loop", "overdamped_se3_loop", "workspace"]
 
-#: blow-up tests on the momentum and on the configuration (the values of
-#: ``_lattice_compiled.CHECK_MOMENTUM``, ``CHECK_CONFIGURATION``)
-CHECK_MOMENTUM = 1
-CHECK_CONFIGURATION = 2
 
 #: steps advanced together, chunk by chunk, by the loop on open rods
 #: (:func:`_soa_steps_blocked`): the work set is ``TIME_BLOCK + 1`` chunks per thread
@@ -465,9 +463,6 @@ def _soa_drag(P, w, gam, nv, phi, PART):
     has_power = P[I_HAS_POWER]
     has_damp = has_power and P[I_HAS_DAMP]
     has_ubody = has_power and P[I_HAS_UBODY]
-    end_idx = P[I_END_IDX]
-    end_face = P[I_END_FACE]
-    end_chunk = P[I_END_CHUNK]
     n = w.shape[1]
     nch = (n + CHUNK - 1) // CHUNK
     for c in prange(nch):
@@ -483,27 +478,11 @@ def _soa_drag(P, w, gam, nv, phi, PART):
             for i0 in range(hi - lo):
                 i = lo + i0
                 nv[k, i] = 0.0 if clamped[i] else w[k, i] / gk
-            if has_damp:
-                ck = damp[k]
-                t = 0.0
-                for i0 in range(hi - lo):
-                    i = lo + i0
-                    t += wts[i] * ((-nv[k, i] * ck) * nv[k, i])
-                pd += t
-            if has_ubody:
-                uk = ubody[k]
-                t = 0.0
-                for i0 in range(hi - lo):
-                    i = lo + i0
-                    t += wts[i] * (uk * nv[k, i])
-                pe += t
+            td, te = _soa_body_powers(wts, damp, ubody, has_damp, has_ubody, nv, k, lo, hi)
+            pd += td
+            pe += te
         if has_power:
-            for q in range(end_chunk[c], end_chunk[c + 1]):
-                v = _soa_end_load(P, phi, q)
-                t = 0.0
-                for k in range(6):
-                    t += v[k] * nv[k, end_idx[q]]
-                pe += end_face[q] * t
+            pe = _soa_end_powers(P, phi, nv, c, pe)
         PART[c, 0] = pd
         PART[c, 1] = pe
         PART[c, 2] = 0.0
@@ -543,6 +522,40 @@ def _soa_constrain(clamped, live, s, lo, hi):
             i = lo + i0
             if clamped[i] or not live[k]:
                 s[k, i] = 0.0
+
+
+@_inline
+def _soa_body_powers(wts, damp, ubody, has_damp, has_ubody, V, k, lo, hi):
+    """Component ``k`` of (−Σ w V·cV, Σ w u·V) over the nodes ``lo ≤ i < hi``: the damping and
+    body-frame force powers at the velocity ``V``."""
+    td = 0.0
+    te = 0.0
+    if has_damp:
+        ck = damp[k]
+        for i0 in range(hi - lo):
+            i = lo + i0
+            td += wts[i] * ((-V[k, i] * ck) * V[k, i])
+    if has_ubody:
+        uk = ubody[k]
+        for i0 in range(hi - lo):
+            i = lo + i0
+            te += wts[i] * (uk * V[k, i])
+    return td, te
+
+
+@_inline
+def _soa_end_powers(P, phi, V, c, pe):
+    """``pe`` plus the powers of the end loads of chunk ``c`` at the velocity ``V``."""
+    end_idx = P[I_END_IDX]
+    end_face = P[I_END_FACE]
+    end_chunk = P[I_END_CHUNK]
+    for q in range(end_chunk[c], end_chunk[c + 1]):
+        v = _soa_end_load(P, phi, q)
+        t = 0.0
+        for k in range(6):
+            t += v[k] * V[k, end_idx[q]]
+        pe += end_face[q] * t
+    return pe
 
 
 @_inline
@@ -599,7 +612,6 @@ def _close_chunk(P, OUT, INC, phi, s, Nv, w, half, close, velocity, inv, need_ki
     has_power = P[I_HAS_POWER]
     end_idx = P[I_END_IDX]
     end_div = P[I_END_DIV]
-    end_face = P[I_END_FACE]
     end_chunk = P[I_END_CHUNK]
     n = w.shape[1]
     ne = OUT.shape[1]
@@ -680,28 +692,12 @@ def _close_chunk(P, OUT, INC, phi, s, Nv, w, half, close, velocity, inv, need_ki
                 i = lo + i0
                 Nv[k, i] = 0.0 if (constrained and clamped[i]) or not live[k] else s[k, i] / m
         if has_power:
-            if has_damp:
-                ck = damp[k]
-                t = 0.0
-                for i0 in range(hi - lo):
-                    i = lo + i0
-                    t += wts[i] * ((-Nv[k, i] * ck) * Nv[k, i])
-                pd += t
-            if has_ubody:
-                uk = ubody[k]
-                t = 0.0
-                for i0 in range(hi - lo):
-                    i = lo + i0
-                    t += wts[i] * (uk * Nv[k, i])
-                pe += t
+            td, te = _soa_body_powers(wts, damp, ubody, has_damp, has_ubody, Nv, k, lo, hi)
+            pd += td
+            pe += te
     if close:
         if has_power:
-            for q in range(end_chunk[c], end_chunk[c + 1]):
-                v = _soa_end_load(P, phi, q)
-                t = 0.0
-                for k in range(6):
-                    t += v[k] * Nv[k, end_idx[q]]
-                pe += end_face[q] * t
+            pe = _soa_end_powers(P, phi, Nv, c, pe)
         kin = 0.0
         if need_kin:
             for i0 in range(hi - lo):
