@@ -11,6 +11,7 @@ do not support, and load their machine code from numba's cache in a new process.
 
 from __future__ import annotations
 
+import functools
 import pathlib
 import re
 import subprocess
@@ -19,6 +20,7 @@ import textwrap
 
 import numpy as np
 import pytest
+import toys
 from toys import QuadraticMedium
 
 import cartan
@@ -93,38 +95,12 @@ def rod_problem(planar: bool, n: int = 10) -> Problem:
     return Problem(rod, grid, init, {"start": Clamped(), "end": Free(load=np.linspace(0.5, 1.0, r))}, loads)
 
 
-def _rel(a, b) -> float:
-    a, b = np.asarray(a, dtype=float), np.asarray(b, dtype=float)
-    scale = float(np.max(np.abs(b))) if b.size else 0.0
-    diff = float(np.max(np.abs(a - b))) if b.size else 0.0
-    return diff / scale if scale > 0 else diff
-
-
 def assert_close_states(a, b, tol=TOL):
-    assert a.t == b.t
-    assert set(a.arrays) == set(b.arrays)
-    errors = {"S": _rel(a.S, b.S)}
-    errors.update({k: _rel(a.arrays[k], b.arrays[k]) for k in b.arrays})
-    for key in ("dissipated_energy", "external_work"):
-        errors[key] = _rel(a.scalars[key], b.scalars[key])
-    assert max(errors.values()) <= tol, errors
-    assert a.scalars["nstep"] == b.scalars["nstep"]
+    toys.assert_close_states(a, b, tol)
 
 
-def run_both(problem, make, dt, nsteps, blocks=(None,), **scheme_options):
-    """The same steps on the Python path and (in ``blocks`` calls) on the compiled path."""
-    scheme = Collocation(problem, **scheme_options)
-    start = scheme.initial_state()
-    start.scalars.setdefault("nstep", 0)
-    ref, fast = start.copy(), start.copy()
-    ref_integ, fast_integ = make(), make()
-    for _ in range(nsteps):
-        ref_integ.step(scheme, ref, dt)
-    sizes = [nsteps] if blocks == (None,) else list(blocks)
-    assert sum(sizes) == nsteps
-    for size in sizes:
-        assert scheme.compiled_advance(fast_integ, fast, dt, size)
-    return scheme, (ref, ref_integ), (fast, fast_integ)
+run_both = functools.partial(toys.run_both, Collocation)
+_rel = toys.rel_error
 
 
 # ---------------------------------------------------------------------------- agreement

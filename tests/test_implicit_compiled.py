@@ -14,7 +14,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 from cartan_verification.stiff import stiff_rod
-from toys import QuadraticMedium, rod_problem
+from toys import QuadraticMedium, rel_error, rod_problem
 
 import cartan
 from cartan import _backend
@@ -93,10 +93,6 @@ CASES = {
 }
 
 
-def _rel(a, b) -> float:
-    scale = float(np.max(np.abs(b)))
-    diff = float(np.max(np.abs(np.asarray(a) - np.asarray(b))))
-    return diff / scale if scale > 0 else diff
 
 
 def _moved_state(scheme):
@@ -127,7 +123,7 @@ def test_residual_matches_the_reference(name):
         ref = ImplicitMidpoint()._residual(scheme, state, xi, dt)
         fast = kernel(xi, dt)
         for key in ("W", "mu", "BW", "Dmu"):
-            assert _rel(fast[key], ref[key]) <= TOL, (key, _rel(fast[key], ref[key]))
+            assert rel_error(fast[key], ref[key]) <= TOL, (key, rel_error(fast[key], ref[key]))
         # R is a difference of its terms: round-off relative to their size
         scale = np.abs(ref["Dmu"]).max() + dt * np.abs(ref["BW"]).max() + np.abs(state.S).max()
         assert np.abs(fast["R"] - ref["R"]).max() <= TOL * scale
@@ -176,8 +172,8 @@ def test_steps_match_the_reference(name):
     fast, fi = _run(make, dt, True, steps, tol)
     ref, ri = _run(make, dt, False, steps, tol)
     bound = 2 * steps * tol
-    errors = {"S": _rel(fast.S, ref.S)}
-    errors.update({k: _rel(fast.arrays[k], ref.arrays[k]) for k in ref.arrays})
+    errors = {"S": rel_error(fast.S, ref.S)}
+    errors.update({k: rel_error(fast.arrays[k], ref.arrays[k]) for k in ref.arrays})
     for key in ("dissipated_energy", "external_work"):
         errors[key] = abs(fast.scalars[key] - ref.scalars[key]) / max(abs(ref.scalars[key]), 1e-300)
     assert max(errors.values()) <= bound, errors
@@ -193,7 +189,7 @@ def test_simulate_compiled_false_is_the_reference(tmp_path):
     runs = {c: cartan.simulate(problem, integrator="implicit-midpoint", dt=dt, t_end=steps * dt, save_every=10,
                                compiled=c, progress=False) for c in (True, False)}
     for key in ("S", "position", "kinetic_energy", "potential_energy"):
-        assert _rel(runs[True][key].values, runs[False][key].values) <= 2 * steps * 1e-10, key
+        assert rel_error(runs[True][key].values, runs[False][key].values) <= 2 * steps * 1e-10, key
     assert np.array_equal(runs[True]["time"].values, runs[False]["time"].values)
 
 
@@ -275,5 +271,5 @@ def test_lu_solve_matches_superlu():
     b = rng.standard_normal(n)
     x = LUSolve(lu).solve(b)
     # the same factors, substituted in another order: round-off of a well-conditioned system
-    assert _rel(x, lu.solve(b)) <= 1e-13
+    assert rel_error(x, lu.solve(b)) <= 1e-13
     assert np.abs(A @ x - b).max() <= 1e-12 * np.abs(b).max()
