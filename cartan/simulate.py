@@ -198,8 +198,10 @@ def _advance(
 
     Returns ``(steps done, None)``, or ``(steps done, reason)`` as soon as
     ``guard(state, steps done)`` reports a blow-up.  With ``compiled``, the steps go to
-    ``scheme.compiled_advance`` when the scheme has it and accepts the combination (see the
-    module docstring), in sub-blocks ending where the guard runs its energy test; otherwise,
+    the integrator's own ``compiled_advance(scheme, state, dt, n, kinetic_limit)`` when it has one
+    (``implicit-midpoint``), else to ``scheme.compiled_advance``, when it accepts the
+    combination (see the module docstring), in sub-blocks ending where the guard runs its
+    energy test; otherwise,
     or for what it declines, to ``integrator.step`` one by one.  An implicit integrator's
     :class:`~cartan.statics.ConvergenceError` (its stage equations unsolved; the state is left
     at the last step done) is reported like a blow-up.  Integrators with a ``begin_block()``
@@ -214,12 +216,18 @@ def _advance(
         begin()
     with np.errstate(over="ignore", invalid="ignore", divide="ignore"):
         fast = getattr(scheme, "compiled_advance", None) if compiled else None
+        own = getattr(integrator, "compiled_advance", None) if compiled else None  # its own compiled blocks
         energy_checks = getattr(guard, "energy_checks", True)
         kinetic_limit = getattr(guard, "kinetic_limit", lambda: math.inf)
-        while fast is not None and k < nsteps:
+        while (own is not None or fast is not None) and k < nsteps:
             stop = min(nsteps, 1 << k.bit_length()) if energy_checks else nsteps
             before = state.scalars.get("nstep", 0)
-            if not fast(integrator, state, dt, stop - k, kinetic_limit=kinetic_limit()):
+            try:
+                ran = (own(scheme, state, dt, stop - k, kinetic_limit()) if own is not None
+                       else fast(integrator, state, dt, stop - k, kinetic_limit=kinetic_limit()))
+            except ConvergenceError as exc:  # the step after those done failed
+                return k + state.scalars.get("nstep", 0) - before + 1, str(exc)
+            if not ran:
                 break
             k += state.scalars.get("nstep", 0) - before
             reason = guard(state, k)

@@ -26,6 +26,16 @@ grid) and the step's configuration, so that no state is copied per evaluation.
 
 Newton's iteration around the residual uses two more compiled pieces: :class:`LUSolve`, the
 substitutions of a SuperLU factorisation, and :func:`weighted_norm`, the kinetic-energy norms.
+
+:func:`newton_steps` runs whole blocks of steps — ``ImplicitMidpoint._step`` and the
+bookkeeping of ``ImplicitMidpoint.step`` — with these pieces, in the Python driver's order, so
+that both give the same results bit for bit; it returns to Python when it needs a fresh
+Jacobian (:data:`NEED_JACOBIAN`: the caller factorises it at the loop's current iterate and
+calls again to continue the same step) and when a step fails (a ``FAIL_*`` status).
+:class:`NewtonBlocks` keeps its work arrays and makes the call.  The residual of the scheme
+at hand is chosen when the loop is compiled (:func:`_evaluate`, an ``overload`` on which of
+the lattice or collocation contexts is given), since numba does not cache functions that
+receive jitted functions as arguments.
 """
 
 from __future__ import annotations
@@ -34,6 +44,7 @@ from typing import Any
 
 import numpy as np
 from numba import njit
+from numba.extending import overload
 
 from .._backend import get_backend
 from ..groups.so3 import cross3
@@ -47,16 +58,33 @@ from ..schemes._lattice_compiled import (
     I_MASS,
     _chunk_scratch,
     _cinv,
+    _constrain,
+    _end_load,
     _exp_drift_nd,
     _force_once,
     _jinv_T,
     _q_coeffs,
     _rot_coeffs,
     _se3_dexp_inv_T,
+    _unstable,
 )
 from ..schemes._lattice_compiled_kernels import GID_SE2, GID_SE3, GID_SO2, GID_SO3, g_Ad, g_dexp_inv, g_exp
+from ..schemes._lattice_compiled_plan import (
+    CHECK_MOMENTUM,
+    I_AFFINE,
+    I_DAMP,
+    I_END_FACE,
+    I_END_FOLLOW,
+    I_END_IDX,
+    I_END_LOAD,
+    I_HAS_DAMP,
+    I_HAS_POWER,
+    I_HAS_UBODY,
+    I_UBODY,
+    I_W,
+)
 
-__all__ = ["LUSolve", "StageResidual", "stage_residual", "weighted_norm"]
+__all__ = ["LUSolve", "NewtonBlocks", "StageResidual", "newton_steps", "stage_residual", "weighted_norm"]
 
 _jit = njit(cache=True, error_model="numpy")
 _inline = njit(inline="always", error_model="numpy")
@@ -353,6 +381,397 @@ def weighted_norm(w: np.ndarray, idx: np.ndarray, y: np.ndarray) -> float:
     return np.sqrt(acc)
 
 
+# ---------------------------------------------------------------------------- Newton's iteration
+#: what :func:`newton_steps` returns with: the steps are done (or the run's blow-up test failed
+#: after the last of them); a fresh Jacobian is needed at the current iterate of the step in
+#: progress; or that step failed (the reasons of ``ImplicitMidpoint._step``)
+DONE, NEED_JACOBIAN, FAIL_NOT_FINITE, FAIL_MAX_ITER, FAIL_SINGULAR, FAIL_NO_DECREASE = range(6)
+#: rows of a slot of the residual buffers ``BUF [2, 6, n·r]``
+_N, _W, _MU, _BW, _DMU, _R = range(6)
+#: ``64 ε``: the round-off floor of ``‖R‖_*`` is this times the size of its terms
+_FLOOR = 64 * np.finfo(float).eps
+
+
+def _evaluate(P, lat, col, xi, dt, radius, N, W, mu, BW, Dmu, R, D, A, M):  # pragma: no cover - compiled only
+    """The stage residual of the scheme whose context is not empty (``lat`` for the lattice,
+    ``col`` for collocation): :func:`lattice_residual` or :func:`collocation_residual`, chosen
+    when :func:`newton_steps` is compiled (numba does not cache functions that receive jitted
+    functions as arguments)."""
+    raise NotImplementedError("compiled code only")
+
+
+@overload(_evaluate, jit_options={"error_model": "numpy"})
+def _evaluate_impl(P, lat, col, xi, dt, radius, N, W, mu, BW, Dmu, R, D, A, M):
+    if len(lat) > 0:
+        def lattice(P, lat, col, xi, dt, radius, N, W, mu, BW, Dmu, R, D, A, M):
+            G0s, Phi0, Gs, Phi, S, scr = lat
+            return lattice_residual(P, G0s, Phi0, Gs, Phi, S, xi, dt, radius, N, W, mu, BW, Dmu, R, D, scr, A, M)
+        return lattice
+
+    def collocation(P, lat, col, xi, dt, radius, N, W, mu, BW, Dmu, R, D, A, M):
+        Dc, X0, Phi0, X, Phi, S = col
+        return collocation_residual(P, Dc, X0, Phi0, X, Phi, S, xi, dt, radius, N, W, mu, BW, Dmu, R, D, A, M)
+    return collocation
+
+
+def _drift(P, lat, col, xi, tau, D, work):  # pragma: no cover - compiled only
+    """The exact drift ``Φ ← Φ exp(τξ)`` of the step's configuration in place (``work`` False)
+    or of its work copy, taken afresh (``work`` True); returns the frames drifted."""
+    raise NotImplementedError("compiled code only")
+
+
+@overload(_drift, jit_options={"error_model": "numpy"})
+def _drift_impl(P, lat, col, xi, tau, D, work):
+    if len(lat) > 0:
+        def lattice(P, lat, col, xi, tau, D, work):
+            G0s, Phi0, Gs, Phi, S, scr = lat
+            if work:
+                for a in range(len(Gs)):
+                    Gs[a][...] = G0s[a]
+                Phi[...] = Phi0
+                lattice_drift(P, Gs, Phi, xi, tau, D, scr)
+                return Phi
+            lattice_drift(P, G0s, Phi0, xi, tau, D, scr)
+            return Phi0
+        return lattice
+
+    def collocation(P, lat, col, xi, tau, D, work):
+        Dc, X0, Phi0, X, Phi, S = col
+        if work:
+            X[...] = X0
+            Phi[...] = Phi0
+            _collocation_drift(P, Dc, X, Phi, xi, tau, True)
+            return Phi
+        _collocation_drift(P, Dc, X0, Phi0, xi, tau, True)
+        return Phi0
+    return collocation
+
+
+@_jit
+def midpoint_powers(P: tuple, face: np.ndarray, N: np.ndarray, Phi: np.ndarray, tr: np.ndarray, Mr: np.ndarray,
+                    Am: np.ndarray) -> tuple:
+    """``(dissipated, external)`` power of the loads of the plan ``P`` at the velocity ``N``
+    ``[n, r]`` and frames ``Phi`` (``Scheme.powers`` with ``_boundary_power``): damping,
+    body-frame uniform force, end loads weighted by their ``face`` ``(n_end,)`` (the lattice's
+    ``weights/(h/2)`` on a face, 1 at the end of a rod); ``tr`` ``(r,)``, ``Mr`` ``[r, r]``,
+    ``Am`` ``[m, m]`` work."""
+    if not P[I_HAS_POWER]:
+        return 0.0, 0.0
+    w = P[I_W]
+    n, r = N.shape
+    dissipated = 0.0
+    external = 0.0
+    if P[I_HAS_DAMP]:
+        damp = P[I_DAMP]
+        p = 0.0
+        for i in range(n):
+            s = 0.0
+            for k in range(r):
+                s += (-N[i, k] * damp[k]) * N[i, k]
+            p += w[i] * s
+        dissipated -= p
+    if P[I_HAS_UBODY]:
+        ubody = P[I_UBODY]
+        p = 0.0
+        for i in range(n):
+            s = 0.0
+            for k in range(r):
+                s += ubody[k] * N[i, k]
+            p += w[i] * s
+        external += p
+    end_idx = P[I_END_IDX]
+    p = 0.0
+    for q in range(end_idx.shape[0]):
+        idx = end_idx[q]
+        _end_load(P[I_GID], P[I_AFFINE], Phi, idx, P[I_END_LOAD][q], P[I_END_FOLLOW][q], tr, Mr, Am)
+        s = 0.0
+        for a in range(r):
+            s += tr[a] * N[idx, a]
+        p += face[q] * s
+    external += p
+    return dissipated, external
+
+
+@_jit
+def _convergence_norms(w_over_m: np.ndarray, w_times_m: np.ndarray, unk: np.ndarray, S: np.ndarray,
+                       Dmu: np.ndarray, BW: np.ndarray, xi: np.ndarray) -> tuple:
+    """``(‖S‖_*, ‖Dmu‖_*, ‖BW‖_*, ‖ξ‖_M)`` in one pass over the unknowns, each summed in the
+    order of :func:`weighted_norm` (so the same values); all arrays flattened."""
+    s = d = b = x = 0.0
+    for k in range(unk.shape[0]):
+        j = unk[k]
+        v = S[j]
+        s += w_over_m[k] * (v * v)
+        v = Dmu[j]
+        d += w_over_m[k] * (v * v)
+        v = BW[j]
+        b += w_over_m[k] * (v * v)
+        v = xi[j]
+        x += w_times_m[k] * (v * v)
+    return np.sqrt(s), np.sqrt(d), np.sqrt(b), np.sqrt(x)
+
+
+@_jit
+def _slot_residual(P: tuple, lat: tuple, col: tuple, XI: np.ndarray, BUF: np.ndarray, slot: int, dt: float,
+                   radius: float, D: np.ndarray, A: np.ndarray, M: np.ndarray) -> bool:
+    """The stage residual at the iterate ``XI[slot]`` into the buffers ``BUF[slot]``."""
+    n, r = D.shape[0], A.shape[0]
+    B = BUF[slot]
+    return _evaluate(P, lat, col, XI[slot].reshape((n, r)), dt, radius, B[_N].reshape((n, r)),
+                     B[_W].reshape((n, r)), B[_MU].reshape((n, r)), B[_BW].reshape((n, r)),
+                     B[_DMU].reshape((n, r)), B[_R].reshape((n, r)), D, A, M)
+
+
+@_jit
+def newton_steps(P: tuple, lat: tuple, col: tuple, face: np.ndarray, unk: np.ndarray, w_over_m: np.ndarray,
+                 w_times_m: np.ndarray, inv: np.ndarray, lu: tuple, have_lu: bool, resume: bool, S: np.ndarray,
+                 XI: np.ndarray, BUF: np.ndarray, prev: np.ndarray, hist: np.ndarray, ist: np.ndarray,
+                 fst: np.ndarray, work: tuple, t: float, dt: float, nsteps: int, dissipated: float,
+                 external: float, kinetic_limit: float, radius: float, tol: float, contraction: float,
+                 xtol: float, max_iter: int, max_halvings: int, predictor: bool, reuse: bool) -> tuple:
+    """Up to ``nsteps`` steps of ``implicit-midpoint`` (``ImplicitMidpoint._step`` and the
+    bookkeeping of ``ImplicitMidpoint.step``), Newton's iteration included, on the state whose
+    arrays the contexts hold.
+
+    The operations are those of the Python driver, in its order, on the same compiled pieces
+    (:func:`_evaluate`, :func:`weighted_norm`, :func:`_lu_solve`, :func:`momentum_update`, the
+    scheme's drift), so that the steps agree with it bit for bit; only the powers of the loads
+    (:func:`midpoint_powers`) are summed in another order than ``Scheme.powers``.
+
+    Parameters
+    ----------
+    P : tuple
+        The compiled plan of the scheme (``_lattice_compiled_plan`` layout).
+    lat, col : tuple
+        The lattice context ``(G0s, Phi0, Gs, Phi, S, scr)`` — the state's edges (one
+        ``[ne_α, m, m]`` per axis) and frames ``[nf, m, m]``, their work copies, the momentum
+        ``[n, r]`` and the drift's chunk scratch — and ``()``, or ``()`` and the collocation
+        context ``(Dc, X0, Phi0, X, Phi, S)``.  The state's arrays are updated in place.
+    face : ndarray, shape (n_end,)
+        Weights of the end loads' power (:func:`midpoint_powers`).
+    unk : ndarray of int64, shape (nunk,)
+        The unknowns: indices into ``S.ravel()``.
+    w_over_m, w_times_m : ndarray, shape (nunk,)
+        The weights of ``‖R‖_*²`` and ``‖N‖_M²`` at the unknowns.
+    inv : ndarray, shape (r,)
+        ``1/m`` on live components, 0 on gauge ones (the blow-up test).
+    lu : tuple of ndarray
+        The factors of the Jacobian (``LUSolve``'s arrays), read when ``have_lu``.
+    have_lu : bool
+        Whether ``lu`` holds the kept factorisation.
+    resume : bool
+        Continue the step in progress (state in ``XI``, ``BUF``, ``hist``, ``ist``, ``fst``)
+        with the fresh factorisation ``lu`` at its current iterate.
+    S : ndarray, shape (n, r)
+        The state's momentum (the array of the contexts), updated in place.
+    XI : ndarray, shape (2, n·r)
+        Two iterates ξ (slots); ``ist[0]`` is the current one.
+    BUF : ndarray, shape (2, 6, n·r)
+        The residual's pieces ``N, W, μ, BW, Dmu, R`` of each slot.
+    prev : ndarray, shape (n·r,)
+        ξ of the previous step (the predictor), valid when ``ist[3]``.
+    hist : ndarray, shape (max_iter + 1,)
+        ``‖R‖_*`` of the accepted iterates of the step in progress (``ist[2]`` of them).
+    ist : ndarray of int64, shape (4,)
+        ``(current slot, iterations of the step, len(history), previous ξ valid)``, kept
+        between calls.
+    fst : ndarray, shape (2,)
+        ``(‖R‖_* of the current iterate, Δt of the previous step)``, kept between calls.
+    work : tuple
+        ``(D [n, m, m], A [r, r], M [r, r + 1], b, delta, y [nunk], tr [r], Mr [r, r],
+        Am [m, m])``.
+    t, dt, nsteps, dissipated, external
+        Time, step, steps to take, energy accumulators.
+    kinetic_limit : float
+        The run's per-step blow-up bound on ``½Σ w S²/m`` (inf: off).
+    radius, tol, contraction, xtol, max_iter, max_halvings, predictor, reuse
+        The injectivity radius of exp and the options of ``ImplicitMidpoint``
+        (``xtol = XTOL·max(1, L)``).
+
+    Returns
+    -------
+    tuple
+        ``(status, steps done, residual evaluations, Newton iterations of the steps done, t,
+        dissipated, external, have_lu)``; ``status`` is :data:`DONE`, :data:`NEED_JACOBIAN`
+        (the iterate is ``XI[ist[0]]``) or a ``FAIL_*`` reason (the state is that of the
+        last step done; ``ist``, ``fst`` and ``hist`` describe the failed step).
+    """
+    D, A, M, b, delta, y, tr, Mr, Am = work
+    n, r = S.shape
+    nunk = unk.shape[0]
+    mass = P[I_MASS]
+    w = P[I_W]
+    Sf = S.reshape(n * r)
+    cur, it, nhist, have_prev = ist[0], ist[1], ist[2], ist[3] != 0
+    rn, dt_prev = fst[0], fst[1]
+    done = 0
+    nforce = 0
+    iters = 0
+    status = DONE
+    fresh = resume
+    in_step = resume
+    while done < nsteps:
+        if not in_step:
+            # ---- start of a step: the initial iterate (ImplicitMidpoint._step)
+            if not reuse:
+                have_lu = False
+            got = False
+            a = 1 - cur
+            if have_prev and predictor:
+                q = dt / dt_prev
+                xa = XI[a]
+                xa[:] = 0.0
+                for k in range(nunk):
+                    xa[unk[k]] = q * prev[unk[k]]
+                if _slot_residual(P, lat, col, XI, BUF, a, dt, radius, D, A, M):
+                    nforce += 1
+                    cur = a
+                    got = True
+            if not got:
+                xa = XI[a]
+                xa[:] = 0.0
+                nonzero = False
+                for k in range(nunk):
+                    j = unk[k]
+                    v = dt * (Sf[j] / mass[j % r])
+                    xa[j] = v
+                    if v != 0.0:
+                        nonzero = True
+                ok = _slot_residual(P, lat, col, XI, BUF, a, dt, radius, D, A, M)
+                if ok:
+                    nforce += 1
+                cur = a
+                if nonzero:
+                    z = 1 - a
+                    XI[z][:] = 0.0
+                    _slot_residual(P, lat, col, XI, BUF, z, dt, radius, D, A, M)
+                    nforce += 1
+                    if not ok or (weighted_norm(w_over_m, unk, BUF[z, _R])
+                                  < weighted_norm(w_over_m, unk, BUF[a, _R])):
+                        cur = z
+            rn = weighted_norm(w_over_m, unk, BUF[cur, _R])
+            hist[0] = rn
+            nhist = 1
+            it = 0
+            fresh = False
+            in_step = True
+        # ---- Newton's iteration
+        converged = False
+        while True:
+            if resume:
+                resume = False  # the tests below ran before the Jacobian was requested
+            else:
+                if not np.isfinite(rn):
+                    status = FAIL_NOT_FINITE
+                    break
+                s_norm, dmu_norm, bw_norm, xi_norm = _convergence_norms(w_over_m, w_times_m, unk, Sf, BUF[cur, _DMU],
+                                                                         BUF[cur, _BW], XI[cur])
+                floor = _FLOOR * (s_norm + dmu_norm + abs(dt) * bw_norm)
+                bound = tol * xi_norm / abs(dt)
+                if floor > bound:  # Python's max(bound, floor)
+                    bound = floor
+                if nunk == 0 or rn <= bound:
+                    converged = True
+                    break
+                if it >= max_iter:
+                    status = FAIL_MAX_ITER
+                    break
+                if not have_lu:
+                    status = NEED_JACOBIAN
+                    break
+            xc = XI[cur]
+            Rc = BUF[cur, _R]
+            for k in range(nunk):
+                b[k] = -Rc[unk[k]]
+            _lu_solve(lu[0], lu[1], lu[2], lu[3], lu[4], lu[5], lu[6], lu[7], lu[8], lu[9], b, delta, y)
+            big = 0.0
+            finite = True
+            for k in range(nunk):
+                if not np.isfinite(delta[k]):
+                    finite = False
+                big = max(big, abs(delta[k]))
+            if not finite:
+                status = FAIL_SINGULAR
+                break
+            negligible = big <= xtol
+            a = 1 - cur
+            xt = XI[a]
+            alpha = 1.0
+            accepted = False
+            final = False
+            rn_t = np.inf
+            for _ in range(max_halvings + 1 if fresh else 1):
+                xt[:] = xc
+                for k in range(nunk):
+                    j = unk[k]
+                    xt[j] = xc[j] + alpha * delta[k]
+                ok = _slot_residual(P, lat, col, XI, BUF, a, dt, radius, D, A, M)
+                rn_t = np.inf
+                if ok:
+                    nforce += 1
+                    rn_t = weighted_norm(w_over_m, unk, BUF[a, _R])
+                it += 1
+                if negligible and ok:
+                    # a Newton step at the round-off level of ξ: what is left of R is round-off noise
+                    accepted = True
+                    final = True
+                    break
+                if rn_t < rn:
+                    accepted = True
+                    break
+                if not fresh or it >= max_iter:
+                    break
+                alpha *= 0.5
+            if accepted:
+                slow = rn_t > contraction * rn
+                cur = a
+                rn = rn_t
+                hist[nhist] = rn
+                nhist += 1
+                fresh = False
+                if final:
+                    converged = True
+                    break
+                if slow:
+                    have_lu = False  # convergence slows: a Jacobian at the new iterate
+            elif not fresh:
+                have_lu = False  # a kept Jacobian that no longer contracts: a fresh one here
+            elif it >= max_iter:
+                status = FAIL_MAX_ITER
+                break
+            else:
+                status = FAIL_NO_DECREASE
+                break
+        if not converged:
+            break
+        # ---- end of the step: powers at the midpoint, Φ ← Φ exp(ξ), S ← dexp⁻¹_{−ξ}ᵀ μ + Δt (W − BW)
+        iters += it
+        xi = XI[cur].reshape((n, r))
+        B = BUF[cur]
+        pd = 0.0
+        pe = 0.0
+        if P[I_HAS_POWER]:
+            Phi_mid = _drift(P, lat, col, xi, 0.5, D, True)
+            pd, pe = midpoint_powers(P, face, B[_N].reshape((n, r)), Phi_mid, tr, Mr, Am)
+        momentum_update(P[I_GID], xi, B[_MU].reshape((n, r)), B[_W].reshape((n, r)), B[_BW].reshape((n, r)), dt,
+                        S)
+        _drift(P, lat, col, xi, 1.0, D, False)
+        _constrain(P, S)
+        t = t + dt
+        dissipated = dissipated + dt * pd
+        external = external + dt * pe
+        prev[:] = XI[cur]
+        have_prev = True
+        dt_prev = dt
+        in_step = False
+        done += 1
+        if _unstable(CHECK_MOMENTUM, kinetic_limit, S, D, D, w, inv):
+            break
+    ist[0], ist[1], ist[2], ist[3] = cur, it, nhist, 1 if have_prev else 0
+    fst[0], fst[1] = rn, dt_prev
+    return status, done, nforce, iters, t, dissipated, external, have_lu
+
+
 # ---------------------------------------------------------------------------- Python glue
 def _contiguous(a: np.ndarray, shape: tuple[int, ...]) -> np.ndarray:
     """``a`` reshaped to ``shape``, without a copy when it is a C-contiguous float64 array."""
@@ -471,6 +890,88 @@ class StageResidual:
                         _contiguous(res["W"], (n, r)), _contiguous(res["BW"], (n, r)), float(dt), S_new)
         state.arrays.update(self.drifted(state, xi, 1.0))
         state.S = S_new.reshape(self.shape)
+
+
+class NewtonBlocks:
+    """The work arrays of :func:`newton_steps` for one compiled stage residual and one set of
+    unknowns, and its call (``ImplicitMidpoint.compiled_advance`` drives it: it builds the Jacobians
+    the loop asks for and turns its failures into errors).
+
+    Parameters
+    ----------
+    kernel : StageResidual
+        The compiled residual, bound to the state before every :meth:`run`.
+    unk : ndarray of int64, shape (nunk,)
+        The unknowns, as indices into ``S.ravel()``.
+    w_over_m, w_times_m : ndarray, shape (nunk,)
+        The weights of the norms ``‖R‖_*`` and ``‖N‖_M`` at the unknowns.
+    inv : ndarray, shape (r,)
+        ``1/m`` on live components, 0 on gauge ones.
+    """
+
+    def __init__(self, kernel: StageResidual, unk: np.ndarray, w_over_m: np.ndarray, w_times_m: np.ndarray,
+                 inv: np.ndarray):
+        n, r, m = kernel.n, kernel.r, kernel.m
+        nunk = len(unk)
+        self.kernel = kernel
+        self.shape = kernel.shape
+        self.unk = np.ascontiguousarray(unk, dtype=np.int64)
+        self.w_over_m = np.ascontiguousarray(w_over_m, dtype=np.float64)
+        self.w_times_m = np.ascontiguousarray(w_times_m, dtype=np.float64)
+        self.inv = np.ascontiguousarray(inv, dtype=np.float64)
+        self.XI = np.zeros((2, n * r))
+        self.BUF = np.zeros((2, 6, n * r))
+        self.prev = np.zeros(n * r)
+        self.hist = np.zeros(1)
+        self.ist = np.zeros(4, dtype=np.int64)
+        self.fst = np.zeros(2)
+        self.work = (kernel.D, kernel.A, kernel.M, np.empty(nunk), np.empty(nunk), np.empty(nunk), np.empty(r),
+                     np.empty((r, r)), np.empty((m, m)))
+        i0, f0 = np.zeros(0, dtype=np.int64), np.zeros(0)
+        self.no_lu = (np.zeros(1, dtype=np.int64), i0, f0, f0, np.zeros(1, dtype=np.int64), i0, f0, f0, i0, i0)
+
+    def start(self, prev: np.ndarray | None, dt_prev: float, max_iter: int) -> None:
+        """Begin a block: ``prev`` ``[*shape, r]`` the previous step's ξ (None: no previous step)
+        and its ``dt_prev``; room for the residual history of ``max_iter`` iterations."""
+        self.ist[:] = (0, 0, 0, prev is not None)
+        self.fst[:] = (0.0, dt_prev)
+        if prev is not None:
+            self.prev[:] = np.ravel(prev)
+        if self.hist.shape[0] < max_iter + 1:
+            self.hist = np.zeros(max_iter + 1)
+
+    def run(self, lu: Any, resume: bool, t: float, dt: float, nsteps: int, dissipated: float, external: float,
+            kinetic_limit: float, radius: float, options: tuple) -> tuple:
+        """One call of :func:`newton_steps` on the bound state with the factorisation ``lu``
+        (a :class:`LUSolve`, or None); ``options`` = ``(tol, contraction, xtol, max_iter,
+        max_halvings, predictor, reuse)``.  Returns what :func:`newton_steps` returns."""
+        k = self.kernel
+        if k.kind == "lattice":
+            G0s, Phi0, S = k._base
+            P, lat, col, face = k.plan, (G0s, Phi0, k.Gs, k.Phi, S, k.scr), (), k.plan[I_END_FACE]
+        else:
+            X0, Phi0, S = k._base
+            P, Dc = k.plan
+            lat, col, face = (), (Dc, X0, Phi0, k.X, k.Phi, S), np.ones(len(P[I_END_IDX]))
+        tol, contraction, xtol, max_iter, max_halvings, predictor, reuse = options
+        return newton_steps(P, lat, col, face, self.unk, self.w_over_m, self.w_times_m, self.inv,
+                            self.no_lu if lu is None else lu._args, lu is not None, bool(resume), S, self.XI,
+                            self.BUF, self.prev, self.hist, self.ist, self.fst, self.work, float(t), float(dt),
+                            int(nsteps), float(dissipated), float(external), float(kinetic_limit), float(radius),
+                            float(tol), float(contraction), float(xtol), int(max_iter), int(max_halvings),
+                            bool(predictor), bool(reuse))
+
+    def iterate(self) -> np.ndarray:
+        """The current iterate ξ ``[*shape, r]`` of the step in progress (a copy)."""
+        return self.XI[self.ist[0]].reshape(self.shape).copy()
+
+    def previous(self) -> np.ndarray:
+        """ξ ``[*shape, r]`` of the last step done (a copy)."""
+        return self.prev.reshape(self.shape).copy()
+
+    def progress(self) -> tuple[int, float, list[float]]:
+        """``(iterations, ‖R‖_*, history)`` of the step in progress."""
+        return int(self.ist[1]), float(self.fst[0]), [float(x) for x in self.hist[: self.ist[2]]]
 
 
 def stage_residual(scheme: Any) -> StageResidual | None:

@@ -12,7 +12,13 @@ Implementers
   for ``rate = "overdamped"`` the largest ``Δt·λ_max`` of the linear gradient flow;
 * implement :meth:`_step`, which advances ``state`` in place by ``dt`` (time included) and
   calls :meth:`force` (never ``scheme.force`` directly) so the counters stay right;
-* keep ``_step`` deterministic: a restart from a checkpoint reproduces the run bit for bit.
+* keep ``_step`` deterministic: a restart from a checkpoint reproduces the run bit for bit;
+* optionally, define ``compiled_advance(scheme, state, dt, nsteps, kinetic_limit) -> bool``
+  to take whole blocks of steps in compiled code (:func:`cartan.simulate` offers it the steps
+  between saves before the scheme's own ``compiled_advance``): False, touching nothing, when
+  it declines; otherwise the steps taken exactly as :meth:`step` takes them, stopping after
+  a step whose kinetic energy ``½Σ w S²/m`` exceeds ``kinetic_limit`` or is not finite
+  (``implicit-midpoint`` does; the explicit integrators leave it to the schemes).
 
 The base class keeps the counters (``nstep``, ``nforce``, ``wall_time``), advances
 ``state.t``, and integrates the dissipated and external powers (trapezoidal rule) into

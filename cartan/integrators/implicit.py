@@ -92,6 +92,23 @@ overrides :meth:`~ImplicitMidpoint._residual` or :meth:`~Integrator.force`, and 
 relative, ``tests/test_implicit_compiled.py``); the Newton logic, its tolerances and the
 restart semantics are the same on both paths, and a step agrees with the reference to the
 Newton tolerance.
+
+Compiled blocks of steps
+------------------------
+With the compiled residual, :meth:`ImplicitMidpoint.compiled_advance` — which :func:`cartan.simulate`
+calls for the steps between saves — runs whole blocks of steps in one numba loop
+(:func:`cartan.integrators._implicit_compiled.newton_steps`): the initial iterate, Newton's
+iteration with its convergence, contraction and halving tests, the substitutions of the kept
+factorisation, the end of each step, the midpoint powers and the bookkeeping of :meth:`step`.
+Python runs only when the loop needs a fresh Jacobian — it returns with the current iterate,
+:meth:`_jacobian` builds and factorises the Jacobian there, and the loop continues the same
+step — and when a step fails (the loop's reason becomes the
+:class:`~cartan.statics.ConvergenceError` of :meth:`step`).  :meth:`step` stays the Python
+driver of the same iteration: the two perform the same operations on the same compiled
+pieces, so they give the same iterates, counters and states bit for bit (the dissipated and
+external energies to round-off: the powers are summed in compiled code;
+``tests/test_implicit_loop.py``), and the kept Jacobian and previous ξ pass between them as
+between steps.
 """
 
 from __future__ import annotations
@@ -114,6 +131,15 @@ MAX_DENSE_UNKNOWNS = 3000
 XTOL = 1e-12
 #: backtracking halvings with a fresh Jacobian before a step is declared failed
 MAX_HALVINGS = 10
+
+#: why Newton's method failed (the end of :class:`cartan.statics.ConvergenceError`'s message)
+_NOT_FINITE = "the residual is not finite"
+_SINGULAR_STEP = "the Jacobian is singular (non-finite Newton step)"
+_NO_DECREASE = f"no decrease of the residual along the Newton step after {MAX_HALVINGS} halvings"
+
+
+def _iteration_limit(max_iter: int) -> str:
+    return f"the iteration limit max_iter = {max_iter} was reached"
 
 
 def _check_option(name: str, value: Any, lo: float, hi: float, allowed: str) -> float:
@@ -165,6 +191,10 @@ class _Plan:
         #: the compiled stage residual (:func:`cartan.integrators._implicit_compiled.stage_residual`),
         #: built at the first step that may use it; None when the scheme has none
         self.compiled: Any = False
+        #: the work arrays of the compiled blocks of steps
+        #: (:class:`cartan.integrators._implicit_compiled.NewtonBlocks`), built at the first block
+        self.blocks: Any = None
+        self.inv = np.where(scheme.live, 1.0 / np.where(scheme.live, scheme.mass, 1.0), 0.0)  # 1/m, 0 on gauge
 
 
 class ImplicitMidpoint(Integrator):
@@ -257,6 +287,141 @@ class ImplicitMidpoint(Integrator):
         state.scalars["nstep"] = state.scalars.get("nstep", 0) + 1
         self.nstep += 1
         self.wall_time += time.perf_counter() - t0
+
+    def compiled_advance(self, scheme: Scheme, state: State, dt: float, nsteps: int,
+                         kinetic_limit: float = math.inf) -> bool:
+        """Advance ``state`` in place by up to ``nsteps`` steps of ``dt`` in compiled code.
+
+        Whole blocks of steps — Newton's iteration, the end of each step and the bookkeeping of
+        :meth:`step` — run in one numba loop
+        (:func:`cartan.integrators._implicit_compiled.newton_steps`); Python runs only when
+        the loop asks for a fresh Jacobian (:meth:`_jacobian` at the loop's current iterate,
+        after which the same step continues) and when a step fails.  The steps are those of
+        :meth:`step` — the same operations on the same compiled residual, norms and
+        substitutions, so the same iterates, counters and results bit for bit, except the
+        dissipated and external energies, whose midpoint powers are summed in compiled code
+        (round-off) — and the kept Jacobian and previous ξ carry over between calls and to and
+        from :meth:`step` as they do between steps (:meth:`begin_block` forgets them).
+
+        Parameters
+        ----------
+        scheme : Scheme
+            The scheme of ``state``.
+        state : State
+            Advanced in place; its arrays are updated in place (replaced first by writable
+            C-contiguous float64 copies when they are not such arrays).
+        dt : float
+            The time step.
+        nsteps : int
+            Steps to take (≤ 0: none).
+        kinetic_limit : float, default inf
+            The per-step blow-up test of :func:`cartan.simulate`: the block stops after the
+            first step whose momentum is not finite or whose kinetic energy ``½Σ w S²/m``
+            exceeds this bound (the steps done are the increase of ``state.scalars["nstep"]``).
+
+        Returns
+        -------
+        bool
+            False, touching nothing, when the compiled residual does not apply (see
+            :meth:`_compiled`: the numpy backend, ``scheme.compiled_diagnostics`` cleared, no
+            compiled plan, another state layout, overridden :meth:`_residual` or
+            :meth:`~Integrator.force`) or when a subclass overrides :meth:`step` or
+            :meth:`_step`; the caller then runs :meth:`step`.  True when steps were taken.
+
+        Raises
+        ------
+        cartan.statics.ConvergenceError
+            When Newton's method fails in a step, with the message, iterations and history
+            :meth:`step` gives; the state is left after the steps done before it (counted in
+            ``state.scalars["nstep"]``).
+        """
+        if type(self).step is not ImplicitMidpoint.step or type(self)._step is not ImplicitMidpoint._step:
+            return False
+        plan = self._layout(scheme)
+        kernel = self._compiled(scheme, state, plan)
+        if kernel is None:
+            return False
+        nsteps = int(nsteps)
+        if nsteps <= 0:
+            return True
+        from ..schemes._lattice_compiled import _writable
+        from ._implicit_compiled import (
+            DONE,
+            FAIL_MAX_ITER,
+            FAIL_NO_DECREASE,
+            FAIL_NOT_FINITE,
+            FAIL_SINGULAR,
+            NEED_JACOBIAN,
+            LUSolve,
+            NewtonBlocks,
+        )
+
+        t_start = time.perf_counter()
+        state.S = _writable(state.S)  # the loop updates the state's arrays in place
+        for name in state.arrays:
+            state.arrays[name] = _writable(state.arrays[name])
+        kernel.bind(state)
+        if plan.blocks is None or plan.blocks.kernel is not kernel:
+            plan.blocks = NewtonBlocks(kernel, plan.flat_unknown, plan.w_over_m, plan.w_times_m, plan.inv)
+        blocks = plan.blocks
+        dt = float(dt)
+        nstep0 = state.scalars.get("nstep", 0)
+        key = (id(state), state.t, nstep0)
+        cache = self._cache if self._cache is not None and self._cache["key"] == key else None
+        lu = cache["lu"] if cache is not None and self.reuse_jacobian and cache["dt"] == dt else None
+        if lu is not None and not isinstance(lu, LUSolve):
+            lu = LUSolve(lu)  # a factorisation of the numpy path
+        blocks.start(None if cache is None else cache["xi"], 0.0 if cache is None else cache["dt"], self.max_iter)
+        options = (self.tol, self.contraction, XTOL * plan.length, self.max_iter, MAX_HALVINGS, self.predictor,
+                   self.reuse_jacobian)
+        radius = float(scheme.group.injectivity_radius)
+
+        def residual(x: np.ndarray) -> dict[str, np.ndarray] | None:
+            res = kernel(x, dt)
+            if res is not None:
+                self.nforce += 1
+            return res
+
+        t = state.t
+        dissipated = state.scalars.get("dissipated_energy", 0.0)
+        external = state.scalars.get("external_work", 0.0)
+        total = 0
+        resume = False
+        reason = None
+        try:
+            while True:
+                status, done, nforce, iters, t, dissipated, external, have_lu = blocks.run(
+                    lu, resume, t, dt, nsteps - total, dissipated, external, kinetic_limit, radius, options)
+                total += done
+                self.nforce += nforce
+                self.newton_iterations += iters
+                if not have_lu:
+                    lu = None
+                if status != NEED_JACOBIAN:
+                    break
+                try:
+                    lu = self._jacobian(residual, blocks.iterate(), plan, True)
+                except (RuntimeError, FloatingPointError) as exc:
+                    reason = f"the Jacobian is singular ({exc})"
+                    break
+                resume = True
+            if reason is None and status != DONE:
+                reason = {FAIL_NOT_FINITE: _NOT_FINITE, FAIL_MAX_ITER: _iteration_limit(self.max_iter),
+                          FAIL_SINGULAR: _SINGULAR_STEP, FAIL_NO_DECREASE: _NO_DECREASE}[status]
+        finally:
+            if total > 0:  # the steps done, booked as step() books them
+                state.t = t
+                state.scalars["dissipated_energy"] = dissipated
+                state.scalars["external_work"] = external
+                state.scalars["nstep"] = nstep0 + total
+                self.nstep += total
+                self._cache = {"key": (id(state), t, nstep0 + total), "dt": dt, "xi": blocks.previous(),
+                               "lu": lu if self.reuse_jacobian else None}
+            self.wall_time += time.perf_counter() - t_start
+        if reason is not None:
+            it, rn, history = blocks.progress()
+            raise self._failure(state, dt, it, rn, history, reason)
+        return True
 
     # ------------------------------------------------------------------ pieces
     def _layout(self, scheme: Scheme) -> _Plan:
@@ -395,14 +560,13 @@ class ImplicitMidpoint(Integrator):
         it = 0
         while True:
             if not math.isfinite(rn):
-                raise self._failure(state, dt, it, rn, history, "the residual is not finite")
+                raise self._failure(state, dt, it, rn, history, _NOT_FINITE)
             # converged: a relative velocity error below tol, or R at the round-off level of its terms
             floor = 64 * np.finfo(float).eps * (dnorm(state.S) + dnorm(res["Dmu"]) + abs(dt) * dnorm(res["BW"]))
             if plan.nunk == 0 or rn <= max(self.tol * vnorm(xi) / abs(dt), floor):
                 break
             if it >= self.max_iter:
-                raise self._failure(state, dt, it, rn, history,
-                                    f"the iteration limit max_iter = {self.max_iter} was reached")
+                raise self._failure(state, dt, it, rn, history, _iteration_limit(self.max_iter))
             if lu is None:
                 try:
                     lu = self._jacobian(residual, xi, plan, kernel is not None)
@@ -412,7 +576,7 @@ class ImplicitMidpoint(Integrator):
             with np.errstate(all="ignore"):
                 delta = lu.solve(-res["R"][unk])
             if not np.all(np.isfinite(delta)):
-                raise self._failure(state, dt, it, rn, history, "the Jacobian is singular (non-finite Newton step)")
+                raise self._failure(state, dt, it, rn, history, _SINGULAR_STEP)
             negligible = float(np.max(np.abs(delta))) <= XTOL * plan.length
             alpha = 1.0
             accepted = done = False
@@ -444,11 +608,9 @@ class ImplicitMidpoint(Integrator):
             elif not fresh:
                 lu = None  # a kept Jacobian that no longer contracts: a fresh one at the current iterate
             elif it >= self.max_iter:
-                raise self._failure(state, dt, it, rn, history,
-                                    f"the iteration limit max_iter = {self.max_iter} was reached")
+                raise self._failure(state, dt, it, rn, history, _iteration_limit(self.max_iter))
             else:
-                raise self._failure(state, dt, it, rn, history,
-                                    f"no decrease of the residual along the Newton step after {MAX_HALVINGS} halvings")
+                raise self._failure(state, dt, it, rn, history, _NO_DECREASE)
         self.newton_iterations += it
         # the powers at the midpoint, for the energy bookkeeping of step()
         if scheme.has_external_power():
