@@ -462,7 +462,7 @@ def test_unsupported_combinations_decline():
     _declines(Problem(rod, grid, init, loads=[_SpatialForce(np.ones(6))]), LieVerlet())
     # frames needed but not stepped
     _declines(Problem(rod, grid, init, loads=[gravity]), LieVerlet(), track_frames=False)
-    # an integrator without a compiled loop; overdamped without damping (Python raises)
+    # a kinematic velocity that is a Python function; overdamped without damping (Python raises)
     _declines(Problem(rod, grid, init), Kinematic(velocity=lambda t, u, X: np.zeros((9, 6))))
     _declines(Problem(rod, grid, init), Overdamped())
     # a group without compiled kernels

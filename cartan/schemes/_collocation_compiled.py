@@ -2,10 +2,17 @@
 
 The steps between two saves run here, in numba, instead of a Python loop of numpy calls;
 :meth:`cartan.schemes.collocation.Collocation.compiled_advance` is the entry point and
-``docs/schemes.md`` and ``docs/performance.md`` say what qualifies.  The loops perform the
-operations of ``Integrator.step`` with ``Collocation.force``/``drift`` and the base scheme's
-``velocity``/``constrain``/``powers`` in the same order, so that the two paths agree to
-round-off.
+``docs/schemes.md`` and ``docs/performance.md`` say what qualifies.  :func:`build_plan`
+serves every d; the loops of d = 2 and 3 are in :mod:`cartan.schemes._collocation_compiled_nd`
+(:func:`advance` hands them over), built from this module's per-node pieces — the force's
+stress, ``ad*`` and load terms (:func:`_stress_of`, :func:`_coadjoint`, :func:`_load_terms`),
+the drift's node passes (:func:`_se3_nodes`, :func:`_so3_nodes`, :func:`_drift_nodes`,
+:func:`_naive_strains`, :func:`_naive_frames`) — applied axis by axis.  (The d = 1 loops are
+not the d-general ones: with an axis loop inside the per-node drift and the derivative data
+of every axis in ``Dc``, the d = 1 scalar ``lie-verlet`` measured 5–10 % slower.)  The loops
+perform the operations of ``Integrator.step`` with ``Collocation.force``/``drift`` and the
+base scheme's ``velocity``/``constrain``/``powers`` in the same order, so that the two paths
+agree to round-off.
 
 Design
 ------
@@ -35,8 +42,9 @@ Design
   ``J = J(−τω)`` and Barfoot–Furgale block ``Q = Q(−τv, −τω)`` (``J(w)ᵀ = J(−w)``,
   ``Q(r, p)ᵀ = Q(−r, −p)``), and the force ``∂Q − ad_XᵀQ = (∂F + ω × F; ∂M + v × F + ω × M)``
   for ``X = (v; ω)``, ``Q = (F; M)``, without 6 × 6 matrices; the free-flow pieces of
-  ``lie-verlet`` (the translations, single body rotations) use their reduced forms.  The
-  other groups use the matrix kernels.
+  ``lie-verlet`` (the translations, single body rotations) use their reduced forms.  On SO(3)
+  likewise: ``R = exp(w)``, ``w = τN``, ``X ← RᵀX + τJ(−w)∂N``, ``S ← RᵀS (+ τJ(−w)W)``,
+  ``Φ ← ΦR``.  SO(2) and SE(2) use the matrix kernels (:func:`_drift_nodes`).
 * **Vectorised SE(3) loops.**  ``lie-euler``, ``lie-verlet``, ``rkmk4`` and ``overdamped``
   (orders 1 and 2) on SE(3) work on structure-of-arrays copies of the state (one row per
   component, one column per node), made once per call; every pass over the nodes is a loop
@@ -80,6 +88,7 @@ from ._lattice_compiled import (
     CHECK_CONFIGURATION,
     CHECK_MOMENTUM,
     GID_SE3,
+    GID_SO3,
     I_AFFINE,
     I_C,
     I_CLAMPED,
@@ -128,12 +137,13 @@ from ._lattice_compiled_kernels import (
     g_hat,
     g_inverse,
 )
-from ._lattice_compiled_plan import _compiled_loads
+from ._lattice_compiled_plan import _compiled_loads, _quadratic_axes
 from ._lattice_compiled_soa import _soa_end_load
 
 __all__ = [
     "FOURIER_MAX_NODES",
     "advance",
+    "advance_nd",
     "build_plan",
     "derivative_once",
     "drift_once",
@@ -232,73 +242,66 @@ def _deriv(Dc, A, out):
 
 
 # ---------------------------------------------------------------------------- forces
-@_jit
-def _stress(P, X, Q):
-    """``Q = C (X − X₀)`` at every node, ``X``, ``Q`` ``[n, r]``."""
-    X0 = P[I_X0]
-    C = P[I_C]
-    n, r = X.shape
-    if P[I_DIAG]:
+# The pieces of the force are inline helpers on a strain given by its columns ``c : c + r`` of
+# ``X`` (``c = 0`` here; the axes of ``X [n, d·r]`` in :mod:`._collocation_compiled_nd`).
+@_inline
+def _stress_of(C, diag, X0, X, c, Q):
+    """``Q = C (X_α − X₀_α)`` at every node ``[n, r]`` (``diag``: C is diagonal), the strain in
+    the columns ``c : c + r`` of ``X``."""
+    n, r = Q.shape
+    if diag:
         for i in range(n):
             for k in range(r):
-                Q[i, k] = C[k, k] * (X[i, k] - X0[k])
+                Q[i, k] = C[k, k] * (X[i, c + k] - X0[k])
         return
     for i in range(n):
         for a in range(r):
             acc = 0.0
             for b in range(r):
-                acc += C[a, b] * (X[i, b] - X0[b])
+                acc += C[a, b] * (X[i, c + b] - X0[b])
             Q[i, a] = acc
 
 
-@_jit
-def _force(P, Dc, X, Phi, N, W, Q, scr):
-    """``W = Collocation.force(state, N, t)``: ``∂Q − ad_XᵀQ``, the free-end penalties
-    ``(P − n·Q)/H_end``, damping, body-frame force, constant field; zero at clamped nodes and
-    on gauge components.  ``Q`` ``[n, r]`` is work space (the stress on return)."""
-    gid = P[I_GID]
-    live = P[I_LIVE]
-    clamped = P[I_CLAMPED]
-    xi, Qv, tr, M, M2, A1, A2, A3, XI = scr
+@_inline
+def _coadjoint(gid, X, c, Q, W, xi, M):
+    """``W −= ad_Xᵀ Q`` at every node, the strain in the columns ``c : c + r`` of ``X``; on
+    SE(3) ``−ad_XᵀQ = (ω × F; v × F + ω × M)`` for ``X = (v; ω)``, ``Q = (F; M)``, without
+    6 × 6 matrices; ``xi`` r-vector and ``M`` r × r work space."""
     n, r = W.shape
-    _stress(P, X, Q)
-    _deriv(Dc, Q, W)
     if gid == GID_SE3:
         for i in range(n):
-            v0, v1, v2 = X[i, 0], X[i, 1], X[i, 2]
-            w0, w1, w2 = X[i, 3], X[i, 4], X[i, 5]
+            v0, v1, v2 = X[i, c], X[i, c + 1], X[i, c + 2]
+            w0, w1, w2 = X[i, c + 3], X[i, c + 4], X[i, c + 5]
             F0, F1, F2 = Q[i, 0], Q[i, 1], Q[i, 2]
             M0, M1, M2_ = Q[i, 3], Q[i, 4], Q[i, 5]
             a = cross3(w0, w1, w2, F0, F1, F2)
             b = cross3(v0, v1, v2, F0, F1, F2)
-            c = cross3(w0, w1, w2, M0, M1, M2_)
+            e = cross3(w0, w1, w2, M0, M1, M2_)
             W[i, 0] += a[0]
             W[i, 1] += a[1]
             W[i, 2] += a[2]
-            W[i, 3] += b[0] + c[0]
-            W[i, 4] += b[1] + c[1]
-            W[i, 5] += b[2] + c[2]
-    else:
-        for i in range(n):
-            g_ad(gid, X[i], M)
-            for a in range(r):
-                acc = 0.0
-                for b in range(r):
-                    acc += M[b, a] * Q[i, b]
-                W[i, a] -= acc
-    free_idx = Dc[J_FREE_IDX]
-    for f in range(free_idx.shape[0]):
-        idx = free_idx[f]
-        q = Dc[J_FREE_LOAD][f]
-        if q >= 0:
-            _end_load(gid, P[I_AFFINE], Phi, idx, P[I_END_LOAD][q], P[I_END_FOLLOW][q], tr, M, A1)
-        else:
-            for a in range(r):
-                tr[a] = 0.0
-        sign = Dc[J_FREE_SIGN][f]
-        H = Dc[J_FREE_H][f]
+            W[i, 3] += b[0] + e[0]
+            W[i, 4] += b[1] + e[1]
+            W[i, 5] += b[2] + e[2]
+        return
+    for i in range(n):
+        for k in range(r):
+            xi[k] = X[i, c + k]
+        g_ad(gid, xi, M)
         for a in range(r):
-            W[idx, a] += (tr[a] - sign * Q[idx, a]) / H
+            acc = 0.0
+            for b in range(r):
+                acc += M[b, a] * Q[i, b]
+            W[i, a] -= acc
+
+
+@_inline
+def _load_terms(P, Phi, N, W):
+    """``W +=`` the loads of the plan — damping ``−c N``, the body-frame force, the constant
+    field ``Rᵀρf`` — then zero at clamped nodes and on gauge components."""
+    live = P[I_LIVE]
+    clamped = P[I_CLAMPED]
+    n, r = W.shape
     if P[I_HAS_DAMP]:
         damp = P[I_DAMP]
         for i in range(n):
@@ -323,6 +326,33 @@ def _force(P, Dc, X, Phi, N, W, Q, scr):
             for k in range(r):
                 if clamped[i] or not live[k]:
                     W[i, k] = 0.0
+
+
+@_jit
+def _force(P, Dc, X, Phi, N, W, Q, scr):
+    """``W = Collocation.force(state, N, t)``: ``∂Q − ad_XᵀQ``, the free-end penalties
+    ``(P − n·Q)/H_end``, damping, body-frame force, constant field; zero at clamped nodes and
+    on gauge components.  ``Q`` ``[n, r]`` is work space (the stress on return)."""
+    gid = P[I_GID]
+    xi, Qv, tr, M, M2, A1, A2, A3, XI = scr
+    n, r = W.shape
+    _stress_of(P[I_C], P[I_DIAG], P[I_X0], X, 0, Q)
+    _deriv(Dc, Q, W)
+    _coadjoint(gid, X, 0, Q, W, xi, M)
+    free_idx = Dc[J_FREE_IDX]
+    for f in range(free_idx.shape[0]):
+        idx = free_idx[f]
+        q = Dc[J_FREE_LOAD][f]
+        if q >= 0:
+            _end_load(gid, P[I_AFFINE], Phi, idx, P[I_END_LOAD][q], P[I_END_FOLLOW][q], tr, M, A1)
+        else:
+            for a in range(r):
+                tr[a] = 0.0
+        sign = Dc[J_FREE_SIGN][f]
+        H = Dc[J_FREE_H][f]
+        for a in range(r):
+            W[idx, a] += (tr[a] - sign * Q[idx, a]) / H
+    _load_terms(P, Phi, N, W)
 
 
 # ---------------------------------------------------------------------------- drifts
@@ -458,6 +488,53 @@ def _se3_nodes(X, Phi, S, W, N, DN, tau, mode):
                 Phi[i, a, 3] = x1 * R[2] + x2 * R[5] + x3 * R[8]
 
 
+@register_jitable
+def _so3_coeffs(t2):
+    """``(A, B, C)`` of ``exp`` and ``J`` on SO(3) for ``t2 = θ²``: the library's Taylor
+    series below θ = 0.1, its closed forms above."""
+    if t2 < SMALL_THETA2:
+        return horner(t2, TAYLOR_A), horner(t2, TAYLOR_B), horner(t2, TAYLOR_C)
+    return _exp_coeffs3_direct(t2)
+
+
+@_jit
+def _so3_nodes(X, Phi, S, W, N, DN, tau, mode):
+    """SO(3) node pass of a drift by ``τN`` (``DN = ∂N``) on ``[n, 3]`` arrays, in place, in
+    closed form (no 3 × 3 matrices of ``Ad`` and ``𝓔``): with ``w = τN_i`` and
+    ``R = exp(w) = I + Aŵ + Bŵ²``, ``X ← RᵀX + τJ(−w)DN`` (``Ad_{exp(−w)} = Rᵀ``,
+    ``𝓔(τ, −N) = τJ(−w)``, ``J(v)u = u + B v × u + C v × (v × u)``), the momentum ``S ← RᵀS``
+    (``mode`` ≥ ``MODE_COAD``) ``+ τJ(−w)W`` (``MODE_LIE_EULER``: ``𝓔(τ, N)ᵀ = τJ(w)ᵀ =
+    τJ(−w)``), and ``Φ ← ΦR`` on the first ``Phi.shape[0]`` nodes."""
+    n = N.shape[0]
+    nf = Phi.shape[0]
+    for i in range(n):
+        w0, w1, w2 = tau * N[i, 0], tau * N[i, 1], tau * N[i, 2]
+        A, B, C = _so3_coeffs(w0 * w0 + w1 * w1 + w2 * w2)
+        R = _poly_entries(w0, w1, w2, A, B, 1.0)
+        J = _V_apply(-w0, -w1, -w2, B, C, DN[i, 0], DN[i, 1], DN[i, 2])
+        x0, x1, x2 = X[i, 0], X[i, 1], X[i, 2]
+        X[i, 0] = (R[0] * x0 + R[3] * x1 + R[6] * x2) + tau * J[0]
+        X[i, 1] = (R[1] * x0 + R[4] * x1 + R[7] * x2) + tau * J[1]
+        X[i, 2] = (R[2] * x0 + R[5] * x1 + R[8] * x2) + tau * J[2]
+        if mode != MODE_NONE:
+            s0, s1, s2 = S[i, 0], S[i, 1], S[i, 2]
+            u0 = R[0] * s0 + R[3] * s1 + R[6] * s2
+            u1 = R[1] * s0 + R[4] * s1 + R[7] * s2
+            u2 = R[2] * s0 + R[5] * s1 + R[8] * s2
+            if mode == MODE_LIE_EULER:
+                F = _V_apply(-w0, -w1, -w2, B, C, W[i, 0], W[i, 1], W[i, 2])
+                u0 += tau * F[0]
+                u1 += tau * F[1]
+                u2 += tau * F[2]
+            S[i, 0], S[i, 1], S[i, 2] = u0, u1, u2
+        if i < nf:
+            for a in range(3):
+                p0, p1, p2 = Phi[i, a, 0], Phi[i, a, 1], Phi[i, a, 2]
+                Phi[i, a, 0] = p0 * R[0] + p1 * R[3] + p2 * R[6]
+                Phi[i, a, 1] = p0 * R[1] + p1 * R[4] + p2 * R[7]
+                Phi[i, a, 2] = p0 * R[2] + p1 * R[5] + p2 * R[8]
+
+
 @_jit
 def _drift(P, Dc, X, Phi, S, W, N, tau, DN, D, scr, mode):
     """Exact drift by ``τN`` (``Collocation.drift(exact=True)``) with the momentum update of
@@ -467,8 +544,21 @@ def _drift(P, Dc, X, Phi, S, W, N, tau, DN, D, scr, mode):
     if gid == GID_SE3:
         _se3_nodes(X, Phi, S, W, N, DN, tau, mode)
         return
+    if gid == GID_SO3:
+        _so3_nodes(X, Phi, S, W, N, DN, tau, mode)
+        return
     xi, Q, tr, M, M2, A1, A2, A3, XI = scr
-    n, r = X.shape
+    _drift_nodes(gid, X, Phi, S, W, N, DN, tau, D, xi, tr, M, M2, A1, mode)
+
+
+@_inline
+def _drift_nodes(gid, X, Phi, S, W, N, DN, tau, D, xi, tr, M, M2, A1, mode):
+    """The node pass of :func:`_drift` for the groups other than SE(3): per node
+    ``D_i = exp(τN_i)``, the momentum update of ``mode``, ``X ← Ad_{exp(−τN)}X + 𝓔(τ, −N) DN``
+    (``X``, ``DN`` ``[n, r]``), then ``Φ ← Φ exp(τN)`` on the first ``Phi.shape[0]`` nodes;
+    ``xi``, ``tr`` r-vectors, ``M``, ``M2`` r × r, ``A1`` m × m work space (the scratch arrays
+    one by one: a call pays a reference count for every array it is passed)."""
+    n, r = N.shape
     for i in range(n):
         for k in range(r):
             xi[k] = tau * N[i, k]
@@ -512,10 +602,16 @@ def _drift(P, Dc, X, Phi, S, W, N, tau, DN, D, scr, mode):
 def _naive_drift(P, Dc, X, Phi, N, tau, DN, D, scr):
     """``Collocation.drift(exact=False)``: ``X ← X + τ(∂N − ad_N X)``, ``Φ ← Φ + τΦN̂``."""
     gid = P[I_GID]
-    xi, Q, tr, M, M2, A1, A2, A3, XI = scr
-    n, r = X.shape
-    m = Phi.shape[1]
     _deriv(Dc, N, DN)
+    _naive_strains(gid, X, N, DN, tau, scr)
+    _naive_frames(gid, Phi, N, tau, scr)
+
+
+@_jit
+def _naive_strains(gid, X, N, DN, tau, scr):
+    """``X ← X + τ(DN − ad_N X)`` at every node (``X``, ``DN`` ``[n, r]``)."""
+    xi, Q, tr, M, M2, A1, A2, A3, XI = scr
+    n, r = N.shape
     for i in range(n):
         g_ad(gid, N[i], M)
         for a in range(r):
@@ -525,6 +621,14 @@ def _naive_drift(P, Dc, X, Phi, N, tau, DN, D, scr):
             tr[a] = X[i, a] + tau * (DN[i, a] - acc)
         for a in range(r):
             X[i, a] = tr[a]
+
+
+@_jit
+def _naive_frames(gid, Phi, N, tau, scr):
+    """``Φ ← Φ + τΦN̂`` on the first ``Phi.shape[0]`` nodes."""
+    xi, Q, tr, M, M2, A1, A2, A3, XI = scr
+    r = N.shape[1]
+    m = Phi.shape[1]
     for i in range(Phi.shape[0]):
         for k in range(r):
             xi[k] = tau * N[i, k]
@@ -667,9 +771,15 @@ def euler_loop(P, Dc, S, X, Phi, t, dt, nsteps, dissipated, external, check, kin
 @_jit
 def _drift_velocity(P, Dc, X, Phi, Z, W, Q, N, gam, scr):
     """Overdamped velocity ``N = Γ⁻¹W(N = 0)`` (live components; zero at clamped nodes)."""
+    _force(P, Dc, X, Phi, Z, W, Q, scr)
+    _drag_velocity(P, W, N, gam)
+
+
+@_inline
+def _drag_velocity(P, W, N, gam):
+    """``N = Γ⁻¹W`` on the live components, zero on the others and at clamped nodes."""
     live = P[I_LIVE]
     clamped = P[I_CLAMPED]
-    _force(P, Dc, X, Phi, Z, W, Q, scr)
     n, r = N.shape
     for i in range(n):
         for k in range(r):
@@ -730,6 +840,22 @@ def _increment(k, coef, m, dt, out):
     return nz > 0
 
 
+@_inline
+def _dexp_slopes(gid, sigma, N, out, tr, M):
+    """``out_i = dexp⁻¹(−σ_i) N_i`` at every node (the RKMK stage slopes; ``tr`` r-vector and
+    ``M`` r × r work space)."""
+    n, r = N.shape
+    for i in range(n):
+        for k in range(r):
+            tr[k] = -sigma[i, k]
+        g_dexp_inv(gid, tr, M)
+        for a in range(r):
+            acc = 0.0
+            for c in range(r):
+                acc += M[a, c] * N[i, c]
+            out[i, a] = acc
+
+
 @_jit
 def rkmk_loop(P, Dc, S, X, Phi, N, gam, dynamics, A, b, t, dt, nsteps, dissipated, external, check,
               kinetic_limit, inv):
@@ -776,15 +902,7 @@ def rkmk_loop(P, Dc, S, X, Phi, N, gam, dynamics, A, b, t, dt, nsteps, dissipate
                 Nst[:] = N
             else:
                 _drift_velocity(P, Dc, Xst, Phist, Z, W, Q, Nst, gam, scr)
-            for i in range(n):
-                for k in range(r):
-                    tr[k] = -sigma[i, k]
-                g_dexp_inv(gid, tr, M)
-                for a in range(r):
-                    acc = 0.0
-                    for c in range(r):
-                        acc += M[a, c] * Nst[i, c]
-                    ksig[st, i, a] = acc
+            _dexp_slopes(gid, sigma, Nst, ksig[st], tr, M)
             if dynamics:
                 _force(P, Dc, Xst, Phist, Nst, W, Q, scr)
                 _lie_poisson(gid, Nst, Sst, W, kS[st], M)
@@ -1680,32 +1798,26 @@ def _interior(D) -> tuple[np.ndarray, np.ndarray, int, int]:
     return np.array(off, dtype=np.int64), np.asarray(c, dtype=float), lo, D.n - lo
 
 
-def _quadratic_data(medium, r: int) -> tuple[np.ndarray, np.ndarray] | None:
-    """``(X0 (r,), C (r, r))`` from ``medium.quadratic_energy()``, checked against ``stress``."""
-    quad = medium.quadratic_energy()
-    if quad is None:
-        return None
-    X0 = np.array(quad[0], dtype=float).reshape(-1)
-    C = np.array(quad[1], dtype=float)
-    if X0.shape != (r,) or C.shape != (r, r) or not (np.all(np.isfinite(X0)) and np.all(np.isfinite(C))):
-        raise ValueError(
-            f"medium {medium.name!r}: quadratic_energy() must return finite X0 of shape ({r},) and C of "
-            f"shape ({r}, {r}); got shapes {X0.shape} and {C.shape}"
-        )
-    delta = 1e-2 * np.sin(np.arange(1.0, r + 1.0))
-    Q = np.asarray(medium.stress((X0 + delta)[None, None, :]), dtype=float).reshape(-1)
-    if not np.allclose(Q, C @ delta, rtol=1e-9, atol=1e-12 * max(1.0, float(np.abs(C).max()))):
-        raise ValueError(f"medium {medium.name!r}: quadratic_energy() disagrees with stress(): Q ≠ C (X − X0)")
-    return X0, np.ascontiguousarray(C)
-
-
 def build_plan(scheme) -> tuple[tuple, tuple] | None:
     """The problem of a collocation scheme as compiled-loop data ``(P, Dc)``, or None when it
-    does not qualify: d = 1; SO(2), SE(2), SO(3), SE(3); the ``fd2`` or ``fd4`` derivative, or
-    ``fourier`` up to :data:`FOURIER_MAX_NODES` nodes; a medium with
-    :meth:`~cartan.medium.Medium.quadratic_energy` and the base kinetic energy and body
-    force; ``Damping``, body-frame ``UniformForce`` and ``ConstantFieldPotential`` loads;
-    free (loaded or not) and clamped ends; frames stepped when a force needs them.
+    does not qualify.
+
+    Qualifies: d = 1, 2 or 3, every axis open or periodic; SO(2), SE(2), SO(3), SE(3); the
+    ``fd2`` or ``fd4`` derivative, or ``fourier`` up to :data:`FOURIER_MAX_NODES` nodes per
+    axis; a medium with a quadratic potential ``U = ½Σ_α(X_α − X₀_α)ᵀC(X_α − X₀_α)`` —
+    :meth:`~cartan.medium.Medium.quadratic_energy` returning ``(X0, C)`` (X0 of shape (r,)
+    for d = 1, or (d, r)), or for d ≥ 2 a :class:`~cartan.medium.QuadraticMedium` that keeps
+    the base energy methods: the sigma model of the ``sigma`` plugin on S² (SO(3)) in d = 1,
+    2, 3 and quadratic SE(3)/SE(2) Cosserat surfaces and solids qualify, the sigma model on
+    Sⁿ, n ≥ 3 (SO(n+1)) does not — and the base kinetic energy and body force; ``Damping``,
+    body-frame ``UniformForce`` and ``ConstantFieldPotential`` loads; free (loaded or not)
+    and clamped ends (end faces for d ≥ 2); frames stepped when a load needs them.
+
+    ``P`` has the d = 1 layout of the lattice's plan (``I_*`` up to ``I_HAS_POWER``), the
+    nodes numbered in C order (weights and clamps flattened, ``I_X0`` the first axis' rest
+    strain); ``Dc`` the layout ``J_*`` for d = 1 and
+    :data:`cartan.schemes._collocation_compiled_nd.J_PTR` … for d ≥ 2 (the derivative of
+    every axis, the rest strains, the nodes of the free end faces).
 
     Raises
     ------
@@ -1718,9 +1830,10 @@ def build_plan(scheme) -> tuple[tuple, tuple] | None:
 
     problem, medium, group, grid = scheme.problem, scheme.medium, scheme.group, scheme.grid
     gid = _group_id(group)
-    if grid.d != 1 or gid is None:
+    d = grid.d
+    if gid is None or not 1 <= d <= 3:
         return None
-    if scheme.derivative == "fourier" and grid.shape[0] > FOURIER_MAX_NODES:
+    if scheme.derivative == "fourier" and max(grid.shape) > FOURIER_MAX_NODES:
         return None
     if not _same_methods(scheme, Collocation, ("force", "internal_force", "drift", "frames", "_boundary_power",
                                                "_end_load", "initial_state")):
@@ -1732,30 +1845,30 @@ def build_plan(scheme) -> tuple[tuple, tuple] | None:
     if getattr(medium, "velocity_dependent_forces", False):
         return None
     r = group.dim
-    quad = _quadratic_data(medium, r)
+    quad = _quadratic_axes(medium, d, r)
     if quad is None:
         return None
-    X0, C = quad
+    X0s, C = quad
     loads = _compiled_loads(problem, group, r)
     if loads is None:
         return None
     damp, has_damp, ubody, has_ubody, field, has_field = loads
-    n = grid.shape[0]
-    free = [(0 if sl[0] == 0 else n - 1, sign, H, b) for _, sl, sign, H, b, _ in scheme._free_ends]
-    loaded = [(i, b) for i, _, _, b in free if b.load is not None]
-    if (has_field or any(not b.follower for _, b in loaded)) and not scheme.track:
+    if (has_field or any(not b.follower for *_, b, _ in scheme._end_loads)) and not scheme.track:
         return None
+    n = grid.size
+    # the loaded ends (d = 1) or end faces (d ≥ 2), one load row each
+    loaded = [(int(np.arange(n).reshape(grid.shape)[sl].reshape(-1)[0]), b) for _, sl, *_, b, _ in scheme._end_loads]
     P: list = [None] * (I_HAS_POWER + 1)  # the d = 1 entries of the lattice's plan, all the helpers read
     live = np.ascontiguousarray(scheme.live, dtype=np.bool_)
-    clamped = np.ascontiguousarray(scheme._clamped, dtype=np.bool_)
+    clamped = np.ascontiguousarray(scheme._clamped, dtype=np.bool_).reshape(n)
     P[I_GID] = int(gid)
     P[I_TRACK] = bool(scheme.track)
     P[I_AFFINE] = bool(getattr(group, "affine", False))
     P[I_H] = float(scheme.h[0])
-    P[I_X0] = X0
-    P[I_C] = C
+    P[I_X0] = np.ascontiguousarray(X0s[0])
+    P[I_C] = np.ascontiguousarray(C)
     P[I_DIAG] = bool(np.count_nonzero(C - np.diag(np.diag(C))) == 0)
-    P[I_W] = np.ascontiguousarray(scheme.weights, dtype=float)
+    P[I_W] = np.ascontiguousarray(scheme.weights, dtype=float).reshape(n)
     P[I_MASS] = np.ascontiguousarray(scheme.mass, dtype=float)
     P[I_LIVE] = live
     P[I_CLAMPED] = clamped
@@ -1763,10 +1876,17 @@ def build_plan(scheme) -> tuple[tuple, tuple] | None:
     P[I_DAMP], P[I_HAS_DAMP] = damp, has_damp
     P[I_UBODY], P[I_HAS_UBODY] = ubody, has_ubody
     P[I_FIELD], P[I_HAS_FIELD] = field, has_field
-    P[I_END_IDX] = np.array([i for i, _ in loaded], dtype=np.int64)
+    # d = 1: the loaded end nodes, whose power the shared helpers book; d ≥ 2: none (the loops
+    # book the power of the loaded faces from the face nodes of Dc)
+    P[I_END_IDX] = np.array([i for i, _ in loaded] if d == 1 else [], dtype=np.int64)
     P[I_END_LOAD] = np.array([np.asarray(b.load, dtype=float) for _, b in loaded], dtype=float).reshape(len(loaded), r)
     P[I_END_FOLLOW] = np.array([bool(b.follower) for _, b in loaded], dtype=np.bool_)
     P[I_HAS_POWER] = bool(scheme.has_external_power())
+    if d > 1:
+        from ._collocation_compiled_nd import derivative_data
+
+        return tuple(P), derivative_data(scheme, X0s)
+    free = [(0 if sl[0] == 0 else n - 1, sign, H, b) for _, sl, sign, H, b, _ in scheme._free_ends]
     indptr, indices, data = _csr(scheme.D[0])
     off, coef, lo, hi = _interior(scheme.D[0])
     Dc = (
@@ -1786,15 +1906,27 @@ def build_plan(scheme) -> tuple[tuple, tuple] | None:
     return tuple(P), Dc
 
 
+def advance_nd(scheme, plan: tuple, integrator, state, dt: float, nsteps: int, kinetic_limit: float) -> bool:
+    """:func:`advance` for d = 2 and 3: :func:`cartan.schemes._collocation_compiled_nd.advance`."""
+    from ._collocation_compiled_nd import advance as advance_axes
+
+    return advance_axes(scheme, plan, integrator, state, dt, nsteps, kinetic_limit)
+
+
 def advance(scheme, plan: tuple, integrator, state, dt: float, nsteps: int, kinetic_limit: float) -> bool:
     """Run up to ``nsteps`` steps of ``integrator`` on ``state`` in compiled code (see
     :meth:`cartan.schemes.collocation.Collocation.compiled_advance`); False, touching nothing,
     when the integrator is not supported."""
-    from ..integrators.explicit import _TABLEAUX, RKMK4, ForwardEuler, LieEuler, LieVerlet, Overdamped
+    if scheme.grid.d >= 2:
+        return advance_nd(scheme, plan, integrator, state, dt, nsteps, kinetic_limit)
+    from ..integrators.explicit import _TABLEAUX, RKMK4, ForwardEuler, Kinematic, LieEuler, LieVerlet, Overdamped
+    from . import _kinematic_compiled as kinematic
 
     P, Dc = plan
     kind = type(integrator)
-    if kind not in (LieVerlet, LieEuler, ForwardEuler, Overdamped, RKMK4):
+    if kind not in (LieVerlet, LieEuler, ForwardEuler, Overdamped, RKMK4, Kinematic):
+        return False
+    if kind is Kinematic and not kinematic.is_compiled_velocity(integrator.velocity_field):
         return False
     gam = None
     if kind is Overdamped:
@@ -1817,6 +1949,13 @@ def advance(scheme, plan: tuple, integrator, state, dt: float, nsteps: int, kine
     X = X3.reshape(n, r)
     Phi = state.arrays[frame_key] = _writable(state.arrays[frame_key])
     Phi3 = Phi if scheme.track else Phi.reshape(1, *Phi.shape)
+    if kind is Kinematic:
+        def work(inv):  # the work arrays of kinematic.COLLOCATION_OPS
+            W, _, DN, D, scr = _work(n, r, Phi3.shape[-1])
+            return Dc, np.zeros((n, r)), W, DN, D, scr, inv
+
+        return kinematic.advance(scheme, "collocation", P, (X, Phi3), work, integrator, state, dt, nsteps,
+                                 kinetic_limit)
     nstep0, stamp, t0, diss, ext, check, limit, cache, inv = advance_context(scheme, integrator, state,
                                                                              kinetic_limit)
     W = None

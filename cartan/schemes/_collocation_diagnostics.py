@@ -32,7 +32,7 @@ __all__ = ["collocation_plan", "compiled_stiffness_probe"]
 def collocation_plan(scheme) -> tuple | None:
     """The compiled plan ``(P, Dc)`` of a collocation scheme's problem (built once and kept on
     the scheme, as ``Collocation.compiled_advance`` does), or None: not a collocation scheme,
-    the numpy backend, or a problem that does not qualify (d ≠ 1 among them).
+    the numpy backend, or a problem that does not qualify.
 
     Raises
     ------
@@ -49,11 +49,11 @@ def collocation_plan(scheme) -> tuple | None:
 
 def _arrays(scheme, state: State) -> tuple[np.ndarray, np.ndarray] | None:
     """``(X [n, r], Phi [n or 1, m, m])`` of a d = 1 collocation state (C-ordered copies), or
-    None for another layout."""
+    None for another layout (d ≥ 2 among them: the reference stiffness products)."""
     frame_key = "Phi" if scheme.track else "Phi_root"
     if set(state.arrays) != {"X", frame_key}:
         return None
-    n, r = np.shape(state.S)
+    n, r = np.shape(state.S)[0], np.shape(state.S)[-1]
     X = np.asarray(state.arrays["X"], dtype=float)
     if X.shape != (n, 1, r):
         return None

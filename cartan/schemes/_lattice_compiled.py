@@ -1097,10 +1097,13 @@ def advance(scheme, plan: tuple, integrator, state, dt: float, nsteps: int, kine
     """Run up to ``nsteps`` steps of ``integrator`` on ``state`` in compiled code (see
     :meth:`cartan.schemes.lattice.Lattice.compiled_advance`); False, touching nothing, when
     the integrator is not supported."""
-    from ..integrators.explicit import _TABLEAUX, RKMK4, ForwardEuler, LieEuler, LieVerlet, Overdamped
+    from ..integrators.explicit import _TABLEAUX, RKMK4, ForwardEuler, Kinematic, LieEuler, LieVerlet, Overdamped
+    from . import _kinematic_compiled as kinematic
 
     kind = type(integrator)
-    if kind not in (LieVerlet, LieEuler, ForwardEuler, Overdamped, RKMK4):
+    if kind not in (LieVerlet, LieEuler, ForwardEuler, Overdamped, RKMK4, Kinematic):
+        return False
+    if kind is Kinematic and not kinematic.is_compiled_velocity(integrator.velocity_field):
         return False
     gam = None
     if kind is Overdamped:
@@ -1127,6 +1130,12 @@ def advance(scheme, plan: tuple, integrator, state, dt: float, nsteps: int, kine
     Gs = tuple(Gs)
     Phi = state.arrays[frame_key] = _writable(state.arrays[frame_key])
     Phi3 = Phi.reshape(-1, m, m)
+    if kind is Kinematic:
+        return kinematic.advance(
+            scheme, "lattice", plan, (Gs, Phi3),
+            lambda inv: (np.empty((n, m, m)), *_work(plan, n, r, m), np.empty((n, r)),
+                         np.empty((max(g.shape[0] for g in Gs), r)), inv),
+            integrator, state, dt, nsteps, kinetic_limit)
     nstep0, stamp, t0, diss, ext, check, limit, cache, inv = advance_context(scheme, integrator, state,
                                                                              kinetic_limit)
     threads = loop_threads(n)

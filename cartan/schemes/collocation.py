@@ -327,12 +327,17 @@ class Collocation(Scheme):
         The contract of :meth:`cartan.schemes.lattice.Lattice.compiled_advance`: returns False,
         leaving everything untouched, when the combination is not supported (the caller then
         runs ``integrator.step`` in Python); the numpy backend always declines.  Supported
-        (:mod:`cartan.schemes._collocation_compiled`, ``docs/schemes.md``): d = 1, open or
-        periodic; SO(2), SE(2), SO(3), SE(3); ``fd2``, ``fd4``, and ``fourier`` up to
-        :data:`~cartan.schemes._collocation_compiled.FOURIER_MAX_NODES` nodes; a medium with
-        ``quadratic_energy()``; damping, body-frame uniform forces, constant-field
-        potentials, free (loaded or not) and clamped ends; ``lie-euler``, ``lie-verlet``,
-        ``rkmk4``, ``forward-euler``, ``overdamped``.
+        (:mod:`cartan.schemes._collocation_compiled` for d = 1,
+        :mod:`cartan.schemes._collocation_compiled_nd` for d = 2, 3;
+        :func:`~cartan.schemes._collocation_compiled.build_plan`, ``docs/schemes.md``):
+        d = 1, 2, 3, every axis open or periodic; SO(2), SE(2), SO(3), SE(3); ``fd2``,
+        ``fd4``, and ``fourier`` up to
+        :data:`~cartan.schemes._collocation_compiled.FOURIER_MAX_NODES` nodes per axis; a
+        quadratic potential (``quadratic_energy()``, or for d ≥ 2 a ``QuadraticMedium`` with
+        the base energy methods, e.g. the sigma model on S²); damping, body-frame uniform
+        forces, constant-field potentials, free (loaded or not) and clamped ends or end
+        faces; ``lie-euler``, ``lie-verlet``, ``rkmk4``, ``forward-euler``, ``overdamped``
+        (order 1 and 2).
 
         When it returns True the steps were taken as ``integrator.step`` takes them (same
         formulas, agreement to round-off): ``state.t``, ``state.scalars`` (energy
