@@ -19,6 +19,12 @@ warmed too):
     and the frame output, on every group the media use; combinations a case does not
     support (e.g. ``overdamped`` without drag) are skipped.  A static case (``case.static``)
     is solved once by its own solver (``case.run``).
+``grids``
+    the registered cases are rods (d = 1), so the d = 2 and 3 builds of the step loops are
+    compiled on small periodic grids (:data:`GRID_SHAPES`) of a core quadratic continuum on
+    SE(3) with damping: three steps of every integrator (but ``kinematic``) on every scheme
+    through :func:`cartan.simulate`, as for the cases (the loops' machine code depends on d,
+    not on the medium, group or loads, which they take as data);
 ``threads``
     the threaded builds of the compiled loops (the ``prange`` twins of
     :func:`cartan._threads.threaded_twins`, which a loop runs with ``CARTAN_THREADS`` > 1 on
@@ -27,7 +33,7 @@ warmed too):
     threshold lowered to one node), so that no large problem is needed.  With ``cases`` in
     the same call, only the runs whose serial run reached a loop with a threaded build (one
     that asked :func:`cartan._threads.loop_threads` for its thread count) run again;
-    alone, every dynamic case × integrator × scheme does.  These runs take one step (enough
+    alone, every dynamic case × integrator × scheme does (and the same for ``grids``).  These runs take one step (enough
     for numba, which compiles a whole loop for its argument types at the first call), through
     :func:`cartan.simulate` like a threaded run.  Skipped when numba has a single thread
     (``NUMBA_NUM_THREADS = 1``: no run can use them); ``cartan warm --no-threads`` leaves them
@@ -40,6 +46,7 @@ process, a second one has no misses).  Bad input raises ``ValueError`` naming th
 
 from __future__ import annotations
 
+import contextlib
 import sys
 import time
 import warnings
@@ -53,7 +60,7 @@ import numpy as np
 __all__ = ["KernelInfo", "WarmStep", "kernel_inventory", "register", "warm", "warm_cmd"]
 
 #: what :func:`warm` can compile
-PARTS = ("groups", "cases", "threads")
+PARTS = ("groups", "cases", "grids", "threads")
 #: threads of the ``threads`` workload (the compiled code does not depend on the count)
 WARM_THREADS = 2
 #: parameters of registered groups that need them (name → list of keyword sets)
@@ -251,6 +258,72 @@ def _case_runs(select: Sequence[str] | None, integrators: Sequence[str] | None =
                 yield f"{name} / {integrator} / {scheme}", run
 
 
+#: node shapes of the ``grids`` workload (d = 2 and 3)
+GRID_SHAPES = ((6, 5), (4, 4, 3))
+
+
+def _grid_problem(shape: tuple[int, ...]):
+    """A quadratic SE(3) continuum on the periodic unit grid ``shape``: a smooth closed
+    configuration, a velocity and damping."""
+    import cartan
+    from cartan.medium import QuadraticMedium
+
+    class WarmContinuum(QuadraticMedium):
+        """``U = ½Σ_α(X_α − X₀_α)ᵀC(X_α − X₀_α)`` with diagonal C, unit inertia, on SE(3)."""
+
+        name = "warm-continuum"
+        material_dim = len(shape)
+        separable_axes = True  # U is a sum over the axes (the lattice's condition for d ≥ 2)
+
+        def __init__(self):
+            self.group = cartan.group("SE3")
+            self.space = None
+            rest = np.zeros((self.material_dim, 6))
+            for a in range(self.material_dim):
+                rest[a, a] = 1.0
+            self._set_energy(rest, np.linspace(4.0, 1.0, 6))
+
+        def inertia(self):
+            return np.ones(6)
+
+    medium = WarmContinuum()
+    grid = cartan.Grid(shape, 1.0, periodic=True)
+    u = np.stack(np.meshgrid(*[grid.coordinates(a) for a in range(grid.d)], indexing="ij"), axis=-1)
+    wave = np.sin(2 * np.pi * u.sum(axis=-1))[..., None]
+    Phi = medium.group.exp(0.2 * wave * np.linspace(0.5, 1.0, 6))
+    return cartan.Problem(medium, grid, cartan.InitialState(Phi=Phi, N=0.1 * wave * np.ones(6)),
+                          loads=[cartan.Damping(0.5)], name=f"warm grid {shape}")
+
+
+def _grid_runs(integrators: Sequence[str] | None = None, schemes: Sequence[str] | None = None,
+               threaded: bool = False) -> Iterable[tuple[str, Callable[[], Any]]]:
+    """``(label, run)`` for every grid of :data:`GRID_SHAPES` × integrator × scheme (threaded:
+    as in :func:`_case_runs`)."""
+    import cartan
+    from cartan._threads import threaded_everywhere
+
+    integrators = _selection("integrators", integrators, SKIP_INTEGRATORS)
+    schemes = _selection("schemes", schemes)
+    for shape in GRID_SHAPES:
+        for scheme in schemes:
+            for integrator in integrators:
+                def run(shape=shape, scheme=scheme, integrator=integrator):
+                    problem = _grid_problem(shape)
+                    sch = cartan.registry("schemes")[scheme](problem)
+                    integ = cartan.registry("integrators")[integrator]()
+                    with np.errstate(all="ignore"):
+                        cfl = float(integ.dt_max(sch, sch.initial_state()))
+                    dt = 0.5 * cfl if 0 < cfl < 2e-3 else 1e-3
+                    steps = WARM_THREADED_STEPS if threaded else WARM_STEPS
+                    with warnings.catch_warnings(), (threaded_everywhere(WARM_THREADS) if threaded
+                                                     else contextlib.nullcontext()):
+                        warnings.simplefilter("ignore")
+                        cartan.simulate(problem, integrator=integrator, scheme=scheme, dt=dt, t_end=steps * dt,
+                                        save_every=1, progress=False)
+
+                yield f"grid {'x'.join(map(str, shape))} / {integrator} / {scheme}", run
+
+
 def _simulate_case(case: Any, level: int, scheme: str, integrator: str, steps: int) -> None:
     """``steps`` steps of a verification case at ``level`` through :func:`cartan.simulate` (the
     case's integrator options apply to its default integrator only)."""
@@ -281,8 +354,8 @@ def warm(parts: Sequence[str] = PARTS, *, groups: Sequence[str] | None = None, c
 
     Parameters
     ----------
-    parts : sequence of {"groups", "cases", "threads"}
-        The workloads to run (module docstring); default all three.
+    parts : sequence of {"groups", "cases", "grids", "threads"}
+        The workloads to run (module docstring); default all four.
     groups : sequence of str, optional
         Registered group names to warm (default: all).
     cases : sequence of str, optional
@@ -335,6 +408,9 @@ def warm(parts: Sequence[str] = PARTS, *, groups: Sequence[str] | None = None, c
         threaded: set[str] | None = None  # the runs that reached a loop with a threaded build
         if "cases" in parts:
             threaded = _run_cases("cases", _case_runs(cases, integrators, schemes), record)
+        threaded_grids: set[str] | None = None
+        if "grids" in parts:
+            threaded_grids = _run_cases("grids", _grid_runs(integrators, schemes), record)
         if "threads" in parts:
             from cartan._threads import max_threads
 
@@ -344,6 +420,10 @@ def warm(parts: Sequence[str] = PARTS, *, groups: Sequence[str] | None = None, c
             else:
                 runs = _case_runs(cases, integrators, schemes, threaded=True)
                 _run_cases("threads", (r for r in runs if threaded is None or r[0] in threaded), record)
+                if "grids" in parts or cases is None:
+                    runs = _grid_runs(integrators, schemes, threaded=True)
+                    _run_cases("threads", (r for r in runs if threaded_grids is None or r[0] in threaded_grids),
+                               record)
     return steps
 
 
@@ -380,7 +460,7 @@ def _first_line(exc: BaseException) -> str:
 # ---------------------------------------------------------------------------- command
 @click.command("warm")
 @click.option("--part", "parts", multiple=True, type=click.Choice(PARTS),
-              help="Only these workloads (repeatable; default: groups, cases and threads).")
+              help="Only these workloads (repeatable; default: groups, cases, grids and threads).")
 @click.option("--group", "groups", multiple=True, help="Only these registered groups (repeatable).")
 @click.option("--case", "cases", multiple=True, help="Only these registered verification cases (repeatable).")
 @click.option("--integrator", "integrators", multiple=True, help="Run the cases with these integrators (repeatable).")

@@ -165,7 +165,7 @@ def test_warm_without_threads_part(monkeypatch):
     monkeypatch.setattr("cartan.cli_cache.warm", spy)
     result = CliRunner().invoke(main, ["warm", "--no-threads", *SUBSET, "-v"])
     assert result.exit_code == 0, result.output
-    assert seen == [["groups", "cases"]]
+    assert seen == [["groups", "cases", "grids"]]
     assert "cases   rod-axial-wave-free / lie-verlet / lattice" in result.output
     assert "threads rod-axial-wave-free" not in result.output
 

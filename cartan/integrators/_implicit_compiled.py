@@ -59,7 +59,6 @@ from ..schemes._lattice_compiled import (
     _chunk_scratch,
     _cinv,
     _constrain,
-    _end_load,
     _exp_drift_nd,
     _force_once,
     _jinv_T,
@@ -67,20 +66,14 @@ from ..schemes._lattice_compiled import (
     _rot_coeffs,
     _se3_dexp_inv_T,
     _unstable,
+    load_powers,
 )
 from ..schemes._lattice_compiled_kernels import GID_SE2, GID_SE3, GID_SO2, GID_SO3, g_Ad, g_dexp_inv, g_exp
 from ..schemes._lattice_compiled_plan import (
     CHECK_MOMENTUM,
-    I_AFFINE,
-    I_DAMP,
     I_END_FACE,
-    I_END_FOLLOW,
     I_END_IDX,
-    I_END_LOAD,
-    I_HAS_DAMP,
     I_HAS_POWER,
-    I_HAS_UBODY,
-    I_UBODY,
     I_W,
 )
 
@@ -454,42 +447,8 @@ def midpoint_powers(P: tuple, face: np.ndarray, N: np.ndarray, Phi: np.ndarray, 
     ``[n, r]`` and frames ``Phi`` (``Scheme.powers`` with ``_boundary_power``): damping,
     body-frame uniform force, end loads weighted by their ``face`` ``(n_end,)`` (the lattice's
     ``weights/(h/2)`` on a face, 1 at the end of a rod); ``tr`` ``(r,)``, ``Mr`` ``[r, r]``,
-    ``Am`` ``[m, m]`` work."""
-    if not P[I_HAS_POWER]:
-        return 0.0, 0.0
-    w = P[I_W]
-    n, r = N.shape
-    dissipated = 0.0
-    external = 0.0
-    if P[I_HAS_DAMP]:
-        damp = P[I_DAMP]
-        p = 0.0
-        for i in range(n):
-            s = 0.0
-            for k in range(r):
-                s += (-N[i, k] * damp[k]) * N[i, k]
-            p += w[i] * s
-        dissipated -= p
-    if P[I_HAS_UBODY]:
-        ubody = P[I_UBODY]
-        p = 0.0
-        for i in range(n):
-            s = 0.0
-            for k in range(r):
-                s += ubody[k] * N[i, k]
-            p += w[i] * s
-        external += p
-    end_idx = P[I_END_IDX]
-    p = 0.0
-    for q in range(end_idx.shape[0]):
-        idx = end_idx[q]
-        _end_load(P[I_GID], P[I_AFFINE], Phi, idx, P[I_END_LOAD][q], P[I_END_FOLLOW][q], tr, Mr, Am)
-        s = 0.0
-        for a in range(r):
-            s += tr[a] * N[idx, a]
-        p += face[q] * s
-    external += p
-    return dissipated, external
+    ``Am`` ``[m, m]`` work (:func:`cartan.schemes._lattice_compiled.load_powers`)."""
+    return load_powers(P, N, Phi, face, True, tr, Mr, Am)
 
 
 @_jit

@@ -1,4 +1,4 @@
-"""Compiled step loops of the ``collocation`` scheme for d = 1 (ARCHITECTURE.md §7).
+"""Compiled step loops of the ``collocation`` scheme: d = 1 here, d = 2, 3 built on it (ARCHITECTURE.md §7).
 
 The steps between two saves run here, in numba, instead of a Python loop of numpy calls;
 :meth:`cartan.schemes.collocation.Collocation.compiled_advance` is the entry point and

@@ -272,11 +272,13 @@ def _kick(S, W, half):
 
 
 @_jit
-def _powers(P, N, Phi, scr):
-    """(dissipated, external) power of the loads at velocity N (``Scheme.powers``), d = 1."""
+def load_powers(P, N, Phi, face, weighted, tr, M, A):
+    """``(dissipated, external)`` power of the loads of the plan ``P`` at the velocity ``N``
+    ``[n, r]`` and frames ``Phi`` (``Scheme.powers``): damping, body-frame uniform force and the
+    end loads, each end's power weighted by ``face[q]`` when ``weighted`` (the lattice's
+    ``weights/(h/2)`` on a face).  ``tr`` ``(r,)``, ``M`` ``[r, r]``, ``A`` ``[m, m]`` work."""
     if not P[I_HAS_POWER]:
         return 0.0, 0.0
-    xi, Q, tr, M, M2, A1, A2, A3, XI = scr
     w = P[I_W]
     n, r = N.shape
     dissipated = 0.0
@@ -303,11 +305,19 @@ def _powers(P, N, Phi, scr):
     p = 0.0
     for q in range(end_idx.shape[0]):
         idx = end_idx[q]
-        _end_load(P[I_GID], P[I_AFFINE], Phi, idx, P[I_END_LOAD][q], P[I_END_FOLLOW][q], tr, M, A1)
+        _end_load(P[I_GID], P[I_AFFINE], Phi, idx, P[I_END_LOAD][q], P[I_END_FOLLOW][q], tr, M, A)
+        s = 0.0
         for a in range(r):
-            p += tr[a] * N[idx, a]
+            s += tr[a] * N[idx, a]
+        p += face[q] * s if weighted else s
     external += p
     return dissipated, external
+
+
+@_jit
+def _powers(P, N, Phi, scr):
+    """(dissipated, external) power of the loads at velocity N (``Scheme.powers``), d = 1."""
+    return load_powers(P, N, Phi, P[I_END_DIV], False, scr[2], scr[3], scr[5])
 
 
 @_jit

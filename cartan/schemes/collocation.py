@@ -46,13 +46,14 @@ Initial strains
 
 Compiled loops
     :meth:`Collocation.compiled_advance` runs whole blocks of steps in numba
-    (:mod:`cartan.schemes._collocation_compiled`) for d = 1 on SO(2), SE(2), SO(3), SE(3) with
-    ``fd2``, ``fd4`` or ``fourier`` (up to 512 nodes) when the medium's potential is quadratic
+    (:mod:`cartan.schemes._collocation_compiled`; d = 2, 3 in
+    :mod:`cartan.schemes._collocation_compiled_nd`) for d = 1, 2, 3 on SO(2), SE(2), SO(3),
+    SE(3) with ``fd2``, ``fd4`` or ``fourier`` (up to 512 nodes per axis) when the medium's potential is quadratic
     and the loads are data (damping, body-frame uniform force, constant-field potentials, end
     loads, clamps); everything else stays on this module's numpy path, the reference the
     compiled loops are tested against (``docs/schemes.md``).  The CFL estimate
     (:meth:`~cartan.schemes.base.Scheme.dt_max`) of those problems takes its stiffness products
-    from the same kernels (:mod:`cartan.schemes._collocation_diagnostics`).
+    from the same kernels for d = 1 (:mod:`cartan.schemes._collocation_diagnostics`).
 
 What is exact and what is not
     Unlike the ``lattice`` scheme, the stored strains are independent unknowns: temporal
