@@ -317,7 +317,7 @@ def load_powers(P, N, Phi, face, weighted, tr, M, A):
 @_jit
 def _powers(P, N, Phi, scr):
     """(dissipated, external) power of the loads at velocity N (``Scheme.powers``), d = 1."""
-    return load_powers(P, N, Phi, P[I_END_DIV], False, scr[2], scr[3], scr[5])
+    return load_powers(P, N, Phi, P[I_W], False, scr[2], scr[3], scr[5])  # (the weights: not read)
 
 
 @_jit
