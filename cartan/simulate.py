@@ -441,8 +441,9 @@ def simulate(
         (``kinematic``: no stability limit and no momentum) have no energy budget to test and
         get the non-finite test only.
     compiled : bool, default True
-        Run the steps between saves in the scheme's compiled loop when it supports the
-        combination (the lattice scheme for d = 1 with a quadratic medium and data-like loads,
+        Run the steps between saves in compiled code when the combination qualifies (the
+        lattice and collocation schemes, d = 1–3, with a quadratic medium and data-like loads;
+        ``implicit-midpoint``'s own compiled blocks; ``kinematic`` with a numba velocity;
         ``docs/performance.md``), else in Python.  False forces the Python loop, the reference
         path; the two agree to round-off.  A restart reproduces a run bit for bit when both
         parts use the same setting.
