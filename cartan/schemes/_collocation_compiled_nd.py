@@ -96,7 +96,11 @@ from ._lattice_compiled import (
     _velocity,
     _writable,
     advance_context,
+    compiled_kind,
     finish_advance,
+    lie_verlet_force,
+    rkmk_books,
+    rkmk_velocity,
 )
 
 __all__ = [
@@ -622,20 +626,14 @@ def advance(scheme, plan: tuple, integrator, state, dt: float, nsteps: int, kine
     integrator's caches (lie-verlet's force, the overdamped velocity) are kept in the state's
     shape ``[*shape, r]``, as the Python path keeps them.  False, touching nothing, when the
     integrator or the state's layout is not supported."""
-    from ..integrators.explicit import _TABLEAUX, RKMK4, ForwardEuler, Kinematic, LieEuler, LieVerlet, Overdamped
+    from ..integrators.explicit import _TABLEAUX, RKMK4, ForwardEuler, Kinematic, LieEuler, LieVerlet
     from . import _kinematic_compiled as kinematic
 
     P, Dc = plan
-    kind = type(integrator)
-    if kind not in (LieVerlet, LieEuler, ForwardEuler, Overdamped, RKMK4, Kinematic):
+    supported = compiled_kind(scheme, integrator)
+    if supported is None:
         return False
-    if kind is Kinematic and not kinematic.is_compiled_velocity(integrator.velocity_field):
-        return False
-    gam = None
-    if kind is Overdamped:
-        gam = np.asarray(scheme.drag(), dtype=float)
-        if np.any(scheme.live & ~(gam > 0)) or integrator.order not in (1, 2):
-            return False  # the reference path raises the error
+    kind, gam = supported
     grid = scheme.grid
     n, d, r = grid.size, grid.d, scheme.group.dim
     frame_key = "Phi" if scheme.track else "Phi_root"
@@ -663,11 +661,7 @@ def advance(scheme, plan: tuple, integrator, state, dt: float, nsteps: int, kine
                                                                              kinetic_limit)
     W = None
     if kind is LieVerlet:
-        velocity_free = not any(ld.velocity_dependent for ld in scheme.problem.loads) and not getattr(
-            scheme.medium, "velocity_dependent_forces", False)
-        fsal = integrator._fsal
-        have = bool(velocity_free and fsal is not None and fsal[0] == stamp)
-        W = np.array(fsal[1], dtype=float, order="C").reshape(S.shape) if have else np.zeros_like(S)
+        velocity_free, have, W = lie_verlet_force(scheme, integrator, stamp, S)
         mask, frac, _ = _lie_verlet_pieces(integrator, scheme, cache)
         done, nforce, t, diss, ext = lie_verlet_loop(P, Dc, S2, X2, Phi3, W.reshape(n, r), have, bool(velocity_free),
                                                      mask, frac, t0, dt, nsteps, diss, ext, check, limit, inv)
@@ -678,15 +672,9 @@ def advance(scheme, plan: tuple, integrator, state, dt: float, nsteps: int, kine
     else:
         dynamics = kind is RKMK4
         order = 4 if dynamics else integrator.order
-        hit = False
-        if dynamics:
-            N = np.zeros_like(S)
-        else:
-            ocache = integrator._cache
-            hit = ocache is not None and ocache[0] == stamp
-            N = np.array(ocache[1], dtype=float, order="C").reshape(S.shape) if hit else np.empty_like(S)
-            if not hit:
-                overdamped_velocity(P, Dc, X2, Phi3, N.reshape(n, r), gam)
+        hit, N = rkmk_velocity(integrator, stamp, S, dynamics)
+        if not (dynamics or hit):
+            overdamped_velocity(P, Dc, X2, Phi3, N.reshape(n, r), gam)
         if order == 1:
             done, t, diss, ext = overdamped_loop(P, Dc, S2, X2, Phi3, N.reshape(n, r), gam, t0, dt, nsteps, diss,
                                                  ext, check, limit, inv)
@@ -696,10 +684,5 @@ def advance(scheme, plan: tuple, integrator, state, dt: float, nsteps: int, kine
                 P, Dc, S2, X2, Phi3, N.reshape(n, r), np.ones(r) if gam is None else gam, dynamics,
                 np.ascontiguousarray(A, dtype=float), np.ascontiguousarray(b, dtype=float),
                 t0, dt, nsteps, diss, ext, check, limit, inv)
-        # force evaluations as the reference path counts them: rkmk4 evaluates 4 per step;
-        # overdamped evaluates its velocity before and after every step (plus the 2 stages of
-        # order 2), the very first one taken from the integrator's cache when it matches
-        nforce = (4 if (dynamics or order == 2) else 2) * done - (1 if hit else 0)
-        if not dynamics:
-            integrator._cache = ((id(state), t, nstep0 + done - 1), N.copy())
+        nforce = rkmk_books(integrator, state, dynamics, order, done, hit, t, nstep0, N)
     return finish_advance(integrator, state, t, diss, ext, nstep0, done, nforce, W, t_start)

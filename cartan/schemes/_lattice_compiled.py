@@ -1107,19 +1107,13 @@ def advance(scheme, plan: tuple, integrator, state, dt: float, nsteps: int, kine
     """Run up to ``nsteps`` steps of ``integrator`` on ``state`` in compiled code (see
     :meth:`cartan.schemes.lattice.Lattice.compiled_advance`); False, touching nothing, when
     the integrator is not supported."""
-    from ..integrators.explicit import _TABLEAUX, RKMK4, ForwardEuler, Kinematic, LieEuler, LieVerlet, Overdamped
+    from ..integrators.explicit import _TABLEAUX, RKMK4, ForwardEuler, Kinematic, LieEuler, LieVerlet
     from . import _kinematic_compiled as kinematic
 
-    kind = type(integrator)
-    if kind not in (LieVerlet, LieEuler, ForwardEuler, Overdamped, RKMK4, Kinematic):
+    supported = compiled_kind(scheme, integrator)
+    if supported is None:
         return False
-    if kind is Kinematic and not kinematic.is_compiled_velocity(integrator.velocity_field):
-        return False
-    gam = None
-    if kind is Overdamped:
-        gam = np.asarray(scheme.drag(), dtype=float)
-        if np.any(scheme.live & ~(gam > 0)) or integrator.order not in (1, 2):
-            return False  # the reference path raises the error
+    kind, gam = supported
     d = scheme.grid.d
     keys = [scheme._key(a) for a in range(d)]
     frame_key = "Phi" if scheme.track else "Phi_root"
@@ -1153,11 +1147,7 @@ def advance(scheme, plan: tuple, integrator, state, dt: float, nsteps: int, kine
     W = None
     with numba_threads(threads) if threads > 1 else contextlib.nullcontext():
         if kind is LieVerlet:
-            velocity_free = not any(ld.velocity_dependent for ld in scheme.problem.loads) and not getattr(
-                scheme.medium, "velocity_dependent_forces", False)
-            fsal = integrator._fsal
-            have = bool(velocity_free and fsal is not None and fsal[0] == stamp)
-            W = np.array(fsal[1], dtype=float, order="C").reshape(S.shape) if have else np.zeros_like(S)
+            velocity_free, have, W = lie_verlet_force(scheme, integrator, stamp, S)
             mask, frac, fac, kinds = _lie_verlet_sequence(integrator, scheme, plan[I_GID], dt, cache)
             if plan[I_GID] == GID_SE3 and d == 1 and np.all(kinds[:, 0] != KIND_GENERIC):
                 loop = soa.THREADED["lie_verlet_se3_loop"] if threads > 1 else soa.lie_verlet_se3_loop
@@ -1178,15 +1168,9 @@ def advance(scheme, plan: tuple, integrator, state, dt: float, nsteps: int, kine
         else:
             dynamics = kind is RKMK4
             order = 4 if dynamics else integrator.order
-            hit = False
-            if dynamics:
-                N = np.zeros_like(S)
-            else:
-                ocache = integrator._cache
-                hit = ocache is not None and ocache[0] == stamp
-                N = np.array(ocache[1], dtype=float, order="C").reshape(S.shape) if hit else np.empty_like(S)
-                if not hit:
-                    overdamped_velocity(plan, Gs, Phi3, N.reshape(n, r), gam)
+            hit, N = rkmk_velocity(integrator, stamp, S, dynamics)
+            if not (dynamics or hit):
+                overdamped_velocity(plan, Gs, Phi3, N.reshape(n, r), gam)
             N2 = N.reshape(n, r)
             if order == 1 and plan[I_GID] == GID_SE3 and d == 1:
                 loop = soa.THREADED["overdamped_se3_loop"] if threads > 1 else soa.overdamped_se3_loop
@@ -1201,13 +1185,64 @@ def advance(scheme, plan: tuple, integrator, state, dt: float, nsteps: int, kine
                     plan, S2, Gs, tuple(np.empty_like(g) for g in Gs), Phi3, np.empty_like(Phi3), N2,
                     np.ones(r) if gam is None else gam, dynamics, np.ascontiguousarray(A, dtype=float),
                     np.ascontiguousarray(b, dtype=float), t0, dt, nsteps, diss, ext, check, limit, inv)
-            # force evaluations as the reference path counts them: rkmk4 evaluates 4 per step;
-            # overdamped evaluates its velocity before and after every step (plus the 2 stages of
-            # order 2), the very first one taken from the integrator's cache when it matches
-            nforce = (4 if (dynamics or order == 2) else 2) * done - (1 if hit else 0)
-            if not dynamics:
-                integrator._cache = ((id(state), t, nstep0 + done - 1), N.copy())
+            nforce = rkmk_books(integrator, state, dynamics, order, done, hit, t, nstep0, N)
     return finish_advance(integrator, state, t, diss, ext, nstep0, done, nforce, W, t_start)
+
+
+def compiled_kind(scheme, integrator) -> tuple | None:
+    """``(integrator class, drag Γ or None)`` when the compiled loops run ``integrator``, else
+    None: ``lie-verlet``, ``lie-euler``, ``forward-euler``, ``rkmk4``, ``kinematic`` with a
+    numba velocity, and ``overdamped`` of order 1 or 2 with a positive drag on every live
+    component (without, the reference path raises the error)."""
+    from ..integrators.explicit import RKMK4, ForwardEuler, Kinematic, LieEuler, LieVerlet, Overdamped
+    from ._kinematic_compiled import is_compiled_velocity
+
+    kind = type(integrator)
+    if kind not in (LieVerlet, LieEuler, ForwardEuler, Overdamped, RKMK4, Kinematic):
+        return None
+    if kind is Kinematic and not is_compiled_velocity(integrator.velocity_field):
+        return None
+    gam = None
+    if kind is Overdamped:
+        gam = np.asarray(scheme.drag(), dtype=float)
+        if np.any(scheme.live & ~(gam > 0)) or integrator.order not in (1, 2):
+            return None
+    return kind, gam
+
+
+def lie_verlet_force(scheme, integrator, stamp: tuple, S: np.ndarray) -> tuple[bool, bool, np.ndarray]:
+    """``(velocity_free, have, W)`` for a compiled ``lie-verlet`` loop: whether no force depends
+    on the velocity, whether the integrator's first-same-as-last force belongs to the state
+    (``stamp`` of :func:`advance_context`), and that force (a C-ordered copy shaped like
+    ``S``) or zeros."""
+    velocity_free = not any(ld.velocity_dependent for ld in scheme.problem.loads) and not getattr(
+        scheme.medium, "velocity_dependent_forces", False)
+    fsal = integrator._fsal
+    have = bool(velocity_free and fsal is not None and fsal[0] == stamp)
+    W = np.array(fsal[1], dtype=float, order="C").reshape(S.shape) if have else np.zeros_like(S)
+    return velocity_free, have, W
+
+
+def rkmk_velocity(integrator, stamp: tuple, S: np.ndarray, dynamics: bool) -> tuple[bool, np.ndarray]:
+    """``(hit, N)`` for a compiled RKMK or overdamped loop: zeros for ``rkmk4`` (``dynamics``);
+    for ``overdamped`` its cached velocity (a C-ordered copy shaped like ``S``) when it belongs
+    to the state, else an empty array for the caller to fill."""
+    if dynamics:
+        return False, np.zeros_like(S)
+    cached = integrator._cache
+    hit = cached is not None and cached[0] == stamp
+    return hit, (np.array(cached[1], dtype=float, order="C").reshape(S.shape) if hit else np.empty_like(S))
+
+
+def rkmk_books(integrator, state, dynamics: bool, order: int, done: int, hit: bool, t: float, nstep0: int,
+               N: np.ndarray) -> int:
+    """The force evaluations of ``done`` RKMK or overdamped steps as the reference path counts
+    them (``rkmk4`` 4 per step; ``overdamped`` its velocity before and after every step, plus
+    the 2 stages of order 2, the very first one from the integrator's cache when ``hit``),
+    and the overdamped velocity ``N`` of the final state cached on the integrator."""
+    if not dynamics:
+        integrator._cache = ((id(state), t, nstep0 + done - 1), N.copy())
+    return (4 if (dynamics or order == 2) else 2) * done - (1 if hit else 0)
 
 
 def advance_context(scheme, integrator, state, kinetic_limit: float) -> tuple:
