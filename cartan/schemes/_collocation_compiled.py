@@ -131,11 +131,11 @@ from ._lattice_compiled import (
 )
 from ._lattice_compiled_kernels import (
     _copy_matrix,
+    _dexp_slopes,
     _q_block,
     g_Ad,
     g_ad,
     g_compose,
-    g_dexp_inv,
     g_E,
     g_exp,
     g_hat,
@@ -842,22 +842,6 @@ def _increment(k, coef, m, dt, out):
     for i in range(a.shape[0]):
         nz += a[i] != 0.0
     return nz > 0
-
-
-@_inline
-def _dexp_slopes(gid, sigma, N, out, tr, M):
-    """``out_i = dexp⁻¹(−σ_i) N_i`` at every node (the RKMK stage slopes; ``tr`` r-vector and
-    ``M`` r × r work space)."""
-    n, r = N.shape
-    for i in range(n):
-        for k in range(r):
-            tr[k] = -sigma[i, k]
-        g_dexp_inv(gid, tr, M)
-        for a in range(r):
-            acc = 0.0
-            for c in range(r):
-                acc += M[a, c] * N[i, c]
-            out[i, a] = acc
 
 
 @_jit

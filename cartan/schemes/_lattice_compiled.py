@@ -90,6 +90,7 @@ from ._lattice_compiled_kernels import (
     _chunk,
     _cinv,
     _copy_matrix,
+    _dexp_slopes,
     _exp3_coeffs,
     _inline,
     _jinv_T,
@@ -113,7 +114,6 @@ from ._lattice_compiled_kernels import (
     g_Ad,
     g_ad,
     g_compose,
-    g_dexp_inv,
     g_E,
     g_exp,
     g_hat,
@@ -763,21 +763,11 @@ def _rk_combine(coef, nj, K, dt, base, with_base, out):
 @_jit
 def _rk_dexp_pass(P, sigma, Nst, ksig, st, scr):
     """``ksig[st, i] = dexp⁻¹(−σ_i) Nst_i``."""
-    gid = P[I_GID]
-    n, r = Nst.shape
-    XI, TR, QV, M1, M2, A1, A2, BAD, LOGS = scr
+    n = Nst.shape[0]
+    TR, M1 = scr[1], scr[3]
     for c in prange((n + CHUNK - 1) // CHUNK):
-        tr = TR[c]
-        M = M1[c]
-        for i in range(*_chunk(c, n)):
-            for k in range(r):
-                tr[k] = -sigma[i, k]
-            g_dexp_inv(gid, tr, M)
-            for a in range(r):
-                acc = 0.0
-                for b in range(r):
-                    acc += M[a, b] * Nst[i, b]
-                ksig[st, i, a] = acc
+        lo, hi = _chunk(c, n)
+        _dexp_slopes(P[I_GID], sigma[lo:hi], Nst[lo:hi], ksig[st, lo:hi], TR[c], M1[c])
 
 
 @_jit

@@ -223,6 +223,22 @@ def g_dexp_inv(gid, xi, out):
         so2_dexp_inv_point(xi, out)
 
 
+@_inline
+def _dexp_slopes(gid, sigma, N, out, tr, M):
+    """``out_i = dexp⁻¹(−σ_i) N_i`` at every node (the RKMK stage slopes of the lattice and
+    collocation loops; ``tr`` r-vector and ``M`` r × r work space)."""
+    n, r = N.shape
+    for i in range(n):
+        for k in range(r):
+            tr[k] = -sigma[i, k]
+        g_dexp_inv(gid, tr, M)
+        for a in range(r):
+            acc = 0.0
+            for c in range(r):
+                acc += M[a, c] * N[i, c]
+            out[i, a] = acc
+
+
 @_jit
 def g_E(gid, dt, xi, out):
     if gid == GID_SE3:
