@@ -6,20 +6,25 @@ Follows the equilibrium path of ``r(δ, λ) = F_int + λ·F_ext (+ reactions) = 
 
 Pseudo-arclength
     From a converged point x₀ = (state₀, λ₀) with unit tangent t, the predictor is x₀ + Δs·t
-    and the corrector solves ``r = 0`` together with ``⟨t, x − x₀⟩_W = Δs`` by Newton's method
-    on the bordered Jacobian ``[[K, ∂r/∂λ], [W t_δᵀ, W t_λ]]`` (K the coloured finite-difference
-    Jacobian of :mod:`cartan.statics`).  The increments x − x₀ are the sums of the Newton
-    increments.  The weighted norm is ``‖x‖²_W = ‖δ‖²/n + (λ/λ_s)²`` with n the number of nodes
-    and λ_s = ``lam_scale`` (reaction forces carry no weight), so ``ds`` is dimensionless.
-    The tangent at each new point solves ``[[K, ∂r/∂λ], [W t_prevᵀ]]·t = (0, 1)`` (oriented
-    along the previous tangent), which passes folds.  The step grows by 1.5 after an easy
-    corrector (≤ 3 iterations) and is halved after a failed one.
+    and the corrector solves ``r = 0`` together with ``⟨t, x − x₀⟩_W = Δs`` on the bordered
+    Jacobian ``[[K, ∂r/∂λ], [W t_δᵀ, W t_λ]]`` (K the medium's analytic Jacobian or the
+    coloured finite-difference one of :mod:`cartan.statics`).  The corrector is the damped
+    mixed Newton iteration of :func:`~cartan.statics.solve_static` (edge strains carried as
+    unknowns, starting from their linearisation along the predictor, ``ε = X₀ + Δs·B t_δ``;
+    natural monotonicity test with predicted damping factors).  The increments x − x₀ are the
+    sums of the Newton increments.  The weighted norm is ``‖x‖²_W = ‖δ‖²/n + (λ/λ_s)²`` with n
+    the number of nodes and λ_s = ``lam_scale`` (reaction forces carry no weight), so ``ds`` is
+    dimensionless.  The tangent at each new point solves ``[[K, ∂r/∂λ], [W t_prevᵀ]]·t = (0, 1)``
+    (oriented along the previous tangent), which passes folds.  The step grows by 1.5 after an
+    easy corrector (≤ 3 iterations), shrinks by 0.7 after a slow one (≥ max_iter − 2) and is
+    halved after a failed one.
 Critical points
     Between consecutive points a change of the sign of det K (the product of the signs of the
     sparse LU's diagonal and of its row and column permutations) marks a fold or a bifurcation.
-    The critical load is located by a safeguarded secant (Illinois) iteration on the eigenvalue
-    of smallest magnitude of the symmetric part of K (``eigsh`` with ``sigma = 0``), along the
-    arclength from the last point before the crossing.  A critical point whose neighbouring
+    The critical load is located by a safeguarded secant (Illinois) iteration on det K along
+    the arclength from the last point before the crossing; the eigenvalue of smallest
+    magnitude of the symmetric part of K (``eigsh`` with ``sigma = 0``) is recorded at every
+    point.  A critical point whose neighbouring
     tangents have load components of opposite sign is a fold; otherwise a bifurcation.
 Branch switching
     At the first bifurcation the path leaves along the null vector φ of K (the eigenvector of
@@ -40,8 +45,8 @@ from typing import Any
 
 import numpy as np
 
-from .problem import InitialState, Problem, dead_to_body
-from .statics import ConvergenceError, _colouring, _initial_phi, _stencil_pairs
+from .problem import InitialState, Problem
+from .statics import _JACOBIANS, ConvergenceError, _Equilibrium, _initial_phi, _lu_solve, _newton, _Point, _Singular
 
 __all__ = ["continuation"]
 
@@ -62,146 +67,6 @@ def _perm_parity(p: np.ndarray) -> int:
         if length % 2 == 0:
             sign = -sign
     return sign
-
-
-class _System:
-    """Residual, Jacobian and bookkeeping of one problem (lattice scheme, affine groups for pins)."""
-
-    def __init__(self, problem: Problem, pins: dict | None, fd_step: float, t: float):
-        from .schemes.lattice import Lattice
-
-        self.sch = sch = Lattice(problem, track_frames=True)
-        self.g = g = sch.group
-        self.shape = shape = sch.grid.shape
-        self.r_dim = r_dim = g.dim
-        self.nnode = nnode = int(np.prod(shape))
-        self.fd_step = fd_step
-        self.t = float(t)
-        unknown = np.broadcast_to(sch.live, (*shape, r_dim)).copy()
-        unknown[sch._clamped] = False
-        self.unknown = unknown
-        self.unknown_flat = unknown.reshape(nnode, r_dim)
-        self.index = -np.ones((nnode, r_dim), dtype=np.int64)
-        self.nunk = int(unknown.sum())
-        self.index[self.unknown_flat] = np.arange(self.nunk)
-        self.w = sch.weights[..., None]
-        self.zero = np.zeros((*shape, r_dim))
-        self.colour = _colouring(shape, tuple(sch.grid.periodic))
-        self.src, self.dst = _stencil_pairs(shape, tuple(sch.grid.periodic))
-        self.length = max(1.0, float(np.max(sch.grid.length)))
-        # pins: (flat node, spatial component)
-        self.pins: list[tuple[int, int]] = []
-        for where, comps in (pins or {}).items():
-            node = self._node(where)
-            for k in np.atleast_1d(comps):
-                self.pins.append((node, int(k)))
-        if self.pins and not getattr(g, "affine", False):
-            raise ValueError("pins need a medium on an affine group (positions)")
-        self.npin = len(self.pins)
-        self.m = self.nunk + self.npin
-        state = sch.initial_state()
-        state.S[...] = 0.0
-        state.t = self.t
-        self.state0 = state
-        self.x0 = np.array([self.positions(state)[n, k] for n, k in self.pins])
-
-    def _node(self, where: Any) -> int:
-        if isinstance(where, str):
-            if self.sch.grid.d != 1 or where not in ("start", "end"):
-                raise ValueError(f"pins: unknown end {where!r} (use 'start', 'end' or a node index)")
-            return 0 if where == "start" else self.nnode - 1
-        idx = np.ravel_multi_index(np.atleast_1d(where), self.shape) if np.ndim(where) else int(where) % self.nnode
-        return int(idx)
-
-    def positions(self, state) -> np.ndarray:
-        m = self.g.matrix_size
-        return self.sch.frames(state).reshape(self.nnode, m, m)[:, 1:, 0]
-
-    def _reaction_basis(self, state) -> list[np.ndarray]:
-        """Body components (per pin) of a unit spatial force at the pinned node."""
-        Phi = self.sch.frames(state).reshape(self.nnode, self.g.matrix_size, self.g.matrix_size)
-        out = []
-        for n, k in self.pins:
-            P = np.zeros(self.r_dim)
-            P[k] = 1.0
-            out.append(dead_to_body(self.g, Phi[n], P))
-        return out
-
-    def parts(self, state) -> tuple[np.ndarray, np.ndarray]:
-        """(internal, external) nodal forces on the unknowns (flat)."""
-        total = self.sch.force(state, self.zero, state.t) * self.w
-        internal = self.sch.internal_force(state)
-        return internal[self.unknown], (total - internal)[self.unknown]
-
-    def residual(self, state, mu: np.ndarray, lam: float) -> np.ndarray:
-        internal, ext = self.parts(state)
-        r = internal + lam * ext
-        if self.npin:
-            full = np.zeros((self.nnode, self.r_dim))
-            for (n, _), b, m_ in zip(self.pins, self._reaction_basis(state), mu, strict=True):
-                full[n] += m_ * b
-            r = r + full[self.unknown_flat]
-            c = np.array([self.positions(state)[n, k] for n, k in self.pins]) - self.x0
-            r = np.concatenate([r, c])
-        return r
-
-    def dlam(self, state) -> np.ndarray:
-        return np.concatenate([self.parts(state)[1], np.zeros(self.npin)])
-
-    def jacobian(self, state, mu: np.ndarray, lam: float):
-        import scipy.sparse as sp
-
-        nnode, r_dim, h = self.nnode, self.r_dim, self.fd_step
-        rows, cols, vals = [], [], []
-        pin_nodes = np.array([n for n, _ in self.pins], dtype=np.int64)
-        for c in range(int(self.colour.max()) + 1):
-            nodes = self.colour == c
-            sel = nodes[self.src]
-            s_c, d_c = self.src[sel], self.dst[sel]
-            for a in range(r_dim):
-                pert = np.zeros((nnode, r_dim))
-                pert[nodes & self.unknown_flat[:, a], a] = 1.0
-                if not pert.any():
-                    continue
-                pert = pert.reshape(*self.shape, r_dim)
-                plus, minus = state.copy(), state.copy()
-                self.sch.drift(plus, h, pert)
-                self.sch.drift(minus, -h, pert)
-                diff = (self.residual(plus, mu, lam) - self.residual(minus, mu, lam)) / (2 * h)
-                full = np.zeros((nnode, r_dim))
-                full[self.unknown_flat] = diff[: self.nunk]
-                col = self.index[s_c, a]
-                ok = col >= 0
-                rr = self.index[d_c[ok]]
-                vv = full[d_c[ok]]
-                cc = np.broadcast_to(col[ok, None], rr.shape)
-                m = rr >= 0
-                rows.append(rr[m])
-                cols.append(cc[m])
-                vals.append(vv[m])
-                if self.npin:  # constraint rows: a pin depends on its own node only
-                    hit = nodes[pin_nodes] & (self.index[pin_nodes, a] >= 0)
-                    j = np.nonzero(hit)[0]
-                    rows.append(self.nunk + j)
-                    cols.append(self.index[pin_nodes[j], a])
-                    vals.append(diff[self.nunk + j])
-        for j, b in enumerate(self._reaction_basis(state) if self.npin else []):
-            n = self.pins[j][0]
-            idx = self.index[n]
-            ok = idx >= 0
-            rows.append(idx[ok])
-            cols.append(np.full(int(ok.sum()), self.nunk + j))
-            vals.append(b[ok])
-        return sp.csc_matrix((np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols))),
-                             shape=(self.m, self.m))
-
-    def update(self, state, mu: np.ndarray, d: np.ndarray):
-        """A new (state, μ) after the increment ``d`` (unknowns then multipliers)."""
-        full = np.zeros((*self.shape, self.r_dim))
-        full[self.unknown] = d[: self.nunk]
-        new = state.copy()
-        self.sch.drift(new, 1.0, full)
-        return new, mu + d[self.nunk:]
 
 
 def _log_det(K) -> tuple[int, float]:
@@ -258,6 +123,9 @@ def continuation(
     switch_direction: float = 1.0,
     locate_tol: float = 1e-9,
     fd_step: float = 1e-6,
+    jacobian: str = "auto",
+    max_halvings: int = 20,
+    mixed: bool = True,
     initial: Any = None,
     t: float = 0.0,
 ):
@@ -305,6 +173,18 @@ def continuation(
         Relative tolerance on the critical load.
     fd_step : float
         Finite-difference step of the Jacobian.
+    jacobian : str
+        ``"auto"`` (default): the medium's analytic Jacobian
+        (:meth:`~cartan.medium.Medium.static_jacobian`, with the pins' terms added by
+        differences at the pinned nodes) when it returns one for this problem, coloured
+        central finite differences otherwise; ``"analytic"``: the medium's (a ``ValueError``
+        when it has none); ``"fd"``: finite differences.
+    max_halvings : int
+        The corrector's damping stops at the step length ``2^−max_halvings`` (then the
+        arclength step is halved).
+    mixed : bool
+        The mixed corrector, edge strains carried as unknowns (default); False: the
+        displacement-only one.
     initial : optional
         Starting configuration, as for :func:`cartan.statics.solve_static`.
     t : float
@@ -318,10 +198,13 @@ def continuation(
         (0 before the branch switch, 1 after), ``position`` (path, node, row) for affine
         groups, ``reaction`` (path, pin) when pinned.  Along ``critical``: ``critical_load``,
         ``critical_monitor``, ``critical_eig`` and ``critical_kind`` (``"fold"`` or
-        ``"bifurcation"``).  Attributes ``wall_time`` and ``newton_iterations``.
+        ``"bifurcation"``).  Attributes ``wall_time``, ``newton_iterations`` and ``jacobian``
+        (``"analytic"`` or ``"fd"``).
 
     Raises
     ------
+    ValueError
+        Bad options, as for :func:`cartan.statics.solve_static`.
     ConvergenceError
         The step fell below ``ds_min`` or ``max_points`` was exceeded.
     """
@@ -336,7 +219,9 @@ def continuation(
     if init is not problem.initial:
         problem = Problem(problem.medium, problem.grid, InitialState(Phi=init.Phi, holonomy=problem.initial.holonomy),
                           problem.boundaries, problem.loads, problem.name)
-    sysm = _System(problem, pins, fd_step, t)
+    if jacobian not in _JACOBIANS:
+        raise ValueError(f"jacobian must be one of {', '.join(map(repr, _JACOBIANS))}, got {jacobian!r}")
+    sysm = _Equilibrium(problem, jacobian=jacobian, fd_step=fd_step, t=t, pins=pins, probe_lam=0.0)
     g = sysm.g
     affine = bool(getattr(g, "affine", False))
     lam_scale = float(lam_max if lam_scale is None else lam_scale)
@@ -349,15 +234,20 @@ def continuation(
     fref = float(np.max(np.abs(ext0[: sysm.nunk]), initial=0.0)) * lam_scale
     atol = tol * (fref if fref > 0 else 1.0)
     ctol = tol * sysm.length
+    xtol = 1e-12 * sysm.length
     total_iters = 0
     msize = g.matrix_size
+    # scaled norm of a corrector step (δ, μ, λ): the increments as in solve_static, λ in units
+    # of lam_scale, the reactions left out
+    scale = np.concatenate([sysm.delta_scale, np.zeros(sysm.npin)])
+    scale_l = np.concatenate([scale, [1.0 / lam_scale]])
 
     def wnorm(u: np.ndarray, lam: float) -> float:
         return math.sqrt(float(np.sum(wv * u * u)) + wl * lam * lam)
 
     def small(r: np.ndarray) -> bool:
         return (float(np.max(np.abs(r[: sysm.nunk]), initial=0.0)) <= atol
-                and float(np.max(np.abs(r[sysm.nunk:]), initial=0.0)) <= ctol)
+                and float(np.max(np.abs(r[sysm.nunk: m]), initial=0.0)) <= ctol)
 
     def bordered(K, f, tu, tl):
         B = sp.bmat([[K, sp.csc_matrix(f[:, None])], [sp.csr_matrix((wv * tu)[None, :]), np.array([[wl * tl]])]])
@@ -379,38 +269,48 @@ def continuation(
 
     def correct(state, mu, lam, tu, tl, ds, lam_target=None):
         """Predictor–corrector from (state, μ, λ) along (tu, tl): (state, μ, λ, K, iterations) or None.
-        With ``lam_target`` the corrector holds λ = lam_target instead of the arclength."""
+        With ``lam_target`` the corrector holds λ = lam_target instead of the arclength.  The
+        corrector is the damped mixed Newton iteration of :func:`cartan.statics.solve_static` on
+        the bordered system."""
         nonlocal total_iters
-        acc = ds * tu.copy()
-        st, mu_ = sysm.update(state, mu, acc)
-        lam_ = lam + ds * tl if lam_target is None else float(lam_target)
+        acc0 = ds * tu
+        st, mu_ = sysm.update(state, mu, acc0)
+        lam0 = lam + ds * tl if lam_target is None else float(lam_target)
         cu, cl = (tu, tl) if lam_target is None else (np.zeros(m), 1.0 / wl)
-        for k in range(max_iter + 1):
-            r = sysm.residual(st, mu_, lam_)
+
+        def gap(pt: _Point) -> float:
             if lam_target is None:
-                gap = float(np.sum(wv * tu * acc)) + wl * tl * (lam_ - lam) - ds
-            else:
-                gap = lam_ - lam_target
-            if not np.all(np.isfinite(r)):
-                return None
-            if k > 0 and small(r) and abs(gap) <= 1e-10 * max(abs(ds), 1e-300):
-                K = sysm.jacobian(st, mu_, lam_)
-                return st, mu_, lam_, K, k
-            if k == max_iter:
-                return None
-            K = sysm.jacobian(st, mu_, lam_)
+                return float(np.sum(wv * tu * pt.acc)) + wl * tl * (pt.lam - lam) - ds
+            return pt.lam - lam_target
+
+        def residual(pt: _Point) -> np.ndarray:
+            return np.concatenate([sysm.residual(pt.state, pt.mu, pt.lam), [gap(pt)]])
+
+        def factorise(pt: _Point, offset):
+            K = sysm.jacobian(pt.state, pt.mu, pt.lam, offset)
             try:
-                lu = bordered(K, sysm.dlam(st), cu, cl)
-                d = lu.solve(-np.concatenate([r, [gap]]))
-            except RuntimeError:
-                return None
-            if not np.all(np.isfinite(d)):
-                return None
-            total_iters += 1
-            st, mu_ = sysm.update(st, mu_, d[:m])
-            acc = acc + d[:m]
-            lam_ = lam_ + d[m]
-        return None
+                lu = bordered(K, sysm.dlam(pt.state), cu, cl)
+            except RuntimeError as exc:
+                raise _Singular(str(exc)) from None
+            return lu.solve
+
+        def move(pt: _Point, alpha: float, d: np.ndarray) -> _Point:
+            s, u = sysm.update(pt.state, pt.mu, d[:m], alpha)
+            return _Point(s, u, pt.lam + alpha * d[m], pt.acc + alpha * d[:m])
+
+        def converged(pt: _Point, r: np.ndarray) -> bool:
+            return small(r[:m]) and abs(r[m]) <= 1e-10 * max(abs(ds), 1e-300)
+
+        # the strains of the predictor: their linearisation at the last point (the mixed iteration)
+        eps0 = [x + b for x, b in zip(sysm.strains(state), sysm.strain_rate(state, acc0), strict=True)]
+        out = _newton(sysm, _Point(st, mu_, lam0, acc0.copy()), residual=residual, factorise=factorise, move=move,
+                      converged=converged, scale=scale_l, max_iter=max_iter, max_halvings=max_halvings, xtol=xtol,
+                      min_iter=1, strains=eps0, mixed=mixed)
+        total_iters += out.iterations
+        if not out.converged:
+            return None
+        pt = out.point
+        return pt.state, pt.mu, pt.lam, sysm.jacobian(pt.state, pt.mu, pt.lam), out.iterations
 
     def snapshot(state) -> xr.Dataset:
         Phi = sysm.sch.frames(state).reshape(sysm.nnode, msize, msize)
@@ -430,18 +330,23 @@ def continuation(
 
     # ---------------------------------------------------------------- the first point (λ = 0)
     state, mu, lam = sysm.state0, np.zeros(sysm.npin), 0.0
-    r = sysm.residual(state, mu, lam)
+
+    def settle_move(pt: _Point, alpha: float, d: np.ndarray) -> _Point:
+        s, u = sysm.update(pt.state, pt.mu, d, alpha)
+        return _Point(s, u, 0.0)
+
+    first = _newton(sysm, _Point(state, mu, 0.0),
+                    residual=lambda pt: sysm.residual(pt.state, pt.mu, 0.0),
+                    factorise=lambda pt, offset: _lu_solve(sysm.jacobian(pt.state, pt.mu, 0.0, offset)),
+                    move=settle_move, converged=lambda pt, r: small(r), scale=scale, max_iter=max_iter,
+                    max_halvings=max_halvings, xtol=xtol, mixed=mixed)
+    if not first.converged:  # the start (e.g. with residual stresses) must settle at λ = 0
+        raise ConvergenceError(f"continuation: no equilibrium at λ = 0: {first.reason}", first.iterations,
+                               first.residuals[-1], first.residuals)
+    state, mu = first.point.state, first.point.mu
+    iters0 = first.iterations
+    total_iters += iters0
     K = sysm.jacobian(state, mu, lam)
-    iters0 = 0
-    while not small(r):  # settle the start (e.g. residual stresses) at λ = 0
-        if iters0 >= max_iter:
-            raise ConvergenceError("continuation: no equilibrium at λ = 0", iters0, float(np.linalg.norm(r)), [])
-        with np.errstate(all="ignore"):
-            d = spla.splu(K).solve(-r)
-        state, mu = sysm.update(state, mu, d)
-        r = sysm.residual(state, mu, lam)
-        K = sysm.jacobian(state, mu, lam)
-        iters0 += 1
     tu, tl = tangent(state, mu, lam, K, np.zeros(m), 1.0)
     points: list[dict[str, Any]] = []
     critical: list[dict[str, Any]] = []
@@ -469,11 +374,14 @@ def continuation(
             raise ConvergenceError(f"continuation: max_points = {max_points} reached at λ = {lam:g}",
                                    total_iters, 0.0, [])
         step, target = ds, None
-        if tl > 0:  # land exactly on the next stop (or lam_max) when this step would pass it
-            nxt = next((x for x in targets if x > lam * (1 + 1e-12) + 1e-300), lam_max)
-            if lam + step * tl >= nxt:
-                step, target = (nxt - lam) / tl, nxt
+        nxt = next((x for x in targets if x > lam * (1 + 1e-12) + 1e-300), lam_max)
+        if tl > 0 and lam + step * tl >= nxt:  # land exactly on the next stop (or lam_max) when
+            step, target = (nxt - lam) / tl, nxt  # this step would pass it
         res = correct(state, mu, lam, tu, tl, step, target)
+        if res is not None and target is None and tl > 0 and res[2] > nxt:
+            # the corrected point passed the stop the predictor fell short of: hold λ on the stop
+            step, target = (nxt - lam) / tl, nxt
+            res = correct(state, mu, lam, tu, tl, step, target)
         if res is None:
             ds *= 0.5
             if ds < ds_min:
@@ -534,7 +442,7 @@ def continuation(
     ds_out["monitor"].attrs.update(long_name="monitored displacement")
     ds_out["eig_min"].attrs.update(long_name="eigenvalue of smallest magnitude of the symmetric Jacobian part")
     ds_out["det_sign"].attrs.update(long_name="sign of det of the Jacobian (0: singular)")
-    ds_out.attrs.update(wall_time=float(wall), newton_iterations=int(total_iters),
+    ds_out.attrs.update(wall_time=float(wall), newton_iterations=int(total_iters), jacobian=sysm.kind,
                         title=f"{problem.name or problem.medium.name}: load continuation")
     return ds_out
 

@@ -9,7 +9,8 @@ node (clamped nodes and gauge components excluded), applied on the group,
 so the iterates stay in G and the lattice edges stay exact (``G_e ← exp(−δ_i) G_e exp(δ_j)``).
 
 Residual
-    ``r = w·W`` (the generalised nodal forces, w the node weights) on the unknowns.
+    ``r(λ) = F_int + λ·F_ext`` on the unknowns: the generalised nodal forces ``w·W`` with the
+    external loads scaled by the load factor λ.
 Jacobian
     Analytic when the medium provides one (:meth:`cartan.medium.Medium.static_jacobian`,
     ``∂r/∂δ`` over all node components, restricted here to the unknowns); otherwise coloured
@@ -17,24 +18,52 @@ Jacobian
     depends only on the node and its neighbours along each axis, so perturbing every third
     node (per axis) in one component at once gives 3^d·r force-difference pairs per
     Jacobian, assembled as a sparse banded matrix.  Either is factorised by sparse LU.
+Mixed Newton iteration
+    The edge strains ε_e are carried as independent unknowns beside the increments (the
+    mixed-integration-point Newton method of Magisano, Leonetti & Garcea 2017): the Newton
+    step solves ``J_ε δ = −r`` where ``J_ε`` is the Jacobian with the geometric stiffness of
+    the stresses ``Q(ε)`` in place of ``Q(X)``, and the strains follow their linearisation,
+    ``ε ← X + B δ`` (``B δ`` the strain rate of the drift).  For stiff axial and shear
+    stiffnesses the displacement-only iteration builds huge spurious stresses from the
+    chord error of a rotation step and its next Jacobian is useless; the mixed one is not
+    affected.  At an equilibrium ε = X and ``J_ε = J``: the convergence is quadratic.
 Globalisation
-    A backtracking line search halves the step until the residual norm decreases; the load
-    can be applied in ``load_steps`` equal increments, each solved from the previous
-    equilibrium (``r(λ) = F_int + λ·F_ext``).
+    Deuflhard's error-oriented damped Newton method (NLEQ-ERR): the step length α is
+    predicted from the previous contraction, and a trial point is accepted when the
+    simplified Newton correction (the old Jacobian applied to the trial residual of the
+    mixed system) satisfies the restricted natural monotonicity test ``‖Δx̄‖ ≤ (1 − α/4)‖Δx‖``
+    in a scaled norm of (δ, ε) — an affine-invariant test that accepts the full step when
+    it is good, although ‖r‖ may rise by orders of magnitude through stiff terms.  Rejected
+    trials are shortened with the test's own estimate of the Kantorovich quantity.
+Load-step control
+    The load is applied in increments of λ, the first ``1/load_steps``, each solved from the
+    previous equilibrium; an increment is doubled after a load step that converges in at most
+    four iterations (not right after a failure) and halved after a failed one, which is
+    retried from the last equilibrium.
 Failure
     :class:`ConvergenceError` (a ``RuntimeError``) names the iteration count and the residual
-    when the iteration limit is reached, the Jacobian is singular, or the line search finds
-    no decrease (a singular or ill-posed problem, e.g. a free body under an unbalanced load).
+    when the load increment falls below ``min_load_step`` (iteration limit, no acceptable
+    damped step) or the Jacobian is singular at a load step's start (a singular or ill-posed
+    problem, e.g. a free body under an unbalanced load).
+
+References: P. Deuflhard, *Newton Methods for Nonlinear Problems: Affine Invariance and
+Adaptive Algorithms*, Springer 2011, §3.3 (NLEQ-ERR) and §5.1 (continuation step sizes);
+D. Magisano, L. Leonetti, G. Garcea, *How to improve efficiency and robustness of the Newton
+method in geometrically non-linear structural problem discretized via displacement-based
+finite elements*, Comput. Methods Appl. Mech. Engrg. 313 (2017) 986–1005.
 """
 
 from __future__ import annotations
 
+import math
 import time
+from collections.abc import Callable
+from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
 
-from .problem import InitialState, Problem
+from .problem import InitialState, Problem, dead_to_body
 
 __all__ = ["ConvergenceError", "solve_static"]
 
@@ -211,6 +240,542 @@ def _initial_phi(problem: Problem, initial: Any) -> InitialState:
     return InitialState(Phi=np.asarray(initial, dtype=float))
 
 
+class _Singular(RuntimeError):
+    """The Jacobian could not be factorised (or its solve is not finite)."""
+
+
+class _Equilibrium:
+    """The static residual of a lattice problem on its unknowns, its Jacobian, and the edge
+    strains and stresses of the mixed Newton iteration.
+
+    Parameters
+    ----------
+    problem : Problem
+        The problem; ``problem.initial`` is the starting configuration.
+    jacobian : str
+        ``"auto"``, ``"analytic"`` or ``"fd"`` (see :func:`solve_static`).
+    fd_step : float
+        Finite-difference step along the drift directions.
+    t : float
+        Time at which time-dependent loads are evaluated.
+    pins : dict, optional
+        ``{end: components}`` spatial position components held by Lagrange multipliers (see
+        :func:`cartan.continuation.continuation`); their multipliers follow the unknowns.
+    probe_lam : float
+        Load factor at which the medium's analytic Jacobian is probed (and first used).
+
+    Attributes
+    ----------
+    nunk : int
+        Number of unknown increments; ``m = nunk + npin`` with the pin multipliers.
+    kind : str
+        ``"analytic"`` or ``"fd"``: the Jacobian used.
+    """
+
+    def __init__(self, problem: Problem, *, jacobian: str = "fd", fd_step: float = 1e-6, t: float = 0.0,
+                 pins: dict | None = None, probe_lam: float = 1.0):
+        from .schemes.lattice import Lattice
+
+        if jacobian not in _JACOBIANS:
+            raise ValueError(f"jacobian must be one of {', '.join(map(repr, _JACOBIANS))}, got {jacobian!r}")
+        self.problem = problem
+        self.sch = sch = Lattice(problem, track_frames=True)
+        self.g = g = sch.group
+        self.shape = shape = tuple(sch.grid.shape)
+        self.r_dim = r_dim = g.dim
+        self.nnode = nnode = int(np.prod(shape))
+        self.fd_step = float(fd_step)
+        unknown = np.broadcast_to(sch.live, (*shape, r_dim)).copy()
+        unknown[sch._clamped] = False
+        self.unknown = unknown
+        self.unknown_flat = unknown.reshape(nnode, r_dim)
+        self.nunk = int(unknown.sum())
+        self.index = -np.ones((nnode, r_dim), dtype=np.int64)
+        self.index[self.unknown_flat] = np.arange(self.nunk)
+        self.cols = np.flatnonzero(self.unknown_flat.ravel())  # flat node·r + k of each unknown
+        self.w = sch.weights[..., None]
+        self.zero = np.zeros((*shape, r_dim))
+        self.colour = _colouring(shape, tuple(sch.grid.periodic))
+        self.src, self.dst = _stencil_pairs(shape, tuple(sch.grid.periodic))
+        self.length = max(1.0, float(np.max(sch.grid.length)))
+        # scaled norms: translations in units of the rod length, rotations in radians; strains
+        # (X = Φ⁻¹∂Φ) carry one more 1/length than the increments
+        ref = float(np.max(sch.grid.length))
+        comp = np.ones(r_dim)
+        if getattr(g, "affine", False):
+            comp[: g.matrix_size - 1] = 1.0 / ref
+        self.delta_scale = np.broadcast_to(comp, (*shape, r_dim))[unknown]
+        self.strain_scale = comp * ref
+        self.quadratic = problem.medium.quadratic_energy() is not None
+        # pins: (flat node, spatial component)
+        self.pins: list[tuple[int, int]] = []
+        for where, comps in (pins or {}).items():
+            node = self._node(where)
+            for k in np.atleast_1d(comps):
+                self.pins.append((node, int(k)))
+        if self.pins and not getattr(g, "affine", False):
+            raise ValueError("pins need a medium on an affine group (positions)")
+        self.npin = len(self.pins)
+        self.m = self.nunk + self.npin
+        state = sch.initial_state()
+        state.S[...] = 0.0
+        state.t = float(t)
+        self.state0 = state
+        self.x0 = np.array([self.positions(state)[n, k] for n, k in self.pins])
+        self.kind = "fd"
+        self._probe: tuple[Any, float, Any] | None = None
+        if jacobian != "fd":
+            K = _analytic_jacobian(problem.medium, sch, state, float(probe_lam), self.cols, nnode * r_dim)
+            if K is None and jacobian == "analytic":
+                raise ValueError(
+                    f"jacobian='analytic': medium {problem.medium.name!r} provides no analytic Jacobian for this "
+                    "problem (Medium.static_jacobian returned None); use jacobian='auto' or 'fd'"
+                )
+            if K is not None:
+                self.kind = "analytic"
+                self._probe = (state, float(probe_lam), K)
+
+    # ------------------------------------------------------------------ layout
+    def _node(self, where: Any) -> int:
+        if isinstance(where, str):
+            if self.sch.grid.d != 1 or where not in ("start", "end"):
+                raise ValueError(f"pins: unknown end {where!r} (use 'start', 'end' or a node index)")
+            return 0 if where == "start" else self.nnode - 1
+        idx = np.ravel_multi_index(np.atleast_1d(where), self.shape) if np.ndim(where) else int(where) % self.nnode
+        return int(idx)
+
+    def positions(self, state: Any) -> np.ndarray:
+        """Node positions ``[nnode, m − 1]`` (affine groups)."""
+        m = self.g.matrix_size
+        return self.sch.frames(state).reshape(self.nnode, m, m)[:, 1:, 0]
+
+    def full(self, d: np.ndarray) -> np.ndarray:
+        """The node-shaped increment ``[*shape, r]`` of the unknown vector ``d[:nunk]``."""
+        out = np.zeros((*self.shape, self.r_dim))
+        out[self.unknown] = d[: self.nunk]
+        return out
+
+    # ------------------------------------------------------------------ residual
+    def _parts_full(self, state: Any) -> tuple[np.ndarray, np.ndarray]:
+        """(internal, total) nodal forces ``[*shape, r]``, zero off the unknowns."""
+        total = self.sch.force(state, self.zero, state.t) * self.w
+        internal = self.sch.internal_force(state)
+        internal[~self.unknown] = 0.0
+        total[~self.unknown] = 0.0
+        return internal, total
+
+    def parts(self, state: Any) -> tuple[np.ndarray, np.ndarray]:
+        """(internal, external) nodal forces on the unknowns (flat)."""
+        internal, total = self._parts_full(state)
+        return internal[self.unknown], (total - internal)[self.unknown]
+
+    def _nodal(self, state: Any, lam: float) -> np.ndarray:
+        """``F_int + λ F_ext`` ``[*shape, r]``, zero off the unknowns (one force pass at λ = 1)."""
+        if lam == 1.0:
+            total = self.sch.force(state, self.zero, state.t) * self.w
+            total[~self.unknown] = 0.0
+            return total
+        internal, total = self._parts_full(state)
+        return internal + lam * (total - internal)
+
+    def _reaction_basis(self, state: Any) -> list[np.ndarray]:
+        """Body components (per pin) of a unit spatial force at the pinned node."""
+        Phi = self.sch.frames(state).reshape(self.nnode, self.g.matrix_size, self.g.matrix_size)
+        out = []
+        for n, k in self.pins:
+            P = np.zeros(self.r_dim)
+            P[k] = 1.0
+            out.append(dead_to_body(self.g, Phi[n], P))
+        return out
+
+    def _pin_terms(self, state: Any, mu: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """(reactions on the unknowns, constraint values) of the pins."""
+        full = np.zeros((self.nnode, self.r_dim))
+        for (n, _), b, m_ in zip(self.pins, self._reaction_basis(state), mu, strict=True):
+            full[n] += m_ * b
+        pos = self.positions(state)
+        c = np.array([pos[n, k] for n, k in self.pins]) - self.x0
+        return full[self.unknown_flat], c
+
+    def residual(self, state: Any, mu: np.ndarray, lam: float) -> np.ndarray:
+        """``r = F_int + λ F_ext`` (+ pin reactions) on the unknowns, then the pin constraints."""
+        r = self._nodal(state, float(lam))[self.unknown]
+        if self.npin:
+            react, c = self._pin_terms(state, mu)
+            r = np.concatenate([r + react, c])
+        return r
+
+    def dlam(self, state: Any) -> np.ndarray:
+        """``∂r/∂λ``: the external forces (zero on the pin constraints)."""
+        return np.concatenate([self.parts(state)[1], np.zeros(self.npin)])
+
+    # ------------------------------------------------------------------ strains and stresses
+    def strains(self, state: Any) -> list[np.ndarray]:
+        """Per axis, the edge strains ``X_e = log(G_e)/h``."""
+        return self.sch.edge_strains(state)
+
+    def stress(self, X: list[np.ndarray]) -> list[np.ndarray]:
+        """Per axis, the edge stresses ``Q(X_e)`` (other axes at the rest strain)."""
+        return [self.sch._axis_stress(x, axis)[0] for axis, x in enumerate(X)]
+
+    def stress_change(self, X: list[np.ndarray], v: list[np.ndarray]) -> list[np.ndarray]:
+        """Per axis, ``(∂Q/∂X)(X_e)·v_e``: exact for quadratic media, central differences otherwise."""
+        out = []
+        for axis, (x, dv) in enumerate(zip(X, v, strict=True)):
+            if self.quadratic:
+                out.append(self.sch._axis_stress(x + dv, axis)[0] - self.sch._axis_stress(x, axis)[0])
+                continue
+            size = float(np.max(np.abs(dv), initial=0.0))
+            if size == 0.0:
+                out.append(np.zeros_like(dv))
+                continue
+            s = 1e-6 * max(1.0, float(np.max(np.abs(x), initial=0.0))) / size
+            plus = self.sch._axis_stress(x + s * dv, axis)[0]
+            minus = self.sch._axis_stress(x - s * dv, axis)[0]
+            out.append((plus - minus) / (2.0 * s))
+        return out
+
+    def _assemble_full(self, state: Any, stress: list[np.ndarray]) -> np.ndarray:
+        """The lattice's nodal forces of the edge stresses ``stress`` at ``state`` (the
+        assembly of :meth:`Lattice.internal_force` with given Q), ``[*shape, r]``, zero off
+        the unknowns."""
+        g, sch = self.g, self.sch
+        F = np.zeros((*self.shape, self.r_dim))
+        cell = float(np.prod(sch.h))
+        for axis, Q in enumerate(stress):
+            xi = g.log(state.arrays[sch._key(axis)])
+            Q = Q * (cell / sch.h[axis])
+            out = np.einsum("...ji,...j->...i", g.dexp_inv(xi), Q)
+            inc = np.einsum("...ji,...j->...i", g.dexp_inv(-xi), Q)
+            sch._scatter(F, out, -inc, axis)
+        F[~self.unknown] = 0.0
+        return F
+
+    def assemble(self, state: Any, stress: list[np.ndarray]) -> np.ndarray:
+        """:meth:`_assemble_full` on the unknowns (flat)."""
+        return self._assemble_full(state, stress)[self.unknown]
+
+    def strain_rate(self, state: Any, d: np.ndarray) -> list[np.ndarray]:
+        """Per axis, the linearised strain change ``B δ`` of the drift ``Φ_i ← Φ_i exp(δ_i)``:
+        ``[dexp⁻¹(−hX_e) δ_j − dexp⁻¹(hX_e) δ_i]/h`` on the edge ``e = (i, j)``."""
+        g, sch = self.g, self.sch
+        full = self.full(d)
+        out = []
+        for axis in range(sch.grid.d):
+            xi = g.log(state.arrays[sch._key(axis)])
+            tail, head = sch._ends(full, axis)
+            out.append((np.einsum("...ij,...j->...i", g.dexp_inv(-xi), head)
+                        - np.einsum("...ij,...j->...i", g.dexp_inv(xi), tail)) / sch.h[axis])
+        return out
+
+    # ------------------------------------------------------------------ Jacobian
+    def _fd(self, state: Any, func: Callable[[Any], np.ndarray]):
+        """Coloured central differences of the node-shaped ``func(state)`` along drifts."""
+
+        def displaced(direction: np.ndarray, eps: float) -> np.ndarray:
+            trial = state.copy()
+            self.sch.drift(trial, eps, direction)
+            out = func(trial)
+            out[~self.unknown] = 0.0
+            return out
+
+        return _coloured_jacobian(displaced, self.colour, self.src, self.dst, self.unknown_flat, self.index,
+                                  self.shape, self.fd_step)
+
+    def _analytic(self, state: Any, lam: float):
+        probe, self._probe = self._probe, None
+        if probe is not None and probe[0] is state and probe[1] == lam:
+            return probe[2]
+        K = _analytic_jacobian(self.problem.medium, self.sch, state, lam, self.cols, self.nnode * self.r_dim)
+        if K is None:
+            raise ValueError(f"jacobian: medium {self.problem.medium.name!r} returned an analytic Jacobian at the "
+                             "start but None later; Medium.static_jacobian must depend on the problem only")
+        return K
+
+    def jacobian(self, state: Any, mu: np.ndarray, lam: float, offset: list[np.ndarray] | None = None):
+        """The Jacobian of :meth:`residual` along the drift directions (and the multipliers).
+
+        Parameters
+        ----------
+        offset : list of arrays, optional
+            Per axis, edge stresses added to ``Q(X)`` and held fixed: the Jacobian then has
+            the geometric stiffness of ``Q(X) + offset`` (the mixed iteration's ``Q(ε)``)
+            with the material stiffness at X.
+
+        Returns
+        -------
+        scipy.sparse.csc_matrix, shape ``(m, m)``
+        """
+        import scipy.sparse as sp
+
+        if offset is not None and not any(np.any(o) for o in offset):
+            offset = None
+        lam = float(lam)
+        if self.kind == "analytic":
+            K = self._analytic(state, lam)
+            if offset is not None:
+                K = K + self._fd(state, lambda trial: self._assemble_full(trial, offset))
+        else:
+
+            def nodal(trial: Any) -> np.ndarray:
+                out = self._nodal(trial, lam)
+                if offset is not None:
+                    out += self._assemble_full(trial, offset)
+                return out
+
+            K = self._fd(state, nodal)
+        if not self.npin:
+            return sp.csc_matrix(K)
+        return (sp.block_diag([K, sp.csc_matrix((self.npin, self.npin))], format="csc")
+                + self._pin_jacobian(state, mu)).tocsc()
+
+    def _pin_jacobian(self, state: Any, mu: np.ndarray):
+        """The pins' part of the Jacobian, ``(m, m)``: reactions and constraints along the
+        drifts ``Φ_n ← Φ_n exp(±h e_a)`` of the pinned nodes (central differences; each
+        depends on its own node only) and the reaction columns."""
+        import scipy.sparse as sp
+
+        g, h, r_dim = self.g, self.fd_step, self.r_dim
+        msize = g.matrix_size
+        Phi = self.sch.frames(state).reshape(self.nnode, msize, msize)
+        steps = g.exp(np.concatenate([h * np.eye(r_dim), -h * np.eye(r_dim)]))  # [2r, m, m]
+        rows, cols, vals = [], [], []
+        for j, (n, k) in enumerate(self.pins):
+            moved = g.compose(np.broadcast_to(Phi[n], steps.shape), steps)  # Φ_n exp(±h e_a)
+            P = np.zeros(r_dim)
+            P[k] = 1.0
+            b = dead_to_body(g, moved, P)  # [2r, r]
+            db = (b[:r_dim] - b[r_dim:]) / (2 * h)  # [a, component]
+            dc = (moved[:r_dim, 1 + k, 0] - moved[r_dim:, 1 + k, 0]) / (2 * h)  # [a]
+            col = self.index[n]
+            ok = col >= 0
+            row = self.index[n]
+            rr, cc = np.meshgrid(row[ok], col[ok], indexing="ij")
+            rows.append(rr.ravel())
+            cols.append(cc.ravel())
+            vals.append((mu[j] * db[np.ix_(ok, ok)].T).ravel())
+            rows.append(np.full(int(ok.sum()), self.nunk + j))
+            cols.append(col[ok])
+            vals.append(dc[ok])
+        for j, b in enumerate(self._reaction_basis(state)):
+            idx = self.index[self.pins[j][0]]
+            ok = idx >= 0
+            rows.append(idx[ok])
+            cols.append(np.full(int(ok.sum()), self.nunk + j))
+            vals.append(b[ok])
+        return sp.csc_matrix((np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols))),
+                             shape=(self.m, self.m))
+
+    def update(self, state: Any, mu: np.ndarray, d: np.ndarray, alpha: float = 1.0) -> tuple[Any, np.ndarray]:
+        """A new (state, μ) after the increment ``α·d`` (unknowns, then multipliers)."""
+        new = state.copy()
+        self.sch.drift(new, alpha, self.full(d))
+        return new, mu + alpha * d[self.nunk: self.m]
+
+
+@dataclass
+class _Point:
+    """An iterate: the configuration, pin multipliers, load factor and (continuation) the
+    increments accumulated since the last path point."""
+
+    state: Any
+    mu: np.ndarray
+    lam: float
+    acc: np.ndarray | None = None
+
+
+@dataclass
+class _Outcome:
+    """What one damped Newton solve did."""
+
+    point: _Point
+    converged: bool
+    reason: str = ""
+    singular_start: bool = False
+    residuals: list[float] = field(default_factory=list)
+    corrections: list[float] = field(default_factory=list)
+    alphas: list[float] = field(default_factory=list)
+
+    @property
+    def iterations(self) -> int:
+        return len(self.alphas)
+
+
+def _newton(
+    eq: _Equilibrium,
+    point: _Point,
+    *,
+    residual: Callable[[_Point], np.ndarray],
+    factorise: Callable[[_Point, list[np.ndarray] | None], Callable[[np.ndarray], np.ndarray]],
+    move: Callable[[_Point, float, np.ndarray], _Point],
+    converged: Callable[[_Point, np.ndarray], bool],
+    scale: np.ndarray,
+    max_iter: int,
+    max_halvings: int,
+    xtol: float,
+    min_iter: int = 0,
+    strains: list[np.ndarray] | None = None,
+    mixed: bool = True,
+) -> _Outcome:
+    """Damped mixed Newton iteration (NLEQ-ERR on the increments and the edge strains).
+
+    Parameters
+    ----------
+    eq : _Equilibrium
+        Strains, stresses and the fixed-stress assembly of the problem.
+    point : _Point
+        The starting iterate; its strains start consistent (ε = X).
+    residual : callable
+        ``residual(point)``: the residual vector, the unknowns' rows first.
+    factorise : callable
+        ``factorise(point, offset)``: the solve of the Jacobian with the stress offset
+        ``Q(ε) − Q(X)`` (None: none); raises :class:`_Singular`.
+    move : callable
+        ``move(point, α, d)``: the iterate after the step ``α·d``.
+    converged : callable
+        ``converged(point, r)``: the stopping test on the residual.
+    scale : array
+        Weights of the entries of a step ``d`` in the scaled norm (0: left out).
+    max_iter : int
+        Newton steps allowed.
+    max_halvings : int
+        The smallest step length is ``2^−max_halvings``.
+    xtol : float
+        A step with ``max|δ| ≤ xtol`` is taken in full and ends the iteration (round-off floor).
+    min_iter : int
+        Newton steps required before the stopping test counts.
+    strains : list of arrays, optional
+        The starting edge strains ε (default: consistent, ε = X): after a predictor step
+        from an equilibrium, its linearisation ``X₀ + B Δx``.
+    mixed : bool
+        False: the displacement-only iteration (ε = X throughout, the ordinary Jacobian and
+        the simplified correction ``J⁻¹ r(trial)`` of NLEQ-ERR).
+
+    Returns
+    -------
+    _Outcome
+    """
+    nunk = eq.nunk
+    alpha_min = 2.0 ** -max_halvings
+    X = eq.strains(point.state)
+    eps = [x.copy() for x in (X if strains is None or not mixed else strains)]
+    r = residual(point)
+    out = _Outcome(point, False, residuals=[float(np.linalg.norm(r[:nunk]))])
+    sw = eq.strain_scale
+
+    def vec(d: np.ndarray, de: list[np.ndarray]) -> np.ndarray:
+        return np.concatenate([scale * d] + [(e * sw).ravel() for e in de])
+
+    count = max(1, int(np.count_nonzero(scale)) + sum(x.size for x in X))
+
+    def norm(v: np.ndarray) -> float:
+        return float(np.linalg.norm(v)) / math.sqrt(count)
+
+    prev: tuple[float, np.ndarray, float] | None = None  # (‖Δx_{k−1}‖, Δx̄_k, α_{k−1})
+    k = 0
+    while True:
+        if not np.all(np.isfinite(r)):
+            out.reason = "the residual is not finite"
+            return out
+        if k >= min_iter and converged(point, r):
+            out.converged = True
+            return out
+        if k >= max_iter:
+            out.reason = f"the iteration limit max_iter = {max_iter} was reached"
+            return out
+        offset = [q_e - q for q_e, q in zip(eq.stress(eps), eq.stress(X), strict=True)] if mixed else None
+        try:
+            solve = factorise(point, offset)
+            with np.errstate(all="ignore"):
+                d = solve(-r)
+            if not np.all(np.isfinite(d)):
+                raise _Singular("non-finite Newton step")
+        except _Singular as exc:
+            out.reason = f"the Jacobian is singular ({exc})"
+            out.singular_start = k == 0
+            return out
+        de = ([x - e + b for x, e, b in zip(X, eps, eq.strain_rate(point.state, d), strict=True)] if mixed
+              else [np.zeros_like(x) for x in X])
+        v = vec(d, de)
+        nu = norm(v)
+        out.corrections.append(nu)
+        step_max = float(np.max(np.abs(d[:nunk]), initial=0.0))
+        if prev is None:
+            alpha = 1.0
+        else:
+            nu_prev, vbar_prev, alpha_prev = prev
+            denom = norm(vbar_prev - v) * nu
+            alpha = 1.0 if denom == 0.0 else min(1.0, nu_prev * norm(vbar_prev) / denom * alpha_prev)
+        alpha = max(alpha, alpha_min)
+        if step_max <= xtol:
+            alpha = 1.0
+        raised = False
+        while True:
+            trial = move(point, alpha, d)
+            X_t = eq.strains(trial.state)
+            eps_t = [e + alpha * x for e, x in zip(eps, de, strict=True)] if mixed else X_t
+            r_t = residual(trial)
+            theta, mu_c, vbar = math.inf, 0.5 * alpha, None
+            if np.all(np.isfinite(r_t)) and all(np.all(np.isfinite(x)) for x in X_t):
+                # the simplified correction of the mixed system with the old Jacobian:
+                # J δ̄ = −(r_t + A_t[Q(ε_t) − Q(X_t)] + A[C (X_t − ε_t)]), Δε̄ = X_t − ε_t + B δ̄
+                gap = [xt - et for xt, et in zip(X_t, eps_t, strict=True)]
+                rhs = r_t.copy()
+                if mixed:
+                    rhs[:nunk] += eq.assemble(trial.state, [a - b for a, b in zip(eq.stress(eps_t), eq.stress(X_t),
+                                                                                   strict=True)])
+                    rhs[:nunk] += eq.assemble(point.state, eq.stress_change(X, gap))
+                with np.errstate(all="ignore"):
+                    dbar = solve(-rhs)
+                if np.all(np.isfinite(dbar)):
+                    de_bar = ([g_ + b for g_, b in zip(gap, eq.strain_rate(point.state, dbar), strict=True)] if mixed
+                              else gap)
+                    vbar = vec(dbar, de_bar)
+                    theta = norm(vbar) / nu if nu > 0 else 0.0
+                    dist = norm(vbar - (1.0 - alpha) * v)
+                    mu_c = math.inf if dist == 0.0 else 0.5 * nu * alpha * alpha / dist
+            if step_max <= xtol and vbar is not None:
+                break  # at the round-off floor: the full step, whatever the test says
+            if theta < 1.0 - alpha / 4.0:
+                up = min(1.0, mu_c)
+                if not raised and alpha < 1.0 and up >= 4.0 * alpha:
+                    alpha, raised = up, True
+                    continue
+                break
+            alpha_new = min(mu_c, 0.5 * alpha)
+            if not alpha_new >= alpha_min:
+                out.alphas.append(0.0)
+                if step_max <= 1e4 * xtol:
+                    out.converged = True  # the increment is negligible: the residual's round-off floor
+                    return out
+                out.reason = (f"the residual stagnates: no damped Newton step passed the natural monotonicity test "
+                              f"down to the step length 2^-{max_halvings} (max|δ| = {step_max:.3e}, "
+                              f"contraction {theta:.3g} at the last trial)")
+                return out
+            alpha = alpha_new
+        out.alphas.append(alpha)
+        prev = (nu, vbar, alpha)
+        point, X, eps, r = trial, X_t, eps_t, r_t
+        out.point = point
+        out.residuals.append(float(np.linalg.norm(r[:nunk])))
+        k += 1
+        if step_max <= xtol:
+            out.converged = True
+            return out
+
+
+def _lu_solve(K) -> Callable[[np.ndarray], np.ndarray]:
+    """The solve of the sparse LU of K; :class:`_Singular` when K cannot be factorised."""
+    import scipy.sparse.linalg as spla
+
+    try:
+        with np.errstate(all="ignore"):
+            lu = spla.splu(K.tocsc())
+    except RuntimeError as exc:
+        raise _Singular(str(exc)) from None
+    return lu.solve
+
+
 def solve_static(
     problem: Problem,
     scheme: str = "lattice",
@@ -221,8 +786,12 @@ def solve_static(
     *,
     xtol: float = 1e-12,
     load_steps: int = 1,
+    adaptive_load: bool = True,
+    min_load_step: float = 1e-4,
+    max_load_steps: int = 1000,
     fd_step: float = 1e-6,
     max_halvings: int = 20,
+    mixed: bool = True,
     t: float = 0.0,
 ):
     """An equilibrium of ``problem`` by Newton's method on the group.
@@ -235,8 +804,8 @@ def solve_static(
     scheme : str
         ``"lattice"`` (the only scheme supported).
     tol : float
-        Converged when ``‖r‖_∞ ≤ tol·f``, f the largest external nodal force at the start of
-        the load step (or of the first residual when there is none).
+        A load step has converged when ``‖r‖_∞ ≤ tol·f``, f the largest external nodal
+        force of the load step (or of the first residual when there is none).
     max_iter : int
         Newton iterations allowed per load step.
     initial : None, InitialState, array ``[*shape, m, m]`` or Dataset
@@ -248,15 +817,27 @@ def solve_static(
         problem, coloured central finite differences otherwise; ``"analytic"``: the
         medium's, a ``ValueError`` when it has none; ``"fd"``: finite differences.
     xtol : float
-        Also converged when the Newton increment satisfies ``‖δ‖_∞ ≤ xtol·max(1, L)``
-        (L the largest grid length), i.e. at the round-off floor of the residual.
+        Also converged when a Newton increment satisfies ``‖δ‖_∞ ≤ xtol·max(1, L)`` (L the
+        largest grid length), i.e. at the round-off floor of the residual.
     load_steps : int
-        Apply the external loads in this many equal increments, each solved from the
-        previous equilibrium.
+        The first load increment is ``1/load_steps`` of the external loads.
+    adaptive_load : bool
+        Control the load increment (default): doubled after a load step converged in at
+        most ``min(4, max_iter − 1)`` iterations (unless the step before it failed), halved
+        and retried from the last equilibrium after a failed one.  False: ``load_steps``
+        equal increments, and the first failure raises.
+    min_load_step : float
+        The smallest load increment before :class:`ConvergenceError` (adaptive control).
+    max_load_steps : int
+        Load steps allowed, failed ones included.
     fd_step : float
         Finite-difference step along the drift directions.
     max_halvings : int
-        Line-search halvings before declaring stagnation.
+        The damping stops at the step length ``2^−max_halvings`` (then the load step fails).
+    mixed : bool
+        The mixed iteration, edge strains carried as unknowns (default); False: the
+        displacement-only Newton iteration (same damping and load-step control), which
+        converges poorly for stiff stretching and shear.
     t : float
         Time at which time-dependent loads are evaluated.
 
@@ -264,8 +845,14 @@ def solve_static(
     -------
     xarray.Dataset
         One frame (``time`` of length 1) with the usual run variables (position, frame, X,
-        energies, residuals) plus ``newton_residual`` and ``load_factor`` along ``iteration``;
-        attributes ``newton_iterations``, ``newton_wall_time`` and ``newton_jacobian``
+        energies, residuals) plus, along ``iteration`` (every iterate of every load step,
+        failed ones included), ``newton_residual`` ‖r‖₂, ``load_factor`` λ, ``newton_load_step``
+        (the load step's index) and ``newton_correction`` (scaled RMS norm of the Newton
+        correction computed there, NaN where none was); along ``newton_step`` the step lengths
+        ``newton_step_length``; along ``load_step`` ``load_step_factor`` (the λ aimed at),
+        ``load_step_iterations`` and ``load_step_converged``.  Attributes
+        ``newton_iterations``, ``newton_load_steps`` (converged load steps),
+        ``newton_load_step_failures``, ``newton_wall_time`` and ``newton_jacobian``
         (``"analytic"`` or ``"fd"``, the Jacobian used).
 
     Raises
@@ -276,174 +863,103 @@ def solve_static(
     ConvergenceError
         No equilibrium was found (see the module docstring).
     """
-    import scipy.sparse.linalg as spla
-
     from . import io
-    from .schemes.lattice import Lattice
 
     if scheme != "lattice":
         raise ValueError(f"solve_static supports scheme='lattice' only, got {scheme!r}")
     if jacobian not in _JACOBIANS:
         raise ValueError(f"jacobian must be one of {', '.join(map(repr, _JACOBIANS))}, got {jacobian!r}")
-    if int(load_steps) < 1:
-        raise ValueError(f"load_steps must be ≥ 1, got {load_steps!r}")
+    for name, value in (("load_steps", load_steps), ("max_load_steps", max_load_steps)):
+        if isinstance(value, (bool, np.bool_)) or not isinstance(value, (int, np.integer)) or value < 1:
+            raise ValueError(f"{name} must be an integer ≥ 1, got {value!r}")
+    if load_steps > max_load_steps:
+        raise ValueError(f"load_steps must be ≤ max_load_steps = {max_load_steps} (the bound on the load steps "
+                         f"a solve may take), got {load_steps!r}")
+    if isinstance(min_load_step, (bool, str)) or not 0.0 < float(min_load_step) <= 1.0:
+        raise ValueError(f"min_load_step must be in (0, 1], got {min_load_step!r}")
     start = time.perf_counter()
     init = _initial_phi(problem, initial)
     if init is not problem.initial:
         problem = Problem(problem.medium, problem.grid, InitialState(Phi=init.Phi, holonomy=problem.initial.holonomy),
                           problem.boundaries, problem.loads, problem.name)
-    sch = Lattice(problem, track_frames=True)
-    state = sch.initial_state()
-    state.S[...] = 0.0
-    state.t = float(t)
-    g = sch.group
-    shape = sch.grid.shape
-    r_dim = g.dim
-    nnode = int(np.prod(shape))
-    zero = np.zeros((*shape, r_dim))
-    unknown = np.broadcast_to(sch.live, (*shape, r_dim)).copy()
-    unknown[sch._clamped] = False
-    unknown_flat = unknown.reshape(nnode, r_dim)
-    index = -np.ones((nnode, r_dim), dtype=np.int64)
-    nunk = int(unknown.sum())
-    index[unknown_flat] = np.arange(nunk)
-    w = sch.weights[..., None]
-    length = max(1.0, float(np.max(sch.grid.length)))
-    colour = _colouring(shape, tuple(sch.grid.periodic))
-    src, dst = _stencil_pairs(shape, tuple(sch.grid.periodic))
-
-    def parts(st) -> tuple[np.ndarray, np.ndarray]:
-        """(internal, total) nodal forces, zero off the unknowns."""
-        total = sch.force(st, zero, st.t) * w
-        internal = sch.internal_force(st)
-        internal[~unknown] = 0.0
-        total[~unknown] = 0.0
-        return internal, total
-
-    def residual(st, lam: float) -> np.ndarray:
-        internal, total = parts(st)
-        return total if lam == 1.0 else internal + lam * (total - internal)
-
-    unknown_cols = np.flatnonzero(unknown_flat.ravel())  # flat node·r + k of each unknown, in index order
-    medium = problem.medium
-    # the analytic Jacobian is probed once, at the starting configuration and first load factor;
-    # the probe's matrix serves as the first Newton Jacobian
-    probe = None
-    if jacobian != "fd":
-        probe = _analytic_jacobian(medium, sch, state, 1.0 / int(load_steps), unknown_cols, nnode * r_dim)
-        if probe is None and jacobian == "analytic":
-            raise ValueError(
-                f"jacobian='analytic': medium {medium.name!r} provides no analytic Jacobian for this problem "
-                "(Medium.static_jacobian returned None); use jacobian='auto' or 'fd'"
-            )
-    used = "analytic" if probe is not None else "fd"
-    first = [(state, 1.0 / int(load_steps), probe)] if probe is not None else []
-
-    def assemble(st, lam: float):
-        if used == "analytic":
-            if first and first[0][0] is st and first[0][1] == lam:
-                return first.pop()[2]
-            first.clear()
-            J = _analytic_jacobian(medium, sch, st, lam, unknown_cols, nnode * r_dim)
-            if J is None:
-                raise ValueError(f"jacobian: medium {medium.name!r} returned an analytic Jacobian at the start "
-                                 "but None later; Medium.static_jacobian must depend on the problem only")
-            return J
-
-        def displaced(direction: np.ndarray, eps: float) -> np.ndarray:
-            trial = st.copy()
-            sch.drift(trial, eps, direction)
-            return residual(trial, lam)
-
-        return _coloured_jacobian(displaced, colour, src, dst, unknown_flat, index, shape, fd_step)
+    nsteps = int(load_steps)
+    eq = _Equilibrium(problem, jacobian=jacobian, fd_step=fd_step, t=t, probe_lam=1.0 / nsteps)
+    sch, g, nunk = eq.sch, eq.g, eq.nunk
+    no_mu = np.zeros(0)
+    x_tol = xtol * eq.length
 
     history: list[float] = []
     factors: list[float] = []
+    step_of: list[int] = []
+    corrections: list[float] = []
     alphas: list[float] = []
-    iters = 0
+    attempts: list[tuple[float, int, int]] = []
 
-    def fail(reason: str, rnorm: float) -> ConvergenceError:
+    def fail(reason: str) -> ConvergenceError:
+        rnorm = history[-1] if history else float("nan")
         tail = ", ".join(f"{x:.3e}" for x in history[-6:])
         return ConvergenceError(
-            f"solve_static: no equilibrium after {iters} Newton iteration(s), residual ‖r‖ = {rnorm:.3e}: "
+            f"solve_static: no equilibrium after {len(alphas)} Newton iteration(s), residual ‖r‖ = {rnorm:.3e}: "
             f"{reason} (last residuals: {tail})",
-            iters,
+            len(alphas),
             rnorm,
             history,
         )
 
-    nsteps = int(load_steps)
-    for step in range(1, nsteps + 1):
-        lam = step / nsteps
-        internal, total = parts(state)
-        ext = float(np.max(np.abs(total - internal))) if nunk else 0.0
-        r = internal + lam * (total - internal)
-        scale = ext * lam if ext > 0 else float(np.max(np.abs(r), initial=0.0))
+    def factorise(pt: _Point, offset: list[np.ndarray] | None) -> Callable[[np.ndarray], np.ndarray]:
+        return _lu_solve(eq.jacobian(pt.state, no_mu, pt.lam, offset))
+
+    def residual(pt: _Point) -> np.ndarray:
+        return eq.residual(pt.state, no_mu, pt.lam)
+
+    def move(pt: _Point, alpha: float, d: np.ndarray) -> _Point:
+        return _Point(eq.update(pt.state, no_mu, d, alpha)[0], no_mu, pt.lam)
+
+    state = eq.state0
+    lam = 0.0
+    dlam = 1.0 / nsteps
+    fast = min(4, max_iter - 1)  # a load step converged in this many iterations doubles the increment
+    cut = False  # the last load step failed: hold the increment after the next success
+    while lam < 1.0:
+        if len(attempts) >= max_load_steps:
+            raise fail(f"max_load_steps = {max_load_steps} load steps were taken before λ = 1 (λ = {lam:g})")
+        lam_try = 1.0 if lam + dlam >= 1.0 - 1e-12 else lam + dlam
+        internal, ext_forces = eq.parts(state)
+        ext = float(np.max(np.abs(ext_forces), initial=0.0))
+        r0 = internal + lam_try * ext_forces
+        scale = ext * lam_try if ext > 0 else float(np.max(np.abs(r0), initial=0.0))
         atol = tol * scale if scale > 0 else tol
-        k_step = 0
-        while True:
-            rnorm = float(np.linalg.norm(r[unknown]))
-            history.append(rnorm)
-            factors.append(lam)
-            if not np.isfinite(rnorm):
-                raise fail("the residual is not finite", rnorm)
-            if nunk == 0 or float(np.max(np.abs(r[unknown]))) <= atol:
-                break
-            if k_step >= max_iter:
-                raise fail(f"the iteration limit max_iter = {max_iter} was reached at load factor {lam:g}", rnorm)
-            J = assemble(state, lam)
-            try:
-                with np.errstate(all="ignore"):
-                    lu = spla.splu(J)
-                    delta = lu.solve(-r[unknown])
-            except RuntimeError as exc:
-                raise fail(f"the Jacobian is singular ({exc}); the problem may be ill-posed, e.g. a free body "
-                           "under an unbalanced load or without supports", rnorm) from None
-            if not np.all(np.isfinite(delta)):
-                raise fail("the Jacobian is singular (non-finite Newton step); the problem may be ill-posed, "
-                           "e.g. a free body under an unbalanced load", rnorm)
-            full = np.zeros((*shape, r_dim))
-            full[unknown] = delta
-            step_norm = float(np.max(np.abs(delta)))
-            alpha = 1.0
-            accepted = False
-            for _ in range(max_halvings + 1):
-                trial = state.copy()
-                sch.drift(trial, alpha, full)
-                r_trial = residual(trial, lam)
-                n_trial = float(np.linalg.norm(r_trial[unknown]))
-                if np.isfinite(n_trial) and n_trial < rnorm:
-                    accepted = True
-                    break
-                if np.isfinite(n_trial):
-                    # affine-invariant (natural) monotonicity: the simplified Newton correction
-                    # J⁻¹r(trial) shrinks, although stiff components may raise ‖r‖ for a step
-                    with np.errstate(all="ignore"):
-                        bar = float(np.max(np.abs(lu.solve(-r_trial[unknown]))))
-                    if bar <= (1.0 - alpha / 4.0) * step_norm:
-                        accepted = True
-                        break
-                alpha *= 0.5
-            iters += 1
-            k_step += 1
-            alphas.append(alpha if accepted else 0.0)
-            if not accepted:
-                if step_norm <= 1e4 * xtol * length:
-                    break  # at the round-off floor of the residual: the increment is negligible
-                jn = spla.norm(J, 1)
-                cond = jn * step_norm / max(float(np.max(np.abs(r[unknown]))), 1e-300)
-                raise fail(
-                    f"the residual stagnates: the line search found no decrease along the Newton step "
-                    f"after {max_halvings} halvings (‖δ‖_∞ = {step_norm:.3e}, Jacobian condition ≳ {cond:.1e}); "
-                    "the problem may be singular or ill-posed, e.g. a free body under an unbalanced load",
-                    rnorm,
-                )
-            state = trial
-            r = r_trial
-            if alpha == 1.0 and step_norm <= xtol * length:
-                history.append(n_trial)
-                factors.append(lam)
-                break
+
+        def converged(pt: _Point, r: np.ndarray, atol: float = atol) -> bool:
+            return nunk == 0 or float(np.max(np.abs(r), initial=0.0)) <= atol
+
+        out = _newton(eq, _Point(state, no_mu, lam_try), residual=residual, factorise=factorise, move=move,
+                      converged=converged, scale=eq.delta_scale, max_iter=max_iter, max_halvings=max_halvings,
+                      xtol=x_tol, mixed=mixed)
+        index = len(attempts)
+        history.extend(out.residuals)
+        factors.extend([lam_try] * len(out.residuals))
+        step_of.extend([index] * len(out.residuals))
+        corrections.extend(out.corrections + [math.nan] * (len(out.residuals) - len(out.corrections)))
+        alphas.extend(out.alphas)
+        attempts.append((lam_try, out.iterations, int(out.converged)))
+        if out.converged:
+            state, lam = out.point.state, lam_try
+            if adaptive_load and not cut and out.iterations <= fast:
+                dlam = min(1.0, 2.0 * dlam)
+            cut = False
+            continue
+        if out.singular_start:
+            raise fail(f"{out.reason} at load factor {lam_try:g}; the problem may be ill-posed, e.g. a free body "
+                       "under an unbalanced load or without supports")
+        if not adaptive_load:
+            raise fail(f"{out.reason} at load factor {lam_try:g}")
+        dlam *= 0.5
+        cut = True
+        if dlam < min_load_step:
+            raise fail(f"{out.reason} at load factor {lam_try:g}, and the load increment fell below "
+                       f"min_load_step = {min_load_step:g}; the problem may be singular or ill-posed, e.g. a free body "
+                       "under an unbalanced load, or the load path has a limit point (use cartan.continuation)")
     wall = time.perf_counter() - start
 
     rec = io.frame_record(sch, _Static(), state)
@@ -460,9 +976,14 @@ def solve_static(
             "jacobian": jacobian,
             "fd_step": fd_step,
             "load_steps": nsteps,
+            "adaptive_load": bool(adaptive_load),
+            "min_load_step": float(min_load_step),
+            "max_load_steps": int(max_load_steps),
+            "max_halvings": int(max_halvings),
+            "mixed": bool(mixed),
             "t": float(t),
         },
-        "counters": {"newton_iterations": iters, "wall_time": wall},
+        "counters": {"newton_iterations": len(alphas), "load_steps": len(attempts), "wall_time": wall},
     }
     name = problem.name or problem.medium.name
     ds = io.build_dataset(
@@ -475,21 +996,49 @@ def solve_static(
     ds["newton_residual"] = (
         "iteration",
         np.asarray(history, dtype=float),
-        {"long_name": "Newton residual norm ‖w·W‖₂ on the unknowns", "units": "force"},
+        {"long_name": "Newton residual norm ‖r‖₂ on the unknowns", "units": "force"},
     )
     ds["load_factor"] = (
         "iteration",
         np.asarray(factors, dtype=float),
         {"long_name": "fraction of the external load applied", "units": "1"},
     )
+    ds["newton_load_step"] = (
+        "iteration",
+        np.asarray(step_of, dtype=np.int64),
+        {"long_name": "index of the load step of the iterate (along load_step)"},
+    )
+    ds["newton_correction"] = (
+        "iteration",
+        np.asarray(corrections, dtype=float),
+        {"long_name": "scaled RMS norm of the Newton correction (increments and edge strains) at the iterate",
+         "units": "1"},
+    )
     ds["newton_step_length"] = (
         "newton_step",
         np.asarray(alphas, dtype=float),
-        {"long_name": "line-search step length α of each Newton step (0: rejected)", "units": "1"},
+        {"long_name": "damping factor α of each Newton step (0: no step accepted)", "units": "1"},
     )
-    ds.attrs["newton_iterations"] = int(iters)
+    ds["load_step_factor"] = (
+        "load_step",
+        np.asarray([a[0] for a in attempts], dtype=float),
+        {"long_name": "load factor aimed at by the load step", "units": "1"},
+    )
+    ds["load_step_iterations"] = (
+        "load_step",
+        np.asarray([a[1] for a in attempts], dtype=np.int64),
+        {"long_name": "Newton iterations of the load step"},
+    )
+    ds["load_step_converged"] = (
+        "load_step",
+        np.asarray([a[2] for a in attempts], dtype=np.int64),
+        {"long_name": "1: the load step converged; 0: it failed and the increment was halved"},
+    )
+    ds.attrs["newton_iterations"] = int(len(alphas))
+    ds.attrs["newton_load_steps"] = int(sum(a[2] for a in attempts))
+    ds.attrs["newton_load_step_failures"] = int(sum(1 - a[2] for a in attempts))
     ds.attrs["newton_wall_time"] = float(wall)
-    ds.attrs["newton_jacobian"] = used
+    ds.attrs["newton_jacobian"] = eq.kind
     ds.attrs["newton_residual_final"] = float(history[-1]) if history else 0.0
     ds.attrs["newton_converged"] = 1
     return ds

@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import math
-import time
 
 import numpy as np
 import pytest
@@ -34,29 +33,26 @@ def _euler_column(n=101, lam_max=1.5 * math.pi**2, ds0=0.05):
 
 @pytest.fixture(scope="module")
 def column():
-    t0 = time.perf_counter()
-    ds = _euler_column()
-    return ds, time.perf_counter() - t0
+    return _euler_column()
 
 
 def test_euler_critical_load(column):
     """P_cr found within 1e-3 of π²B/L²: measured +8.23e-5 at n = 101 — the lattice's second-order
     discretisation error π²h²/12 (+3.29e-4 at n = 51, +2.06e-5 at n = 201)."""
-    ds, wall = column
+    ds = column
     assert list(ds["critical_kind"].values) == ["bifurcation"]
     p_cr = float(ds["critical_load"][0])
     rel = p_cr / math.pi**2 - 1.0
     assert 0.0 < rel < 1e-4, rel
     assert abs(rel - math.pi**2 * 0.01**2 / 12) < 5e-6, rel
     assert abs(float(ds["critical_monitor"][0])) < 1e-8  # on the straight branch
-    assert wall < 10.0
 
 
 def test_euler_post_buckled_branch(column):
     """Past P_cr the path is the buckled elastica: w_mid/L = k/K(k), P/P_cr = (2K(k)/π)² (pinned–pinned),
     so w ≈ (2√2/π)·√(P/P_cr − 1) near onset.  With P_cr the detected (lattice) critical load the
 midspan deflection matches the elastica within 1.1e-5 (measured) along the branch up to P = 1.5 π²B/L²."""
-    ds, _ = column
+    ds = column
     lam = ds["load_factor"].values / math.pi**2
     w = ds["monitor"].values
     branch = ds["branch"].values
