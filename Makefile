@@ -24,7 +24,6 @@ $(STAMP): pyproject.toml Makefile
 	@test -x $(PY) || $(PYTHON) -m venv $(VENV)
 	$(PY) -m pip install --quiet --upgrade pip
 	$(PY) -m pip install --quiet -e ".[test,bench,dev,dist]"
-	$(VENV)/bin/cartan warm
 	@touch $(STAMP)
 
 install: $(STAMP)
@@ -40,9 +39,10 @@ test-all: $(STAMP)
 
 DEMO_SCENE ?= rod-cantilever-gravity
 
+# compiled code is built on first use and cached (the first run on a machine says what it compiles)
 demo: $(STAMP)
 	@mkdir -p $(OUT)
-	$(VENV)/bin/cartan run --scene $(DEMO_SCENE) -o $(OUT)/$(DEMO_SCENE).nc
+	CARTAN_SHOW_COMPILE=1 $(VENV)/bin/cartan run --scene $(DEMO_SCENE) -o $(OUT)/$(DEMO_SCENE).nc
 	$(VENV)/bin/cartan plot $(OUT)/$(DEMO_SCENE).nc -o $(OUT)/$(DEMO_SCENE).png
 
 demo-rigid-body: $(STAMP)

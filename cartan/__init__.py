@@ -28,6 +28,7 @@ from . import api as _api
 from ._backend import get_backend, set_backend, use_backend
 from ._threads import get_threads, set_threads, use_threads
 from .api import *  # noqa: F403 - the run-level API; its __all__ is the single list of names
+from .compiled.progress import install as _install_compile_progress
 from .groups import SymmetryGroup
 from .plugins import PluginWarning, RegistryError, hookimpl, registry
 from .study import converge
@@ -77,3 +78,6 @@ def group(name: str, **params: Any) -> SymmetryGroup:
 def space(name: str, **params: Any):
     """Instance of the registered homogeneous space ``name``: ``space("sphere", n=2)``."""
     return _construct("spaces", name, params)
+
+
+_install_compile_progress()

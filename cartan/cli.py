@@ -19,7 +19,6 @@ from __future__ import annotations
 
 import pathlib
 import sys
-import tomllib
 
 import click
 
@@ -39,12 +38,13 @@ def _describe(obj: object) -> str:
 
 def _summary(obj: object) -> str:
     if isinstance(obj, pathlib.Path):
+        from .scene import SceneError, read_scene_file
+
         try:
-            with open(obj, "rb") as fh:
-                text = str(tomllib.load(fh).get("description", "")).strip()
-            return text.split(". ")[0].rstrip(".") + "." if text else ""
-        except (OSError, tomllib.TOMLDecodeError, IndexError):
+            text = str(read_scene_file(obj).get("description", "")).strip()
+        except SceneError:  # within the limits and rules of every scene file
             return ""
+        return text.split(". ")[0].rstrip(".") + "." if text else ""
     doc = (getattr(obj, "__doc__", None) or "").strip().splitlines()
     return doc[0] if doc else ""
 

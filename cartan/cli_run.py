@@ -13,24 +13,34 @@
     static results: the equilibrium shape, its displacement and the Newton residuals;
     continuation results: the load–displacement chart and shapes along the path.
 
-Bad input — malformed TOML, unknown names, bad parameters or options — prints one line
-``cartan: error: ...`` on stderr and exits with status 2 without writing anything; a run
+Bad input — malformed TOML, unknown names, bad parameters or options, a run too long or too
+large for the limits (``--max-steps``, ``CARTAN_MAX_STEPS``, ``CARTAN_MAX_MEMORY``), an output
+that cannot be written — prints one line ``cartan: error: ...`` on stderr and exits with
+status 2 without writing anything; every setting is checked before the run starts.  A run
 that blows up prints the :class:`~cartan.simulate.InstabilityError` message (which names the
-file holding the last good state), and a static or continuation run that finds no
-equilibrium the :class:`~cartan.statics.ConvergenceError` message; both exit with status 1.
-:func:`register` adds the commands to a click group.
+file holding the last good state, ``NAME.lastgood.nc`` beside the output), and a static or
+continuation run that finds no equilibrium the :class:`~cartan.statics.ConvergenceError`
+message; both exit with status 1.  Without ``-o`` the output is ``NAME.nc`` in the scene
+file's folder (the current folder for ``--scene``), NAME being the scene's name reduced to a
+plain file name (:func:`default_output`).  SIGTERM and SIGHUP stop a run like Ctrl-C, so that
+no temporary file is left behind.  :func:`register` adds the commands to a click group.
 """
 
 from __future__ import annotations
 
+import contextlib
+import os
 import pathlib
+import re
 import shlex
+import signal
 import warnings
+from collections.abc import Iterator
 from typing import Any
 
 import click
 
-__all__ = ["plot_cmd", "register", "run_cmd"]
+__all__ = ["default_output", "plot_cmd", "register", "run_cmd", "safe_name"]
 
 USAGE_ERROR = 2
 RUN_ERROR = 1
@@ -68,6 +78,80 @@ def _show_warning(message, category, filename, lineno, file=None, line=None) -> 
     click.echo(f"cartan: warning: {' '.join(str(message).split())}", err=True)
 
 
+@contextlib.contextmanager
+def _warnings_as_lines() -> Iterator[None]:
+    """Warnings as one line ``cartan: warning: ...`` each; numpy's floating-point
+    RuntimeWarnings are left out (the blow-up tests and the checks of the settings report
+    what they are about)."""
+    with warnings.catch_warnings():
+        warnings.showwarning = _show_warning
+        warnings.simplefilter("ignore", RuntimeWarning)
+        yield
+
+
+@contextlib.contextmanager
+def _stop_cleanly() -> Iterator[None]:
+    """SIGTERM and SIGHUP raise SystemExit (status 128 + signal) while a command runs, so that
+    a write in progress removes its temporary file as on Ctrl-C.  Signals that are not at their
+    default (ignored under ``nohup``, or handled by the caller) are left as they are."""
+
+    def stop(signum: int, _frame: Any) -> None:
+        raise SystemExit(128 + signum)
+
+    previous = {}
+    for name in ("SIGTERM", "SIGHUP"):
+        sig = getattr(signal, name, None)
+        if sig is None or signal.getsignal(sig) is not signal.SIG_DFL:
+            continue
+        try:
+            previous[sig] = signal.signal(sig, stop)
+        except (ValueError, OSError):  # not the main thread: keep the default
+            pass
+    try:
+        yield
+    finally:
+        for sig, handler in previous.items():
+            signal.signal(sig, handler)
+
+
+def safe_name(name: str) -> str:
+    """A plain file name from a scene's ``name``.
+
+    Characters other than letters, digits, ``.``, ``-`` and ``_`` become ``_`` (so no path
+    separator survives), leading dots are dropped (no ``..``, no hidden file), the result is
+    at most 200 bytes long, and an empty result is ``"run"``.
+
+    Parameters
+    ----------
+    name : str
+
+    Returns
+    -------
+    str
+    """
+    text = re.sub(r"[^\w.-]+", "_", name).lstrip(".")
+    while len(text.encode("utf-8")) > 200:
+        text = text[:-1]
+    return text or "run"
+
+
+def default_output(scene_name: str, scene_file: pathlib.Path | None) -> pathlib.Path:
+    """The output of ``cartan run`` without ``-o``: ``NAME.nc`` (NAME from :func:`safe_name`) in
+    the folder of the scene file, or in the current folder for a registered scene.
+
+    Parameters
+    ----------
+    scene_name : str
+    scene_file : pathlib.Path or None
+
+    Returns
+    -------
+    pathlib.Path
+    """
+    name = f"{safe_name(scene_name)}.nc"
+    return scene_file.parent / name if scene_file is not None else pathlib.Path(name)
+
+
 @click.command("run", cls=_OneLineCommand)
 @click.argument("scene_file", required=False, type=click.Path(dir_okay=False, path_type=pathlib.Path))
 @click.option(
@@ -90,6 +174,11 @@ def _show_warning(message, category, filename, lineno, file=None, line=None) -> 
     help="Continue the run in this file from its last checkpoint.",
 )
 @click.option("--checkpoint-every", type=int, help="Write a checkpoint every this many saves.")
+@click.option(
+    "--max-steps",
+    type=int,
+    help="Most time steps the run may take (default: $CARTAN_MAX_STEPS, else 1000000000).",
+)
 @click.option("--progress/--no-progress", default=None, help="Progress bar (default: only on a terminal).")
 @click.pass_context
 def run_cmd(
@@ -104,9 +193,32 @@ def run_cmd(
     save_every,
     restart,
     checkpoint_every,
+    max_steps,
     progress,
 ) -> None:
     """Run a scene file, a registered scene (--scene NAME), or continue a run (--restart)."""
+    with _stop_cleanly(), _warnings_as_lines():
+        _run(ctx, scene_file, scene_name, output, integrator, scheme, dt, t_end, save_every, restart,
+             checkpoint_every, max_steps, progress)
+
+
+def _run(
+    ctx: click.Context,
+    scene_file: pathlib.Path | None,
+    scene_name: str | None,
+    output: pathlib.Path | None,
+    integrator: str | None,
+    scheme: str | None,
+    dt: float | None,
+    t_end: float | None,
+    save_every: int | None,
+    restart: pathlib.Path | None,
+    checkpoint_every: int | None,
+    max_steps: int | None,
+    progress: bool | None,
+) -> None:
+    """``cartan run``: the settings are checked by the library (:func:`cartan.load_scene`,
+    :func:`cartan.simulate`, :meth:`cartan.scene.Scene.run`), whose errors become one line."""
     from .plugins import RegistryError
     from .scene import SceneError, load_scene, scene
     from .simulate import InstabilityError, simulate
@@ -114,12 +226,6 @@ def run_cmd(
 
     if scene_file is not None and scene_name is not None:
         raise CommandError("give a scene file or --scene NAME, not both")
-    for name, value in (("--dt", dt), ("--t-end", t_end)):
-        if value is not None and not value > 0:
-            raise CommandError(f"{name} must be > 0, got {value:g}")
-    for name, value in (("--save-every", save_every), ("--checkpoint-every", checkpoint_every)):
-        if value is not None and value < 1:
-            raise CommandError(f"{name} must be ≥ 1, got {value}")
     try:
         if scene_file is not None:
             sc = load_scene(scene_file)
@@ -130,7 +236,9 @@ def run_cmd(
         else:
             raise CommandError("give a scene file, --scene NAME, or --restart FILE")
         if output is None:
-            output = restart if restart is not None else pathlib.Path(f"{sc.name or 'run'}.nc")
+            output = restart if restart is not None else default_output(sc.name or scene_name or "run", scene_file)
+        if scene_file is not None and _same_file(output, scene_file):
+            raise CommandError(f"-o {output}: that is the scene file; give another output file")
         if sc is not None and sc.mode != "dynamic":
             dynamic_only = {
                 "--integrator": integrator,
@@ -139,6 +247,7 @@ def run_cmd(
                 "--save-every": save_every,
                 "--restart": restart,
                 "--checkpoint-every": checkpoint_every,
+                "--max-steps": max_steps,
             }
             given = [name for name, value in dynamic_only.items() if value is not None]
             if given:
@@ -151,31 +260,42 @@ def run_cmd(
             ds = sc.run(output=output, command=_command_line(ctx))
             click.echo(f"wrote {output} ({_summary(ds, sc.mode)})")
             return
-        with warnings.catch_warnings():
-            warnings.showwarning = _show_warning
-            ds = simulate(
-                sc,
-                integrator=integrator,
-                scheme=scheme,
-                dt=dt,
-                t_end=t_end,
-                save_every=save_every,
-                output=output,
-                restart=restart,
-                checkpoint_every=checkpoint_every,
-                progress=progress,
-                command=_command_line(ctx),
-            )
+        ds = simulate(
+            sc,
+            integrator=integrator,
+            scheme=scheme,
+            dt=dt,
+            t_end=t_end,
+            save_every=save_every,
+            output=output,
+            restart=restart,
+            checkpoint_every=checkpoint_every,
+            progress=progress,
+            command=_command_line(ctx),
+            max_steps=max_steps,
+        )
     except CommandError:
         raise
     except (InstabilityError, ConvergenceError) as exc:
         raise CommandError(str(exc), RUN_ERROR) from None
-    except (SceneError, RegistryError, ValueError, TypeError) as exc:
-        raise CommandError(str(exc)) from None
+    except (SceneError, RegistryError, ValueError, TypeError, ArithmeticError) as exc:
+        raise CommandError(str(exc) or type(exc).__name__) from None
+    except MemoryError:
+        raise CommandError(
+            "not enough memory for this run; use fewer nodes or frames (the memory limit is set by "
+            "the environment variable CARTAN_MAX_MEMORY)"
+        ) from None
     except OSError as exc:
         raise CommandError(f"{exc.filename or output}: {exc.strerror or exc}", RUN_ERROR) from None
     t = ds["time"].values
     click.echo(f"wrote {output} ({len(t)} frames, t = {t[0]:g} to {t[-1]:g})")
+
+
+def _same_file(a: pathlib.Path, b: pathlib.Path) -> bool:
+    try:
+        return os.path.samefile(a, b)
+    except OSError:
+        return False
 
 
 def _summary(ds: Any, mode: str) -> str:
@@ -213,7 +333,9 @@ def plot_cmd(run_file: pathlib.Path, output: pathlib.Path | None, snapshots: int
         raise CommandError(f"--snapshots must be ≥ 1, got {snapshots}")
     try:
         ds = open_dataset(run_file)
-    except (OSError, ValueError) as exc:
+    except ValueError as exc:  # names the file
+        raise CommandError(str(exc)) from None
+    except OSError as exc:
         raise CommandError(f"{run_file}: not a readable netCDF file ({' '.join(str(exc).split())})") from None
     if result_kind(ds) != "continuation":
         missing = [v for v in ("kinetic_energy", "potential_energy") if v not in ds]

@@ -58,10 +58,19 @@ class Grid:
         d = len(shape_t)
         if d not in (1, 2, 3):
             raise ValueError(f"shape must have 1, 2 or 3 axes, got {d}")
-        length_t = tuple(float(v) for v in _tuple(length, d, "length"))
-        periodic_t = tuple(bool(v) for v in _tuple(periodic, d, "periodic"))
+        lengths = _tuple(length, d, "length")
+        for k, L in enumerate(lengths):
+            if isinstance(L, (bool, np.bool_, str, bytes)) or not isinstance(L, (int, float, np.integer, np.floating)):
+                raise ValueError(f"length[{k}] must be a finite number > 0, got {L!r}")
+        length_t = tuple(float(v) for v in lengths)
+        flags = _tuple(periodic, d, "periodic")
+        for k, p in enumerate(flags):
+            if not isinstance(p, (bool, np.bool_)):
+                raise ValueError(f"periodic[{k}] must be True or False, got {p!r}")
+        periodic_t = tuple(bool(v) for v in flags)
         for k, (n, L, p) in enumerate(zip(shape_t, length_t, periodic_t)):
-            if int(n) != n or n < (3 if p else 2):
+            if (isinstance(n, (bool, np.bool_)) or not isinstance(n, (int, float, np.integer, np.floating))
+                    or not np.isfinite(n) or int(n) != n or n < (3 if p else 2)):
                 raise ValueError(
                     f"shape[{k}] must be an integer ≥ {3 if p else 2} for a {'periodic' if p else 'open'} "
                     f"axis, got {n}"

@@ -29,20 +29,31 @@ dimensionless and the rotational strain is 1/length); the global attribute
 
 Files
 -----
-:func:`write_dataset` writes netCDF-4 (``engine="netcdf4"``) atomically: a temporary file in
-the target's directory, fsync, then :func:`os.replace`, so a reader never sees a partial file
-and an error leaves any previous file untouched.  A run's file may also hold a netCDF group
-``checkpoint`` with the full state needed to continue it (:func:`read_checkpoint`);
-:func:`open_dataset` (``cartan.open``) reads the root group only.
+:func:`write_dataset` writes netCDF-4 (``engine="netcdf4"``) atomically: a temporary file
+``.NAME.<pid>-<random>.tmp`` in the target's directory, fsync, then :func:`os.replace`, so a
+reader never sees a partial file and an error leaves any previous file untouched.  The
+temporary file is removed on every exit path that runs Python code; one left behind by a
+killed process (``kill -9``) is removed by the next write to the same target.  Only regular
+files are replaced (never a device, a pipe or a directory), and :func:`check_output` checks a
+target before a run.  Every numeric variable is written with a Fletcher-32 checksum, so that a
+damaged file is detected when it is read: :func:`open_dataset` (``cartan.open``) and
+:func:`read_checkpoint` raise a ValueError naming the file.  A run's file may also hold a
+netCDF group ``checkpoint`` with the full state needed to continue it (:func:`read_checkpoint`,
+checked field by field by :func:`check_run_info`); :func:`open_dataset` reads the root group
+only.
 """
 
 from __future__ import annotations
 
 import datetime as _dt
 import json
+import math
+import numbers
 import os
 import pathlib
-import tempfile
+import re
+import secrets
+import stat
 from collections.abc import Mapping
 from typing import TYPE_CHECKING, Any
 
@@ -57,9 +68,12 @@ if TYPE_CHECKING:  # pragma: no cover
 
 __all__ = [
     "build_dataset",
+    "check_output",
+    "check_run_info",
     "checkpoint_dataset",
     "frame_record",
     "history_line",
+    "lastgood_path",
     "open_dataset",
     "read_checkpoint",
     "source_string",
@@ -474,6 +488,10 @@ def checkpoint_dataset(state: State, info: Mapping[str, Any]) -> xr.Dataset:
 def read_checkpoint(path: str | os.PathLike) -> tuple[State, dict[str, Any], dict[str, list], dict[str, Any]]:
     """Read the last checkpoint of a run file.
 
+    The state is checked field by field: the time, the scalar accumulators and every array
+    are finite numbers, the arrays the checkpoint lists are present, and the frames it counts
+    are in the file with finite times.  :func:`check_run_info` checks the run settings.
+
     Returns
     -------
     state : State
@@ -488,7 +506,8 @@ def read_checkpoint(path: str | os.PathLike) -> tuple[State, dict[str, Any], dic
     Raises
     ------
     ValueError
-        If the file holds no checkpoint.
+        If the file does not exist, is not a regular file, holds no checkpoint, or is damaged
+        (a checksum error, or a field missing or out of range, named in the message).
     """
     import xarray as xr
 
@@ -497,6 +516,8 @@ def read_checkpoint(path: str | os.PathLike) -> tuple[State, dict[str, Any], dic
     path = pathlib.Path(path)
     if not path.exists():
         raise ValueError(f"restart file {str(path)!r} does not exist")
+    _regular(path, "restart file")
+    root = open_dataset(path)  # a damaged file is reported as such, not as one without checkpoint
     try:
         with xr.open_dataset(
             path,
@@ -508,12 +529,51 @@ def read_checkpoint(path: str | os.PathLike) -> tuple[State, dict[str, Any], dic
         ) as ck:
             ck = ck.load()
     except OSError as exc:
-        raise ValueError(f"{path}: no checkpoint to restart from ({exc})") from None
-    meta = json.loads(ck.attrs["cartan_checkpoint"])
-    arrays = {k: np.array(ck[f"array_{k}"].values, dtype=float) for k in meta.pop("arrays")}
-    state = State(float(meta.pop("t")), np.array(ck["S"].values, dtype=float), arrays, meta.pop("scalars"))
-    root = open_dataset(path)
-    nframes = int(meta.get("nframes", root.sizes.get("time", 0)))
+        raise ValueError(f"{path}: no checkpoint to restart from ({_one_line(exc)})") from None
+    except (RuntimeError, ValueError, KeyError, IndexError, TypeError) as exc:
+        raise ValueError(f"{path}: damaged file, its checkpoint cannot be read ({_one_line(exc)})") from None
+
+    def damaged(what: str) -> ValueError:
+        return ValueError(f"restart file {str(path)!r}: damaged checkpoint: {what}")
+
+    text = ck.attrs.get("cartan_checkpoint")
+    try:
+        meta = json.loads(text) if isinstance(text, str) else None
+    except ValueError:
+        meta = None
+    if not isinstance(meta, dict):
+        raise damaged("the attribute cartan_checkpoint is missing or not a JSON object")
+    t = float(_field(meta, "t", damaged, kind="real", pop=True))
+    scalars = meta.pop("scalars", None)
+    if not isinstance(scalars, dict) or not all(
+        isinstance(k, str) and _is_real(v) and math.isfinite(v) for k, v in scalars.items()
+    ):
+        raise damaged(f"scalars must be a table of finite numbers, got {scalars!r:.200}")
+    names = meta.pop("arrays", None)
+    if not isinstance(names, list) or not all(isinstance(k, str) for k in names):
+        raise damaged(f"arrays must be a list of names, got {names!r:.200}")
+    arrays = {}
+    for key in ["S", *(f"array_{k}" for k in names)]:
+        if key not in ck.variables:
+            raise damaged(f"the variable {key!r} is missing")
+        if ck[key].dtype.kind not in "iuf":
+            raise damaged(f"{key} is not numeric ({ck[key].dtype})")
+        value = np.array(ck[key].values, dtype=float)
+        if not np.all(np.isfinite(value)):
+            raise damaged(f"{key} holds non-finite values")
+        arrays[key] = value
+    state = State(t, arrays.pop("S"), {k: arrays[f"array_{k}"] for k in names}, scalars)
+    if "time" not in root.variables or "step" not in root.variables:
+        raise damaged("the run has no time or step coordinate")
+    available = root.sizes.get("time", 0)
+    nframes = meta.get("nframes", available)
+    if not _is_int(nframes) or not 0 <= nframes <= available:
+        raise damaged(f"nframes must be an integer in 0..{available} (the frames in the file), got {nframes!r}")
+    times = np.asarray(root["time"].values[:nframes])
+    if times.dtype.kind not in "iuf" or not np.all(np.isfinite(times)):
+        raise damaged("the saved times are not finite numbers")
+    if nframes and not times[-1] <= t:
+        raise damaged(f"the last saved time {times[-1]:g} is after the checkpoint time {t:g}")
     records: dict[str, list] = {
         "time": list(root["time"].values[:nframes]),
         "step": list(root["step"].values[:nframes]),
@@ -524,7 +584,214 @@ def read_checkpoint(path: str | os.PathLike) -> tuple[State, dict[str, Any], dic
     return state, meta, records, dict(root.attrs)
 
 
+def _is_real(value: Any) -> bool:
+    return isinstance(value, numbers.Real) and not isinstance(value, bool)
+
+
+def _is_int(value: Any) -> bool:
+    return isinstance(value, numbers.Integral) and not isinstance(value, bool)
+
+
+def _field(table: dict, key: str, damaged: Any, *, kind: str, minimum: float | None = None,
+           optional: bool = False, where: str = "", pop: bool = False) -> Any:
+    """``table[key]`` (removed with ``pop``) checked as ``kind``: ``"real"`` (finite), ``"limit"``
+    (a number, ±inf allowed, not NaN), ``"int"``, ``"str"``, ``"dict"``; a trailing ``"?"``
+    allows None.  ``damaged(what)`` makes the exception, naming ``where + key``."""
+    name = f"{where}{key}"
+    if key not in table:
+        if optional:
+            return None
+        raise damaged(f"{name} is missing")
+    value = table.pop(key) if pop else table[key]
+    if kind.endswith("?") and value is None:
+        return None
+    kind = kind.rstrip("?")
+    ok = {
+        "real": _is_real(value) and math.isfinite(value),
+        "limit": _is_real(value) and not math.isnan(value),
+        "int": _is_int(value),
+        "str": isinstance(value, str) and bool(value),
+        "dict": isinstance(value, dict),
+    }[kind]
+    if ok and minimum is not None and kind in ("real", "int", "limit"):
+        ok = value >= minimum
+    if not ok:
+        what = {"real": "a finite number", "limit": "a number", "int": "an integer", "str": "a name",
+                "dict": "a table"}[kind]
+        bound = f" ≥ {minimum:g}" if minimum is not None else ""
+        raise damaged(f"{name} must be {what}{bound}, got {value!r:.200}")
+    return value
+
+
+def check_run_info(info: dict[str, Any], path: str | os.PathLike) -> None:
+    """Check the run settings of a checkpoint (the ``info`` of :func:`read_checkpoint`) that
+    :func:`cartan.simulate` continues from, field by field.
+
+    Parameters
+    ----------
+    info : dict
+    path : path-like
+        The restart file, named in the message.
+
+    Raises
+    ------
+    ValueError
+        ``restart file '...': damaged checkpoint: <field> must be ...`` for the first field
+        that is missing or out of range.
+    """
+
+    def damaged(what: str) -> ValueError:
+        return ValueError(f"restart file {str(path)!r}: damaged checkpoint: {what}")
+
+    for key, kind, minimum in (("problem", "dict", None), ("run", "dict", None), ("counters", "dict", None),
+                               ("scene", "dict?", None), ("step", "int", 0), ("nsaves", "int", 0),
+                               ("e0", "real", None), ("scale", "real", 0), ("scale_set", "int", 0)):
+        _field(info, key, damaged, kind=kind, minimum=minimum, optional=key in ("scale_set", "scene"))
+    run, counters = info["run"], info["counters"]
+    for key, kind, minimum in (("integrator", "str", None), ("scheme", "str", None),
+                               ("integrator_options", "dict?", None), ("scheme_options", "dict?", None),
+                               ("dt", "real", None), ("dt_max", "limit", 0), ("t_end", "real", None),
+                               ("save_every", "int", 1), ("checkpoint_every", "int?", 1)):
+        _field(run, key, damaged, kind=kind, minimum=minimum, where="run.", optional=key.endswith("options"))
+    for key in ("dt", "t_end"):
+        if not run[key] > 0:
+            raise damaged(f"run.{key} must be > 0, got {run[key]!r}")
+    for key, kind in (("nstep", "int"), ("nforce", "int"), ("wall_time", "real")):
+        _field(counters, key, damaged, kind=kind, minimum=0, where="counters.")
+
+
 # ---------------------------------------------------------------------------- files
+def _one_line(exc: BaseException) -> str:
+    return " ".join(str(exc).split()) or type(exc).__name__
+
+
+def _kind_of(mode: int) -> str:
+    if stat.S_ISDIR(mode):
+        return "a directory"
+    if stat.S_ISCHR(mode) or stat.S_ISBLK(mode):
+        return "a device"
+    if stat.S_ISFIFO(mode):
+        return "a pipe"
+    if stat.S_ISSOCK(mode):
+        return "a socket"
+    return "not a regular file"
+
+
+def _regular(path: pathlib.Path, what: str) -> None:
+    """ValueError unless ``path`` (followed through symbolic links) is a regular file."""
+    try:
+        mode = os.stat(path).st_mode
+    except FileNotFoundError:
+        raise FileNotFoundError(2, "No such file or directory", str(path)) from None
+    if not stat.S_ISREG(mode):
+        raise ValueError(f"{what} {str(path)!r} is {_kind_of(mode)}, not a regular file")
+
+
+def _replaceable(path: pathlib.Path) -> None:
+    """ValueError unless ``path`` is missing or a regular file: only regular files are replaced."""
+    try:
+        mode = os.stat(path).st_mode
+    except FileNotFoundError:
+        return
+    except OSError as exc:
+        raise ValueError(f"{path}: cannot write here ({exc.strerror or _one_line(exc)})") from None
+    if not stat.S_ISREG(mode):
+        raise ValueError(f"{path}: is {_kind_of(mode)}; only regular files are replaced by an output")
+
+
+def _directory(path: pathlib.Path) -> pathlib.Path:
+    return path.parent if str(path.parent) else pathlib.Path(".")
+
+
+def check_output(path: str | os.PathLike) -> pathlib.Path:
+    """Check, before any work, that :func:`write_dataset` can write ``path``.
+
+    Parameters
+    ----------
+    path : path-like
+
+    Returns
+    -------
+    pathlib.Path
+        ``path``.
+
+    Raises
+    ------
+    ValueError
+        When the folder of ``path`` does not exist, is not a folder or is not writable, or
+        ``path`` exists and is not a regular file (a directory, a device such as
+        ``/dev/null``, a pipe): only regular files are replaced.
+    """
+    path = pathlib.Path(path)
+    directory = _directory(path)
+    if not directory.exists():
+        raise ValueError(f"{path}: the output folder {str(directory)!r} does not exist")
+    if not directory.is_dir():
+        raise ValueError(f"{path}: {str(directory)!r} is not a folder")
+    if not os.access(directory, os.W_OK | os.X_OK):
+        raise ValueError(f"{path}: the output folder {str(directory)!r} is not writable")
+    _replaceable(path)
+    return path
+
+
+def lastgood_path(output: str | os.PathLike) -> pathlib.Path:
+    """Where a run that blows up leaves its last good state.
+
+    Parameters
+    ----------
+    output : path-like
+        The run's output file.
+
+    Returns
+    -------
+    pathlib.Path
+        ``out.lastgood.nc`` beside ``out.nc`` (``run.lastgood.nc`` for ``run``): never
+        ``output`` itself, which keeps what it held.
+    """
+    output = pathlib.Path(output)
+    suffix = output.suffix or ".nc"
+    stem = output.stem if output.suffix else output.name
+    return output.with_name(f"{stem}.lastgood{suffix}")
+
+
+#: temporary files of :func:`write_dataset`: ``.NAME.<pid>-<16 hex digits>.tmp``, or the
+#: ``.NAME.<8 characters>.tmp`` of :func:`tempfile.mkstemp` used by earlier versions
+_TEMPORARY = re.compile(r"(?:(?P<pid>[0-9]+)-[0-9a-f]{16}|[a-z0-9_]{8})\.tmp")
+
+
+def _alive(pid: int) -> bool:
+    if pid == os.getpid() or os.name == "nt":
+        return True
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except OSError:  # another user's process
+        return True
+    return True
+
+
+def _remove_stale_temporaries(directory: pathlib.Path, name: str) -> None:
+    """Remove the temporary files of writes to ``directory/name`` whose process is gone (one
+    killed by ``kill -9`` in the middle of a write)."""
+    prefix = f".{name}."
+    try:
+        entries = list(os.scandir(directory))
+    except OSError:
+        return
+    for entry in entries:
+        if not entry.name.startswith(prefix):
+            continue
+        match = _TEMPORARY.fullmatch(entry.name[len(prefix):])
+        if match is None or (match["pid"] is not None and _alive(int(match["pid"]))):
+            continue
+        try:
+            if entry.is_file(follow_symlinks=False):
+                os.unlink(entry.path)
+        except OSError:
+            pass
+
+
 def _umask() -> int:
     mask = os.umask(0o022)
     os.umask(mask)
@@ -532,10 +799,14 @@ def _umask() -> int:
 
 
 def _encoding(ds: xr.Dataset) -> dict[str, dict]:
+    """No fill values, and a Fletcher-32 checksum on every numeric variable (a damaged file is
+    detected when it is read)."""
     enc = {}
     for name, var in ds.variables.items():
         if var.dtype.kind in "fiu":
             enc[name] = {"_FillValue": None}
+            if var.size:  # HDF5 cannot chunk (and so checksum) an empty variable
+                enc[name]["fletcher32"] = True
     return enc
 
 
@@ -544,14 +815,17 @@ def write_dataset(
 ) -> pathlib.Path:
     """Write ``ds`` (and an optional checkpoint group) to netCDF-4, atomically.
 
-    The data go to a temporary file in the same directory, which is flushed to disk
-    (``fsync``) and renamed over ``path`` (:func:`os.replace`).  On any error the temporary
-    file is removed and an existing ``path`` is left as it was.
+    The data go to a temporary file ``.NAME.<pid>-<random>.tmp`` in the same directory, which
+    is flushed to disk (``fsync``) and renamed over ``path`` (:func:`os.replace`).  On any error
+    (or interruption) the temporary file is removed and an existing ``path`` is left as it
+    was; temporary files of earlier writes to ``path`` whose process is gone (killed in the
+    middle of a write) are removed first.  Numeric variables carry Fletcher-32 checksums.
 
     Parameters
     ----------
     ds : xarray.Dataset
     path : path-like
+        A new file or an existing regular file (never a directory, a device or a pipe).
     checkpoint : xarray.Dataset, optional
         Written as the netCDF group ``checkpoint`` (see :func:`checkpoint_dataset`).
 
@@ -559,12 +833,20 @@ def write_dataset(
     -------
     pathlib.Path
         ``path``.
+
+    Raises
+    ------
+    ValueError
+        When ``path`` exists and is not a regular file.
+    OSError
+        When writing fails (the folder is missing, the disk is full, ...).
     """
     path = pathlib.Path(path)
-    directory = path.parent if str(path.parent) else pathlib.Path(".")
-    fd, tmp_name = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=directory)
-    os.close(fd)
-    tmp = pathlib.Path(tmp_name)
+    _replaceable(path)
+    directory = _directory(path)
+    _remove_stale_temporaries(directory, path.name)
+    tmp = directory / f".{path.name}.{os.getpid()}-{secrets.token_hex(8)}.tmp"
+    os.close(os.open(tmp, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o600))
     try:
         ds.to_netcdf(tmp, mode="w", engine="netcdf4", format="NETCDF4", encoding=_encoding(ds))
         if checkpoint is not None:
@@ -574,6 +856,7 @@ def write_dataset(
         os.chmod(tmp, 0o666 & ~_umask())
         with open(tmp, "rb+") as fh:
             os.fsync(fh.fileno())
+        _replaceable(path)
         os.replace(tmp, path)
     except BaseException:
         tmp.unlink(missing_ok=True)
@@ -595,21 +878,37 @@ def open_dataset(path: str | os.PathLike, lazy: bool = False) -> xr.Dataset:
     Parameters
     ----------
     path : path-like
+        A regular file.
     lazy : bool
         False (default): read everything into memory and close the file, so the file may be
-        overwritten (e.g. by a restart) while the Dataset is in use.  True: xarray's lazy
-        loading (the file stays open).
+        overwritten (e.g. by a restart) while the Dataset is in use; a damaged file (a
+        checksum error) is detected here.  True: xarray's lazy loading (the file stays open,
+        and damage is detected when the data are read).
 
     Returns
     -------
     xarray.Dataset
         The root group: frames, series and attributes (``cartan_config`` is JSON text;
         ``json.loads(ds.attrs["cartan_config"])`` gives the run configuration).
+
+    Raises
+    ------
+    FileNotFoundError, PermissionError
+        The file is missing or cannot be opened.
+    ValueError
+        The file is not a regular file, not netCDF, or damaged (naming the file).
     """
     import xarray as xr
 
-    ds = xr.open_dataset(path, engine="netcdf4", decode_times=False, decode_timedelta=False)
-    if lazy:
-        return ds
-    with ds:
-        return ds.load()
+    path = pathlib.Path(path)
+    _regular(path, "run file")
+    try:
+        ds = xr.open_dataset(path, engine="netcdf4", decode_times=False, decode_timedelta=False)
+        if lazy:
+            return ds
+        with ds:
+            return ds.load()
+    except (FileNotFoundError, PermissionError):
+        raise
+    except (OSError, RuntimeError, ValueError, KeyError, IndexError, TypeError) as exc:
+        raise ValueError(f"{path}: damaged or not a netCDF file ({_one_line(exc)})") from None

@@ -25,14 +25,19 @@ from __future__ import annotations
 
 import abc
 import inspect
+from collections.abc import Callable
+from dataclasses import dataclass
 from typing import Any, ClassVar
 
 import numpy as np
+from numba import njit
 
 from .groups.base import SymmetryGroup
 
 __all__ = [
+    "KernelMedium",
     "Medium",
+    "MediumKernels",
     "QuadraticMedium",
     "check_finite",
     "check_keywords",
@@ -43,10 +48,15 @@ __all__ = [
 
 
 def _as_float(name: str, value: Any) -> np.ndarray:
-    """``np.asarray(value, float)`` with a ValueError naming ``name`` for non-numeric input."""
+    """``np.asarray(value, float)`` with a ValueError naming ``name`` for non-numeric input:
+    strings and booleans are not numbers (``"1e5"``, ``True`` are refused)."""
+    raw = np.asarray(value, dtype=object) if not isinstance(value, np.ndarray) else value
+    if raw.dtype.kind in "bUSO" and (raw.dtype.kind != "O" or any(
+            isinstance(v, (bool, np.bool_, str, bytes)) for v in np.ravel(raw))):
+        raise ValueError(f"{name} must be a real number or array of them, got {value!r}")
     try:
         return np.asarray(value, dtype=float)
-    except (TypeError, ValueError):
+    except (TypeError, ValueError, OverflowError):
         raise ValueError(f"{name} must be a real number or array, got {value!r}") from None
 
 
@@ -148,6 +158,66 @@ def _linear_act(space, M: np.ndarray) -> np.ndarray:
     return space.act(M, q_r) if q_r.ndim != 2 else M @ q_r
 
 
+@dataclass(frozen=True)
+class MediumKernels:
+    """A medium's potential at one point, as numba functions (the compiled loops' physics).
+
+    Attributes
+    ----------
+    energy : numba function ``(X, X0, p) -> float``
+        The potential energy density U per unit reference volume.
+    stress : numba function ``(X, X0, p, Q) -> None``
+        Writes the stress ``Q = ∂U/∂X`` into ``Q``.
+    params : array, shape ``(k,)``
+        The parameter vector ``p`` (float64).
+
+    ``X`` (the strain), ``X0`` (the rest strain at that point) and ``Q`` have shape ``(d, r)``.
+    Both functions are module-level ``@njit`` functions (the generated loops import them by
+    name, and a change to their module's source recompiles the loops that use them);
+    ``cartan.testing.check_medium`` checks that the stress is the gradient of the energy
+    and that both agree with :meth:`Medium.potential` and :meth:`Medium.stress`.
+    """
+
+    energy: Callable
+    stress: Callable
+    params: np.ndarray
+
+
+@njit(cache=True)
+def quadratic_energy_point(X, X0, p):  # pragma: no cover - compiled
+    """``U = ½ (X − X₀)ᵀ C (X − X₀)`` with ``C = p.reshape(d·r, d·r)``, X and X₀ flattened."""
+    d, r = X.shape
+    dr = d * r
+    u = 0.0
+    row = 0
+    for a in range(d):
+        for k in range(r):
+            s = 0.0
+            col = row * dr
+            for b in range(d):
+                for j in range(r):
+                    s += p[col] * (X[b, j] - X0[b, j])
+                    col += 1
+            u += (X[a, k] - X0[a, k]) * s
+            row += 1
+    return 0.5 * u
+
+
+@njit(cache=True)
+def quadratic_stress_point(X, X0, p, Q):  # pragma: no cover - compiled
+    """``Q = C (X − X₀)`` (see :func:`quadratic_energy_point`)."""
+    d, r = X.shape
+    col = 0
+    for a in range(d):
+        for k in range(r):
+            s = 0.0
+            for b in range(d):
+                for j in range(r):
+                    s += p[col] * (X[b, j] - X0[b, j])
+                    col += 1
+            Q[a, k] = s
+
+
 class Medium(abc.ABC):
     """Physics of a Cartan medium: energies, stresses and gauge (paper §IV).
 
@@ -177,7 +247,8 @@ class Medium(abc.ABC):
         :meth:`static_jacobian` may return ``∂r/∂δ``, the Jacobian of the static residual
         ``r = w·W`` on the lattice along the drift directions ``Φ_i ← Φ_i exp(δ_i)``, a sparse
         ``(nnode·r, nnode·r)`` matrix over all node components; :func:`cartan.solve_static`
-        then skips its coloured finite differences.  Default: None (not provided).
+        then needs no coloured finite-difference Jacobian (it may still add a small
+        finite-difference correction between iterations).  Default: None (not provided).
     """
 
     name: ClassVar[str] = ""
@@ -203,6 +274,20 @@ class Medium(abc.ABC):
     def rest_strain(self) -> np.ndarray:
         """Strain of the stress-free reference state, shape ``(d, r)``."""
 
+    # ------------------------------------------------------------------ varying rest strain
+    def potential_at(self, X: np.ndarray, X0: np.ndarray) -> np.ndarray:
+        """U at strain X with the local rest strain X0 (both ``[..., d, r]``) → ``[...]``.
+
+        The default translates the energy, ``U(X − X0 + X̄0)`` with X̄0 = :meth:`rest_strain`
+        (exact for quadratic media); media with point kernels evaluate their kernels, which
+        take X0 directly.  Used where a problem has a stress-free ``reference`` configuration.
+        """
+        return self.potential(np.asarray(X) - X0 + self.rest_strain())
+
+    def stress_at(self, X: np.ndarray, X0: np.ndarray) -> np.ndarray:
+        """``∂U/∂X`` at X with the local rest strain X0 (see :meth:`potential_at`)."""
+        return self.stress(np.asarray(X) - X0 + self.rest_strain())
+
     # ------------------------------------------------------------------ derived
     def parameters(self) -> dict[str, Any]:
         """The constructor parameters, JSON-serialisable (recorded in output attributes)."""
@@ -210,6 +295,14 @@ class Medium(abc.ABC):
 
     def body_force(self, Phi: np.ndarray | None, N: np.ndarray, t: float) -> np.ndarray | None:
         """Non-potential generalised force density ``T`` ``[..., r]`` or None (default)."""
+        return None
+
+    def point_kernels(self) -> MediumKernels | None:
+        """The potential at one point as numba kernels (:class:`MediumKernels`), or None.
+
+        A medium that declares them runs in the generated compiled loops on every group with
+        point kernels (``docs/plugins.md``); None (the default) keeps it on the numpy path.
+        """
         return None
 
     def quadratic_energy(self) -> tuple[np.ndarray, np.ndarray] | None:
@@ -227,7 +320,8 @@ class Medium(abc.ABC):
     def static_jacobian(self, scheme: Any, state: Any, lam: float) -> Any:
         """Analytic Jacobian of the static residual, or None (default: none).
 
-        :func:`cartan.solve_static` solves ``r(λ) = F_int + λ (w·W − F_int) = 0`` on the
+        :func:`cartan.solve_static` (and :func:`cartan.continuation`'s corrector, with λ
+        anywhere in ``[0, lam_max]``) solves ``r(λ) = F_int + λ (w·W − F_int) = 0`` on the
         ``lattice`` scheme, with ``W = scheme.force(state, 0, state.t)`` the force density,
         ``F_int = scheme.internal_force(state)`` and ``w = scheme.weights`` (paper §IV; see
         ``docs/statics.md``).  A medium that can differentiate it in closed form returns
@@ -252,7 +346,7 @@ class Medium(abc.ABC):
         state : State
             The current iterate (``state.t`` the load time, ``state.S = 0``).
         lam : float
-            Load factor λ ∈ (0, 1] of the load step.
+            Load factor λ ≥ 0 of the load step (continuation may pass λ beyond 1).
 
         Returns
         -------
@@ -308,23 +402,60 @@ class Medium(abc.ABC):
         """
         return {}
 
+    def kinetic_metric(self) -> np.ndarray:
+        """The kinetic metric M, ``K(N) = ½ NᵀMN`` per unit reference volume, shape ``(r, r)``.
+
+        Symmetric; it may be non-diagonal (a director with an offset centre of mass) and
+        indefinite (a relativistic string: K = ½(−(N⁰)² + |N|²)); the rows and columns that
+        are zero are gauge directions (paper §III.E).  Default: ``diag(inertia())``.  A medium
+        that overrides it returns M's diagonal from :meth:`inertia`.  The Legendre map
+        (:meth:`momentum`, :meth:`velocity`), the kinetic energy, the wave speed and the CFL
+        estimate follow from M; ``lie-verlet`` splits the free flow along M's eigenvectors when
+        M is not diagonal.
+        """
+        return np.diag(np.asarray(self.inertia(), dtype=float))
+
+    def _diagonal_metric(self) -> bool:
+        return type(self).kinetic_metric is Medium.kinetic_metric
+
+    def inverse_metric(self) -> np.ndarray:
+        """``M⁺``: the inverse of M on its live (non-gauge) block, zero on gauge rows and
+        columns, shape ``(r, r)``; N = M⁺S."""
+        M = np.asarray(self.kinetic_metric(), dtype=float)
+        live = ~self.gauge_mask()
+        A = np.zeros_like(M)
+        if self._diagonal_metric():
+            A[live, live] = 1.0 / np.diag(M)[live]
+        else:
+            A[np.ix_(live, live)] = np.linalg.inv(M[np.ix_(live, live)])
+        return A
+
     def gauge_mask(self) -> np.ndarray:
-        """Boolean ``(r,)``: True for components of N that are gauge (held at zero)."""
-        return self.inertia() == 0
+        """Boolean ``(r,)``: True for components of N that are gauge (held at zero): the zero
+        rows of the kinetic metric."""
+        if self._diagonal_metric():
+            return self.inertia() == 0
+        return np.all(np.asarray(self.kinetic_metric()) == 0, axis=1)
 
     def kinetic(self, N: np.ndarray) -> np.ndarray:
-        """``K(N) = ½ Σ m_k N_k²``, ``[..., r]`` → ``[...]``."""
-        return 0.5 * np.einsum("...k,k,...k->...", N, self.inertia(), N)
+        """``K(N) = ½ NᵀMN``, ``[..., r]`` → ``[...]``."""
+        if self._diagonal_metric():
+            return 0.5 * np.einsum("...k,k,...k->...", N, self.inertia(), N)
+        return 0.5 * np.einsum("...k,kl,...l->...", N, self.kinetic_metric(), N)
 
     def momentum(self, N: np.ndarray) -> np.ndarray:
-        """``S = ∂K/∂N``, ``[..., r]`` → ``[..., r]``."""
-        return np.asarray(N) * self.inertia()
+        """``S = ∂K/∂N = MN``, ``[..., r]`` → ``[..., r]``."""
+        if self._diagonal_metric():
+            return np.asarray(N) * self.inertia()
+        return np.einsum("kl,...l->...k", self.kinetic_metric(), N)
 
     def velocity(self, S: np.ndarray) -> np.ndarray:
-        """Inverse Legendre map N(S) (gauge components zero), ``[..., r]`` → ``[..., r]``."""
-        m = self.inertia()
-        safe = np.where(m > 0, m, 1.0)
-        return np.where(m > 0, np.asarray(S) / safe, 0.0)
+        """Inverse Legendre map N = M⁺S (gauge components zero), ``[..., r]`` → ``[..., r]``."""
+        if self._diagonal_metric():
+            m = self.inertia()
+            safe = np.where(m > 0, m, 1.0)
+            return np.where(m > 0, np.asarray(S) / safe, 0.0)
+        return np.einsum("kl,...l->...k", self.inverse_metric(), S)
 
     def stiffness(self, X: np.ndarray | None = None, eps: float = 1e-6) -> np.ndarray:
         """Hessian ``∂Q/∂X`` at X (default: the rest strain), shape ``(d, r, d, r)``.
@@ -345,17 +476,17 @@ class Medium(abc.ABC):
     def wave_speed(self) -> float:
         """Fastest characteristic speed of the linearised medium about the rest state.
 
-        For K = ½ NᵀmN and U with stiffness C: along each axis α the waves of
-        ``m N̈ = C_αα ∂²N`` have speeds ``√eig(m⁻¹ C_αα)`` on the non-gauge components.
+        For K = ½ NᵀMN and U with stiffness C: along each axis α the waves of
+        ``M N̈ = C_αα ∂²N`` have speeds ``√|eig(M⁻¹ C_αα)|`` on the non-gauge components.
         """
-        m = self.inertia()
-        live = m > 0
+        live = ~self.gauge_mask()
+        Minv = self.inverse_metric()[np.ix_(live, live)]
         H = self.stiffness()
         c2 = 0.0
         for a in range(H.shape[0]):
             C = H[a, :, a, :][np.ix_(live, live)]
-            Minv = np.diag(1.0 / m[live])
-            c2 = max(c2, float(np.max(np.real(np.linalg.eigvals(Minv @ C)))))
+            # |eig|: an indefinite metric has waves of either sign of M⁻¹C
+            c2 = max(c2, float(np.max(np.abs(np.real(np.linalg.eigvals(Minv @ C))))))
         return float(np.sqrt(max(c2, 0.0)))
 
     def __repr__(self) -> str:
@@ -365,49 +496,132 @@ class Medium(abc.ABC):
 
 class QuadraticMedium(Medium):
     """A medium with a quadratic potential, the form of every linear-elastic Cartan medium:
-    ``U(X) = ½ Σ_α (X_α − X₀_α)ᵀ C (X_α − X₀_α)`` with one constant symmetric ``C`` for all
-    axes, so ``Q^α = C (X_α − X₀_α)`` (Cosserat rods §VI.C, rods on spheres §VIII.A, the
-    sigma model §VIII.B).
+    ``U(X) = ½ (X − X₀)ᵀ C (X − X₀)`` over the flattened strain ``X`` ``(d·r,)``.
+
+    ``C`` is either one symmetric ``(r, r)`` matrix shared by every axis,
+    ``U = ½ Σ_α (X_α − X₀_α)ᵀ C (X_α − X₀_α)`` and ``Q^α = C (X_α − X₀_α)`` (Cosserat rods
+    §VI.C, rods on spheres §VIII.A, the sigma model §VIII.B), or a full symmetric
+    ``(d·r, d·r)`` matrix whose off-diagonal blocks couple the axes (plates and shells, whose
+    membrane energy couples θ_u and θ_v; micropolar solids with λ(tr ε)²).
 
     Subclasses call :meth:`_set_energy` in ``__init__`` and implement :meth:`inertia`; the
-    potential, stress, stiffness and :meth:`quadratic_energy` (the data the compiled step
-    loops use) follow.
+    potential, stress, stiffness, :meth:`quadratic_energy` and the point kernels of the
+    compiled loops (:meth:`point_kernels`) follow.
     """
 
     def _set_energy(self, X0: Any, C: Any) -> None:
-        """Set the rest strain ``X0`` ``(d, r)`` (or ``(r,)`` for d = 1) and the stiffness ``C``,
-        a symmetric ``(r, r)`` matrix or its diagonal ``(r,)``."""
+        """Set the rest strain ``X0`` ``(d, r)`` (or ``(r,)`` for d = 1) and the stiffness ``C``:
+        a symmetric ``(r, r)`` matrix or its diagonal ``(r,)`` (the same on every axis), or a
+        symmetric ``(d·r, d·r)`` matrix over the flattened strain (axes coupled)."""
         r = self.group.dim
         X0 = np.asarray(X0, dtype=float).reshape(-1, r)
+        d = X0.shape[0]
         C = np.asarray(C, dtype=float)
         C = np.diag(C) if C.ndim == 1 else C
-        if C.shape != (r, r) or not np.allclose(C, C.T, rtol=0, atol=1e-12 * max(1.0, float(np.abs(C).max()))):
-            raise ValueError(f"the stiffness must be a symmetric ({r}, {r}) matrix, got shape {C.shape}")
-        self._X0, self._C = X0, C
+        scale = 1e-12 * max(1.0, float(np.abs(C).max())) if C.size else 1.0
+        if C.shape not in ((r, r), (d * r, d * r)) or not np.allclose(C, C.T, rtol=0, atol=scale):
+            raise ValueError(
+                f"the stiffness must be a symmetric ({r}, {r}) or ({d * r}, {d * r}) matrix, got shape {C.shape}")
+        if C.shape == (r, r):
+            self._X0, self._C = X0, C
+            self._Cfull = np.kron(np.eye(d), C)
+        else:
+            blocks = C.reshape(d, r, d, r)
+            same = all(np.array_equal(blocks[a, :, a, :], blocks[0, :, 0, :]) for a in range(d))
+            off = all(not np.any(blocks[a, :, b, :]) for a in range(d) for b in range(d) if a != b)
+            self._X0, self._Cfull = X0, C
+            self._C = blocks[0, :, 0, :].copy() if same and off else None
 
     def rest_strain(self) -> np.ndarray:
         return self._X0.copy()
 
     def potential(self, X: np.ndarray) -> np.ndarray:
         D = np.asarray(X, dtype=float) - self._X0
-        return 0.5 * np.einsum("...ak,kl,...al->...", D, self._C, D)
+        if self._C is not None:
+            return 0.5 * np.einsum("...ak,kl,...al->...", D, self._C, D)
+        F = D.reshape(*D.shape[:-2], -1)
+        return 0.5 * np.einsum("...k,kl,...l->...", F, self._Cfull, F)
 
     def stress(self, X: np.ndarray) -> np.ndarray:
         D = np.asarray(X, dtype=float) - self._X0
-        return np.einsum("kl,...al->...ak", self._C, D)
+        if self._C is not None:
+            return np.einsum("kl,...al->...ak", self._C, D)
+        F = D.reshape(*D.shape[:-2], -1)
+        return np.einsum("kl,...l->...k", self._Cfull, F).reshape(D.shape)
+
+    def potential_at(self, X: np.ndarray, X0: np.ndarray) -> np.ndarray:
+        F = (np.asarray(X, dtype=float) - X0).reshape(*np.shape(X)[:-2], -1)
+        return 0.5 * np.einsum("...k,kl,...l->...", F, self._Cfull, F)
+
+    def stress_at(self, X: np.ndarray, X0: np.ndarray) -> np.ndarray:
+        D = np.asarray(X, dtype=float) - X0
+        return np.einsum("kl,...l->...k", self._Cfull, D.reshape(*D.shape[:-2], -1)).reshape(D.shape)
 
     def stiffness(self, X: np.ndarray | None = None, eps: float = 1e-6) -> np.ndarray:
-        """``∂Q/∂X``: C on every axis, shape ``(d, r, d, r)`` (exact; X and eps are unused)."""
+        """``∂Q/∂X``, shape ``(d, r, d, r)`` (exact; X and eps are unused)."""
         d, r = self._X0.shape
-        H = np.zeros((d, r, d, r))
-        for a in range(d):
-            H[a, :, a, :] = self._C
-        return H
+        return self._Cfull.reshape(d, r, d, r).copy()
+
+    def point_kernels(self) -> MediumKernels | None:
+        """:func:`quadratic_energy_point` and :func:`quadratic_stress_point` with the full
+        ``(d·r, d·r)`` stiffness as parameters: the energy :meth:`_set_energy` declared.  None
+        when a subclass replaces that energy (overrides ``potential``, ``stress`` or
+        ``rest_strain``) without declaring its own kernels."""
+        if any(getattr(type(self), name) is not getattr(QuadraticMedium, name)
+               for name in ("potential", "stress", "rest_strain")):
+            return None
+        return MediumKernels(quadratic_energy_point, quadratic_stress_point, self._Cfull.ravel().copy())
 
     def quadratic_energy(self) -> tuple[np.ndarray, np.ndarray] | None:
         """``(X₀, C)`` for d = 1; None for d ≥ 2, where the compiled lattice loops read the
         rest strain per axis and ``C`` of a :class:`QuadraticMedium` directly (when it does
-        not override the energy methods)."""
-        if self._X0.shape[0] != 1:
+        not override the energy methods); None when the stiffness couples the axes."""
+        if self._X0.shape[0] != 1 or self._C is None:
             return None
         return self._X0[0].copy(), self._C.copy()
+
+
+class KernelMedium(Medium):
+    """A medium whose potential is written once, as numba point kernels.
+
+    Subclasses implement :meth:`point_kernels` (:class:`MediumKernels`), :meth:`inertia` and
+    :meth:`rest_strain`; :meth:`potential`, :meth:`stress` and their ``_at`` forms (a rest
+    strain that varies over the body) evaluate the kernels over any batch of points, so the
+    numpy reference path and the compiled loops run the same formulas.  ``docs/plugins.md``
+    has a complete example.
+    """
+
+    @abc.abstractmethod
+    def point_kernels(self) -> MediumKernels:
+        """The energy density and stress at one point (see :class:`MediumKernels`)."""
+
+    def _batch(self, which: str, X: np.ndarray, X0: np.ndarray) -> np.ndarray:
+        from .compiled.kernels import medium_batch
+
+        X = np.asarray(X, dtype=float)
+        d, r = X.shape[-2:]
+        lead = np.broadcast_shapes(X.shape[:-2], np.shape(X0)[:-2])
+        Xf = np.ascontiguousarray(np.broadcast_to(X, (*lead, d, r))).reshape(-1, d, r)
+        X0f = np.ascontiguousarray(np.broadcast_to(X0, (*lead, d, r))).reshape(-1, d, r)
+        kernels = self.point_kernels()
+        params = np.ascontiguousarray(kernels.params, dtype=float).ravel()
+        module = medium_batch(kernels)
+        if which == "energy":
+            out = np.empty(Xf.shape[0])
+            module.energy_batch(Xf, X0f, params, out)
+            return out.reshape(lead)
+        out = np.empty_like(Xf)
+        module.stress_batch(Xf, X0f, params, out)
+        return out.reshape(*lead, d, r)
+
+    def potential(self, X: np.ndarray) -> np.ndarray:
+        return self._batch("energy", X, np.asarray(self.rest_strain(), dtype=float))
+
+    def stress(self, X: np.ndarray) -> np.ndarray:
+        return self._batch("stress", X, np.asarray(self.rest_strain(), dtype=float))
+
+    def potential_at(self, X: np.ndarray, X0: np.ndarray) -> np.ndarray:
+        return self._batch("energy", X, X0)
+
+    def stress_at(self, X: np.ndarray, X0: np.ndarray) -> np.ndarray:
+        return self._batch("stress", X, X0)

@@ -19,6 +19,7 @@ axis: ``"start"``/``"end"`` for d = 1 (or ``"u-start"``, ``"v-end"``, … in gen
 from __future__ import annotations
 
 import abc
+from collections.abc import Mapping
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -39,6 +40,23 @@ __all__ = [
     "Problem",
     "UniformForce",
 ]
+
+
+# ---------------------------------------------------------------------------- validation
+def _numeric(name: str, value: Any) -> Any:
+    """``value`` if it is numeric data (numbers or arrays of them); a ValueError naming ``name``
+    for strings, booleans and other objects, which ``np.asarray(value, float)`` would convert."""
+    arr = np.asarray(value) if not isinstance(value, str | bytes) else None
+    if arr is None or arr.dtype.kind not in "iuf":
+        raise ValueError(f"{name} must be a real number or an array of real numbers, got {value!r}")
+    return value
+
+
+def _flag(name: str, value: Any) -> bool:
+    """``value`` as a bool when it is one (Python or numpy); a ValueError naming ``name`` otherwise."""
+    if not isinstance(value, bool | np.bool_):
+        raise ValueError(f"{name} must be True or False, got {value!r}")
+    return bool(value)
 
 
 # ---------------------------------------------------------------------------- boundaries
@@ -68,6 +86,13 @@ class Free(Boundary):
     load: Any = None
     follower: bool = False
     kind: str = field(default="free", init=False)
+
+    def __post_init__(self):
+        self.follower = _flag("follower", self.follower)
+        if self.load is not None:
+            load = check_finite("load", _numeric("load", self.load))
+            if load.ndim != 1:
+                raise ValueError(f"load must be a vector of load components, got shape {load.shape}")
 
     def to_dict(self) -> dict[str, Any]:
         return {"kind": "free", "load": None if self.load is None else np.asarray(self.load).tolist(),
@@ -235,7 +260,9 @@ class UniformForce(Load):
 
     def bind(self, medium):
         self._group = medium.group
-        self.components = check_finite("components", self.components, (medium.group.dim,))
+        self.components = check_finite(
+            "components", _numeric("components", self.components), (medium.group.dim,)
+        )
 
     def force(self, Phi, N, t):
         if self.frame == "body":
@@ -256,7 +283,7 @@ class Damping(Load):
     velocity_dependent: bool = field(default=True, init=False)
 
     def bind(self, medium):
-        c = np.asarray(self.coefficients, dtype=float)
+        c = np.asarray(_numeric("coefficients", self.coefficients), dtype=float)
         if c.ndim == 0:
             c = np.full(medium.group.dim, float(c))
         self.coefficients = check_positive("coefficients", c, allow_zero=True, shape=(medium.group.dim,))
@@ -316,8 +343,15 @@ class Problem:
     boundaries: dict[str, Boundary] = field(default_factory=dict)
     loads: list[Load] = field(default_factory=list)
     name: str = ""
+    #: the stress-free reference configuration Φ_ref ``(*grid.shape, m, m)`` (or an
+    #: :class:`InitialState` with a holonomy for a periodic axis), when the rest strain varies
+    #: over the body (curved shells, rods with varying natural curvature): the rest strain at
+    #: each point is then that of Φ_ref (on the lattice, X₀ of an edge is log(Φ_ref,i⁻¹Φ_ref,j)/h,
+    #: so Φ_ref is exactly stress-free).  None: the medium's constant ``rest_strain()``.
+    reference: Any = None
 
     def __post_init__(self):
+        self._check_types()
         g = self.medium.group
         if self.medium.material_dim != self.grid.d:
             raise ValueError(
@@ -325,17 +359,18 @@ class Problem:
                 f"dimension {self.medium.material_dim}"
             )
         shape = self.grid.shape
-        Phi = check_finite("initial.Phi", self.initial.Phi, (*shape, g.matrix_size, g.matrix_size))
+        Phi = check_finite("initial.Phi", _numeric("initial.Phi", self.initial.Phi),
+                           (*shape, g.matrix_size, g.matrix_size))
         defect = float(np.max(g.defect(Phi)))
         if defect > 1e-8:
             raise ValueError(f"initial.Phi is not in {g.name}: defect {defect:.2e} > 1e-8")
         N = np.zeros((*shape, g.dim)) if self.initial.N is None else self.initial.N
-        N = check_finite("initial.N", N, (*shape, g.dim))
+        N = check_finite("initial.N", _numeric("initial.N", N), (*shape, g.dim))
         H = self.initial.holonomy
         if H is not None:
             if not (self.grid.d == 1 and self.grid.periodic[0]):
                 raise ValueError("initial.holonomy is only meaningful on a periodic grid with d = 1")
-            H = check_finite("initial.holonomy", H, (g.matrix_size, g.matrix_size))
+            H = check_finite("initial.holonomy", _numeric("initial.holonomy", H), (g.matrix_size, g.matrix_size))
             if float(g.defect(H)) > 1e-8:
                 raise ValueError(f"initial.holonomy is not in {g.name}")
         self.initial = InitialState(Phi=Phi, N=N, holonomy=H)
@@ -347,10 +382,51 @@ class Problem:
                 raise ValueError(f"boundaries[{key!r}] must be Free(...) or Clamped(), got {b!r}")
             if isinstance(b, Free) and b.load is not None:
                 b.load = check_finite(f"boundaries[{key!r}].load", b.load, (g.dim,))
+        ends = {}
+        for key in self.boundaries:  # "start" and "u-start" are the same end (d = 1)
+            end = f"{self.grid.axis_names[0]}-{key}" if key in ("start", "end") else key
+            if end in ends:
+                raise ValueError(
+                    f"boundaries: {ends[end]!r} and {key!r} name the same end; give one condition per end"
+                )
+            ends[end] = key
         for load in self.loads:
             if not isinstance(load, Load):
                 raise ValueError(f"loads must be Load instances, got {load!r}")
             load.bind(self.medium)
+        if self.reference is not None:
+            ref = self.reference if isinstance(self.reference, InitialState) else InitialState(Phi=self.reference)
+            Phi_ref = check_finite("reference", ref.Phi, (*shape, g.matrix_size, g.matrix_size))
+            if float(np.max(g.defect(Phi_ref))) > 1e-8:
+                raise ValueError(f"reference is not in {g.name}")
+            H_ref = None
+            if ref.holonomy is not None:
+                if not (self.grid.d == 1 and self.grid.periodic[0]):
+                    raise ValueError("reference.holonomy is only meaningful on a periodic grid with d = 1")
+                H_ref = check_finite("reference.holonomy", ref.holonomy, (g.matrix_size, g.matrix_size))
+            self.reference = InitialState(Phi=Phi_ref, holonomy=H_ref)
+
+    def _check_types(self) -> None:
+        """TypeError naming the argument for arguments of the wrong kind."""
+        expected = (("medium", Medium, "a Medium (cartan.medium(name, ...))"), ("grid", Grid, "a Grid"),
+                    ("initial", InitialState, "an InitialState (medium.initial_state(grid, kind))"))
+        for name, cls, what in expected:
+            value = getattr(self, name)
+            if not isinstance(value, cls):
+                raise TypeError(f"{name} must be {what}, got {type(value).__name__}")
+        if not isinstance(self.boundaries, Mapping):
+            raise TypeError(
+                f"boundaries must be a dict {{end: Free(...) or Clamped()}}, got {type(self.boundaries).__name__}"
+            )
+        self.boundaries = dict(self.boundaries)
+        for key in self.boundaries:
+            if not isinstance(key, str):
+                raise TypeError(f"boundaries: ends are named by strings ('start', 'u-end', ...), got {key!r}")
+        if not isinstance(self.loads, list | tuple):
+            raise TypeError(f"loads must be a list of Load instances, got {type(self.loads).__name__}")
+        self.loads = list(self.loads)
+        if not isinstance(self.name, str):
+            raise TypeError(f"name must be a string, got {type(self.name).__name__}")
 
     def boundary_names(self) -> set[str]:
         names = set()

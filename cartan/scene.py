@@ -65,6 +65,19 @@ Every problem found while reading a scene — malformed TOML, a missing or unkno
 unknown medium, integrator, scheme or load kind, a parameter the medium rejects — raises
 :class:`SceneError` with one line naming the file and the key, e.g.
 ``rod.toml: parameters: E must be > 0, got -1.0``.
+
+Values and limits
+-----------------
+Scene files are regular files of at most :data:`MAX_SCENE_BYTES` (1 MiB), UTF-8 with or
+without a byte-order mark, nested at most :data:`MAX_NESTING` levels deep.  A number is a
+TOML number: a string that spells a number or a boolean (``"1e5"``, ``"inf"``, ``"false"``)
+is an error wherever it appears (except ``name`` and ``description``), and a boolean is not
+a number (``E = true`` is an error; a keyword takes ``true``/``false`` only where the
+constructor declares a boolean default, or in ``[initial]`` and ``[[loads]]`` tables, which
+the medium checks).  Numbers are finite, integers fit in 64 bits.  Grids are bounded by the
+memory their state needs (:func:`check_memory`, :envvar:`CARTAN_MAX_MEMORY`), time-step counts
+by :func:`step_limit` (:envvar:`CARTAN_MAX_STEPS`), and the work of static and continuation
+solves by :data:`MAX_LOAD_STEPS`, :data:`MAX_ITERATIONS` and :data:`MAX_PATH_POINTS`.
 """
 
 from __future__ import annotations
@@ -72,17 +85,40 @@ from __future__ import annotations
 import inspect
 import math
 import numbers
+import os
 import pathlib
+import re
+import stat
 import tomllib
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 from typing import Any
 
+import numpy as np
+
 from .grid import Grid
 from .plugins import get_registry
 from .problem import Clamped, Damping, Free, Problem, UniformForce
 
-__all__ = ["MODES", "Measure", "Scene", "SceneError", "load_scene", "scene"]
+__all__ = [
+    "MAX_ITERATIONS",
+    "MAX_LOAD_STEPS",
+    "MAX_NESTING",
+    "MAX_PATH_POINTS",
+    "MAX_SCENE_BYTES",
+    "MODES",
+    "Measure",
+    "Scene",
+    "SceneError",
+    "check_memory",
+    "format_bytes",
+    "load_scene",
+    "memory_limit",
+    "read_scene_file",
+    "scene",
+    "state_bytes",
+    "step_limit",
+]
 
 MODES = ("dynamic", "static", "continuation")
 _TOP_KEYS = {
@@ -130,6 +166,172 @@ class SceneError(ValueError):
 
     The message is a single line ``"<source>: <key>: <what is wrong>"``.
     """
+
+
+# ---------------------------------------------------------------------------- limits
+#: largest scene file read, in bytes (1 MiB)
+MAX_SCENE_BYTES = 1 << 20
+#: deepest nesting of tables and arrays in a scene
+MAX_NESTING = 32
+#: largest ``[static] load_steps``
+MAX_LOAD_STEPS = 10_000
+#: largest ``max_iterations`` of ``[static]`` and ``[continuation]``
+MAX_ITERATIONS = 10_000
+#: largest ``[continuation] max_steps``
+MAX_PATH_POINTS = 100_000
+#: time steps a run may take unless ``max_steps`` or :envvar:`CARTAN_MAX_STEPS` says otherwise
+DEFAULT_MAX_STEPS = 10**9
+STEPS_ENV = "CARTAN_MAX_STEPS"
+MEMORY_ENV = "CARTAN_MAX_MEMORY"
+_BYTE_UNITS = {"": 1, "K": 1 << 10, "M": 1 << 20, "G": 1 << 30, "T": 1 << 40}
+
+
+def _count(text: str) -> int | None:
+    """An integer written as ``1000000``, ``1_000_000`` or ``1e6``; None if it is none."""
+    try:
+        return int(text)
+    except ValueError:
+        pass
+    try:
+        value = float(text)
+    except ValueError:
+        return None
+    return int(value) if math.isfinite(value) and value.is_integer() else None
+
+
+def step_limit(max_steps: int | None = None) -> int:
+    """The largest number of time steps a run may take.
+
+    Parameters
+    ----------
+    max_steps : int, optional
+        An explicit limit (``simulate(max_steps=...)``, ``cartan run --max-steps``).  By
+        default the environment variable ``CARTAN_MAX_STEPS``, else :data:`DEFAULT_MAX_STEPS`
+        (10⁹).
+
+    Returns
+    -------
+    int
+
+    Raises
+    ------
+    ValueError
+        Naming ``max_steps`` or ``CARTAN_MAX_STEPS`` when it is not an integer ≥ 1.
+    """
+    if max_steps is None:
+        text = os.environ.get(STEPS_ENV, "").strip()
+        if not text:
+            return DEFAULT_MAX_STEPS
+        value = _count(text)
+        if value is None or value < 1:
+            raise ValueError(f"{STEPS_ENV} must be an integer ≥ 1, got {text!r}")
+        return value
+    if isinstance(max_steps, bool) or not isinstance(max_steps, numbers.Integral) or max_steps < 1:
+        raise ValueError(f"max_steps must be an integer ≥ 1, got {max_steps!r}")
+    return int(max_steps)
+
+
+def memory_limit() -> int:
+    """The memory, in bytes, that a run's arrays may take.
+
+    The environment variable ``CARTAN_MAX_MEMORY`` (a byte count, or a size such as ``512M``,
+    ``8G``, ``1.5T``: binary units) or, by default, half the machine's physical memory
+    (4 GiB where that is unknown).
+
+    Returns
+    -------
+    int
+
+    Raises
+    ------
+    ValueError
+        Naming ``CARTAN_MAX_MEMORY`` when it is not a positive size.
+    """
+    text = os.environ.get(MEMORY_ENV, "").strip()
+    if text:
+        match = re.fullmatch(r"([0-9][0-9_.eE+]*)\s*([kKmMgGtT]?)(?:i?[bB])?", text)
+        try:
+            value = float(match[1]) * _BYTE_UNITS[match[2].upper()] if match else math.nan
+        except ValueError:
+            value = math.nan
+        if not (math.isfinite(value) and value >= 1):
+            raise ValueError(f"{MEMORY_ENV} must be a size in bytes such as 8G, 512M or 1000000, got {text!r}")
+        return int(value)
+    try:
+        total = os.sysconf("SC_PAGE_SIZE") * os.sysconf("SC_PHYS_PAGES")
+    except (AttributeError, ValueError, OSError):
+        total = 0
+    return total // 2 if total > 0 else 4 << 30
+
+
+def format_bytes(n: float) -> str:
+    """A size for messages.
+
+    Parameters
+    ----------
+    n : float
+        Bytes.
+
+    Returns
+    -------
+    str
+        ``"512 B"``, ``"7.45 GiB"``, ``"1013 GiB"``, ``"1.48 TiB"`` (binary units).
+    """
+    unit = "B"
+    for unit in ("B", "KiB", "MiB", "GiB", "TiB"):
+        if abs(n) < 1024 or unit == "TiB":
+            break
+        n /= 1024
+    return f"{n:.0f} {unit}" if unit == "B" or abs(n) >= 100 else f"{n:.3g} {unit}"
+
+
+def state_bytes(group: Any, nodes: int, d: int = 1) -> float:
+    """A lower estimate of the memory a run's state takes on ``nodes`` nodes.
+
+    Six float64 copies (the state, the forces and the scheme's work arrays) of the frames
+    Φ (m × m), the velocity and momentum (r each) and the strains (d × r) of every node, for a
+    group of matrix size m and dimension r: 1.6 kB a node for a rod on SE(3).
+
+    Parameters
+    ----------
+    group : SymmetryGroup
+    nodes : int
+    d : int
+        Material dimension.
+
+    Returns
+    -------
+    float
+        Bytes.
+    """
+    m, r = int(group.matrix_size), int(group.dim)
+    return 6.0 * 8.0 * float(nodes) * (m * m + (2 + d) * r)
+
+
+def check_memory(what: str, nbytes: float, advice: str = "") -> None:
+    """Refuse work whose arrays would need more than :func:`memory_limit`.
+
+    Parameters
+    ----------
+    what : str
+        What needs the memory (``"a grid of 1000000000 nodes"``).
+    nbytes : float
+        The estimate.
+    advice : str
+        How to need less (``"use fewer nodes"``).
+
+    Raises
+    ------
+    ValueError
+        Naming ``what``, the estimate, the limit and how to raise it.
+    """
+    limit = memory_limit()
+    if not nbytes <= limit:
+        hint = f"{advice}, or raise" if advice else "raise"
+        raise ValueError(
+            f"{what} needs ≈ {format_bytes(nbytes)} of memory, above the limit of {format_bytes(limit)}; "
+            f"{hint} the limit with the environment variable {MEMORY_ENV} (e.g. {MEMORY_ENV}=64G)"
+        )
 
 
 @dataclass(frozen=True)
@@ -283,7 +485,8 @@ class Scene:
         Raises
         ------
         ValueError
-            Run options given to a static or continuation scene.
+            Run options given to a static or continuation scene; an ``output`` that cannot be
+        written (a missing folder, not a regular file: :func:`cartan.io.check_output`).
         cartan.statics.ConvergenceError
             Newton's method or the path following failed.
         """
@@ -296,10 +499,12 @@ class Scene:
                 f"scene {self.name!r} has mode = {self.mode!r}: run options {', '.join(sorted(options))} apply to "
                 f"dynamic scenes only; change the [{self.mode}] table instead"
             )
+        from . import io
+
+        if output is not None:
+            io.check_output(output)  # before the work, not after it
         ds = _solve_static(self, command) if self.mode == "static" else _follow_path(self, command)
         if output is not None:
-            from . import io
-
             io.write_dataset(ds, output)
         return ds
 
@@ -355,12 +560,20 @@ class _Reader:
             raise self.fail(_join(where, key), f"must be > 0, got {value!r}")
         return float(value)
 
-    def integer(self, data: Mapping, key: str, where: str, minimum: int = 1) -> int | None:
+    def integer(
+        self, data: Mapping, key: str, where: str, minimum: int = 1, maximum: int | None = None
+    ) -> int | None:
         if key not in data:
             return None
         value = data[key]
-        if isinstance(value, bool) or not isinstance(value, numbers.Integral) or value < minimum:
-            raise self.fail(_join(where, key), f"must be an integer ≥ {minimum}, got {value!r}")
+        if (
+            isinstance(value, bool)
+            or not isinstance(value, numbers.Integral)
+            or value < minimum
+            or (maximum is not None and value > maximum)
+        ):
+            allowed = f"in {minimum}..{maximum}" if maximum is not None else f"≥ {minimum}"
+            raise self.fail(_join(where, key), f"must be an integer {allowed}, got {value!r}")
         return int(value)
 
     def no_extra(self, data: Mapping, allowed: set[str], where: str) -> None:
@@ -371,6 +584,123 @@ class _Reader:
 
 def _join(where: str, key: str) -> str:
     return f"{where}.{key}" if where else key
+
+
+#: top-level keys whose strings are free text (not checked for spelled-out numbers)
+_FREE_TEXT = ("name", "description")
+_BOOLEAN_WORDS = ("true", "false", "yes", "no", "on", "off")
+
+
+def _spelled(text: str) -> str | None:
+    """What a string spells when it reads as a number or a boolean (``"1e5"``, ``"false"``)."""
+    word = text.strip().lower()
+    if word in _BOOLEAN_WORDS:
+        return "true or false"
+    try:
+        float(word)
+    except ValueError:
+        return None
+    return "a number"
+
+
+def _is_number(value: Any) -> bool:
+    return isinstance(value, numbers.Real) and not isinstance(value, bool)
+
+
+def _check_values(reader: _Reader, value: Any, key: str = "", depth: int = 0) -> None:
+    """The value rules of every scene table (see the module docstring): bounded nesting,
+    finite numbers, 64-bit integers, no booleans among numbers, no numbers or booleans
+    spelled as strings."""
+    if depth > MAX_NESTING:
+        raise reader.fail(key, f"tables and arrays nested deeper than {MAX_NESTING} levels")
+    if isinstance(value, Mapping):
+        for k, v in value.items():
+            if not (depth == 0 and k in _FREE_TEXT):
+                _check_values(reader, v, _join(key, str(k)), depth + 1)
+    elif isinstance(value, list | tuple):
+        numeric = any(_is_number(v) for v in value)
+        for i, v in enumerate(value):
+            if numeric and isinstance(v, bool):
+                raise reader.fail(f"{key}[{i}]", f"must be a number, got {v!r} (a boolean is not a number)")
+            _check_values(reader, v, f"{key}[{i}]", depth + 1)
+    elif isinstance(value, bool):
+        return
+    elif isinstance(value, numbers.Integral):
+        if not -(2**63) <= value < 2**63:
+            raise reader.fail(key, f"integer out of range (64 bits), got {value!r}")
+    elif isinstance(value, numbers.Real):
+        if not math.isfinite(value):
+            raise reader.fail(key, f"must be a finite number, got {value!r}")
+    elif isinstance(value, str):
+        what = _spelled(value)
+        if what is not None:
+            raise reader.fail(key, f"must be {what}, not the string {value!r} (write it without quotes)")
+
+
+def _declared_flags(target: Any) -> set[str] | None:
+    """The keywords of ``target`` declared as booleans (a bool default or a ``bool``
+    annotation); None when its signature cannot be read."""
+    try:
+        sig = inspect.signature(target)
+    except (TypeError, ValueError):
+        return None
+    return {
+        p.name
+        for p in sig.parameters.values()
+        if isinstance(p.default, bool) or p.annotation in (bool, "bool", "bool | None")
+    }
+
+
+def _check_flags(reader: _Reader, target: Any, params: Mapping, key: str) -> None:
+    """Booleans only for the keywords ``target`` declares as booleans: a boolean is not a number."""
+    flags = _declared_flags(target)
+    if flags is None:
+        return
+    for name, value in params.items():
+        if name in flags:
+            continue
+        if isinstance(value, bool) or (isinstance(value, list) and any(isinstance(v, bool) for v in value)):
+            raise reader.fail(
+                _join(key, name), f"must be a number, got {value!r} (a boolean is not a number; "
+                                  f"true/false are for the switches{' ' + ', '.join(sorted(flags)) if flags else ''})"
+            )
+
+
+def _numbers_in(value: Any) -> list[float]:
+    if _is_number(value):
+        return [float(value)] if math.isfinite(float(value)) else []
+    if isinstance(value, list | tuple):
+        return [x for v in value for x in _numbers_in(v)]
+    return []
+
+
+def _out_of_range(values: Mapping, exc: BaseException) -> str:
+    """The message of an overflow while building from ``values``: the entry of the most extreme
+    magnitude is named (the likely cause)."""
+    reason = exc.args[-1] if exc.args and isinstance(exc.args[-1], str) else _one_line(exc)
+    best: tuple[float, str, float] | None = None
+    for name, value in values.items():
+        for x in _numbers_in(value):
+            size = abs(math.log10(abs(x))) if x else 0.0
+            if best is None or size > best[0]:
+                best = (size, str(name), x)
+    if best is None:
+        return f"a value is out of range: a quantity computed from it is not finite ({reason})"
+    return f"{best[1]} = {best[2]:g} is out of range: a quantity computed from it is not finite"
+
+
+def _building(reader: _Reader, key: str, values: Mapping, build: Any, *args: Any, **kwargs: Any) -> Any:
+    """``build(*args, **kwargs)``; a ValueError or TypeError becomes a SceneError naming ``key``, a
+    floating-point overflow or invalid operation one that names the most extreme of ``values``."""
+    try:
+        with np.errstate(over="raise", invalid="raise", divide="raise"):
+            return build(*args, **kwargs)
+    except SceneError:
+        raise
+    except (ValueError, TypeError) as exc:
+        raise reader.fail(key, _one_line(exc)) from None
+    except ArithmeticError as exc:
+        raise reader.fail(key, _out_of_range(values, exc)) from None
 
 
 _SINGULAR = {"media": "medium", "integrators": "integrator", "schemes": "scheme", "scenes": "scene"}
@@ -404,7 +734,7 @@ def _check_keywords(reader: _Reader, target: Any, params: Mapping, key: str, wha
 
 
 # ---------------------------------------------------------------------------- the parts
-def _grid(reader: _Reader, data: Mapping) -> Grid:
+def _grid(reader: _Reader, data: Mapping, medium: Any) -> Grid:
     g = reader.table(data, "grid", "", required=True)
     reader.no_extra(g, _GRID_KEYS, "grid")
     if "n" in g and "shape" in g:
@@ -420,11 +750,23 @@ def _grid(reader: _Reader, data: Mapping) -> Grid:
     else:
         raise reader.fail("grid.n", "missing key (number of nodes; or shape = [...] for d ≥ 2)")
     length = g.get("length", 1.0)
+    if not (_is_number(length) or (isinstance(length, list) and length and all(map(_is_number, length)))):
+        raise reader.fail("grid.length", f"must be a number > 0 or a list of them (one per axis), got {length!r}")
     periodic = g.get("periodic", False)
+    if not (
+        isinstance(periodic, bool)
+        or (isinstance(periodic, list) and periodic and all(isinstance(p, bool) for p in periodic))
+    ):
+        raise reader.fail(
+            "grid.periodic", f"must be true or false (or a list of them, one per axis), got {periodic!r}"
+        )
+    grid = _building(reader, "grid", g, Grid, shape, length=length, periodic=periodic)
+    nodes = math.prod(grid.shape)
     try:
-        return Grid(shape, length=length, periodic=periodic)
-    except (ValueError, TypeError) as exc:
-        raise reader.fail("grid", _one_line(exc)) from None
+        check_memory(f"a grid of {nodes} nodes", state_bytes(medium.group, nodes, grid.d), "use fewer nodes")
+    except ValueError as exc:
+        raise reader.fail("grid", str(exc)) from None
+    return grid
 
 
 def _boundaries(reader: _Reader, data: Mapping) -> dict:
@@ -479,12 +821,16 @@ def _loads(reader: _Reader, data: Mapping, medium) -> list:
                     raise reader.fail(
                         f"{key}.kind", f"unknown load kind {kind!r}; available: {', '.join(available)}"
                     )
-                load = medium.make_load(kind, **rest)
-            load.bind(medium)
+                with np.errstate(over="raise", invalid="raise", divide="raise"):
+                    load = medium.make_load(kind, **rest)
+            with np.errstate(over="raise", invalid="raise", divide="raise"):
+                load.bind(medium)
         except SceneError:
             raise
         except (ValueError, TypeError) as exc:
             raise reader.fail(f"{key} ({kind})", _one_line(exc)) from None
+        except ArithmeticError as exc:
+            raise reader.fail(f"{key} ({kind})", _out_of_range(rest, exc)) from None
         out.append(load)
     return out
 
@@ -498,10 +844,7 @@ def _initial(reader: _Reader, data: Mapping, medium, grid: Grid):
         raise reader.fail(
             "initial.kind", f"unknown initial state kind {kind!r}; available: {', '.join(kinds)}"
         )
-    try:
-        return medium.initial_state(grid, kind, **rest)
-    except (ValueError, TypeError) as exc:
-        raise reader.fail(f"initial ({kind})", _one_line(exc)) from None
+    return _building(reader, f"initial ({kind})", rest, medium.initial_state, grid, kind, **rest)
 
 
 def _run(reader: _Reader, data: Mapping, problem: Problem) -> dict[str, Any]:
@@ -520,17 +863,25 @@ def _run(reader: _Reader, data: Mapping, problem: Problem) -> dict[str, Any]:
     # validate names and options now, so that a bad scene fails before anything runs
     integ_name = out["integrator"] or "lie-verlet"
     cls = _lookup(reader, "integrators", integ_name, "run.integrator")
+    _check_flags(reader, cls, out["integrator_options"], "run.integrator_options")
     try:
-        cls(**out["integrator_options"])
+        with np.errstate(over="raise", invalid="raise", divide="raise"):
+            cls(**out["integrator_options"])
     except (ValueError, TypeError) as exc:
         raise reader.fail("run.integrator_options", f"{integ_name}: {_one_line(exc)}") from None
+    except ArithmeticError as exc:
+        raise reader.fail("run.integrator_options", _out_of_range(out["integrator_options"], exc)) from None
     scheme_name = out["scheme"] or "lattice"
     cls = _lookup(reader, "schemes", scheme_name, "run.scheme")
+    _check_flags(reader, cls, out["scheme_options"], "run.scheme_options")
+    key = "run.scheme_options" if out["scheme_options"] else "run.scheme"
     try:
-        cls(problem, **out["scheme_options"])
+        with np.errstate(over="raise", invalid="raise", divide="raise"):
+            cls(problem, **out["scheme_options"])
     except (ValueError, TypeError) as exc:
-        key = "run.scheme_options" if out["scheme_options"] else "run.scheme"
         raise reader.fail(key, f"{scheme_name}: {_one_line(exc)}") from None
+    except ArithmeticError as exc:
+        raise reader.fail(key, _out_of_range(out["scheme_options"], exc)) from None
     return out
 
 
@@ -632,8 +983,8 @@ def _static(reader: _Reader, data: Mapping, problem: Problem, path: pathlib.Path
     options = {
         "tol": reader.number(st, "tol", "static"),
         "xtol": reader.number(st, "xtol", "static"),
-        "max_iter": reader.integer(st, "max_iterations", "static"),
-        "load_steps": reader.integer(st, "load_steps", "static"),
+        "max_iter": reader.integer(st, "max_iterations", "static", maximum=MAX_ITERATIONS),
+        "load_steps": reader.integer(st, "load_steps", "static", maximum=MAX_LOAD_STEPS),
         "fd_step": reader.number(st, "fd_step", "static"),
     }
     out: dict[str, Any] = {"solver_options": {k: v for k, v in options.items() if v is not None}}
@@ -701,9 +1052,9 @@ def _continuation(reader: _Reader, data: Mapping, problem: Problem) -> dict[str,
         "ds_min": ds_min,
         "ds_max": ds_max,
         "lam_scale": reader.number(ct, "lambda_scale", w),
-        "max_points": reader.integer(ct, "max_steps", w, minimum=2),
+        "max_points": reader.integer(ct, "max_steps", w, minimum=2, maximum=MAX_PATH_POINTS),
         "tol": reader.number(ct, "tol", w),
-        "max_iter": reader.integer(ct, "max_iterations", w),
+        "max_iter": reader.integer(ct, "max_iterations", w, maximum=MAX_ITERATIONS),
         "locate_tol": reader.number(ct, "locate_tol", w),
         "fd_step": reader.number(ct, "fd_step", w),
         "detect": _boolean(reader, ct, "detect", w),
@@ -923,20 +1274,68 @@ def _parse(path_or_dict: Any) -> tuple[dict, pathlib.Path | None, str]:
     if not isinstance(path_or_dict, str | pathlib.PurePath):
         raise SceneError(f"load_scene expects a path or a dict, got {type(path_or_dict).__name__}")
     path = pathlib.Path(path_or_dict)
+    return read_scene_file(path), path, str(path)
+
+
+def read_scene_file(path: str | os.PathLike) -> dict[str, Any]:
+    """The tables of a TOML scene file, read within the limits of the module docstring.
+
+    Parameters
+    ----------
+    path : path-like
+        A regular file of at most :data:`MAX_SCENE_BYTES`, UTF-8 (a byte-order mark is
+        skipped).
+
+    Returns
+    -------
+    dict
+        The parsed TOML (not yet validated as a scene: :func:`load_scene` does that).
+
+    Raises
+    ------
+    SceneError
+        One line naming the file: missing, unreadable, not a regular file (a directory, a
+        device, a pipe), too large, not UTF-8, invalid TOML, or nested too deeply.
+    """
     label = str(path)
     try:
-        text = path.read_bytes()
+        # non-blocking, so that opening a pipe does not wait for a writer; regular files
+        # read as usual
+        fd = os.open(path, os.O_RDONLY | getattr(os, "O_NONBLOCK", 0))
     except FileNotFoundError:
         raise SceneError(f"{label}: no such file") from None
+    except (OSError, ValueError) as exc:
+        raise SceneError(f"{label}: cannot read: {getattr(exc, 'strerror', None) or _one_line(exc)}") from None
+    try:
+        info = os.fstat(fd)
+        if not stat.S_ISREG(info.st_mode):
+            what = "a directory" if stat.S_ISDIR(info.st_mode) else "a device, pipe or socket"
+            raise SceneError(f"{label}: not a regular file ({what}); a scene is a TOML file")
+        chunks, size = [], 0
+        while size <= MAX_SCENE_BYTES:
+            chunk = os.read(fd, MAX_SCENE_BYTES + 1 - size)
+            if not chunk:
+                break
+            chunks.append(chunk)
+            size += len(chunk)
     except OSError as exc:
         raise SceneError(f"{label}: cannot read: {exc.strerror or _one_line(exc)}") from None
+    finally:
+        os.close(fd)
+    if size > MAX_SCENE_BYTES:
+        raise SceneError(f"{label}: larger than {MAX_SCENE_BYTES} bytes (1 MiB), the limit for a scene file")
     try:
-        data = tomllib.loads(text.decode("utf-8"))
+        text = b"".join(chunks).decode("utf-8-sig")
     except UnicodeDecodeError:
         raise SceneError(f"{label}: not a UTF-8 text file") from None
+    try:
+        data = tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:
         raise SceneError(f"{label}: invalid TOML: {_one_line(exc)}") from None
-    return data, path, label
+    except RecursionError:
+        raise SceneError(f"{label}: invalid TOML: nested deeper than {MAX_NESTING} levels") from None
+    _check_values(_Reader(label), data)
+    return data
 
 
 def load_scene(path_or_dict: str | pathlib.Path | Mapping[str, Any]) -> Scene:
@@ -955,13 +1354,17 @@ def load_scene(path_or_dict: str | pathlib.Path | Mapping[str, Any]) -> Scene:
     Raises
     ------
     SceneError
-        One line naming the file and the key for every problem found: malformed TOML,
-        missing or unknown keys, unknown medium/integrator/scheme/load kind, a parameter the
-        medium rejects (e.g. a negative stiffness), an unknown ``mode`` or a bad value in
-        ``[static]`` / ``[continuation]``.
+        One line naming the file and the key for every problem found: a file that is not a
+        regular file of at most 1 MiB, malformed or too deeply nested TOML, missing or unknown
+        keys, a value against the rules of the module docstring (a number spelled as a string,
+        a boolean for a number, a non-finite number), unknown medium/integrator/scheme/load
+        kind, a parameter the medium rejects (e.g. a negative stiffness) or that makes a
+        computation overflow, a grid above the memory limit, an unknown ``mode`` or a bad
+        value in ``[static]`` / ``[continuation]``.
     """
     data, path, label = _parse(path_or_dict)
     reader = _Reader(label)
+    _check_values(reader, data)
     reader.no_extra(data, _TOP_KEYS, "")
     mode = _mode(reader, data)
     name = reader.string(data, "name", "", required=False, default=path.stem if path else "")
@@ -970,22 +1373,23 @@ def load_scene(path_or_dict: str | pathlib.Path | Mapping[str, Any]) -> Scene:
     cls = _lookup(reader, "media", medium_name, "medium")
     params = reader.table(data, "parameters", "")
     _check_keywords(reader, cls, params, "parameters", f"medium {medium_name!r}")
-    try:
-        medium = cls(**params)
-    except (ValueError, TypeError) as exc:
-        raise reader.fail("parameters", _one_line(exc)) from None
-    grid = _grid(reader, data)
+    _check_flags(reader, cls, params, "parameters")
+    medium = _building(reader, "parameters", params, cls, **params)
+    grid = _grid(reader, data, medium)
     boundaries = _boundaries(reader, data)
     loads = _loads(reader, data, medium)
     initial = _initial(reader, data, medium, grid)
     try:
-        problem = Problem(
-            medium=medium, grid=grid, initial=initial, boundaries=boundaries, loads=loads, name=name
-        )
+        with np.errstate(over="raise", invalid="raise", divide="raise"):
+            problem = Problem(
+                medium=medium, grid=grid, initial=initial, boundaries=boundaries, loads=loads, name=name
+            )
     except (ValueError, TypeError) as exc:
         msg = _one_line(exc)
         key = _problem_error_key(msg)
         raise reader.fail("" if msg.startswith(key) else key, msg) from None
+    except ArithmeticError as exc:
+        raise reader.fail("problem", _out_of_range(data.get("initial", {}), exc)) from None
     if mode == "dynamic":
         settings = _run(reader, data, problem)
     elif mode == "static":

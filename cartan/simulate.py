@@ -43,6 +43,7 @@ state as a checkpoint, to the output file (or to a temporary file when there is 
 from __future__ import annotations
 
 import math
+import numbers
 import os
 import pathlib
 import sys
@@ -56,7 +57,7 @@ import numpy as np
 from .integrators.base import Integrator
 from .plugins import get_registry
 from .problem import Problem
-from .scene import Scene, load_scene, scene
+from .scene import DEFAULT_MAX_STEPS, STEPS_ENV, Scene, check_memory, load_scene, scene, state_bytes, step_limit
 from .schemes.base import Scheme, State
 
 if TYPE_CHECKING:  # pragma: no cover
@@ -157,17 +158,83 @@ def _first(*values: Any) -> Any:
     return None
 
 
-def _nsteps(t_end: float, dt: float) -> int:
+def _nsteps(t_end: float, dt: float, limit: int = DEFAULT_MAX_STEPS) -> int:
+    """Steps of ``dt`` to reach ``t_end`` (``ceil(t_end/dt)``, or the nearest integer within
+    round-off); a ValueError when they exceed ``limit`` (or overflow)."""
     ratio = t_end / dt
+    if not ratio <= limit + 0.5:  # also inf and nan: t_end/dt overflows for dt → 0
+        raise ValueError(
+            f"t_end/dt = {t_end:g}/{dt:g} = {ratio:.3g} steps, above the limit of {limit} steps; give a larger dt "
+            f"or a shorter t_end, or raise the limit (max_steps=, cartan run --max-steps, or the environment "
+            f"variable {STEPS_ENV})"
+        )
     n = round(ratio)
     if abs(ratio - n) <= 1e-9 * max(1.0, ratio):
         return max(int(n), 0)
     return int(math.ceil(ratio))
 
 
+def _real(name: str, value: Any, *, positive: bool = True) -> float:
+    """``value`` as a float: a finite real number (not a bool or a string), > 0 by default."""
+    if isinstance(value, bool | np.bool_) or not isinstance(value, numbers.Real):
+        raise ValueError(f"{name} must be a real number, got {value!r}")
+    try:
+        x = float(value)
+    except OverflowError:  # an int beyond the floats
+        x = math.inf
+    if not math.isfinite(x) or (positive and not x > 0):
+        raise ValueError(f"{name} must be finite{' and > 0' if positive else ''}, got {value!r}")
+    return x
+
+
+def _count_of(name: str, value: Any) -> int | None:
+    """None or an integer ≥ 1 (not a bool; an integral float such as 10.0 is accepted)."""
+    if value is None:
+        return None
+    if (
+        isinstance(value, bool | np.bool_)
+        or not isinstance(value, numbers.Real)
+        or not math.isfinite(value)
+        or int(value) != value
+        or value < 1
+    ):
+        raise ValueError(f"{name} must be an integer ≥ 1, got {value!r}")
+    return int(value)
+
+
+def _check_arguments(
+    dt: Any, t_end: Any, save_every: Any, checkpoint_every: Any, output: Any, restart: Any,
+    integrator_options: Any, scheme_options: Any, progress: Any, max_energy_growth: Any, compiled: Any,
+    command: Any,
+) -> None:
+    """ValueError naming the first argument of :func:`simulate` of the wrong type or range."""
+    if dt is not None:
+        _real("dt", dt)
+    if t_end is not None:
+        _real("t_end", t_end)
+    _count_of("save_every", save_every)
+    _count_of("checkpoint_every", checkpoint_every)
+    for name, value in (("output", output), ("restart", restart)):
+        if value is not None and not isinstance(value, str | os.PathLike):
+            raise ValueError(f"{name} must be a path (str or os.PathLike), got {value!r}")
+        if isinstance(value, str) and not value:
+            raise ValueError(f"{name} must be a path, got ''")
+    for name, value in (("integrator_options", integrator_options), ("scheme_options", scheme_options)):
+        if value is not None and not isinstance(value, Mapping):
+            raise ValueError(f"{name} must be a dict of keyword arguments, got {value!r}")
+    if progress is not None and not isinstance(progress, bool | np.bool_):
+        raise ValueError(f"progress must be True, False or None, got {progress!r}")
+    if not isinstance(compiled, bool | np.bool_):
+        raise ValueError(f"compiled must be True or False, got {compiled!r}")
+    if max_energy_growth is not None:
+        _real("max_energy_growth", max_energy_growth)
+    if command is not None and not isinstance(command, str):
+        raise ValueError(f"command must be a string, got {command!r}")
+
+
 def _round_down(x: float, digits: int = 2) -> float:
     """``x`` rounded down to ``digits`` significant digits (a tidy default time step)."""
-    if not (x > 0 and math.isfinite(x)):
+    if not (x > 0 and math.isfinite(x)) or x < 1e-300:  # 10**e would underflow
         return x
     e = math.floor(math.log10(x)) - digits + 1
     return math.floor(x / 10.0**e) * 10.0**e
@@ -215,20 +282,31 @@ def _advance(
     if begin is not None:
         begin()
     with np.errstate(over="ignore", invalid="ignore", divide="ignore"):
-        fast = getattr(scheme, "compiled_advance", None) if compiled else None
-        own = getattr(integrator, "compiled_advance", None) if compiled else None  # its own compiled blocks
+        # the compiled paths, in order of preference: the integrator's own blocks, the scheme's
+        # hand-written loops, the integrator's generated loop over the scheme's operators
+        paths = []
+        if compiled:
+            own = getattr(integrator, "compiled_advance", None)
+            if own is not None:
+                paths.append(own)
+            fast = getattr(scheme, "compiled_advance", None)
+            if fast is not None:
+                paths.append(lambda s, st, h, n, lim: fast(integrator, st, h, n, kinetic_limit=lim))
+            generic = getattr(integrator, "run_compiled_loop", None)
+            if generic is not None:
+                paths.append(generic)
         energy_checks = getattr(guard, "energy_checks", True)
         kinetic_limit = getattr(guard, "kinetic_limit", lambda: math.inf)
-        while (own is not None or fast is not None) and k < nsteps:
+        while paths and k < nsteps:
             stop = min(nsteps, 1 << k.bit_length()) if energy_checks else nsteps
             before = state.scalars.get("nstep", 0)
             try:
-                ran = (own(scheme, state, dt, stop - k, kinetic_limit()) if own is not None
-                       else fast(integrator, state, dt, stop - k, kinetic_limit=kinetic_limit()))
+                ran = paths[0](scheme, state, dt, stop - k, kinetic_limit())
             except ConvergenceError as exc:  # the step after those done failed
                 return k + state.scalars.get("nstep", 0) - before + 1, str(exc)
             if not ran:
-                break
+                paths.pop(0)
+                continue
             k += state.scalars.get("nstep", 0) - before
             reason = guard(state, k)
             if reason is not None:
@@ -255,7 +333,8 @@ def _make_guard(scheme: Scheme, integrator: Integrator, growth: float | None, e0
     At the other steps, once the scale is established: the kinetic energy ½Σ w S²/m against
     ``growth × scale[0]`` (one pass over S).
     """
-    inv = np.where(scheme.live, 1.0 / np.where(scheme.live, scheme.mass, 1.0), 0.0)
+    # ½Σ w S²/|m| (M's diagonal): the kinetic energy for diagonal metrics, a norm of S otherwise
+    inv = np.abs(np.diag(scheme.inverse_metric))
     w = scheme.weights[..., None]
     momentum = integrator.uses_momentum
     compiled_energies = bool(getattr(scheme, "compiled_diagnostics", False)) and growth is not None
@@ -371,11 +450,47 @@ def _describe_dt(dt: float, dt_max: float) -> str:
 
 
 def _unstable_path(output: pathlib.Path | None) -> pathlib.Path:
+    """Where a blow-up leaves the last good state: beside the output (``out.lastgood.nc``,
+    :func:`cartan.io.lastgood_path`), which is never replaced by it; a temporary file without one."""
+    from . import io
+
     if output is not None:
-        return output
+        return io.lastgood_path(output)
     fd, name = tempfile.mkstemp(prefix="cartan-unstable-", suffix=".nc")
     os.close(fd)
     return pathlib.Path(name)
+
+
+def _frame_bytes(problem: Problem) -> float:
+    """A lower estimate of the memory of one saved frame: strains, velocity, momentum (r each
+    per node) and the configuration (m × m per node), float64."""
+    g = problem.medium.group
+    nodes = math.prod(problem.grid.shape)
+    return 8.0 * nodes * (int(g.matrix_size) ** 2 + (2 + problem.grid.d) * int(g.dim))
+
+
+def _checkpoint_scene_path(info: Mapping[str, Any], attrs: Mapping[str, Any] | None,
+                           restart: pathlib.Path) -> str | None:
+    """The scene file a checkpointed run came from: the checkpoint's ``scene_path``, else (a
+    file written without it) the ``scene_path`` of the run file's ``cartan_config``; None for a
+    run not started from a scene file.  A ``scene_path`` in the checkpoint that is neither None
+    nor a path is a ValueError naming the field."""
+    import json
+
+    if "scene_path" in info:
+        value = info["scene_path"]
+        if value is not None and not (isinstance(value, str) and value):
+            raise ValueError(
+                f"restart file {str(restart)!r}: damaged checkpoint: scene_path must be a path or null, "
+                f"got {value!r:.200}"
+            )
+        return value
+    try:
+        config = json.loads((attrs or {}).get("cartan_config", ""))
+    except (TypeError, ValueError):
+        return None
+    value = config.get("scene_path") if isinstance(config, dict) else None
+    return value if isinstance(value, str) and value else None
 
 
 # ---------------------------------------------------------------------------- simulate
@@ -396,6 +511,7 @@ def simulate(
     *,
     compiled: bool = True,
     command: str | None = None,
+    max_steps: int | None = None,
 ) -> xr.Dataset:
     """Run a problem and return its frames and diagnostics as an :class:`xarray.Dataset`.
 
@@ -411,23 +527,29 @@ def simulate(
     scheme : str or Scheme subclass, optional
         Registered name (default ``"lattice"``) or class.
     dt : float, optional
-        Time step.  Default: half the integrator's CFL estimate, rounded down to two
-        significant digits.  A Δt above the estimate gives a :class:`StabilityWarning`.
+        Time step, a finite real number > 0.  Default: half the integrator's CFL estimate,
+        rounded down to two significant digits.  A Δt above the estimate gives a
+        :class:`StabilityWarning` (after every setting has been checked, just before the run).
     t_end : float
         Final time (required unless a scene or the restart file gives it).  When Δt does not
-        divide it, the run takes ``ceil(t_end/Δt)`` steps.
+        divide it, the run takes ``ceil(t_end/Δt)`` steps: at least one (a ``t_end`` too short
+        for a single step is an error), at most ``max_steps``.
     save_every : int, optional
         Steps between saved frames (default: about 100 frames).  The initial and final
         states are always saved.
     output : path, optional
         netCDF file written (atomically) at every checkpoint and at the end, with the final
         state as a checkpoint so that the run can be continued.  With ``restart`` and no
-        ``output``, the restart file is updated in place.
+        ``output``, the restart file is updated in place.  Checked before the run
+        (:func:`cartan.io.check_output`: its folder exists and is writable, and it is not
+        anything but a regular file).
     restart : path, optional
         Continue the run saved in this file from its last checkpoint.  With the same
         settings the result is identical, bit for bit, to the uninterrupted run (only the
         ``history`` attribute and the force/wall-time counters in ``cartan_config``
-        differ).  A larger ``t_end`` extends a finished run.
+        differ).  A larger ``t_end`` extends a finished run.  The scene the run came from
+        (``scene`` and ``scene_path`` in ``cartan_config``) is kept when the restart is given
+        the Problem, or None.
     checkpoint_every : int, optional
         Write the run so far and the exact state to ``output`` every this many saves.
     integrator_options, scheme_options : dict, optional
@@ -436,7 +558,7 @@ def simulate(
         Show a progress bar (tqdm).  Default: only when stderr is a terminal and the
         environment variable ``CI`` is not set.
     max_energy_growth : float or None
-        Blow-up threshold (see the module docstring); None disables the energy tests
+        Blow-up threshold, finite and > 0 (see the module docstring); None disables the energy tests
         (non-finite values are always detected).  Integrators that prescribe N
         (``kinematic``: no stability limit and no momentum) have no energy budget to test and
         get the non-finite test only.
@@ -449,6 +571,10 @@ def simulate(
         parts use the same setting.
     command : str, optional
         Text recorded in the ``history`` attribute (default: a description of this call).
+    max_steps : int, optional
+        The most time steps the run may take (default: the environment variable
+        ``CARTAN_MAX_STEPS``, else 10⁹; :func:`cartan.scene.step_limit`).  The frames kept in
+        memory are bounded too (:func:`cartan.scene.check_memory`, ``CARTAN_MAX_MEMORY``).
 
     Returns
     -------
@@ -458,17 +584,24 @@ def simulate(
     Raises
     ------
     InstabilityError
-        When the run blows up; the last good state is on disk (see the exception).
+        When the run blows up; the last good state is on disk (see the exception), beside
+        ``output`` (``out.lastgood.nc`` for ``out.nc``; ``output`` itself is not replaced).
     ValueError
-        Bad settings (naming them); :class:`~cartan.scene.SceneError` for bad scenes.
+        Bad settings (naming them and the allowed range), a damaged restart file, an output
+        that cannot be written; :class:`~cartan.scene.SceneError` for bad scenes.
     """
     from . import io
 
+    _check_arguments(dt, t_end, save_every, checkpoint_every, output, restart, integrator_options,
+                     scheme_options, progress, max_energy_growth, compiled, command)
+    limit = step_limit(max_steps)
     # -- what to run and with which settings: explicit > restart file > scene > defaults
-    ck_state = ck_info = ck_records = ck_attrs = None
+    ck_state = ck_info = ck_records = ck_attrs = ck_scene_path = None
     if restart is not None:
         restart = pathlib.Path(restart)
         ck_state, ck_info, ck_records, ck_attrs = io.read_checkpoint(restart)
+        io.check_run_info(ck_info, restart)
+        ck_scene_path = _checkpoint_scene_path(ck_info, ck_attrs, restart)
         if output is None:
             output = restart
     if problem_or_scene is None:
@@ -505,6 +638,12 @@ def simulate(
     integ_obj: Integrator = integ(**iopts) if isinstance(integ, type) else integ
     if not isinstance(integ, type):
         integ_obj.reset()
+    live = getattr(scheme_obj, "live", None)
+    if integ_obj.uses_momentum and live is not None and not np.any(live):
+        raise ValueError(
+            f"medium {problem.medium.name!r} has no inertia (every component of its mass density is 0): "
+            "its parameters are out of range"
+        )
 
     problem_dict = problem.to_dict()
     if ck_info is not None:
@@ -513,12 +652,20 @@ def simulate(
                 f"restart file {str(restart)!r} was written for a different problem "
                 f"({ck_info.get('problem', {}).get('medium')!r}, {ck_info.get('problem', {}).get('grid')})"
             )
-        expected = set(scheme_obj.initial_state().arrays)
+        fresh = scheme_obj.initial_state()
+        expected = set(fresh.arrays)
         if set(ck_state.arrays) != expected:
             raise ValueError(
                 f"restart file {str(restart)!r} holds a {sorted(ck_state.arrays)} state but scheme "
                 f"{scheme_obj.name!r} with options {scheme_obj.options()} stores {sorted(expected)}"
             )
+        for name, a, b in [("S", ck_state.S, fresh.S),
+                           *((k, ck_state.arrays[k], fresh.arrays[k]) for k in sorted(expected))]:
+            if np.shape(a) != np.shape(b):
+                raise ValueError(
+                    f"restart file {str(restart)!r}: damaged checkpoint: {name} has shape {np.shape(a)}, the "
+                    f"problem's state {np.shape(b)}"
+                )
         state = ck_state
         integ_obj.nstep = int(ck_info["counters"]["nstep"])
         integ_obj.nforce = int(ck_info["counters"]["nforce"])
@@ -533,49 +680,74 @@ def simulate(
     else:
         with np.errstate(over="ignore", invalid="ignore", divide="ignore"):
             dt_max = float(integ_obj.dt_max(scheme_obj, state))
+    if math.isnan(dt_max):
+        raise ValueError(
+            f"the CFL estimate of {integ_obj.name!r} on {scheme_obj.name!r} is not a number: the medium's "
+            f"parameters or the grid spacing ({min(problem.grid.spacing):.3g}) are out of range"
+        )
     t_end = _first(t_end, ck_run.get("t_end"), run_defaults.get("t_end"))
     if t_end is None:
         raise ValueError("t_end is required (no scene or restart file gives it)")
-    t_end = float(t_end)
-    if not (math.isfinite(t_end) and t_end > 0):
-        raise ValueError(f"t_end must be finite and > 0, got {t_end!r}")
+    t_end = _real("t_end", t_end)
     dt = _first(dt, ck_run.get("dt"), run_defaults.get("dt"))
     if dt is None:
         if not (0 < dt_max < math.inf):
             raise ValueError(f"dt is required: the CFL estimate of {integ_obj.name!r} is {dt_max:g}")
         dt = _round_down(0.5 * dt_max)
-    dt = float(dt)
-    if not (math.isfinite(dt) and dt > 0):
-        raise ValueError(f"dt must be finite and > 0, got {dt!r}")
-    if dt > dt_max:
-        warnings.warn(
-            f"{_describe_dt(dt, dt_max)} of {integ_obj.name!r} on {scheme_obj.name!r} "
-            f"(grid spacing {min(problem.grid.spacing):.3g}); the run is likely to blow up",
-            StabilityWarning,
-            stacklevel=2,
-        )
-    if ck_info is not None and dt != ck_run.get("dt"):  # a new Δt counts the remaining time only
-        total = int(ck_info["step"]) + _nsteps(max(t_end - ck_state.t, 0.0), dt)
+    dt = _real("dt", dt)
+    if ck_info is not None:
+        t0, step0 = float(ck_state.t), int(ck_info["step"])
+        if t_end < t0 - 1e-9 * max(dt, abs(t0)):
+            raise ValueError(
+                f"t_end = {t_end:g} is before the time t = {t0:g} of the checkpoint in {str(restart)!r}; "
+                f"give t_end ≥ {t0:g}"
+            )
+        # a new Δt counts the remaining time only; the same Δt the steps from t = 0 (bit for bit).
+        # Nothing left to run (t_end = t of a finished run) returns the run as it is.
+        if dt != ck_run.get("dt"):
+            total = step0 + _nsteps(max(t_end - t0, 0.0), dt, limit)
+        else:
+            total = max(_nsteps(t_end, dt, limit + step0), step0)
     else:
-        total = _nsteps(t_end, dt)
+        total = _nsteps(t_end, dt, limit)
+        if total < 1:
+            raise ValueError(
+                f"t_end = {t_end:g} is too short for dt = {dt:g}: the run would take no step (give t_end ≥ dt)"
+            )
     save_every = _first(
         save_every, ck_run.get("save_every"), run_defaults.get("save_every"), max(1, total // DEFAULT_FRAMES)
     )
     checkpoint_every = _first(
         checkpoint_every, ck_run.get("checkpoint_every"), run_defaults.get("checkpoint_every")
     )
-    for name, value in (("save_every", save_every), ("checkpoint_every", checkpoint_every)):
-        if value is not None and (isinstance(value, bool) or int(value) != value or value < 1):
-            raise ValueError(f"{name} must be an integer ≥ 1, got {value!r}")
-    save_every = int(save_every)
-    checkpoint_every = None if checkpoint_every is None else int(checkpoint_every)
+    save_every = _count_of("save_every", save_every)
+    checkpoint_every = _count_of("checkpoint_every", checkpoint_every)
     if checkpoint_every is not None and output is None:
         raise ValueError("checkpoint_every needs an output file (output=path)")
     output = None if output is None else pathlib.Path(output)
+    if output is not None:  # before the run, not after it
+        io.check_output(output)
+        io.check_output(io.lastgood_path(output))
+    frames = (total - (int(ck_info["step"]) if ck_info is not None else 0)) // save_every + 2
+    if ck_records is not None:
+        frames += len(ck_records.get("time", ()))
+    nodes = math.prod(problem.grid.shape)
+    check_memory(
+        f"keeping {frames} frames of {nodes} nodes in memory",
+        frames * _frame_bytes(problem) + state_bytes(problem.medium.group, nodes, problem.grid.d),
+        f"save fewer frames (a larger save_every than {save_every})",
+    )
     # integrators that prescribe N (kinematic) have no energy budget to test; implicit ones
     # without a stability limit (stability = inf, uses_momentum) do
     no_budget = max_energy_growth is None or (integ_obj.stability == math.inf and not integ_obj.uses_momentum)
     growth = None if no_budget else float(max_energy_growth)
+    if dt > dt_max:  # every setting is valid: the run will start
+        warnings.warn(
+            f"{_describe_dt(dt, dt_max)} of {integ_obj.name!r} on {scheme_obj.name!r} "
+            f"(grid spacing {min(problem.grid.spacing):.3g}); the run is likely to blow up",
+            StabilityWarning,
+            stacklevel=2,
+        )
 
     run_config = {
         "integrator": integ_obj.name,
@@ -601,7 +773,15 @@ def simulate(
     history = io.history_line(command)
     if ck_attrs is not None and ck_attrs.get("history"):
         history = f"{ck_attrs['history']}\n{history}"
+    # the scene the run came from, kept across restarts (a restart given the Problem, or the
+    # scene rebuilt from the checkpoint, knows no file of its own)
     scene_source = sc.source if sc is not None and sc.source.get("medium") else None
+    scene_path = str(sc.path) if sc is not None and sc.path else None
+    if ck_info is not None:
+        if scene_source is None:
+            scene_source = ck_info.get("scene")
+        if scene_path is None:
+            scene_path = ck_scene_path
 
     def config() -> dict[str, Any]:
         return {
@@ -613,7 +793,7 @@ def simulate(
                 "wall_time": integ_obj.wall_time,
             },
             "scene": scene_source,
-            "scene_path": str(sc.path) if sc is not None and sc.path else None,
+            "scene_path": scene_path,
         }
 
     def dataset(recs: Mapping[str, list]) -> xr.Dataset:
@@ -648,6 +828,7 @@ def simulate(
                 "wall_time": integ_obj.wall_time,
             },
             "scene": scene_source,
+            "scene_path": scene_path,
             "step": at_step,
             "nsaves": at_saves,
             "nframes": nframes,
@@ -689,8 +870,11 @@ def simulate(
                     path = _unstable_path(output)
                     io.write_dataset(dataset(kept), path, checkpoint(good, nframes, good_step, good_saves))
                     where = f"saved to {path}"
-                except OSError as exc:
-                    path, where = None, f"could not be saved ({exc})"
+                    if output is not None:
+                        where += (f" ({output} is left as it was)" if output.exists()
+                                  else f" (nothing was written to {output})")
+                except (OSError, ValueError) as exc:
+                    path, where = None, f"could not be saved ({' '.join(str(exc).split())})"
                 raise InstabilityError(
                     f"unstable at step {step} (t = {state.t:.6g}): {reason}; {_describe_dt(dt, dt_max)}; "
                     f"last good state (t = {good.t:.6g}) {where}",

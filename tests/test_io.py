@@ -1,10 +1,14 @@
-"""Run output: Dataset layout and attributes, netCDF round trip, atomic writes."""
+"""Run output: Dataset layout and attributes, netCDF round trip, atomic writes, and safe files:
+checksums, only regular files replaced, stale temporary files, checkpoints checked field by field."""
 
 from __future__ import annotations
 
 import datetime
 import json
+import math
 import os
+import pathlib
+import stat
 
 import numpy as np
 import pytest
@@ -16,6 +20,7 @@ import cartan
 from cartan import io
 from cartan.api import Grid, InitialState, Problem, load_scene, simulate
 from cartan.plugins import reset_registry
+from cartan.schemes.base import State
 
 
 @pytest.fixture(scope="module")
@@ -234,3 +239,157 @@ def test_two_dimensional_layout():
     np.testing.assert_allclose(
         ds.X.isel(time=0).sel(axis="v"), np.broadcast_to(np.eye(6)[1], (4, 3, 6)), atol=1e-14
     )
+
+
+# ---------------------------------------------------------------------------- hardening: files
+def damage_data(path, value: float) -> None:
+    """Flip one byte of the stored float64 ``value`` (the first occurrence in the file): a
+    damaged data chunk, as a bad disk sector would leave it."""
+    data = bytearray(pathlib.Path(path).read_bytes())
+    at = data.find(np.float64(value).tobytes())
+    assert at >= 0, f"{value!r} is not stored in {path}"
+    data[at + 3] ^= 0xFF
+    pathlib.Path(path).write_bytes(bytes(data))
+
+
+def test_variables_carry_fletcher32_checksums(run, tmp_path):
+    import netCDF4
+
+    st = State(0.1, np.ones((2, 6)), {"Phi": np.eye(4)[None]}, {"nstep": 1})
+    path = io.write_dataset(run, tmp_path / "run.nc", checkpoint=io.checkpoint_dataset(st, {"nframes": 2}))
+    with netCDF4.Dataset(path) as nc:
+        for name in ("X", "position", "kinetic_energy", "time", "step"):
+            assert nc.variables[name].filters()["fletcher32"], name
+        assert nc.groups["checkpoint"].variables["S"].filters()["fletcher32"]
+
+
+def test_damaged_file_is_detected_when_read(run, tmp_path):
+    path = io.write_dataset(run, tmp_path / "run.nc")
+    damage_data(path, float(run.time[-1]))
+    with pytest.raises(ValueError, match=r"run\.nc: damaged or not a netCDF file"):
+        cartan.open(path)
+    (tmp_path / "junk.nc").write_bytes(b"not a netCDF file at all")
+    with pytest.raises(ValueError, match="damaged or not a netCDF file"):
+        cartan.open(tmp_path / "junk.nc")
+    with pytest.raises(FileNotFoundError):
+        cartan.open(tmp_path / "missing.nc")
+    with pytest.raises(ValueError, match="is a device, not a regular file"):
+        cartan.open("/dev/zero")
+    with pytest.raises(ValueError, match="is a directory, not a regular file"):
+        io.read_checkpoint(tmp_path)
+
+
+def test_only_regular_files_are_replaced(run, tmp_path):
+    with pytest.raises(ValueError, match="/dev/null: is a device; only regular files are replaced"):
+        io.write_dataset(run, "/dev/null")
+    assert stat.S_ISCHR(os.stat("/dev/null").st_mode)
+    (tmp_path / "folder.nc").mkdir()
+    with pytest.raises(ValueError, match="is a directory"):
+        io.write_dataset(run, tmp_path / "folder.nc")
+    assert sorted(os.listdir(tmp_path)) == ["folder.nc"]
+
+
+def test_check_output(tmp_path):
+    assert io.check_output(tmp_path / "new.nc") == tmp_path / "new.nc"
+    with pytest.raises(ValueError, match="the output folder .*missing.* does not exist"):
+        io.check_output(tmp_path / "missing" / "out.nc")
+    (tmp_path / "file").write_text("")
+    with pytest.raises(ValueError, match="is not a folder"):
+        io.check_output(tmp_path / "file" / "out.nc")
+    with pytest.raises(ValueError, match="is a device"):
+        io.check_output("/dev/null")
+    assert io.lastgood_path(tmp_path / "out.nc") == tmp_path / "out.lastgood.nc"
+    assert io.lastgood_path("run") == pathlib.Path("run.lastgood.nc")
+    assert io.lastgood_path("a.lastgood.nc") == pathlib.Path("a.lastgood.lastgood.nc")  # never the output
+
+
+def test_stale_temporary_files_are_removed_by_the_next_write(run, tmp_path):
+    """What ``kill -9`` during a write leaves behind is cleaned by the next write to the target;
+    the temporary files of live writers and of other targets are left alone."""
+    dead = 2**22 + 12345  # above the usual pid_max: no such process
+    stale = [f".run.nc.{dead}-0123456789abcdef.tmp", ".run.nc.ab_c1234.tmp"]
+    kept = [f".run.nc.{os.getpid()}-0123456789abcdef.tmp", f".run.nc.x.{dead}-0123456789abcdef.tmp",
+            f".other.nc.{dead}-0123456789abcdef.tmp"]
+    for name in stale + kept:
+        (tmp_path / name).write_bytes(b"half a file")
+    io.write_dataset(run, tmp_path / "run.nc")
+    assert sorted(os.listdir(tmp_path)) == sorted(["run.nc", *kept])
+
+
+@pytest.mark.parametrize("error", [KeyboardInterrupt, SystemExit, MemoryError])
+def test_temporary_file_is_removed_on_every_exit(run, tmp_path, monkeypatch, error):
+    real = xr.Dataset.to_netcdf
+
+    def interrupted(self, target, *args, **kwargs):
+        real(self, target, *args, **kwargs)
+        raise error()
+
+    monkeypatch.setattr(xr.Dataset, "to_netcdf", interrupted)
+    with pytest.raises(error):
+        io.write_dataset(run, tmp_path / "run.nc")
+    assert os.listdir(tmp_path) == []
+
+
+def _checkpoint_file(run, tmp_path):
+    st = State(0.1, np.ones((9, 6)), {"Phi": np.broadcast_to(np.eye(4), (9, 4, 4)).copy()}, {"nstep": 10})
+    info = {"problem": {}, "run": {"integrator": "lie-verlet", "scheme": "lattice", "dt": 0.01, "dt_max": 0.03,
+                                   "t_end": 0.1, "save_every": 2, "checkpoint_every": None},
+            "counters": {"nstep": 10, "nforce": 11, "wall_time": 0.1}, "scene": None, "step": 10, "nsaves": 5,
+            "nframes": 6, "e0": 0.5, "scale": 1.0, "scale_set": 1}
+    return io.write_dataset(run, tmp_path / "run.nc", checkpoint=io.checkpoint_dataset(st, info))
+
+
+@pytest.mark.parametrize(
+    ("edit", "expected"),
+    [
+        (lambda m: m.update(t=math.nan), "t must be a finite number, got nan"),
+        (lambda m: m.pop("t"), "t is missing"),
+        (lambda m: m["scalars"].update(nstep="ten"), "scalars must be a table of finite numbers"),
+        (lambda m: m.update(arrays=["Phi", "Psi"]), "the variable 'array_Psi' is missing"),
+        (lambda m: m.update(nframes=7), r"nframes must be an integer in 0\.\.6"),
+        (lambda m: m.update(nframes=-1), "nframes must be an integer"),
+        (lambda m: m.update(t=0.01), "the last saved time 0.1 is after the checkpoint time 0.01"),
+        (lambda m: m["run"].pop("dt"), "run.dt is missing"),
+        (lambda m: m["run"].update(dt=-0.01), "run.dt must be > 0"),
+        (lambda m: m["run"].update(dt_max=math.nan), "run.dt_max must be a number"),
+        (lambda m: m["run"].update(save_every=0), "run.save_every must be an integer ≥ 1"),
+        (lambda m: m["run"].update(integrator=3), "run.integrator must be a name"),
+        (lambda m: m.pop("counters"), "counters is missing"),
+        (lambda m: m["counters"].update(nforce=1.5), "counters.nforce must be an integer"),
+        (lambda m: m.update(step=-1), "step must be an integer ≥ 0"),
+        (lambda m: m.update(e0=math.inf), "e0 must be a finite number"),
+        (lambda m: m.update(problem=[]), "problem must be a table"),
+        (lambda m: m.update(scene="x"), "scene must be a table"),
+    ],
+)
+def test_checkpoints_are_checked_field_by_field(run, tmp_path, edit, expected):
+    import netCDF4
+
+    path = _checkpoint_file(run, tmp_path)
+    state, info, records, attrs = io.read_checkpoint(path)
+    io.check_run_info(info, path)  # the undamaged file passes
+    with netCDF4.Dataset(path, "a") as nc:
+        group = nc.groups[io.CHECKPOINT_GROUP]
+        meta = json.loads(group.getncattr("cartan_checkpoint"))
+        edit(meta)
+        group.setncattr("cartan_checkpoint", json.dumps(meta))
+    with pytest.raises(ValueError, match=f"damaged checkpoint: {expected}"):
+        _, info, _, _ = io.read_checkpoint(path)
+        io.check_run_info(info, path)
+
+
+def test_damaged_checkpoint_arrays_and_times(run, tmp_path):
+    import netCDF4
+
+    for damage, expected in (("S", "S holds non-finite values"), ("time", "the saved times are not finite"),
+                             ("json", "cartan_checkpoint is missing or not a JSON object")):
+        path = _checkpoint_file(run, tmp_path)
+        with netCDF4.Dataset(path, "a") as nc:
+            if damage == "S":
+                nc.groups[io.CHECKPOINT_GROUP].variables["S"][0, 0] = np.nan
+            elif damage == "time":
+                nc.variables["time"][2] = np.nan
+            else:
+                nc.groups[io.CHECKPOINT_GROUP].setncattr("cartan_checkpoint", "{")
+        with pytest.raises(ValueError, match=expected):
+            io.read_checkpoint(path)

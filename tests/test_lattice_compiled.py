@@ -140,7 +140,7 @@ def test_se3_with_a_gauge_component():
     medium = _QuadraticData("SE3", mass=[1.0, 1.0, 0.0, 0.05, 0.04, 0.03])
     problem = Problem(medium, base.grid, base.initial, {"start": Clamped()}, [Damping(0.1)])
     scheme, (ref, ri), (fast, fi) = run_both(problem, LieVerlet, 1e-3, 60)
-    assert any(len(piece) == 2 for piece, _ in fi._sequence(scheme))
+    assert any(np.count_nonzero(np.diag(P)) == 2 for P, _ in fi._sequence(scheme))
     assert_close_states(fast, ref)
     assert fi.nforce == ri.nforce
 
@@ -564,7 +564,7 @@ def test_blow_up_is_named_at_the_same_step(tmp_path, save_every):
     assert errors[0].step == errors[1].step
     masked = [re.sub(r"\d+(\.\d*)?(e[-+]\d+)?", "#", str(e).split(";")[0]) for e in errors]
     assert masked[0] == masked[1]
-    good = cartan.open(tmp_path / "blow-True.nc")
+    good = cartan.open(cartan.io.lastgood_path(tmp_path / "blow-True.nc"))
     assert float(good.time[-1]) < errors[0].time and np.all(np.isfinite(good.S.values))
 
 

@@ -6,7 +6,9 @@ shared with ``test_simulate.py`` and ``test_io.py`` through :func:`toy_registry`
 
 from __future__ import annotations
 
+import math
 import pathlib
+import re
 import textwrap
 import types
 
@@ -331,3 +333,180 @@ def test_cli_plot_missing_file(tmp_path):
     res = CliRunner().invoke(cli(), ["plot", str(tmp_path / "nothing.nc")])
     assert res.exit_code == 2
     assert res.output.startswith("cartan: error: ") and res.output.count("\n") == 1
+
+
+# ---------------------------------------------------------------------------- hardening: values and limits
+@pytest.mark.parametrize(
+    ("edit", "expected"),
+    [
+        (lambda s: s.replace("n = 11", 'n = "11"'), "grid.n: must be a number, not the string '11'"),
+        (lambda s: s.replace("length = 1.0", "length = true"), "grid.length: must be a number > 0"),
+        (lambda s: s.replace("length = 1.0", "length = 1.0\nperiodic = \"false\""),
+         "grid.periodic: must be true or false, not the string 'false'"),
+        (lambda s: s.replace("length = 1.0", "length = 1.0\nperiodic = 0"), "grid.periodic: must be true or false"),
+        (lambda s: s.replace("stiffness = [10.0,", "stiffness = [true,"), "parameters.stiffness[0]: must be a number"),
+        (lambda s: s.replace("stiffness = [10.0, 10.0, 10.0, 1.0, 1.0, 1.0]", "stiffness = true"),
+         "parameters.stiffness: must be a number, got True (a boolean is not a number"),
+        (lambda s: s.replace("curvature = 2.0", 'curvature = "2.0"'), "initial.curvature: must be a number, not"),
+        (lambda s: s.replace("curvature = 2.0", "curvature = inf"), "initial.curvature: must be a finite number"),
+        (lambda s: s.replace("curvature = 2.0", "curvature = nan"), "initial.curvature: must be a finite number"),
+        (lambda s: s.replace("dt = 0.01", 'dt = "1e-3"'), "run.dt: must be a number, not the string '1e-3'"),
+        (lambda s: s.replace("dt = 0.01", "dt = true"), "run.dt: must be a finite number, got True"),
+        (lambda s: s.replace("n = 11", "n = 99999999999999999999"), "grid.n: integer out of range (64 bits)"),
+        (lambda s: s.replace("n = 11", "n = 1000000000"), "grid: a grid of 1000000000 nodes needs ≈"),
+        (lambda s: s.replace("n = 11", "shape = [100000, 100000, 100000]"), "1000000000000000 nodes"),
+        (lambda s: s + '[[loads]]\nkind = "damping"\ncoefficients = [1, 1, 1, 1, 1, false]\n',
+         "loads[0].coefficients[5]: must be a number"),
+        (lambda s: s + '[[loads]]\nkind = "damping"\ncoefficients = true\n',
+         "loads[0] (damping): coefficients must be a real number or an array of real numbers"),
+        (lambda s: s + '[boundaries]\nend = { kind = "free", follower = "no" }\n',
+         "boundaries.end.follower: must be true or false, not the string 'no'"),
+        (lambda s: s + '[boundaries]\nstart = { kind = "clamped" }\nu-start = { kind = "free" }\n',
+         "boundaries: 'start' and 'u-start' name the same end"),
+        (lambda s: s + "x = " + "[" * 900 + "]" * 900 + "\n", "nested deeper than 32 levels"),
+        (lambda s: s + "x = " + "[" * 40 + "]" * 40 + "\n", "x[0][0][0]"),
+        (lambda s: s.replace("[run]", "[run.integrator_options]\nfoo = \"1\"\n[run]"), "must be a number, not"),
+    ],
+)
+def test_scene_values_are_strict(toy, edit, expected):
+    path = write(toy, edit(SCENE))
+    with pytest.raises(SceneError) as info:
+        load_scene(path)
+    msg = str(info.value)
+    assert "\n" not in msg and msg.startswith(f"{path}: "), msg
+    assert expected in msg, msg
+
+
+def test_free_text_may_spell_numbers(toy):
+    sc = load_scene(write(toy, SCENE.replace('description = "free bent toy rod"', 'description = "1e5"')
+                          .replace('name = "toy-butterfly"', 'name = "true"')))
+    assert sc.name == "true" and sc.description == "1e5"
+
+
+def test_byte_order_mark_is_accepted(toy):
+    path = toy / "bom.toml"
+    path.write_bytes(b"\xef\xbb\xbf" + SCENE.encode())
+    assert load_scene(path).name == "toy-butterfly"
+
+
+def test_scene_files_must_be_small_regular_files(toy):
+    with pytest.raises(SceneError, match=r"^/dev/zero: not a regular file \(a device"):
+        load_scene("/dev/zero")
+    with pytest.raises(SceneError, match="not a regular file .a directory"):
+        load_scene(toy)
+    big = write(toy, SCENE + "#" * (1 << 20), "big.toml")
+    with pytest.raises(SceneError, match="larger than 1048576 bytes"):
+        load_scene(big)
+    path = toy / "latin1.toml"
+    path.write_bytes(SCENE.replace("free bent", "fr\u00fch").encode("latin-1"))
+    with pytest.raises(SceneError, match="not a UTF-8 text file"):
+        load_scene(path)
+
+
+def test_booleans_where_the_constructor_declares_them(toy):
+    """true/false for the options declared as booleans, not for numbers."""
+    text = SCENE.replace("save_every = 5", "save_every = 5\n[run.scheme_options]\ntrack_frames = true")
+    assert load_scene(write(toy, text)).scheme_options == {"track_frames": True}
+    implicit = SCENE.replace('"lie-verlet"', '"implicit-midpoint"')
+    text = implicit.replace("save_every = 5", "save_every = 5\n[run.integrator_options]\nreuse_jacobian = false")
+    assert load_scene(write(toy, text)).integrator_options == {"reuse_jacobian": False}
+    text = implicit.replace("save_every = 5", "save_every = 5\n[run.integrator_options]\ntol = true")
+    with pytest.raises(SceneError, match="run.integrator_options.tol: must be a number, got True .* reuse_jacobian"):
+        load_scene(write(toy, text))
+
+
+def test_overflowing_parameters_name_the_parameter():
+    base = {"name": "x", "medium": "cosserat-rod", "grid": {"n": 5}, "initial": {"kind": "straight"},
+            "parameters": {"E": 1e4, "poisson": 0.5, "radius": 0.25, "density": 5000.0}}
+    for radius in (1e77, 1e100, 1e308):
+        with pytest.raises(SceneError, match=re.escape(f"parameters: radius = {radius:g} is out of range")):
+            load_scene({**base, "parameters": {**base["parameters"], "radius": radius}})
+    ring = {**base, "grid": {"n": 6, "periodic": True}, "initial": {"kind": "ring", "mode": math.inf}}
+    with pytest.raises(SceneError, match="initial.mode: must be a finite number, got inf"):
+        load_scene(ring)
+
+
+def test_static_and_continuation_work_is_bounded(toy):
+    static = textwrap.dedent(
+        """
+        name = "s"
+        mode = "static"
+        medium = "toy-rod"
+        [grid]
+        n = 5
+        [initial]
+        kind = "straight"
+        [static]
+        """
+    )
+    from cartan.scene import MAX_ITERATIONS, MAX_LOAD_STEPS
+
+    for key, limit in (("load_steps", MAX_LOAD_STEPS), ("max_iterations", MAX_ITERATIONS)):
+        with pytest.raises(SceneError, match=rf"static.{key}: must be an integer in 1..{limit}, got 1000000000"):
+            load_scene(write(toy, static + f"{key} = 1000000000\n"))
+    assert load_scene(write(toy, static + f"load_steps = {MAX_LOAD_STEPS}\n")).solver_options["load_steps"] == 10000
+
+
+def test_limits_from_the_environment(monkeypatch):
+    from cartan.scene import check_memory, memory_limit, step_limit
+
+    monkeypatch.delenv("CARTAN_MAX_STEPS", raising=False)
+    assert step_limit() == 10**9 and step_limit(5) == 5
+    for bad in (0, True, 1.5, "3"):
+        with pytest.raises(ValueError, match="max_steps must be an integer ≥ 1"):
+            step_limit(bad)
+    monkeypatch.setenv("CARTAN_MAX_STEPS", "1e6")
+    assert step_limit() == 10**6
+    monkeypatch.setenv("CARTAN_MAX_STEPS", "lots")
+    with pytest.raises(ValueError, match="CARTAN_MAX_STEPS must be an integer ≥ 1, got 'lots'"):
+        step_limit()
+    for text, value in (("8G", 8 << 30), ("512M", 512 << 20), ("1.5k", 1536), ("1000000", 10**6), ("2GiB", 2 << 30)):
+        monkeypatch.setenv("CARTAN_MAX_MEMORY", text)
+        assert memory_limit() == value
+    monkeypatch.setenv("CARTAN_MAX_MEMORY", "a lot")
+    with pytest.raises(ValueError, match="CARTAN_MAX_MEMORY must be a size in bytes"):
+        memory_limit()
+    monkeypatch.setenv("CARTAN_MAX_MEMORY", "1M")
+    with pytest.raises(ValueError, match=r"^the grid needs ≈ 2 MiB of memory, above the limit of 1 MiB; use fewer "
+                                         r"nodes, or raise the limit with the environment variable CARTAN_MAX_MEMORY"):
+        check_memory("the grid", 2 << 20, "use fewer nodes")
+    monkeypatch.delenv("CARTAN_MAX_MEMORY")
+    assert memory_limit() >= 1 << 20
+
+
+# ---------------------------------------------------------------------------- hardening: the Python API
+def _toy_problem(**kw):
+    medium = ToyRod()
+    grid = cartan.Grid(5)
+    return dict(medium=medium, grid=grid, initial=medium.initial_state(grid, "straight")) | kw
+
+
+@pytest.mark.parametrize(
+    ("kw", "error", "expected"),
+    [
+        ({"medium": "toy-rod"}, TypeError, "medium must be a Medium"),
+        ({"grid": 5}, TypeError, "grid must be a Grid, got int"),
+        ({"initial": np.eye(4)}, TypeError, "initial must be an InitialState"),
+        ({"boundaries": [cartan.Clamped()]}, TypeError, "boundaries must be a dict"),
+        ({"boundaries": {0: cartan.Clamped()}}, TypeError, "ends are named by strings"),
+        ({"loads": cartan.Damping(1.0)}, TypeError, "loads must be a list of Load instances"),
+        ({"name": 3}, TypeError, "name must be a string"),
+        ({"boundaries": {"start": cartan.Clamped(), "u-start": cartan.Free()}}, ValueError,
+         "'start' and 'u-start' name the same end"),
+        ({"loads": [cartan.Damping("1")]}, ValueError, "coefficients must be a real number"),
+        ({"initial": InitialState(Phi=np.full((5, 4, 4), "1"))}, ValueError, "initial.Phi must be a real number"),
+    ],
+)
+def test_problem_arguments_are_checked(kw, error, expected):
+    with pytest.raises(error, match=expected):
+        cartan.Problem(**_toy_problem(**kw))
+
+
+def test_free_end_arguments_are_checked():
+    for follower in ("yes", 1, None):
+        with pytest.raises(ValueError, match="follower must be True or False"):
+            cartan.Free(follower=follower)
+    assert cartan.Free(follower=np.bool_(True)).follower is True
+    for load in ("1", [0, 0, "1", 0, 0, 0], [True] * 6, [[1.0]], [np.nan] * 6):
+        with pytest.raises(ValueError, match="load must be"):
+            cartan.Free(load=load)

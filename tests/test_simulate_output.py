@@ -7,11 +7,19 @@ and the written netCDF file must be the same, byte for byte.  Compared on every 
 lattice (strains on edges), collocation (strains on nodes), a d = 2 sigma model (``axis``
 coordinate of strings, the ``field`` variable, the medium's own output fields), a run
 continued from a checkpoint (frames read back from the file) and a Dataset without frames.
+
+The settings of ``simulate`` are checked before it runs: their types and ranges, the step
+count and the frames kept in memory against their limits, the output file; a run that blows
+up leaves its last good state beside the output, which stays as it was.
 """
 
 from __future__ import annotations
 
 import importlib
+import math
+import os
+import re
+import warnings
 
 import numpy as np
 import pytest
@@ -160,3 +168,137 @@ def test_scalar_series_stack_like_numpy(kind):
     assert np.array_equal(out, ref)
     arrays = [rng.standard_normal((3, 2)) for _ in range(4)]
     assert np.array_equal(io._stack(arrays), np.stack(arrays))
+
+
+# ---------------------------------------------------------------------------- hardening: settings and limits
+# Every setting is checked before the run (nothing is written, no StabilityWarning); these runs
+# use the reference path (compiled=False) on small problems.
+KW = dict(dt=1e-3, t_end=4e-3, save_every=2, progress=False, compiled=False)
+
+
+@pytest.mark.parametrize(
+    ("override", "expected"),
+    [
+        ({"dt": "1e-3"}, "dt must be a real number, got '1e-3'"),
+        ({"dt": True}, "dt must be a real number, got True"),
+        ({"dt": -1e-3}, "dt must be finite and > 0"),
+        ({"t_end": math.nan}, "t_end must be finite and > 0"),
+        ({"t_end": "1"}, "t_end must be a real number"),
+        ({"t_end": 10**400}, "t_end must be finite and > 0"),
+        ({"max_energy_growth": -1}, "max_energy_growth must be finite and > 0, got -1"),
+        ({"max_energy_growth": math.nan}, "max_energy_growth must be finite and > 0"),
+        ({"max_energy_growth": "10"}, "max_energy_growth must be a real number"),
+        ({"save_every": True}, "save_every must be an integer ≥ 1"),
+        ({"save_every": 1.5}, "save_every must be an integer ≥ 1"),
+        ({"save_every": math.inf}, "save_every must be an integer ≥ 1, got inf"),
+        ({"checkpoint_every": math.nan}, "checkpoint_every must be an integer ≥ 1, got nan"),
+        ({"checkpoint_every": "2"}, "checkpoint_every must be an integer ≥ 1"),
+        ({"progress": "yes"}, "progress must be True, False or None"),
+        ({"compiled": "no"}, "compiled must be True or False"),
+        ({"output": 3}, "output must be a path"),
+        ({"restart": b"x.nc"}, "restart must be a path"),
+        ({"integrator_options": [("a", 1)]}, "integrator_options must be a dict"),
+        ({"max_steps": 0}, "max_steps must be an integer ≥ 1"),
+        ({"max_steps": True}, "max_steps must be an integer ≥ 1"),
+        ({"command": 1}, "command must be a string"),
+    ],
+)
+def test_simulate_arguments_are_checked(override, expected):
+    with pytest.raises(ValueError, match=re.escape(expected)):
+        cartan.simulate(arc_problem(7), **{**KW, **override})
+
+
+@pytest.mark.parametrize(
+    ("override", "expected"),
+    [
+        ({"dt": 5e-324}, "t_end/dt = 0.004/4.94066e-324 = inf steps, above the limit of 1000000000 steps"),
+        ({"t_end": 1e308}, "= inf steps, above the limit of 1000000000 steps"),
+        ({"t_end": 1e7}, "= 1e+10 steps, above the limit of 1000000000 steps"),
+        ({"max_steps": 3}, "t_end/dt = 0.004/0.001 = 4 steps, above the limit of 3 steps"),
+        ({"t_end": 1e-12}, "t_end = 1e-12 is too short for dt = 0.001: the run would take no step"),
+    ],
+)
+def test_step_counts_are_bounded(override, expected, monkeypatch):
+    monkeypatch.delenv("CARTAN_MAX_STEPS", raising=False)
+    with pytest.raises(ValueError, match=re.escape(expected)):
+        cartan.simulate(arc_problem(7), **{**KW, **override})
+
+
+def test_step_limit_from_the_environment(monkeypatch):
+    monkeypatch.setenv("CARTAN_MAX_STEPS", "3")
+    with pytest.raises(ValueError, match="above the limit of 3 steps.*CARTAN_MAX_STEPS"):
+        cartan.simulate(arc_problem(7), **KW)
+    assert cartan.simulate(arc_problem(7), **KW, max_steps=4).sizes["time"] == 3  # the argument wins
+
+
+def test_frames_kept_in_memory_are_bounded(monkeypatch):
+    monkeypatch.setenv("CARTAN_MAX_MEMORY", "1M")
+    with pytest.raises(ValueError, match=r"keeping 5002 frames of 7 nodes in memory needs ≈ .* above the limit of "
+                                         r"1 MiB; save fewer frames \(a larger save_every than 1\), or raise"):
+        cartan.simulate(arc_problem(7), **{**KW, "t_end": 5.0, "save_every": 1})
+    assert cartan.simulate(arc_problem(7), **{**KW, "t_end": 5.0, "save_every": 1000}).sizes["time"] == 6
+
+
+def test_restart_before_the_checkpoint_is_refused(tmp_path):
+    cartan.simulate(arc_problem(7), output=tmp_path / "run.nc", **KW)
+    with pytest.raises(ValueError, match=r"t_end = 0.002 is before the time t = 0.004 of the checkpoint"):
+        cartan.simulate(arc_problem(7), restart=tmp_path / "run.nc", **{**KW, "t_end": 2e-3})
+
+
+def test_settings_are_checked_before_the_stability_warning(tmp_path):
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")  # no StabilityWarning for a run that does not start
+        with pytest.raises(ValueError, match="the output folder"):
+            cartan.simulate(arc_problem(7), output=tmp_path / "missing" / "run.nc", **{**KW, "dt": 10.0})
+        with pytest.raises(ValueError, match="no step"):
+            cartan.simulate(arc_problem(7), **{**KW, "dt": 10.0, "t_end": 1e-12})
+    assert os.listdir(tmp_path) == []
+
+
+def test_output_is_checked_before_the_run(tmp_path, monkeypatch):
+    def never(*args, **kwargs):  # pragma: no cover - the run must not start
+        raise AssertionError("the run started")
+
+    monkeypatch.setattr(simulate_module, "_advance", never)
+    for output, expected in ((tmp_path / "missing" / "run.nc", "does not exist"), ("/dev/null", "is a device"),
+                             (tmp_path, "is a directory")):
+        with pytest.raises(ValueError, match=expected):
+            cartan.simulate(arc_problem(7), output=output, **KW)
+
+
+def test_blow_up_leaves_the_output_as_it_was(tmp_path):
+    out = tmp_path / "run.nc"
+    cartan.simulate(arc_problem(7), output=out, **KW)
+    good = out.read_bytes()
+    with pytest.warns(cartan.StabilityWarning), pytest.raises(cartan.InstabilityError) as info:
+        cartan.simulate(arc_problem(7), output=out, **{**KW, "dt": 1.0, "t_end": 100.0})
+    lastgood = tmp_path / "run.lastgood.nc"
+    assert info.value.path == lastgood
+    assert f"saved to {lastgood} ({out} is left as it was)" in str(info.value)
+    assert out.read_bytes() == good
+    kept = cartan.open(lastgood)
+    assert kept.sizes["time"] >= 1 and np.all(np.isfinite(kept["S"].values))
+    # the last good state is a checkpoint: it continues with a stable step
+    cont = cartan.simulate(arc_problem(7), restart=lastgood, **{**KW, "t_end": float(kept.time[-1]) + 4e-3})
+    assert cont.sizes["time"] > kept.sizes["time"]
+    assert sorted(os.listdir(tmp_path)) == ["run.lastgood.nc", "run.nc"]
+
+
+def test_no_output_of_a_fresh_run_is_written_on_blow_up(tmp_path):
+    out = tmp_path / "new.nc"
+    with pytest.warns(cartan.StabilityWarning), pytest.raises(cartan.InstabilityError, match="nothing was written"):
+        cartan.simulate(arc_problem(7), output=out, **{**KW, "dt": 1.0, "t_end": 100.0})
+    assert sorted(os.listdir(tmp_path)) == ["new.lastgood.nc"]
+
+
+def test_problems_out_of_range_are_refused():
+    rod = dict(E=1e4, poisson=0.5, density=5000.0)
+    grid = Grid(5)
+    massless = cartan.medium("cosserat-rod", radius=1e-200, **rod)  # every inertia underflows to 0
+    problem = Problem(massless, grid, massless.initial_state(grid, "straight"))
+    with pytest.raises(ValueError, match="has no inertia"):
+        cartan.simulate(problem, **KW)
+    short = Grid(5, length=1e-300)
+    medium = cartan.medium("cosserat-rod", radius=0.25, **rod)
+    with pytest.raises(ValueError, match="the CFL estimate of 'lie-verlet' on 'lattice' is not a number"):
+        cartan.simulate(Problem(medium, short, medium.initial_state(short, "straight")), **KW)

@@ -3,10 +3,13 @@
 from __future__ import annotations
 
 import numpy as np
+from numba import njit
 
 import cartan
 from cartan.grid import Grid
+from cartan.medium import KernelMedium as _KernelMedium
 from cartan.medium import Medium as _Medium
+from cartan.medium import MediumKernels
 from cartan.medium import QuadraticMedium as _Quadratic
 from cartan.problem import Clamped, Damping, Free, InitialState, Problem, UniformForce
 
@@ -175,3 +178,107 @@ def run_both(scheme_type, problem, make, dt, nsteps, blocks=(None,), **scheme_op
     for size in sizes:
         assert scheme.compiled_advance(fast_integ, fast, dt, size)
     return scheme, (ref, ref_integ), (fast, fast_integ)
+
+
+# ---------------------------------------------------------------------------- a coupled, non-quadratic medium
+@njit(cache=True)
+def coupled_quartic_energy(X, X0, p):  # pragma: no cover - compiled
+    """``U = ½ DᵀCD + ¼β(DᵀD)²``, D = X − X₀ flattened, ``p = [β, C.ravel()]``."""
+    d, r = X.shape
+    quad = 0.0
+    sq = 0.0
+    col = 1
+    for a in range(d):
+        for k in range(r):
+            da = X[a, k] - X0[a, k]
+            sq += da * da
+            s = 0.0
+            for b in range(d):
+                for j in range(r):
+                    s += p[col] * (X[b, j] - X0[b, j])
+                    col += 1
+            quad += da * s
+    return 0.5 * quad + 0.25 * p[0] * sq * sq
+
+
+@njit(cache=True)
+def coupled_quartic_stress(X, X0, p, Q):  # pragma: no cover - compiled
+    """``Q = CD + β(DᵀD)D``."""
+    d, r = X.shape
+    sq = 0.0
+    for a in range(d):
+        for k in range(r):
+            da = X[a, k] - X0[a, k]
+            sq += da * da
+    col = 1
+    for a in range(d):
+        for k in range(r):
+            s = p[0] * sq * (X[a, k] - X0[a, k])
+            for b in range(d):
+                for j in range(r):
+                    s += p[col] * (X[b, j] - X0[b, j])
+                    col += 1
+            Q[a, k] = s
+
+
+class CoupledQuartic(_KernelMedium):
+    """A non-quadratic medium whose energy couples the axes: ``U = ½DᵀCD + ¼β(DᵀD)²`` with
+    ``D = X − X₀`` over all d·r strain components and a full symmetric positive definite C."""
+
+    name = "toy-coupled-quartic"
+
+    def __init__(self, group="SE3", d=2, beta=50.0, coupling=0.3, seed=0):
+        self.group = cartan.group(group) if isinstance(group, str) else group
+        self.space = None
+        self.material_dim = d
+        r = self.group.dim
+        rng = np.random.default_rng(seed)
+        B = rng.standard_normal((d * r, d * r))
+        self.C = np.diag(np.linspace(4.0, 1.0, d * r)) + coupling * (B @ B.T) / (d * r)
+        self.beta, self.coupling, self.seed = float(beta), float(coupling), int(seed)
+        self.X0 = np.zeros((d, r))
+        for a in range(min(d, r)):
+            self.X0[a, a] = 1.0
+        self.m = np.linspace(1.0, 0.5, r)
+
+    def parameters(self):
+        return {"group": self.group.name, "d": self.material_dim, "beta": self.beta, "coupling": self.coupling,
+                "seed": self.seed}
+
+    def inertia(self):
+        return self.m
+
+    def rest_strain(self):
+        return self.X0.copy()
+
+    def point_kernels(self):
+        return MediumKernels(coupled_quartic_energy, coupled_quartic_stress,
+                             np.concatenate([[self.beta], self.C.ravel()]))
+
+
+class IndefiniteMetric(QuadraticMedium):
+    """A quadratic rod whose kinetic metric is neither diagonal nor definite: on SO(1,3) the
+    boost block has the opposite sign, ``M = diag(m ⊙ s) + ε(offset)``, and the stiffness has
+    the same signs, so M⁻¹C is positive (oscillatory waves, an indefinite energy)."""
+
+    name = "toy-indefinite-metric"
+
+    def __init__(self, group="SO13", coupling=0.1):
+        super().__init__(group)
+        r = self.group.dim
+        sign = np.where(np.arange(r) < r // 2, 1.0, -1.0)
+        self.coupling = float(coupling)
+        offset = np.zeros((r, r))
+        for k in range(r - 1):
+            offset[k, k + 1] = offset[k + 1, k] = coupling * sign[k] * (sign[k] == sign[k + 1])
+        self.M = np.diag(self.m * sign) + offset
+        self._set_energy(self.X0, self.C * sign)
+
+    def parameters(self):
+        return {"group": self.group.name, "coupling": self.coupling}
+
+    def inertia(self):
+        return np.diag(self.M).copy()
+
+    def kinetic_metric(self):
+        return self.M.copy()

@@ -79,6 +79,29 @@ class SymmetryGroup(abc.ABC):
     #: numba batch kernels by operation name; absent operations use the numpy path.
     _kernels: ClassVar[dict[str, Any]] = {}
 
+    #: prefix of the module's numba point kernels ``<prefix>_<op>_point`` (see :meth:`point_kernels`)
+    _point_prefix: ClassVar[str] = ""
+
+    def point_kernels(self):
+        """The group's numba point kernels, for the generated compiled loops, or None.
+
+        Returns a :class:`cartan.compiled.codegen.Fragment` that binds, as globals of a
+        generated module, ``g_<op>`` for every operation of
+        :data:`cartan.compiled.kernels.GROUP_OPS` with the signatures
+
+        ``g_exp(xi, out)``, ``g_log(g, out)``, ``g_compose(g, h, out)``, ``g_inverse(g, out)``,
+        ``g_hat(xi, out)``, ``g_Ad(g, out)``, ``g_ad(xi, out)``, ``g_dexp_inv(xi, out)``,
+        ``g_E(dt, xi, out)`` — ``xi`` ``(r,)``, ``g`` ``(m, m)``, matrices of operators
+        ``(r, r)``, every result written into ``out``.  The default finds
+        ``<prefix>_<op>_point`` in the group class's module (:attr:`_point_prefix`); a group
+        without them (None) runs on the numpy and per-call kernel paths only.
+        """
+        if not self._point_prefix:
+            return None
+        from ..compiled.kernels import GROUP_OPS, group_fragment
+
+        return group_fragment(type(self).__module__, self._point_prefix, GROUP_OPS)
+
     # ------------------------------------------------------------------ contract
     @abc.abstractmethod
     def basis(self) -> np.ndarray:

@@ -538,6 +538,7 @@ class Poincare(SymmetryGroup):
     affine = True
     injectivity_radius = np.pi
     _kernels = kernel_table(globals())
+    _point_prefix = "poincare"
 
     def basis(self) -> np.ndarray:
         """Generators: 4 translations ``{e_μ; 0}``, then ``{0; K_k}``, ``{0; J_k}``; ``(10, 5, 5)``."""

@@ -363,6 +363,7 @@ class SE2(SymmetryGroup):
     matrix_size = 3
     affine = True
     _kernels = kernel_table(globals())
+    _point_prefix = "se2"
 
     def basis(self) -> np.ndarray:
         """Generators ``(E₂₁, E₃₁, E₃₂ − E₂₃)``, shape ``(3, 3, 3)``."""

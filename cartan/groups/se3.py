@@ -356,6 +356,31 @@ def se3_dexp_inv_point(xi, out):
             out[i + 3, j] = 0.0
 
 
+@njit(cache=True)
+def se3_Ad_T_point(g, v, out):
+    """``out`` (6,) ← ``Ad_gᵀ v = (Aᵀv_t; Aᵀ(v_r − a × v_t))`` for ``g = (a; A)`` (4, 4)."""
+    u0, u1, u2 = cross3(g[1, 0], g[2, 0], g[3, 0], v[0], v[1], v[2])
+    w0, w1, w2 = v[3] - u0, v[4] - u1, v[5] - u2
+    for j in range(3):
+        out[j] = g[1, j + 1] * v[0] + g[2, j + 1] * v[1] + g[3, j + 1] * v[2]
+        out[j + 3] = g[1, j + 1] * w0 + g[2, j + 1] * w1 + g[3, j + 1] * w2
+
+
+@njit(cache=True)
+def se3_dexp_inv_T_point(xi, q, out):
+    """``out`` (6,) ← ``dexp(ξ)⁻ᵀ q = (J⁻ᵀq_t; J⁻ᵀ(q_r − Qᵀ J⁻ᵀ q_t))`` without the matrix:
+    ``J⁻ᵀ = I + ½K + cK²`` and ``Qᵀ(r, w) = −Q(r, −w)`` (the transpose of
+    :func:`se3_dexp_inv_point`)."""
+    r0, r1, r2, w0, w1, w2 = xi[0], xi[1], xi[2], xi[3], xi[4], xi[5]
+    t2 = w0 * w0 + w1 * w1 + w2 * w2
+    cinv = so3_dexp_inv_coeff(t2)
+    _, c, d, e = se3_dexp_coeffs(t2)
+    a0, a1, a2 = _V_apply(w0, w1, w2, 0.5, cinv, q[0], q[1], q[2])
+    b = _Q_apply(r0, r1, r2, -w0, -w1, -w2, c, d, e, a0, a1, a2)
+    v0, v1, v2 = _V_apply(w0, w1, w2, 0.5, cinv, q[3] + b[0], q[4] + b[1], q[5] + b[2])
+    out[0], out[1], out[2], out[3], out[4], out[5] = a0, a1, a2, v0, v1, v2
+
+
 # ---------------------------------------------------------------------- numba batch loops
 @njit(cache=True)
 def _hat_batch(xi, out):
@@ -504,6 +529,7 @@ class SE3(SymmetryGroup):
     matrix_size = 4
     affine = True
     _kernels = kernel_table(globals())
+    _point_prefix = "se3"
 
     def basis(self) -> np.ndarray:
         """Generators ``b_i = {(δ_i1, δ_i2, δ_i3); (δ_i4, δ_i5, δ_i6)}``, shape ``(6, 4, 4)``."""

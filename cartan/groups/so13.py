@@ -804,6 +804,7 @@ class SO13(SymmetryGroup):
     affine = False
     injectivity_radius = np.pi
     _kernels = kernel_table(globals())
+    _point_prefix = "so13"
 
     def basis(self) -> np.ndarray:
         """Generators ``(K₁, K₂, K₃, J₁, J₂, J₃)``, shape ``(6, 4, 4)``."""

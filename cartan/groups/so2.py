@@ -240,6 +240,7 @@ class SO2(SymmetryGroup):
     dim = 1
     matrix_size = 2
     _kernels = kernel_table(globals())
+    _point_prefix = "so2"
 
     def basis(self) -> np.ndarray:
         """The generator ``b = [[0, −1], [1, 0]]``, shape ``(1, 2, 2)``."""

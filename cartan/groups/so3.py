@@ -270,6 +270,23 @@ def so3_act_point(R, x, out):
 
 
 @njit(cache=True)
+def so3_Ad_T_point(R, v, out):
+    """``out`` (3,) ← ``Ad_Rᵀ v = Rᵀ v``."""
+    for j in range(3):
+        out[j] = R[0, j] * v[0] + R[1, j] * v[1] + R[2, j] * v[2]
+
+
+@njit(cache=True)
+def so3_dexp_inv_T_point(w, v, out):
+    """``out`` (3,) ← ``J⁻ᵀ(w) v = v + ½ w × v + c w × (w × v)`` (the transpose of
+    :func:`so3_dexp_inv_point`), without the matrix."""
+    c = so3_dexp_inv_coeff(w[0] * w[0] + w[1] * w[1] + w[2] * w[2])
+    u0, u1, u2 = cross3(w[0], w[1], w[2], v[0], v[1], v[2])
+    z0, z1, z2 = cross3(w[0], w[1], w[2], u0, u1, u2)
+    out[0], out[1], out[2] = v[0] + 0.5 * u0 + c * z0, v[1] + 0.5 * u1 + c * z1, v[2] + 0.5 * u2 + c * z2
+
+
+@njit(cache=True)
 def so3_Ad_point(R, out):
     """``out`` (3, 3) ← ``Ad_R = R``."""
     for i in range(3):
@@ -525,6 +542,7 @@ class SO3(SymmetryGroup):
     dim = 3
     matrix_size = 3
     _kernels = kernel_table(globals())
+    _point_prefix = "so3"
 
     def basis(self) -> np.ndarray:
         """Generators ``b_i = ê_i``, shape ``(3, 3, 3)``."""

@@ -727,6 +727,41 @@ class SO(SymmetryGroup):
         else:
             self._impl = None
 
+    def point_kernels(self):
+        """Point kernels for the generated loops (see
+        :meth:`~cartan.groups.base.SymmetryGroup.point_kernels`): those of SO(2) and SO(3) for
+        n = 2, 3; for n = 4 the closed forms of this module, with the basis tables of
+        :func:`son_tables` frozen into the generated module; None for n ≥ 5."""
+        if self._impl is not None:
+            return self._impl.point_kernels()
+        if self.n != 4:
+            return None
+        from ..compiled.codegen import Fragment
+
+        here = __name__
+        imports = {"g_exp": (here, "so4_exp_point"), "g_log": (here, "so4_log_point"),
+                   "g_dexp_inv": (here, "so4_dexp_inv_point"), "g_E": (here, "so4_E_point"),
+                   "g_compose": (here, "son_compose_point"), "g_inverse": (here, "son_inverse_point"),
+                   "_son_hat": (here, "son_hat_point"), "_son_Ad": (here, "son_Ad_point"),
+                   "_son_ad": (here, "son_ad_point")}
+        constants = {"SON_I": self._I, "SON_J": self._J, "SON_S": self._S, "SON_PK": self._PK,
+                     "SON_PS": self._PS}
+        source = """
+def g_hat(xi, out):
+    _son_hat(xi, SON_I, SON_J, SON_S, out)
+
+
+def g_Ad(g, out):
+    _son_Ad(g, SON_I, SON_J, SON_S, out)
+
+
+def g_ad(xi, out):
+    _son_ad(xi, SON_I, SON_J, SON_S, SON_PK, SON_PS, out)
+"""
+        from ..compiled.kernels import with_fused
+
+        return with_fused(Fragment(imports=imports, constants=constants, source=source))
+
     @property
     def _kernels(self) -> dict:
         """The numba batch kernels for this n (those of SO2 and SO3 for n = 2, 3)."""

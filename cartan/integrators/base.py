@@ -106,6 +106,72 @@ class Integrator(abc.ABC):
             return np.inf
         return self.stability * scheme.dt_max(state, rate=self.rate)
 
+    # ------------------------------------------------------------------ compiled loops
+    def compiled_loop(self, scheme: Scheme, state: State, dt: float) -> tuple[str, tuple] | None:
+        """The generated loop that takes this integrator's steps, or None (default: none).
+
+        Returns ``(name, args)``: a loop of :mod:`cartan.integrators.loops` and the
+        integrator's own arguments, which the loop receives between ``(D, C, S)`` and
+        ``(t, dt, nsteps, dissipated, external, check, limit)``.
+        """
+        return None
+
+    def compiled_loop_done(self, state: State, args: tuple) -> None:  # noqa: B027 - an optional hook
+        """Called after a generated loop ran with ``args`` (e.g. to keep a force for the
+        next block); the default does nothing."""
+
+    def run_compiled_loop(self, scheme: Scheme, state: State, dt: float, nsteps: int,
+                          kinetic_limit: float = float("inf")) -> bool:
+        """Take up to ``nsteps`` steps in the generated loop of (this integrator, the scheme's
+        operator set, the group's and the medium's point kernels).
+
+        Returns False, touching nothing, when the integrator has no loop, the scheme no
+        operator set for the problem (``scheme.compiled_operators()``), or the numpy backend is
+        selected; otherwise True after the steps were taken as :meth:`step` takes them
+        (round-off apart), with ``state.t``, ``state.scalars`` and the counters updated, and
+        stopping after a step that is not finite or whose kinetic energy exceeds
+        ``kinetic_limit``.  The first run of a combination on a machine compiles its module and
+        says so on stderr; later runs load it from the cache (:mod:`cartan.compiled.codegen`).
+        """
+        from .._backend import get_backend
+        from ..compiled.codegen import first_call, generate
+        from .loops import loop_fragment
+
+        if get_backend() != "numba":
+            return False
+        operators = getattr(scheme, "compiled_operators", None)
+        ops = operators() if operators is not None else None
+        if ops is None or not ops.ok or not ops.accepts(state):
+            return False
+        spec = self.compiled_loop(scheme, state, float(dt))
+        if spec is None:
+            return False
+        name, args = spec
+        module = ops.module
+        if module is None:  # written and imported once per operator set
+            module = ops.module = generate(f"loops-{ops.key}", [*ops.fragments, loop_fragment()])
+        t_start = time.perf_counter()
+        config = ops.pack(state)
+        S = np.ascontiguousarray(state.S, dtype=float).reshape(ops.nodes, -1).copy()
+        check = 1 if self.uses_momentum else 2
+        announce = first_call(module, name, f"the {self.name} loop for {ops.label}")
+        done, nforce, t, diss, ext = getattr(module, name)(
+            ops.data, config, S, *args, float(state.t), float(dt), int(nsteps),
+            float(state.scalars.get("dissipated_energy", 0.0)), float(state.scalars.get("external_work", 0.0)),
+            check, float(kinetic_limit))
+        announce()
+        ops.unpack(state, config)
+        state.S = S.reshape(state.S.shape) if self.uses_momentum else np.zeros_like(state.S)
+        state.t = t
+        state.scalars["dissipated_energy"] = diss
+        state.scalars["external_work"] = ext
+        state.scalars["nstep"] = state.scalars.get("nstep", 0) + done
+        self.compiled_loop_done(state, args)
+        self.nstep += done
+        self.nforce += nforce
+        self.wall_time += time.perf_counter() - t_start
+        return True
+
     def __repr__(self) -> str:
         opts = ", ".join(f"{k}={v!r}" for k, v in self.options().items())
         return f"{type(self).__name__}({opts})"

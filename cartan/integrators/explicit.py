@@ -23,6 +23,7 @@ from typing import Any
 
 import numpy as np
 
+from ..compiled.tableaux import TABLEAUX
 from ..schemes.base import Scheme, State
 from .base import Integrator
 
@@ -59,6 +60,9 @@ class ForwardEuler(Integrator):
         state.S = state.S + dt * S_dot
         scheme.constrain(state)
 
+    def compiled_loop(self, scheme: Scheme, state: State, dt: float):
+        return "euler_loop", (False,)
+
 
 class LieEuler(Integrator):
     """The paper's Lie group integrator (§V), faithfully:
@@ -80,6 +84,9 @@ class LieEuler(Integrator):
         scheme.drift(state, dt, N, exact=True)
         state.S = S
         scheme.constrain(state)
+
+    def compiled_loop(self, scheme: Scheme, state: State, dt: float):
+        return "euler_loop", (True,)
 
 
 def _abelian_pieces(group, live: np.ndarray) -> list[np.ndarray]:
@@ -130,11 +137,30 @@ class LieVerlet(Integrator):
         self._fsal = None
 
     def _sequence(self, scheme: Scheme) -> list[tuple[np.ndarray, float]]:
-        key = (scheme.group, tuple(scheme.live))
+        """The free flow's pieces and their fractions of Δt, palindromic (Strang), as
+        ``(P, frac)`` with ``N_p = P S`` (P ``(r, r)``): for a diagonal metric the commuting
+        blocks of basis directions (:func:`_abelian_pieces`), P = diag(1/m) on the block; for
+        any other metric M the eigenvectors e of M⁺ (eigenvalue λ), P = λeeᵀ — the flow of
+        ½λ(eᵀS)² keeps eᵀS, so N_p is constant along it and the piece is solved exactly."""
+        key = (scheme.group, tuple(scheme.live), scheme.inverse_metric.tobytes())
         if getattr(self, "_seq_key", None) == key:
             return self._seq
-        pieces = _abelian_pieces(scheme.group, scheme.live)
-        seq = [(p, 0.5) for p in pieces[:-1]] + [(pieces[-1], 1.0)] + [(p, 0.5) for p in reversed(pieces[:-1])]
+        A = scheme.inverse_metric
+        if scheme.diagonal_metric:
+            mats = []
+            for p in _abelian_pieces(scheme.group, scheme.live):
+                P = np.zeros_like(A)
+                P[p, p] = A[p, p]
+                mats.append(P)
+        else:
+            live = scheme.live
+            lam, vec = np.linalg.eigh(A[np.ix_(live, live)])
+            mats = []
+            for k in range(lam.size):
+                e = np.zeros(A.shape[0])
+                e[live] = vec[:, k]
+                mats.append(lam[k] * np.outer(e, e))
+        seq = [(P, 0.5) for P in mats[:-1]] + [(mats[-1], 1.0)] + [(P, 0.5) for P in reversed(mats[:-1])]
         self._seq_key, self._seq = key, seq
         return seq
 
@@ -151,10 +177,15 @@ class LieVerlet(Integrator):
         g = scheme.group
         state.S = state.S + 0.5 * dt * self._kick_force(scheme, state)
         scheme.constrain(state)
-        for piece, frac in self._sequence(scheme):
-            N = scheme.velocity(state)
-            Np = np.zeros_like(N)
-            Np[..., piece] = N[..., piece]
+        for P, frac in self._sequence(scheme):
+            if scheme.diagonal_metric:
+                N = scheme.velocity(state)
+                Np = np.zeros_like(N)
+                piece = np.flatnonzero(np.diag(P))
+                Np[..., piece] = N[..., piece]
+            else:
+                Np = state.S @ P.T
+                Np[scheme._clamped] = 0.0
             if not Np.any():  # exp(0) = I: nothing moves
                 continue
             tau = frac * dt
@@ -168,17 +199,24 @@ class LieVerlet(Integrator):
         # cache the force at the new configuration for the next step's first kick
         self._fsal = ((id(state), t1, state.scalars.get("nstep", 0) + 1), W1)
 
+    def compiled_loop(self, scheme: Scheme, state: State, dt: float):
+        seq = self._sequence(scheme)
+        r = scheme.group.dim
+        pieces = np.ascontiguousarray([P for P, _ in seq], dtype=float)
+        fracs = np.array([frac for _, frac in seq], dtype=float)
+        key = (id(state), state.t, state.scalars.get("nstep", 0))
+        have = self._fsal is not None and self._fsal[0] == key
+        W = (np.array(self._fsal[1], dtype=float) if have else np.zeros(state.S.shape)).reshape(-1, r)
+        velocity_free = not any(ld.velocity_dependent for ld in scheme.problem.loads) and not getattr(
+            scheme.medium, "velocity_dependent_forces", False)
+        return "lie_verlet_loop", (W, bool(have), bool(velocity_free), pieces, fracs)
+
+    def compiled_loop_done(self, state: State, args: tuple) -> None:
+        self._fsal = ((id(state), state.t, state.scalars.get("nstep", 0)), args[0].reshape(state.S.shape))
+
 
 # ---------------------------------------------------------------------------- RKMK family
-_TABLEAUX: dict[int, tuple[np.ndarray, np.ndarray, np.ndarray]] = {
-    1: (np.array([[0.0]]), np.array([1.0]), np.array([0.0])),
-    2: (np.array([[0.0, 0.0], [1.0, 0.0]]), np.array([0.5, 0.5]), np.array([0.0, 1.0])),
-    4: (
-        np.array([[0, 0, 0, 0], [0.5, 0, 0, 0], [0, 0.5, 0, 0], [0, 0, 1.0, 0]], dtype=float),
-        np.array([1, 2, 2, 1], dtype=float) / 6,
-        np.array([0, 0.5, 0.5, 1.0]),
-    ),
-}
+_TABLEAUX = TABLEAUX
 
 
 def _rkmk(integ: Integrator, scheme: Scheme, state: State, dt: float, order: int,
@@ -223,6 +261,10 @@ class RKMK4(Integrator):
 
     def _step(self, scheme: Scheme, state: State, dt: float) -> None:
         _rkmk(self, scheme, state, dt, 4, lambda st, t: scheme.velocity(st), dynamics=True)
+
+    def compiled_loop(self, scheme: Scheme, state: State, dt: float):
+        A, b, c = _TABLEAUX[4]
+        return "rkmk_loop", (A, b, c, True, 0, np.zeros(scheme.group.dim))
 
 
 class Overdamped(Integrator):
@@ -273,6 +315,14 @@ class Overdamped(Integrator):
         else:
             _rkmk(self, scheme, state, dt, 2, lambda st, t: self.drift_velocity(scheme, st, t), dynamics=False)
         state.S = np.zeros_like(state.S)
+
+    def compiled_loop(self, scheme: Scheme, state: State, dt: float):
+        gam = scheme.drag()
+        if np.any(scheme.live & ~(gam > 0)):
+            return None  # the Python step raises the error that names the components
+        A, b, c = _TABLEAUX[self.order]
+        gam_inv = np.where(scheme.live, 1.0 / np.where(gam > 0, gam, 1.0), 0.0)
+        return "rkmk_loop", (A, b, c, False, 1, gam_inv)
 
 
 class Kinematic(Integrator):

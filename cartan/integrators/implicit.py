@@ -158,6 +158,9 @@ class _Plan:
         from ..schemes.lattice import Lattice
         from ..statics import _colouring, _stencil_pairs
 
+        if not scheme.diagonal_metric or np.any(scheme.mass < 0):
+            raise ValueError("implicit-midpoint needs a positive diagonal kinetic metric (Medium.kinetic_metric); "
+                             "use lie-verlet or rkmk4 for this medium")
         shape = tuple(scheme.grid.shape)
         r = scheme.group.dim
         nnode = int(np.prod(shape))

@@ -1755,8 +1755,8 @@ def _lie_verlet_pieces(integrator, scheme, cache: dict) -> tuple[np.ndarray, np.
     mask = np.zeros((len(seq), scheme.group.dim), dtype=np.bool_)
     frac = np.empty(len(seq))
     kinds = np.zeros((len(seq), 2), dtype=np.int64)
-    for p, (piece, f) in enumerate(seq):
-        idx = sorted(int(i) for i in piece)
+    for p, (P, f) in enumerate(seq):
+        idx = sorted(int(i) for i in np.flatnonzero(np.diag(P)))
         mask[p, idx] = True
         frac[p] = f
         if mask.shape[1] == 6 and idx == [0, 1, 2]:
@@ -1819,7 +1819,7 @@ def build_plan(scheme) -> tuple[tuple, tuple] | None:
     problem, medium, group, grid = scheme.problem, scheme.medium, scheme.group, scheme.grid
     gid = _group_id(group)
     d = grid.d
-    if gid is None or not 1 <= d <= 3:
+    if gid is None or not 1 <= d <= 3 or problem.reference is not None:
         return None
     if scheme.derivative == "fourier" and max(grid.shape) > FOURIER_MAX_NODES:
         return None
@@ -1828,6 +1828,8 @@ def build_plan(scheme) -> tuple[tuple, tuple] | None:
         return None
     if not _same_methods(scheme, Scheme, ("velocity", "constrain", "powers", "has_external_power", "drag")):
         return None
+    if not scheme.diagonal_metric or np.any(scheme.mass < 0):
+        return None  # the kinetic metric of these loops is a positive diagonal
     if not _same_methods(medium, Medium, ("velocity", "body_force")):
         return None
     if getattr(medium, "velocity_dependent_forces", False):
@@ -1907,7 +1909,7 @@ def advance(scheme, plan: tuple, integrator, state, dt: float, nsteps: int, kine
     when the integrator is not supported."""
     if scheme.grid.d >= 2:
         return advance_nd(scheme, plan, integrator, state, dt, nsteps, kinetic_limit)
-    from ..integrators.explicit import _TABLEAUX, RKMK4, ForwardEuler, Kinematic, LieEuler, LieVerlet
+    from ..compiled.tableaux import TABLEAUX as _TABLEAUX
     from . import _kinematic_compiled as kinematic
 
     P, Dc = plan
@@ -1931,7 +1933,7 @@ def advance(scheme, plan: tuple, integrator, state, dt: float, nsteps: int, kine
     X = X3.reshape(n, r)
     Phi = state.arrays[frame_key] = _writable(state.arrays[frame_key])
     Phi3 = Phi if scheme.track else Phi.reshape(1, *Phi.shape)
-    if kind is Kinematic:
+    if kind == "kinematic":
         def work(inv):  # the work arrays of kinematic.COLLOCATION_OPS
             W, _, DN, D, scr = _work(n, r, Phi3.shape[-1])
             return Dc, np.zeros((n, r)), W, DN, D, scr, inv
@@ -1942,7 +1944,7 @@ def advance(scheme, plan: tuple, integrator, state, dt: float, nsteps: int, kine
                                                                              kinetic_limit)
     W = None
     se3 = P[I_GID] == GID_SE3
-    if kind is LieVerlet:
+    if kind == "lie-verlet":
         velocity_free, have, W = lie_verlet_force(scheme, integrator, stamp, S)
         mask, frac, kinds = _lie_verlet_pieces(integrator, scheme, cache)
         if se3:
@@ -1953,18 +1955,18 @@ def advance(scheme, plan: tuple, integrator, state, dt: float, nsteps: int, kine
             done, nforce, t, diss, ext = lie_verlet_loop(
                 P, Dc, S, X, Phi3, W, have, bool(velocity_free), mask, frac, t0, dt, nsteps, diss, ext, check,
                 limit, inv)
-    elif kind is LieEuler or kind is ForwardEuler:
-        if kind is LieEuler and se3:
+    elif kind == "lie-euler" or kind == "forward-euler":
+        if kind == "lie-euler" and se3:
             done, t, diss, ext = lie_euler_se3_loop(P, Dc, S, X, Phi3, t0, dt, nsteps, diss, ext, check, limit, inv)
         else:
             done, t, diss, ext = euler_loop(P, Dc, S, X, Phi3, t0, dt, nsteps, diss, ext, check, limit, inv,
-                                            kind is LieEuler)
+                                            kind == "lie-euler")
         nforce = done
     else:
-        dynamics = kind is RKMK4
+        dynamics = kind == "rkmk4"
         order = 4 if dynamics else integrator.order
         hit, N = rkmk_velocity(integrator, stamp, S, dynamics)
-        if not (dynamics or hit):
+        if not dynamics:  # from the state alone (rkmk_velocity)
             overdamped_velocity(P, Dc, X, Phi3, N, gam)
         if order == 1:
             loop = overdamped_se3_loop if se3 else overdamped_loop

@@ -626,7 +626,7 @@ def advance(scheme, plan: tuple, integrator, state, dt: float, nsteps: int, kine
     integrator's caches (lie-verlet's force, the overdamped velocity) are kept in the state's
     shape ``[*shape, r]``, as the Python path keeps them.  False, touching nothing, when the
     integrator or the state's layout is not supported."""
-    from ..integrators.explicit import _TABLEAUX, RKMK4, ForwardEuler, Kinematic, LieEuler, LieVerlet
+    from ..compiled.tableaux import TABLEAUX as _TABLEAUX
     from . import _kinematic_compiled as kinematic
 
     P, Dc = plan
@@ -650,7 +650,7 @@ def advance(scheme, plan: tuple, integrator, state, dt: float, nsteps: int, kine
     X2 = X.reshape(n, d * r)
     Phi = state.arrays[frame_key] = _writable(state.arrays[frame_key])
     Phi3 = Phi.reshape(-1, *Phi.shape[-2:])
-    if kind is Kinematic:
+    if kind == "kinematic":
         def work(inv):  # the work arrays of kinematic.COLLOCATION_ND_OPS
             W, _, DN, D, scr = _work(n, r, Phi3.shape[-1], d)
             return Dc, np.zeros((n, r)), W, DN, D, scr, inv
@@ -660,20 +660,20 @@ def advance(scheme, plan: tuple, integrator, state, dt: float, nsteps: int, kine
     nstep0, stamp, t0, diss, ext, check, limit, cache, inv = advance_context(scheme, integrator, state,
                                                                              kinetic_limit)
     W = None
-    if kind is LieVerlet:
+    if kind == "lie-verlet":
         velocity_free, have, W = lie_verlet_force(scheme, integrator, stamp, S)
         mask, frac, _ = _lie_verlet_pieces(integrator, scheme, cache)
         done, nforce, t, diss, ext = lie_verlet_loop(P, Dc, S2, X2, Phi3, W.reshape(n, r), have, bool(velocity_free),
                                                      mask, frac, t0, dt, nsteps, diss, ext, check, limit, inv)
-    elif kind is LieEuler or kind is ForwardEuler:
+    elif kind == "lie-euler" or kind == "forward-euler":
         done, t, diss, ext = euler_loop(P, Dc, S2, X2, Phi3, t0, dt, nsteps, diss, ext, check, limit, inv,
-                                        kind is LieEuler)
+                                        kind == "lie-euler")
         nforce = done
     else:
-        dynamics = kind is RKMK4
+        dynamics = kind == "rkmk4"
         order = 4 if dynamics else integrator.order
         hit, N = rkmk_velocity(integrator, stamp, S, dynamics)
-        if not (dynamics or hit):
+        if not dynamics:  # from the state alone (rkmk_velocity)
             overdamped_velocity(P, Dc, X2, Phi3, N.reshape(n, r), gam)
         if order == 1:
             done, t, diss, ext = overdamped_loop(P, Dc, S2, X2, Phi3, N.reshape(n, r), gam, t0, dt, nsteps, diss,

@@ -351,7 +351,7 @@ def advance(scheme, kind: str, P: tuple, cfg: tuple, work_of, integrator, state,
         Unused (no momentum); the loop stops after a step that leaves a non-finite
         configuration.
     """
-    from ..integrators.explicit import _TABLEAUX
+    from ..compiled.tableaux import TABLEAUX as _TABLEAUX
 
     if not is_compiled_velocity(integrator.velocity_field):
         return False

@@ -1065,8 +1065,8 @@ def _lie_verlet_sequence(integrator, scheme, gid: int, dt: float, cache: dict):
     mask = np.zeros((len(seq), r), dtype=np.bool_)
     frac = np.empty(len(seq))
     kind = np.zeros((len(seq), 2), dtype=np.int64)
-    for p, (piece, f) in enumerate(seq):
-        idx = sorted(int(i) for i in piece)
+    for p, (P, f) in enumerate(seq):
+        idx = sorted(int(i) for i in np.flatnonzero(np.diag(P)))
         mask[p, idx] = True
         frac[p] = f
         if gid == GID_SE3 and idx == [0, 1, 2]:
@@ -1097,7 +1097,7 @@ def advance(scheme, plan: tuple, integrator, state, dt: float, nsteps: int, kine
     """Run up to ``nsteps`` steps of ``integrator`` on ``state`` in compiled code (see
     :meth:`cartan.schemes.lattice.Lattice.compiled_advance`); False, touching nothing, when
     the integrator is not supported."""
-    from ..integrators.explicit import _TABLEAUX, RKMK4, ForwardEuler, Kinematic, LieEuler, LieVerlet
+    from ..compiled.tableaux import TABLEAUX as _TABLEAUX
     from . import _kinematic_compiled as kinematic
 
     supported = compiled_kind(scheme, integrator)
@@ -1124,7 +1124,7 @@ def advance(scheme, plan: tuple, integrator, state, dt: float, nsteps: int, kine
     Gs = tuple(Gs)
     Phi = state.arrays[frame_key] = _writable(state.arrays[frame_key])
     Phi3 = Phi.reshape(-1, m, m)
-    if kind is Kinematic:
+    if kind == "kinematic":
         return kinematic.advance(
             scheme, "lattice", plan, (Gs, Phi3),
             lambda inv: (np.empty((n, m, m)), *_work(plan, n, r, m), np.empty((n, r)),
@@ -1136,7 +1136,7 @@ def advance(scheme, plan: tuple, integrator, state, dt: float, nsteps: int, kine
     loops = THREADED if threads > 1 else SERIAL
     W = None
     with numba_threads(threads) if threads > 1 else contextlib.nullcontext():
-        if kind is LieVerlet:
+        if kind == "lie-verlet":
             velocity_free, have, W = lie_verlet_force(scheme, integrator, stamp, S)
             mask, frac, fac, kinds = _lie_verlet_sequence(integrator, scheme, plan[I_GID], dt, cache)
             if plan[I_GID] == GID_SE3 and d == 1 and np.all(kinds[:, 0] != KIND_GENERIC):
@@ -1151,15 +1151,15 @@ def advance(scheme, plan: tuple, integrator, state, dt: float, nsteps: int, kine
                     plan, S2, Gs, Phi3, W.reshape(n, r), have, bool(velocity_free), mask, frac, fac,
                     np.ascontiguousarray(kinds[:, 0]), np.ascontiguousarray(kinds[:, 1]), t0, dt, nsteps, diss, ext,
                     check, limit, inv)
-        elif kind is LieEuler or kind is ForwardEuler:
+        elif kind == "lie-euler" or kind == "forward-euler":
             done, t, diss, ext = loops["euler_loop"](plan, S2, Gs, Phi3, t0, dt, nsteps, diss, ext, check, limit, inv,
-                                                     kind is LieEuler)
+                                                     kind == "lie-euler")
             nforce = done
         else:
-            dynamics = kind is RKMK4
+            dynamics = kind == "rkmk4"
             order = 4 if dynamics else integrator.order
             hit, N = rkmk_velocity(integrator, stamp, S, dynamics)
-            if not (dynamics or hit):
+            if not dynamics:  # from the state alone (rkmk_velocity)
                 overdamped_velocity(plan, Gs, Phi3, N.reshape(n, r), gam)
             N2 = N.reshape(n, r)
             if order == 1 and plan[I_GID] == GID_SE3 and d == 1:
@@ -1180,20 +1180,20 @@ def advance(scheme, plan: tuple, integrator, state, dt: float, nsteps: int, kine
 
 
 def compiled_kind(scheme, integrator) -> tuple | None:
-    """``(integrator class, drag Γ or None)`` when the compiled loops run ``integrator``, else
+    """``(integrator name, drag Γ or None)`` when the compiled loops run ``integrator``, else
     None: ``lie-verlet``, ``lie-euler``, ``forward-euler``, ``rkmk4``, ``kinematic`` with a
     numba velocity, and ``overdamped`` of order 1 or 2 with a positive drag on every live
     component (without, the reference path raises the error)."""
-    from ..integrators.explicit import RKMK4, ForwardEuler, Kinematic, LieEuler, LieVerlet, Overdamped
     from ._kinematic_compiled import is_compiled_velocity
 
-    kind = type(integrator)
-    if kind not in (LieVerlet, LieEuler, ForwardEuler, Overdamped, RKMK4, Kinematic):
+    # the built-in integrators (known by name; the loops below are their steps), not subclasses
+    kind = integrator.name if type(integrator).__module__ == "cartan.integrators.explicit" else None
+    if kind not in ("lie-verlet", "lie-euler", "forward-euler", "overdamped", "rkmk4", "kinematic"):
         return None
-    if kind is Kinematic and not is_compiled_velocity(integrator.velocity_field):
+    if kind == "kinematic" and not is_compiled_velocity(integrator.velocity_field):
         return None
     gam = None
-    if kind is Overdamped:
+    if kind == "overdamped":
         gam = np.asarray(scheme.drag(), dtype=float)
         if np.any(scheme.live & ~(gam > 0)) or integrator.order not in (1, 2):
             return None
@@ -1215,20 +1215,28 @@ def lie_verlet_force(scheme, integrator, stamp: tuple, S: np.ndarray) -> tuple[b
 
 def rkmk_velocity(integrator, stamp: tuple, S: np.ndarray, dynamics: bool) -> tuple[bool, np.ndarray]:
     """``(hit, N)`` for a compiled RKMK or overdamped loop: zeros for ``rkmk4`` (``dynamics``);
-    for ``overdamped`` its cached velocity (a C-ordered copy shaped like ``S``) when it belongs
-    to the state, else an empty array for the caller to fill."""
+    for ``overdamped`` an empty array for the caller to fill with the velocity of the state
+    computed by the compiled kernels (:func:`overdamped_velocity`), and ``hit`` when the
+    integrator holds a velocity for the state (``Overdamped.velocity``, e.g. from a saved
+    frame), which the reference path would reuse — for the force count only.
+
+    That velocity is not taken: it comes from the reference path, which agrees with the
+    compiled kernels to round-off only, and a restarted run, whose state comes from a file,
+    has none.  Computed from the state alone — bit for bit the velocity the loops carry from
+    one step to the next — the steps do not depend on how they are grouped into calls, and a
+    restart continues a run bit for bit."""
     if dynamics:
         return False, np.zeros_like(S)
     cached = integrator._cache
-    hit = cached is not None and cached[0] == stamp
-    return hit, (np.array(cached[1], dtype=float, order="C").reshape(S.shape) if hit else np.empty_like(S))
+    return bool(cached is not None and cached[0] == stamp), np.empty_like(S)
 
 
 def rkmk_books(integrator, state, dynamics: bool, order: int, done: int, hit: bool, t: float, nstep0: int,
                N: np.ndarray) -> int:
     """The force evaluations of ``done`` RKMK or overdamped steps as the reference path counts
     them (``rkmk4`` 4 per step; ``overdamped`` its velocity before and after every step, plus
-    the 2 stages of order 2, the very first one from the integrator's cache when ``hit``),
+    the 2 stages of order 2, the very first one from the integrator's cache when ``hit``, as
+    :func:`rkmk_velocity` reports it),
     and the overdamped velocity ``N`` of the final state cached on the integrator."""
     if not dynamics:
         integrator._cache = ((id(state), t, nstep0 + done - 1), N.copy())

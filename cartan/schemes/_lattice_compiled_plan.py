@@ -92,7 +92,7 @@ def _quadratic_axes(medium, d: int, r: int) -> tuple[np.ndarray, np.ndarray] | N
                 f"medium {medium.name!r}: quadratic_energy() must return finite X0 of shape ({r},) or ({d}, {r}) "
                 f"and C of shape ({r}, {r}); got shapes {np.shape(quad[0])} and {np.shape(quad[1])}"
             )
-    elif d > 1 and isinstance(medium, QuadraticMedium) and _same_methods(
+    elif d > 1 and isinstance(medium, QuadraticMedium) and medium._C is not None and _same_methods(
             medium, QuadraticMedium, ("potential", "stress", "stiffness", "rest_strain")):
         X0 = np.array(medium.rest_strain(), dtype=float).reshape(d, r)
         C = np.array(medium.stiffness()[0, :, 0, :], dtype=float)
@@ -135,10 +135,14 @@ def build_plan(scheme) -> tuple | None:
         return None
     if not _same_methods(scheme, Scheme, ("velocity", "constrain", "powers", "has_external_power", "drag")):
         return None
+    if not scheme.diagonal_metric or np.any(scheme.mass < 0):
+        return None  # the kinetic metric of these loops is a positive diagonal
     if not _same_methods(medium, Medium, ("velocity", "body_force")):
         return None
     if getattr(medium, "velocity_dependent_forces", False):
         return None
+    if problem.reference is not None or getattr(scheme, "coupled", False):
+        return None  # rest strains per edge, corner energies: the generated loops' operators
     r = group.dim
     quad = _quadratic_axes(medium, d, r)
     if quad is None:
@@ -156,13 +160,7 @@ def build_plan(scheme) -> tuple | None:
     weights = np.ascontiguousarray(scheme.weights, dtype=float).reshape(n)
     # end loads, one entry per node of each loaded end (face), sorted by node (stably: the
     # reference path's order at a node loaded by two faces)
-    numbers = np.arange(n).reshape(shape)
-    entries = []
-    for sl, b in scheme._end_loads:
-        axis = Lattice._end_axis(sl)
-        for i in np.ravel(numbers[sl]):
-            entries.append((int(i), b, axis))
-    entries.sort(key=lambda e: e[0])
+    entries = scheme.end_load_entries()
     end_idx = np.array([i for i, _, _ in entries], dtype=np.int64)
     end_div = np.array([0.5 * h[a] for _, _, a in entries], dtype=float)
     end_face = np.array([weights[i] / (0.5 * h[a]) for i, _, a in entries], dtype=float)

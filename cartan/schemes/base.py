@@ -144,8 +144,11 @@ class Scheme(abc.ABC):
         self.medium = problem.medium
         self.group = problem.medium.group
         self.grid = problem.grid
-        self.mass = self.medium.inertia()  # (r,)
-        self.live = self.mass > 0
+        self.mass = self.medium.inertia()  # (r,), the diagonal of the kinetic metric
+        self.live = ~np.asarray(self.medium.gauge_mask(), dtype=bool)
+        #: N = M⁺S: the inverse kinetic metric on the live block (r, r); diagonal for most media
+        self.inverse_metric = self.medium.inverse_metric()
+        self.diagonal_metric = not np.any(self.inverse_metric - np.diag(np.diag(self.inverse_metric)))
         self.weights = self.grid.node_weights()  # [*shape]
         self._clamped = self._clamp_mask()
 
@@ -196,6 +199,15 @@ class Scheme(abc.ABC):
 
         return importlib.import_module(f"{__package__}.{module}").advance(self, plan, integrator, state, dt, nsteps,
                                                                           kinetic_limit)
+
+    def compiled_operators(self):
+        """The scheme's compiled operator set for its problem
+        (:class:`cartan.compiled.operators.OperatorSet`), or None when the scheme has none.
+
+        The integrators' generated loops (:meth:`cartan.integrators.base.Integrator.run_compiled_loop`)
+        call these operators; a declined set says why in ``reason``.  Built once per scheme.
+        """
+        return None
 
     def compiled_plan(self, module: str) -> tuple | None:
         """The compiled plan of this scheme's problem, built once by
@@ -383,13 +395,15 @@ class Scheme(abc.ABC):
         if not (np.isfinite(eps) and eps > 0):
             raise ValueError(f"eps must be finite and > 0, got {eps!r}")
         shape = (*self.grid.shape, self.group.dim)
-        if rate == "inertial":
+        if rate == "inertial" and not self.diagonal_metric:
+            inv = self.inverse_metric  # applied as a matrix below
+        elif rate == "inertial":
             inv = np.where(self.live, 1.0 / np.where(self.live, self.mass, 1.0), 0.0)
         else:
             gam = self.drag()
             inv = np.where(gam > 0, 1.0 / np.where(gam > 0, gam, 1.0), 0.0)
         rng = np.random.default_rng(0)
-        v = rng.standard_normal(shape) * (inv > 0)
+        v = rng.standard_normal(shape) * (self.live if inv.ndim == 2 else (inv > 0))
         v[self._clamped] = 0.0
         lam = 0.0
         probe = self.stiffness_probe(state, eps)
@@ -398,7 +412,7 @@ class Scheme(abc.ABC):
             if nv == 0:
                 break
             v /= nv
-            w = inv * probe(v)
+            w = probe(v) @ inv.T if inv.ndim == 2 else inv * probe(v)
             w[self._clamped] = 0.0
             lam_new = float(np.vdot(v, w))
             v = w

@@ -316,6 +316,12 @@ class Collocation(Scheme):
                 self._free_ends.append((axis, tuple(sl), sign, H_end, b, face))
         # loaded ends, the attribute the integrators look for to book external work
         self._end_loads = [e for e in self._free_ends if e[4].load is not None]
+        # the rest strain field of a stress-free reference configuration (None: the medium's)
+        self.rest = None
+        if problem.reference is not None:
+            if problem.reference.holonomy is not None:
+                raise ValueError("the collocation scheme takes a reference configuration without a holonomy")
+            self.rest = self.strain_from_frames(problem.reference.Phi)
 
     def options(self) -> dict[str, Any]:
         return {"derivative": self.derivative, "track_frames": self.track}
@@ -452,7 +458,7 @@ class Collocation(Scheme):
         """
         g = self.group
         X = state.arrays["X"]
-        Q = self.medium.stress(X)
+        Q = self.medium.stress(X) if self.rest is None else self.medium.stress_at(X, self.rest)
         W = np.zeros((*self.grid.shape, g.dim))
         for axis, D in enumerate(self.D):
             Qa = Q[..., axis, :]
@@ -538,7 +544,9 @@ class Collocation(Scheme):
     def potential_energy(self, state: State) -> float:
         """``Σ_i w_i U(X_i)`` plus conservative-load energies; w the scheme's quadrature
         weights (:attr:`weights`: trapezoidal, except the SBP norm on open fd4 axes)."""
-        V = float(np.sum(self.weights * self.medium.potential(state.arrays["X"])))
+        X = state.arrays["X"]
+        U = self.medium.potential(X) if self.rest is None else self.medium.potential_at(X, self.rest)
+        V = float(np.sum(self.weights * U))
         conservative = [load for load in self.problem.loads if load.conservative]
         if conservative:
             Phi = self.frames(state)

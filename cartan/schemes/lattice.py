@@ -22,8 +22,20 @@ Frames
     at output times (paper §V, "model no more than a scene needs").  ``track_frames=True``
     forces stepping, e.g. to measure the integrability residual against independent frames.
 
-Material dimension d = 1 is supported for every medium; d ≥ 2 requires a potential that is
-additive over the axes (``medium.separable_axes = True``).
+Energies in d ≥ 2
+    A potential additive over the axes (``medium.separable_axes = True``) is summed over the
+    edges as above, each edge's strain with the other axes at rest.  Any other potential — one
+    that couples the axes, like a shell's membrane energy — is evaluated at the **corners** of
+    the lattice: at node i, every choice of one incident edge per axis (the edge before or
+    after i along α, those that exist) gives a strain ``X_c = (X_{e_1}, …, X_{e_d})``, and
+    ``V = Σ_i (w_i / #corners_i) Σ_c U(X_c)``, the analogue of full (2^d-point) quadrature,
+    without the zero-energy modes of a one-point cell average.  The forces are its exact
+    gradient: each corner's stress goes back to its d edges, and from the edges to the nodes
+    through dexp⁻¹ as above.  For d = 1 both forms are the edge sum.
+Rest strains
+    A problem with a stress-free ``reference`` configuration Φ_ref has the rest strain
+    ``X₀_e = log(Φ_ref,i⁻¹Φ_ref,j)/h`` on each edge (exactly stress-free on the lattice);
+    otherwise the medium's constant ``rest_strain()``.
 
 Compiled loops
     :meth:`Lattice.compiled_advance` runs whole blocks of steps in numba
@@ -58,11 +70,8 @@ class Lattice(Scheme):
         super().__init__(problem)
         self.track = problem.needs_structure_field if track_frames is None else bool(track_frames)
         d = self.grid.d
-        if d > 1 and not getattr(self.medium, "separable_axes", False):
-            raise ValueError(
-                f"the lattice scheme needs a potential additive over the axes for d = {d} "
-                f"(medium {self.medium.name!r} does not declare separable_axes = True)"
-            )
+        #: True when the potential is evaluated at the corners (d ≥ 2, axes coupled)
+        self.coupled = d > 1 and not getattr(self.medium, "separable_axes", False)
         self.h = self.grid.spacing
         self._end_loads = []  # (index tuple, Free)
         for axis in range(d):
@@ -102,6 +111,17 @@ class Lattice(Scheme):
         ``kinetic_limit``; the number of steps done is the increase of ``state.scalars["nstep"]``.
         """
         return self._run_compiled("_lattice_compiled", integrator, state, dt, nsteps, kinetic_limit)
+
+    def compiled_operators(self):
+        """The lattice's compiled operators (:mod:`cartan.schemes._lattice_ops`): any group
+        with point kernels, any medium that declares point kernels, d = 1–3, damping,
+        body-frame uniform forces, free (loaded) and clamped ends or faces."""
+        ops = self.__dict__.get("_operators")
+        if ops is None:
+            from ._lattice_ops import lattice_operators
+
+            ops = self._operators = lattice_operators(self)
+        return ops
 
     # ------------------------------------------------------------------ layout helpers
     def _key(self, axis: int) -> str:
@@ -175,15 +195,116 @@ class Lattice(Scheme):
             out[..., axis, :] = np.moveaxis(nodal, 0, axis)
         return out
 
+    def edge_rest_strains(self, axis: int) -> np.ndarray | None:
+        """Rest strains of the edges along ``axis`` ``[*edge_shape, d, r]`` from the problem's
+        ``reference`` (slot ``axis``: log(Φ_ref,i⁻¹Φ_ref,j)/h; the other slots the medium's
+        rest strain), or None when the problem has no reference configuration."""
+        ref = self.problem.reference
+        if ref is None:
+            return None
+        cache = self.__dict__.setdefault("_edge_rest", {})
+        if axis not in cache:
+            g = self.group
+            inv_tail, _ = self._ends(g.inverse(ref.Phi), axis)
+            _, head = self._ends(ref.Phi, axis)
+            if ref.holonomy is not None and self.grid.periodic[axis]:
+                head = head.copy()
+                head[-1] = g.compose(ref.holonomy, head[-1])
+            xi = g.log(g.compose(inv_tail, head)) / self.h[axis]
+            X0 = np.broadcast_to(self.medium.rest_strain(), (*xi.shape[:-1], self.grid.d, g.dim)).copy()
+            X0[..., axis, :] = xi
+            cache[axis] = X0
+        return cache[axis]
+
     def _axis_stress(self, X: np.ndarray, axis: int) -> np.ndarray:
         d = self.grid.d
-        full = np.broadcast_to(self.medium.rest_strain(), (*X.shape[:-1], d, X.shape[-1])).copy()
+        X0 = self.edge_rest_strains(axis)
+        if X0 is None:
+            full = np.broadcast_to(self.medium.rest_strain(), (*X.shape[:-1], d, X.shape[-1])).copy()
+            full[..., axis, :] = X
+            return self.medium.stress(full)[..., axis, :], full
+        full = X0.copy()
         full[..., axis, :] = X
-        return self.medium.stress(full)[..., axis, :], full
+        return self.medium.stress_at(full, X0)[..., axis, :], full
+
+    def corners(self) -> dict[str, np.ndarray]:
+        """The corners of a coupled lattice (see the module docstring), built once.
+
+        Returns
+        -------
+        dict
+            ``"node"`` ``[C]`` flat node of each corner, ``"edge"`` ``[C, d]`` the flat index
+            of its edge along each axis (in that axis' edge array, C order), ``"weight"`` ``[C]``
+            ``w_i/#corners_i``, ``"X0"`` ``[C, d, r]`` its rest strain; ``"tail"``, ``"head"``
+            per axis, the flat end nodes of that axis' edges.
+        """
+        held = self.__dict__.get("_corners")
+        if held is not None:
+            return held
+        d, r, shape = self.grid.d, self.group.dim, self.grid.shape
+        n = int(np.prod(shape))
+        numbers = np.arange(n).reshape(shape)
+        after, before, tails, heads = [], [], [], []
+        for a in range(d):
+            t, hd = self._ends(numbers, a)
+            tails.append(t.ravel())
+            heads.append(hd.ravel())
+            ea = np.full(n, -1)
+            eb = np.full(n, -1)
+            ea[t.ravel()] = np.arange(t.size)
+            eb[hd.ravel()] = np.arange(t.size)
+            after.append(ea)
+            before.append(eb)
+        count = np.ones(n)
+        for a in range(d):
+            count *= (after[a] >= 0).astype(float) + (before[a] >= 0)
+        w = np.asarray(self.weights, dtype=float).reshape(n)
+        nodes, edges = [], []
+        for combo in range(1 << d):
+            idx = [after[a] if (combo >> a) & 1 else before[a] for a in range(d)]
+            valid = np.all([i >= 0 for i in idx], axis=0)
+            nodes.append(np.flatnonzero(valid))
+            edges.append(np.stack([i[valid] for i in idx], axis=-1))
+        node = np.concatenate(nodes)
+        edge = np.concatenate(edges).astype(np.int64)
+        X0 = np.broadcast_to(self.medium.rest_strain(), (node.size, d, r)).copy()
+        for a in range(d):
+            ref = self.edge_rest_strains(a)
+            if ref is not None:
+                X0[:, a, :] = ref.reshape(-1, d, r)[edge[:, a], a, :]
+        held = self._corners = {"node": node, "edge": edge, "weight": w[node] / count[node], "X0": X0,
+                                "tail": tails, "head": heads}
+        return held
+
+    def _corner_strains(self, state: State) -> tuple[list[np.ndarray], np.ndarray]:
+        """Per axis the flat edge logarithms ``hX_e`` ``[E_α, r]``, and the corner strains ``[C, d, r]``."""
+        c = self.corners()
+        xis = [self.group.log(state.arrays[self._key(a)]).reshape(-1, self.group.dim) for a in range(self.grid.d)]
+        Xc = np.stack([xis[a][c["edge"][:, a]] / self.h[a] for a in range(self.grid.d)], axis=1)
+        return xis, Xc
+
+    def _corner_energy(self, Xc: np.ndarray) -> np.ndarray:
+        X0 = self.corners()["X0"]
+        return self.medium.potential_at(Xc, X0) if self.problem.reference is not None else self.medium.potential(Xc)
+
+    def _corner_force(self, state: State) -> np.ndarray:
+        g, c = self.group, self.corners()
+        xis, Xc = self._corner_strains(state)
+        Q = (self.medium.stress_at(Xc, c["X0"]) if self.problem.reference is not None
+             else self.medium.stress(Xc))
+        F = np.zeros((int(np.prod(self.grid.shape)), g.dim))
+        for a, xi in enumerate(xis):
+            Qe = np.zeros_like(xi)
+            np.add.at(Qe, c["edge"][:, a], (c["weight"] / self.h[a])[:, None] * Q[:, a, :])
+            np.add.at(F, c["tail"][a], np.einsum("...ji,...j->...i", g.dexp_inv(xi), Qe))
+            np.add.at(F, c["head"][a], -np.einsum("...ji,...j->...i", g.dexp_inv(-xi), Qe))
+        return F.reshape(*self.grid.shape, g.dim)
 
     def internal_force(self, state: State) -> np.ndarray:
         """Generalised internal force per node F_i (not divided by the weight) ``[*shape, r]``."""
         g = self.group
+        if self.coupled:
+            return self._corner_force(state)
         F = np.zeros((*self.grid.shape, g.dim))
         for axis in range(self.grid.d):
             xi = g.log(state.arrays[self._key(axis)])
@@ -219,6 +340,14 @@ class Lattice(Scheme):
             face = self.weights[idx] / (0.5 * self.h[self._end_axis(idx)])
             p += float(np.sum(face[..., None] * P * N[idx]))
         return p
+
+    def end_load_entries(self) -> list[tuple[int, Any, int]]:
+        """``(flat node, Free boundary, axis)`` for every node of every loaded free end (face),
+        sorted by node, stably (a node loaded by two faces keeps the order of ``_end_loads``)."""
+        numbers = np.arange(int(np.prod(self.grid.shape))).reshape(self.grid.shape)
+        entries = [(int(i), b, self._end_axis(sl)) for sl, b in self._end_loads for i in np.ravel(numbers[sl])]
+        entries.sort(key=lambda e: e[0])
+        return entries
 
     @staticmethod
     def _end_axis(idx: tuple) -> int:
@@ -295,9 +424,14 @@ class Lattice(Scheme):
     def potential_energy(self, state: State) -> float:
         V = 0.0
         cell = float(np.prod(self.h))
-        for axis, X in enumerate(self.edge_strains(state)):
+        if self.coupled:
+            _, Xc = self._corner_strains(state)
+            V += float(np.sum(self.corners()["weight"] * self._corner_energy(Xc)))
+        for axis, X in enumerate(self.edge_strains(state) if not self.coupled else ()):
+            X0 = self.edge_rest_strains(axis)
             _, full = self._axis_stress(X, axis)
-            V += cell * float(np.sum(self.medium.potential(full)))
+            V += cell * float(np.sum(self.medium.potential(full) if X0 is None
+                                     else self.medium.potential_at(full, X0)))
         conservative = [load for load in self.problem.loads if load.conservative]
         if conservative:
             Phi = self.frames(state)

@@ -2,7 +2,11 @@
 
 from __future__ import annotations
 
+import pathlib
+
 import cartan
+
+SCENE_DIR = pathlib.Path(__file__).resolve().parent / "scenes"
 
 
 @cartan.hookimpl
@@ -10,3 +14,9 @@ def cartan_register_media(register):
     from .model import SigmaModel
 
     register("sigma-model", SigmaModel)
+
+
+@cartan.hookimpl
+def cartan_register_scenes(register):
+    for path in sorted(SCENE_DIR.glob("*.toml")):
+        register(path.stem, path)

@@ -1,0 +1,211 @@
+"""Generated modules: one small Python module per (loop, operators, kernels), compiled once.
+
+A compiled loop reaches the kernels it calls (the group's exp, log, dexp⁻¹ …, the medium's
+energy density and stress, the scheme's operators) as **module globals** of a module written
+for it: numba then compiles the loop as if it had been written by hand around those kernels,
+and caches the machine code on disk like any ``@njit(cache=True)`` function, so a later
+process loads it instead of compiling (a jitted function passed as an argument compiles
+as fast but is compiled again in every process).
+
+The module's file name carries a hash of its text and of the source files of every kernel
+it imports (and of the kernels those call): editing a kernel gives a new module, and the
+stale one is never loaded again.  Modules live in ``<cache>/generated`` where ``<cache>`` is
+``$NUMBA_CACHE_DIR/cartan`` when numba's cache directory is set, else
+``$XDG_CACHE_HOME/cartan`` (``~/.cache/cartan``); ``CARTAN_CACHE_DIR`` overrides both.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import importlib.util
+import inspect
+import os
+import sys
+import tempfile
+import textwrap
+import time
+from collections.abc import Callable, Iterable
+from dataclasses import dataclass, field
+from pathlib import Path
+from types import ModuleType
+from typing import Any
+
+import numpy as np
+
+__all__ = ["Fragment", "cache_dir", "first_call", "generate", "njit_source"]
+
+#: module name prefix of generated modules (``sys.modules`` keys)
+PACKAGE = "cartan_generated"
+_loaded: dict[str, ModuleType] = {}
+
+
+@dataclass
+class Fragment:
+    """A piece of a generated module.
+
+    Attributes
+    ----------
+    imports : dict of str → (str, str)
+        ``alias → (module, name)``: ``from module import name as alias``.
+    constants : dict of str → array or float or int
+        Module-level constants (numba freezes global arrays into the machine code).
+    source : str
+        Python source of functions (each is compiled with ``@njit(cache=True)``).
+    """
+
+    imports: dict[str, tuple[str, str]] = field(default_factory=dict)
+    constants: dict[str, Any] = field(default_factory=dict)
+    source: str = ""
+
+
+def njit_source(*functions: Callable) -> str:
+    """The source of plain Python functions, to be compiled inside a generated module.
+
+    The functions are written (and linted, and read) as ordinary module-level functions whose
+    free names (``g_exp``, ``op_force`` …) are the globals of the generated module.
+    """
+    return "\n\n".join(textwrap.dedent(inspect.getsource(f)) for f in functions)
+
+
+def cache_dir() -> Path:
+    """Where generated modules are written (see the module docstring)."""
+    env = os.environ.get("CARTAN_CACHE_DIR")
+    if env:
+        return Path(env)
+    numba_dir = os.environ.get("NUMBA_CACHE_DIR")
+    if numba_dir:
+        return Path(numba_dir) / "cartan"
+    base = os.environ.get("XDG_CACHE_HOME") or os.path.join(os.path.expanduser("~"), ".cache")
+    return Path(base) / "cartan"
+
+
+def _literal(value: Any) -> str:
+    """Exact Python source of a constant (float64/int64/bool arrays, floats, ints)."""
+    if isinstance(value, (bool, np.bool_)):
+        return repr(bool(value))
+    if isinstance(value, (int, np.integer)):
+        return repr(int(value))
+    if isinstance(value, (float, np.floating)):
+        return f"float.fromhex({float(value).hex()!r})"
+    arr = np.ascontiguousarray(value)
+    dtype = {"f": "float64", "i": "int64", "b": "bool_"}[arr.dtype.kind]
+    arr = arr.astype(dtype)
+    return (f"np.frombuffer(bytes.fromhex({arr.tobytes().hex()!r}), dtype=np.{dtype})"
+            f".reshape({tuple(arr.shape)!r}).copy()")
+
+
+def _kernel_sources(imports: Iterable[tuple[str, str]]) -> list[str]:
+    """Source files of the imported kernels and of the jitted functions their modules import."""
+    files: set[str] = set()
+    for module_name, name in imports:
+        module = importlib.import_module(module_name)
+        obj = getattr(module, name)
+        func = getattr(obj, "py_func", obj)
+        try:
+            files.add(inspect.getsourcefile(func) or "")
+        except TypeError:
+            continue
+        for value in vars(module).values():
+            inner = getattr(value, "py_func", None)
+            if inner is not None:
+                try:
+                    files.add(inspect.getsourcefile(inner) or "")
+                except TypeError:
+                    pass
+    return sorted(f for f in files if f)
+
+
+def _render(fragments: Iterable[Fragment]) -> str:
+    imports: dict[str, tuple[str, str]] = {}
+    constants: dict[str, Any] = {}
+    sources: list[str] = []
+    for frag in fragments:
+        imports.update(frag.imports)
+        constants.update(frag.constants)
+        if frag.source.strip():
+            sources.append(textwrap.dedent(frag.source).strip())
+    lines = ["# Generated by cartan.compiled.codegen: a compiled loop and the kernels it calls.",
+             "import numpy as np", "from numba import njit", ""]
+    for alias, (module, name) in sorted(imports.items()):
+        lines.append(f"from {module} import {name} as _{alias}")
+    lines.append("")
+    # the kernels are inlined into the loops (numba IR inlining: no call, no reference counts
+    # on the arrays they receive), compiled from their Python source
+    lines.append("_jit = lambda f: (f if isinstance(f, type)"
+                 " else njit(inline='always', error_model='numpy')(getattr(f, 'py_func', f)))")
+    for alias in sorted(imports):
+        lines.append(f"{alias} = _jit(_{alias})")
+    lines.append("")
+    for name, value in constants.items():
+        lines.append(f"{name} = {_literal(value)}")
+    lines.append("")
+    body = "\n\n\n".join(sources)
+    # every top-level function is compiled and cached; helpers (``_name``) and kernels
+    # (``g_name``, ``m_name``) are inlined where they are called
+    inline = ("def _", "def g_", "def m_")
+    body = "\n".join(("@njit(inline='always', error_model='numpy')\n" + ln) if ln.startswith(inline)
+                     else ("@njit(cache=True, error_model='numpy')\n" + ln) if ln.startswith("def ") else ln
+                     for ln in body.splitlines())
+    lines.append(body)
+    return "\n".join(lines) + "\n"
+
+
+def generate(kind: str, fragments: Iterable[Fragment]) -> ModuleType:
+    """Write (once) and import the generated module made of ``fragments``.
+
+    Parameters
+    ----------
+    kind : str
+        A readable stem of the file name (e.g. ``"lie_verlet-lattice-SO4-sigma_model"``).
+    fragments : iterable of Fragment
+
+    Returns
+    -------
+    module
+        The imported module; its functions compile on first call and are cached on disk.
+    """
+    fragments = list(fragments)
+    text = _render(fragments)
+    digest = hashlib.sha256(text.encode())
+    for path in _kernel_sources(imp for f in fragments for imp in f.imports.values()):
+        digest.update(Path(path).read_bytes())
+    stem = "".join(c if c.isalnum() else "_" for c in kind)[:80]
+    name = f"{stem}_{digest.hexdigest()[:16]}"
+    if name in _loaded:
+        return _loaded[name]
+    folder = cache_dir() / "generated"
+    folder.mkdir(parents=True, exist_ok=True)
+    path = folder / f"{name}.py"
+    if not path.exists() or path.read_text() != text:
+        fd, tmp = tempfile.mkstemp(dir=folder, prefix=f".{name}.", suffix=".tmp")
+        with os.fdopen(fd, "w") as fh:
+            fh.write(text)
+        os.replace(tmp, path)
+    spec = importlib.util.spec_from_file_location(f"{PACKAGE}.{name}", path)
+    assert spec is not None and spec.loader is not None
+    module = importlib.util.module_from_spec(spec)
+    sys.modules[spec.name] = module
+    spec.loader.exec_module(module)
+    module.__cartan_marker__ = folder / f"{name}.compiled"
+    _loaded[name] = module
+    return module
+
+
+def first_call(module: ModuleType, function: str, what: str) -> Callable[[], None]:
+    """Announce on stderr that ``what`` (``module.function``) compiles, the first time only.
+
+    Returns a function to call once the compiled code has run, which records that the
+    machine code is now in the cache and reports the compile time.
+    """
+    marker: Path = module.__cartan_marker__.with_suffix(f".{function}.compiled")
+    if marker.exists():
+        return lambda: None
+    print(f"cartan: compiling {what} (once; later runs load it from {marker.parent})", file=sys.stderr,
+          flush=True)
+    t0 = time.perf_counter()
+
+    def done() -> None:
+        marker.touch()
+        print(f"cartan: compiled {what} in {time.perf_counter() - t0:.1f} s", file=sys.stderr, flush=True)
+
+    return done

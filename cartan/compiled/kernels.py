@@ -1,0 +1,141 @@
+"""Kernel declarations: how a group's and a medium's point kernels enter a generated module.
+
+Group kernels
+    ``g_<op>`` for every ``op`` of :data:`GROUP_OPS` (signatures in
+    :meth:`cartan.groups.base.SymmetryGroup.point_kernels`).
+Medium kernels
+    ``m_energy(X, X0, p) -> float`` and ``m_stress(X, X0, p, Q)`` — the potential energy
+    density U and the stress Q = ∂U/∂X at one point, X, X0 and Q of shape ``(d, r)`` (the
+    strain, the local rest strain, the stress written in place), ``p`` the medium's parameter
+    vector (float64, 1-D).  See :class:`cartan.medium.MediumKernels`.
+"""
+
+from __future__ import annotations
+
+import importlib
+
+from .codegen import Fragment
+
+__all__ = ["GROUP_OPS", "group_fragment", "medium_batch", "medium_fragment"]
+
+#: the group operations a generated loop may call
+GROUP_OPS = ("exp", "log", "compose", "inverse", "hat", "Ad", "ad", "dexp_inv", "E")
+
+#: operations a group may provide in closed form (``<prefix>_<op>_point``); otherwise they are
+#: built from :data:`GROUP_OPS` in the generated module
+_FUSED = """
+def g_{op}({arg}, v, out):
+    A = np.empty((R_, R_))
+    g_{matrix}({arg}, A)
+    for k in range(R_):
+        s = 0.0
+        for j in range(R_):
+            s += A[j, k] * v[j]
+        out[k] = s
+"""
+FUSED_OPS = {op: _FUSED.format(op=op, arg=arg, matrix=matrix)
+             for op, arg, matrix in (("Ad_T", "g", "Ad"), ("dexp_inv_T", "xi", "dexp_inv"))}
+
+
+#: 𝓔 and dexp⁻¹ for a group without closed forms: the Van Loan block exponential
+_VANLOAN = """
+def g_E(dt, xi, out):
+    A = np.empty((R_, R_))
+    g_ad(xi, A)
+    _vanloan_E(dt, A, out)
+
+
+def g_dexp_inv(xi, out):
+    A = np.empty((R_, R_))
+    g_ad(xi, A)
+    _vanloan_E(1.0, A, out)
+    out[:, :] = np.linalg.inv(out)
+"""
+
+
+def group_fragment(module: str, prefix: str, ops=GROUP_OPS) -> Fragment | None:
+    """``g_<op>`` bound to ``<module>.<prefix>_<op>_point``; None when one of ``ops`` is
+    missing, except ``E`` and ``dexp_inv``, which come from the Van Loan block exponential
+    (:mod:`cartan.groups._generic_kernels`) when the module has neither.  The fused operations
+    of :data:`FUSED_OPS` (``g_Ad_T(g, v, out)`` = Ad_gᵀv, ``g_dexp_inv_T(xi, v, out)`` =
+    dexp⁻¹(ξ)ᵀv) are bound the same way when the module has them, and built from the matrices
+    otherwise."""
+    mod = importlib.import_module(module)
+    imports = {}
+    vanloan = not any(hasattr(mod, f"{prefix}_{op}_point") for op in ("E", "dexp_inv"))
+    for op in ops:
+        name = f"{prefix}_{op}_point"
+        if vanloan and op in ("E", "dexp_inv"):
+            continue
+        if not hasattr(mod, name):
+            return None
+        imports[f"g_{op}"] = (module, name)
+    frag = Fragment(imports=imports)
+    if vanloan:
+        frag.imports["_vanloan_E"] = ("cartan.groups._generic_kernels", "vanloan_E_point")
+        frag.source = _VANLOAN
+    return with_fused(frag, module, prefix)
+
+
+def with_fused(frag: Fragment, module: str | None = None, prefix: str = "") -> Fragment:
+    """Add the fused operations to a group's fragment: the module's closed forms where it has
+    them, the defaults of :data:`FUSED_OPS` otherwise."""
+    mod = importlib.import_module(module) if module else None
+    sources = [frag.source] if frag.source.strip() else []
+    for op, default in FUSED_OPS.items():
+        name = f"{prefix}_{op}_point"
+        if mod is not None and hasattr(mod, name):
+            frag.imports[f"g_{op}"] = (module, name)
+        else:
+            sources.append(default)
+    frag.source = "\n\n".join(s.strip("\n") + "\n" for s in sources)
+    return frag
+
+
+def _importable(func) -> bool:
+    module = getattr(func, "__module__", None)
+    if not module or module == "__main__":
+        return False
+    try:
+        return getattr(importlib.import_module(module), func.__name__, None) is not None
+    except ImportError:
+        return False
+
+
+def medium_fragment(kernels) -> Fragment:
+    """``m_energy`` and ``m_stress`` bound to a medium's declared point kernels: imported from
+    their module, or, when that module cannot be imported (a script, a notebook, ``exec``),
+    from :mod:`cartan.compiled.runtime`, where they are registered under a name derived from
+    their code."""
+    from . import runtime
+
+    imports = {}
+    for alias, func in (("m_energy", kernels.energy), ("m_stress", kernels.stress)):
+        py = getattr(func, "py_func", func)
+        if _importable(py):
+            imports[alias] = (py.__module__, py.__name__)
+        else:
+            imports[alias] = (runtime.__name__, runtime.register(py))
+    return Fragment(imports=imports)
+
+
+_BATCH = """
+def energy_batch(X, X0, p, out):
+    for i in range(X.shape[0]):
+        out[i] = m_energy(X[i], X0[i], p)
+
+
+def stress_batch(X, X0, p, out):
+    for i in range(X.shape[0]):
+        m_stress(X[i], X0[i], p, out[i])
+"""
+
+
+def medium_batch(kernels):
+    """A generated module with ``energy_batch(X, X0, p, out)`` and ``stress_batch(X, X0, p, Q)``
+    over ``[P, d, r]`` points: the kernels applied point by point (the reference path)."""
+    from .codegen import generate
+
+    frag = medium_fragment(kernels)
+    stem = "-".join(getattr(getattr(f, "py_func", f), "__name__", "kernel") for f in (kernels.energy, kernels.stress))
+    return generate(f"batch-{stem}", [frag, Fragment(source=_BATCH)])

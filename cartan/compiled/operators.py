@@ -1,0 +1,69 @@
+"""The operator set a scheme hands to the integrators' compiled loops.
+
+A scheme's ``compiled_operators()`` returns an :class:`OperatorSet`: the source fragments
+that define its operators (``op_force``, ``op_drift``, ``op_velocity`` … — the list and their
+signatures are in :mod:`cartan.schemes._lattice_ops`) together with the group's and the
+medium's point kernels, the problem as data, and how to move a
+:class:`~cartan.schemes.base.State`'s configuration in and out of the flat arrays the loops
+step.  An integrator adds its loop (:mod:`cartan.integrators.loops`) and runs the generated
+module; it never sees more of the scheme than this.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from typing import Any
+
+from .codegen import Fragment
+
+__all__ = ["OperatorSet"]
+
+
+@dataclass
+class OperatorSet:
+    """A scheme's compiled operators for one problem.
+
+    Attributes
+    ----------
+    label : str
+        What the operators serve, for messages (``"lattice × SO(n=4) × sigma-model"``).
+    key : str
+        A file-name stem for the generated module.
+    fragments : list of Fragment
+        The group's kernels, the medium's kernels and the operators' source.
+    data : tuple
+        The problem as data (the operators' first argument ``D``).
+    pack : callable ``state -> C``
+        The configuration as the tuple of arrays the operators step.
+    unpack : callable ``(state, C) -> None``
+        Write a stepped configuration back into ``state.arrays``.
+    accepts : callable ``state -> bool``
+        Whether ``state`` holds the configuration ``pack`` expects.
+    nodes : int
+        Number of nodes (rows of S).
+    reason : str or None
+        Why the scheme declined (then every other field is empty).
+    module : module or None
+        The generated module of these operators and the integrators' loops, once imported.
+    """
+
+    label: str = ""
+    key: str = ""
+    fragments: list[Fragment] = field(default_factory=list)
+    data: Any = None
+    pack: Callable | None = None
+    unpack: Callable | None = None
+    accepts: Callable | None = None
+    nodes: int = 0
+    reason: str | None = None
+    module: Any = None
+
+    @classmethod
+    def declined(cls, reason: str) -> OperatorSet:
+        """An empty set that says why the problem is not covered."""
+        return cls(reason=reason)
+
+    @property
+    def ok(self) -> bool:
+        return self.reason is None

@@ -1,0 +1,317 @@
+"""The compiled step loops: one per integrator family, written once, general in scheme and d.
+
+Each loop is plain Python compiled inside a generated module (:mod:`cartan.compiled.codegen`)
+next to a scheme's operator set (``op_*``, :mod:`cartan.compiled.operators`) and the group's
+point kernels (``g_*``); it takes the steps exactly as the integrator's ``_step`` takes them
+in Python (same formulas, round-off apart), books the loads' powers by the trapezoidal rule
+like :meth:`cartan.integrators.base.Integrator.step`, and stops after the first step whose
+momentum (``check = 1``; configuration for ``check = 2``) is not finite or whose kinetic
+energy exceeds ``limit``.
+
+Every loop returns ``(done, nforce, t, dissipated, external)``.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ..compiled.codegen import Fragment, njit_source
+
+__all__ = ["loop_fragment"]
+
+# names the loops read from the generated module (the scheme's operators, the group's kernels)
+# noqa comments below mark them for the linter.
+
+
+def _coad_node(S, i, xi, E, row, vec):
+    """E ← exp(ξ) and S_i ← Ad_Eᵀ S_i: the free flow of a frozen N at node i."""
+    g_exp(xi, E)  # noqa: F821
+    for k in range(R_):  # noqa: F821
+        row[k] = S[i, k]
+    g_Ad_T(E, row, vec)  # noqa: F821
+    for k in range(R_):  # noqa: F821
+        S[i, k] = vec[k]
+
+
+def _coad_exp(D, tau, N, S):
+    """S_i ← Ad_{exp(τN_i)}ᵀ S_i at every node (the free flow of frozen N)."""
+    xi = np.empty(R_)  # noqa: F821
+    vec = np.empty(R_)  # noqa: F821
+    row = np.empty(R_)  # noqa: F821
+    E = np.empty((M_, M_))  # noqa: F821
+    for i in range(S.shape[0]):
+        for k in range(R_):  # noqa: F821
+            xi[k] = tau * N[i, k]
+        _coad_node(S, i, xi, E, row, vec)
+
+
+def _blown(D, C, S, check, limit):
+    """The blow-up test after a step (see the module docstring)."""
+    if check == 1:
+        for i in range(S.shape[0]):
+            for k in range(R_):  # noqa: F821
+                if not np.isfinite(S[i, k]):
+                    return True
+        e = op_kinetic(D, S)  # noqa: F821
+        return not (e <= limit)
+    return not op_finite_config(C)  # noqa: F821
+
+
+def _book(D, C, S, N, t, dt, p0d, p0e, diss, ext, K, check, limit):
+    """After a step: the loads' powers at its end (velocity ``N``), their trapezoidal
+    integrals, and the blow-up test; returns ``(p1d, p1e, dissipated, external, blown)``."""
+    p1d, p1e = op_powers(D, C, N, t, K)  # noqa: F821
+    return (p1d, p1e, diss + 0.5 * dt * (p0d + p1d), ext + 0.5 * dt * (p0e + p1e),
+            _blown(D, C, S, check, limit))
+
+
+def _free_flow(D, S, pieces, fracs, dt, Dn):
+    """The free flow of ``lie-verlet`` over Δt at every node: the pieces in turn, each
+    ``S ← Ad*_{exp(τN_p)}S`` with ``N_p = P_p S`` (``pieces[p]``, zero at clamped nodes) over
+    ``τ = fracs[p]·Δt``; returns whether anything moved and leaves each node's total motion
+    ``Π_p exp(τN_p)`` in ``Dn`` (the free flow is node-local: the edges follow in one pass)."""
+    xi = np.empty(R_)  # noqa: F821
+    vec = np.empty(R_)  # noqa: F821
+    row = np.empty(R_)  # noqa: F821
+    E = np.empty((M_, M_))  # noqa: F821
+    tmp = np.empty((M_, M_))  # noqa: F821
+    moved = False
+    for i in range(S.shape[0]):
+        first = True
+        clamped = D.any_clamped and D.clamped[i]
+        for p in range(pieces.shape[0]):
+            moving = False
+            for k in range(R_):  # noqa: F821
+                v = 0.0
+                if not clamped:
+                    for j in range(R_):  # noqa: F821
+                        v += pieces[p, k, j] * S[i, j]
+                xi[k] = fracs[p] * dt * v
+                if v != 0.0:
+                    moving = True
+            if not moving:
+                continue
+            moved = True
+            _coad_node(S, i, xi, E, row, vec)
+            if first:
+                for a in range(M_):  # noqa: F821
+                    for b in range(M_):  # noqa: F821
+                        Dn[i, a, b] = E[a, b]
+                first = False
+            else:
+                g_compose(Dn[i], E, tmp)  # noqa: F821
+                for a in range(M_):  # noqa: F821
+                    for b in range(M_):  # noqa: F821
+                        Dn[i, a, b] = tmp[a, b]
+        if first:
+            g_exp(np.zeros(R_), E)  # noqa: F821
+            for a in range(M_):  # noqa: F821
+                for b in range(M_):  # noqa: F821
+                    Dn[i, a, b] = E[a, b]
+    return moved
+
+
+def lie_verlet_loop(D, C, S, W, have_w, velocity_free, pieces, fracs, t, dt, nsteps, diss, ext, check, limit):
+    """``lie-verlet``: half kick, exact free flow split into pieces (``pieces`` ``[P, r, r]``,
+    ``fracs`` of Δt, palindromic), half kick; W carries the force between steps (FSAL)."""
+    K = op_work(D)  # noqa: F821
+    n = S.shape[0]
+    N = np.empty((n, R_))  # noqa: F821
+    Dn = np.empty((n, M_, M_))  # noqa: F821
+    nforce = 0
+    op_velocity(D, S, N)  # noqa: F821
+    p0d, p0e = op_powers(D, C, N, t, K)  # noqa: F821
+    done = 0
+    for _ in range(nsteps):
+        if not (have_w and velocity_free):
+            op_force(D, C, t, N, W, K)  # noqa: F821
+            nforce += 1
+        for i in range(n):
+            for k in range(R_):  # noqa: F821
+                S[i, k] += 0.5 * dt * W[i, k]
+        op_constrain(D, S)  # noqa: F821
+        if _free_flow(D, S, pieces, fracs, dt, Dn):
+            op_move(D, C, Dn, K)  # noqa: F821
+        op_constrain(D, S)  # noqa: F821
+        t1 = t + dt
+        op_velocity(D, S, N)  # noqa: F821
+        op_force(D, C, t1, N, W, K)  # noqa: F821
+        nforce += 1
+        have_w = True
+        for i in range(n):
+            for k in range(R_):  # noqa: F821
+                S[i, k] += 0.5 * dt * W[i, k]
+        op_constrain(D, S)  # noqa: F821
+        op_velocity(D, S, N)  # noqa: F821
+        t = t1
+        done += 1
+        p0d, p0e, diss, ext, blown = _book(D, C, S, N, t, dt, p0d, p0e, diss, ext, K, check, limit)
+        if blown:
+            break
+    return done, nforce, t, diss, ext
+
+
+def _lie_poisson(N, S, W, out):
+    """``out_i = W_i + ad_{N_i}ᵀ S_i`` at every node: Ṡ of the momentum balance (paper §V)."""
+    xi = np.empty(R_)  # noqa: F821
+    A = np.empty((R_, R_))  # noqa: F821
+    for i in range(S.shape[0]):
+        for k in range(R_):  # noqa: F821
+            xi[k] = N[i, k]
+        g_ad(xi, A)  # noqa: F821
+        for k in range(R_):  # noqa: F821
+            v = W[i, k]
+            for j in range(R_):  # noqa: F821
+                v += A[j, k] * S[i, j]
+            out[i, k] = v
+
+
+def euler_loop(D, C, S, geometric, t, dt, nsteps, diss, ext, check, limit):
+    """``lie-euler`` (``geometric``: S⁺ = Ad*_{exp ΔtN}S + 𝓔(Δt, N)ᵀW, exact drift) and
+    ``forward-euler`` (S += Δt(ad_NᵀS + W), naive drift)."""
+    K = op_work(D)  # noqa: F821
+    n = S.shape[0]
+    N = np.empty((n, R_))  # noqa: F821
+    W = np.empty((n, R_))  # noqa: F821
+    Sdot = np.empty((n, R_))  # noqa: F821
+    E = np.empty((R_, R_))  # noqa: F821
+    xi = np.empty(R_)  # noqa: F821
+    op_velocity(D, S, N)  # noqa: F821
+    p0d, p0e = op_powers(D, C, N, t, K)  # noqa: F821
+    done = 0
+    for _ in range(nsteps):
+        op_force(D, C, t, N, W, K)  # noqa: F821
+        if geometric:
+            _coad_exp(D, dt, N, S)
+            for i in range(n):
+                for k in range(R_):  # noqa: F821
+                    xi[k] = N[i, k]
+                g_E(dt, xi, E)  # noqa: F821
+                for k in range(R_):  # noqa: F821
+                    s = 0.0
+                    for j in range(R_):  # noqa: F821
+                        s += E[j, k] * W[i, j]
+                    S[i, k] += s
+            op_drift(D, C, dt, N, K)  # noqa: F821
+        else:
+            _lie_poisson(N, S, W, Sdot)
+            for i in range(n):
+                for k in range(R_):  # noqa: F821
+                    S[i, k] += dt * Sdot[i, k]
+            op_drift_naive(D, C, dt, N, K)  # noqa: F821
+        op_constrain(D, S)  # noqa: F821
+        t = t + dt
+        op_velocity(D, S, N)  # noqa: F821
+        done += 1
+        p0d, p0e, diss, ext, blown = _book(D, C, S, N, t, dt, p0d, p0e, diss, ext, K, check, limit)
+        if blown:
+            break
+    return done, done, t, diss, ext
+
+
+def _stage_velocity(D, C, S, t, mode, gam_inv, N, W, K):
+    """N at a stage: from the momentum (``mode = 0``) or the overdamped N = Γ⁻¹W(N = 0);
+    returns the number of force evaluations (0 or 1)."""
+    if mode == 0:
+        op_velocity(D, S, N)  # noqa: F821
+        return 0
+    n = N.shape[0]
+    for i in range(n):
+        for k in range(R_):  # noqa: F821
+            N[i, k] = 0.0
+    op_force(D, C, t, N, W, K)  # noqa: F821
+    for i in range(n):
+        zero = D.any_clamped and D.clamped[i]
+        for k in range(R_):  # noqa: F821
+            N[i, k] = 0.0 if zero else W[i, k] * gam_inv[k]
+    return 1
+
+
+def rkmk_loop(D, C, S, A, b, c, dynamics, mode, gam_inv, t, dt, nsteps, diss, ext, check, limit):
+    """Explicit Runge–Kutta–Munthe-Kaas with the tableau ``(A, b, c)`` as data: ``rkmk4``
+    (``dynamics``, N from S), ``overdamped`` (``mode = 1``: N = Γ⁻¹W(N = 0); order 1 is
+    Lie–Euler, order 2 Heun) and ``kinematic``; Φ(t + s) = Φ(t) exp(σ(s)), σ̇ = dexp⁻¹_{−σ}N."""
+    K = op_work(D)  # noqa: F821
+    n = S.shape[0]
+    s_count = b.shape[0]
+    ksig = np.zeros((s_count, n, R_))  # noqa: F821
+    kS = np.zeros((s_count, n, R_))  # noqa: F821
+    sigma = np.empty((n, R_))  # noqa: F821
+    Sst = S.copy()
+    N = np.empty((n, R_))  # noqa: F821
+    W = np.empty((n, R_))  # noqa: F821
+    J = np.empty((R_, R_))  # noqa: F821
+    xi = np.empty(R_)  # noqa: F821
+    Cst = op_new_config(C)  # noqa: F821
+    nforce = 0
+    nforce += _stage_velocity(D, C, S, t, mode, gam_inv, N, W, K)
+    p0d, p0e = op_powers(D, C, N, t, K)  # noqa: F821
+    done = 0
+    for _ in range(nsteps):
+        for st in range(s_count):
+            any_sigma = False
+            for i in range(n):
+                for k in range(R_):  # noqa: F821
+                    v = 0.0
+                    for j in range(st):
+                        if A[st, j] != 0.0:
+                            v += dt * A[st, j] * ksig[j, i, k]
+                    sigma[i, k] = v
+                    if v != 0.0:
+                        any_sigma = True
+                    if dynamics:
+                        u = S[i, k]
+                        for j in range(st):
+                            if A[st, j] != 0.0:
+                                u += dt * A[st, j] * kS[j, i, k]
+                        Sst[i, k] = u
+            op_copy_config(C, Cst)  # noqa: F821
+            if any_sigma:
+                op_drift(D, Cst, 1.0, sigma, K)  # noqa: F821
+            ti = t + c[st] * dt
+            nforce += _stage_velocity(D, Cst, Sst, ti, mode, gam_inv, N, W, K)
+            for i in range(n):
+                for k in range(R_):  # noqa: F821
+                    xi[k] = -sigma[i, k]
+                g_dexp_inv(xi, J)  # noqa: F821
+                for k in range(R_):  # noqa: F821
+                    v = 0.0
+                    for j in range(R_):  # noqa: F821
+                        v += J[k, j] * N[i, j]
+                    ksig[st, i, k] = v
+            if dynamics:
+                op_force(D, Cst, ti, N, W, K)  # noqa: F821
+                nforce += 1
+                _lie_poisson(N, Sst, W, kS[st])
+        for i in range(n):
+            for k in range(R_):  # noqa: F821
+                v = 0.0
+                for st in range(s_count):
+                    v += dt * b[st] * ksig[st, i, k]
+                sigma[i, k] = v
+        op_drift(D, C, 1.0, sigma, K)  # noqa: F821
+        if dynamics:
+            for i in range(n):
+                for k in range(R_):  # noqa: F821
+                    v = 0.0
+                    for st in range(s_count):
+                        v += dt * b[st] * kS[st, i, k]
+                    S[i, k] += v
+            op_constrain(D, S)  # noqa: F821
+        t = t + dt
+        if mode == 0 or D.has_power:
+            nforce += _stage_velocity(D, C, S, t, mode, gam_inv, N, W, K)
+        done += 1
+        p0d, p0e, diss, ext, blown = _book(D, C, S, N, t, dt, p0d, p0e, diss, ext, K, check, limit)
+        if blown:
+            break
+    return done, nforce, t, diss, ext
+
+
+LOOPS = {"lie_verlet_loop": lie_verlet_loop, "euler_loop": euler_loop, "rkmk_loop": rkmk_loop}
+
+
+def loop_fragment() -> Fragment:
+    """The loops and their helpers as one fragment of a generated module."""
+    return Fragment(source=njit_source(_coad_node, _coad_exp, _blown, _book, _free_flow, lie_verlet_loop,
+                                       _lie_poisson, euler_loop, _stage_velocity, rkmk_loop))

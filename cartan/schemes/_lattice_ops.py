@@ -1,0 +1,474 @@
+"""The lattice scheme's compiled operator set: what the generated integrator loops call.
+
+:func:`lattice_operators` turns a lattice problem into an
+:class:`~cartan.compiled.operators.OperatorSet`: the problem as data (:class:`LatticeData`,
+flat arrays over nodes and edges, any d), the configuration as a tuple ``C = (G, Phi)`` —
+every edge element of every axis in one array ``G`` ``[E, m, m]`` and the stepped frames
+``Phi`` ``[n, m, m]`` (or the root frame ``[1, m, m]``) — and the functions below, written
+once here as plain Python and compiled inside the generated module of each (integrator,
+scheme, group, medium kernels), where ``g_*`` are the group's point kernels and
+``m_energy``/``m_stress`` the medium's.
+
+The formulas are those of :class:`~cartan.schemes.lattice.Lattice` (the reference path):
+edge strain ``X_e = log(G_e)/h_α`` with the other axes at the rest strain, edge stress
+``(cell/h_α) Q_α``, node force ``Σ_out dexp⁻¹(hX_e)ᵀ Q_e − Σ_in dexp⁻¹(−hX_e)ᵀ Q_e`` divided
+by the node weight, exact drift ``G_e ← D_i⁻¹ G_e D_j`` with ``D = exp(τN)``.
+
+Operators (``D`` the data, ``C`` the configuration, ``K`` the work arrays of :func:`op_work`):
+
+``op_work(D)``                    work arrays for one call of a loop
+``op_velocity(D, S, N)``          Legendre map N = ∂K*/∂S (gauge and clamped nodes zero)
+``op_force(D, C, t, N, W, K)``    force density W = D*Q + T (loads, end loads, clamps)
+``op_drift(D, C, tau, N, K)``     Φ ← Φ exp(τN) exactly on the group
+``op_drift_naive(D, C, tau, N, K)`` Φ ← Φ + τΦN̂ (forward Euler; leaves the group)
+``op_constrain(D, S)``            zero the momentum of gauge components and clamped nodes
+``op_powers(D, C, N, t, K)``      (dissipated, external) power of the loads
+``op_kinetic(D, S)``              kinetic energy ½Σ w S²/m
+``op_finite_config(C)``           whether the configuration is finite
+``op_copy_config(C, C2)``         C2 ← C (RKMK stages)
+``op_new_config(C)``              a copy of C
+"""
+
+from __future__ import annotations
+
+from typing import NamedTuple
+
+import numpy as np
+
+from ..compiled.codegen import Fragment, njit_source
+
+__all__ = ["LatticeData", "lattice_operators"]
+
+
+class LatticeData(NamedTuple):
+    """A lattice problem as flat arrays (n nodes, E edges over all axes, d axes, r = dim 𝔤)."""
+
+    d: int
+    r: int
+    m: int
+    affine: bool
+    track: bool
+    tail: np.ndarray  # [E] int64, node at the start of each edge
+    head: np.ndarray  # [E] int64, node at its end
+    eaxis: np.ndarray  # [E] int64, its axis α
+    einvh: np.ndarray  # [E] 1/h_α
+    escale: np.ndarray  # [E] cell/h_α
+    X0e: np.ndarray  # [E, d, r] rest strain at each edge
+    coupled: bool  # the potential is evaluated at the corners (d ≥ 2, axes coupled)
+    cedge: np.ndarray  # [C, d] int64 the edge of each corner along each axis (global index)
+    cw: np.ndarray  # [C] corner weights w_i/#corners_i
+    cX0: np.ndarray  # [C, d, r] corner rest strains
+    params: np.ndarray  # medium kernel parameters
+    winv: np.ndarray  # [n] 1/w
+    w: np.ndarray  # [n] node weights
+    inv_metric: np.ndarray  # [r, r] M⁺: the inverse kinetic metric on the live block, 0 on gauge ones
+    live: np.ndarray  # [r] bool
+    clamped: np.ndarray  # [n] bool
+    any_clamped: bool
+    damp: np.ndarray  # [r] damping coefficients Γ
+    ubody: np.ndarray  # [r] body-frame uniform force density
+    end_idx: np.ndarray  # [k] int64 loaded end nodes
+    end_load: np.ndarray  # [k, r] their loads P
+    end_follow: np.ndarray  # [k] bool follower (else dead)
+    end_div: np.ndarray  # [k] 1/(h_α/2): load per face area → force density
+    end_face: np.ndarray  # [k] w/(h_α/2): face area share (powers)
+    has_power: bool
+
+
+# ---------------------------------------------------------------------------- operators
+# Plain Python: compiled in each generated module (see the module docstring).
+
+def op_work(D):
+    n = D.winv.shape[0]
+    ne = D.tail.shape[0] if D.coupled else 0
+    return (np.empty((n, M_, M_)), np.empty((n, M_, M_)), np.empty((ne, R_)), np.empty((ne, R_)))  # noqa: F821
+
+
+def op_velocity(D, S, N):
+    for i in range(S.shape[0]):
+        if D.any_clamped and D.clamped[i]:
+            for k in range(R_):  # noqa: F821
+                N[i, k] = 0.0
+        else:
+            for k in range(R_):  # noqa: F821
+                v = 0.0
+                for j in range(R_):  # noqa: F821
+                    v += D.inv_metric[k, j] * S[i, j]
+                N[i, k] = v
+
+
+def op_constrain(D, S):
+    for i in range(S.shape[0]):
+        zero = D.any_clamped and D.clamped[i]
+        for k in range(R_):  # noqa: F821
+            if zero or not D.live[k]:
+                S[i, k] = 0.0
+
+
+def _dead_to_body(D, Phi, P, out):
+    """``Ad_Rᵀ P`` with R the rotational part of Φ (dead loads)."""
+    tmp = np.empty((M_, M_))  # noqa: F821
+    for a in range(M_):  # noqa: F821
+        for b in range(M_):  # noqa: F821
+            tmp[a, b] = Phi[a, b]
+    if D.affine:
+        for a in range(1, M_):  # noqa: F821
+            tmp[a, 0] = 0.0
+    g_Ad_T(tmp, P, out)  # noqa: F821 - a global of the generated module
+
+
+def _edge_to_nodes(D, e, xi, q, s, W, vec, vec2):
+    """Add the edge stress ``s·q`` of edge e (log ``xi``) to its end nodes:
+    ``W_i += dexp⁻¹(ξ)ᵀ sq``, ``W_j −= dexp⁻¹(−ξ)ᵀ sq`` (both from ξ, as the reference path
+    does: the identity dexp⁻¹(−ξ)ᵀ = Ad_Gᵀ dexp⁻¹(ξ)ᵀ fails off the group, where forward Euler
+    takes the edges)."""
+    i, j = D.tail[e], D.head[e]
+    g_dexp_inv_T(xi, q, vec)  # noqa: F821
+    for k in range(R_):  # noqa: F821
+        W[i, k] += s * vec[k]
+        vec[k] = -xi[k]
+    g_dexp_inv_T(vec, q, vec2)  # noqa: F821
+    for k in range(R_):  # noqa: F821
+        W[j, k] -= s * vec2[k]
+
+
+def op_force(D, C, t, N, W, K):
+    G, Phi = C
+    xi = np.empty(R_)  # noqa: F821
+    vec = np.empty(R_)  # noqa: F821
+    vec2 = np.empty(R_)  # noqa: F821
+    X = np.empty((D_, R_))  # noqa: F821
+    Q = np.empty((D_, R_))  # noqa: F821
+    q = np.empty(R_)  # noqa: F821
+    n = W.shape[0]
+    for i in range(n):
+        for k in range(R_):  # noqa: F821
+            W[i, k] = 0.0
+    if D.coupled:
+        XI, QE = K[2], K[3]
+        for e in range(G.shape[0]):
+            g_log(G[e], xi)  # noqa: F821
+            for k in range(R_):  # noqa: F821
+                XI[e, k] = xi[k]
+                QE[e, k] = 0.0
+        for c in range(D.cw.shape[0]):
+            for b in range(D_):  # noqa: F821
+                e = D.cedge[c, b]
+                for k in range(R_):  # noqa: F821
+                    X[b, k] = XI[e, k] * D.einvh[e]
+            m_stress(X, D.cX0[c], D.params, Q)  # noqa: F821
+            for b in range(D_):  # noqa: F821
+                e = D.cedge[c, b]
+                f = D.cw[c] * D.einvh[e]
+                for k in range(R_):  # noqa: F821
+                    QE[e, k] += f * Q[b, k]
+        for e in range(G.shape[0]):
+            for k in range(R_):  # noqa: F821
+                xi[k] = XI[e, k]
+                q[k] = QE[e, k]
+            _edge_to_nodes(D, e, xi, q, 1.0, W, vec, vec2)
+    else:
+        for e in range(G.shape[0]):
+            a = D.eaxis[e]
+            g_log(G[e], xi)  # noqa: F821
+            for b in range(D_):  # noqa: F821
+                for k in range(R_):  # noqa: F821
+                    X[b, k] = D.X0e[e, b, k]
+            for k in range(R_):  # noqa: F821
+                X[a, k] = xi[k] * D.einvh[e]
+            m_stress(X, D.X0e[e], D.params, Q)  # noqa: F821
+            for k in range(R_):  # noqa: F821
+                q[k] = Q[a, k]
+            _edge_to_nodes(D, e, xi, q, D.escale[e], W, vec, vec2)
+    for i in range(n):
+        for k in range(R_):  # noqa: F821
+            W[i, k] = W[i, k] * D.winv[i] - D.damp[k] * N[i, k] + D.ubody[k]
+    for p in range(D.end_idx.shape[0]):
+        i = D.end_idx[p]
+        if D.end_follow[p]:
+            for k in range(R_):  # noqa: F821
+                W[i, k] += D.end_load[p, k] * D.end_div[p]
+        else:
+            _dead_to_body(D, Phi[i], D.end_load[p], vec)
+            for k in range(R_):  # noqa: F821
+                W[i, k] += vec[k] * D.end_div[p]
+    for i in range(n):
+        zero = D.any_clamped and D.clamped[i]
+        for k in range(R_):  # noqa: F821
+            if zero or not D.live[k]:
+                W[i, k] = 0.0
+
+
+def op_move(D, C, Dn, K):
+    """Move every node i by ``Dn[i]``: ``G_e ← Dn_i⁻¹ G_e Dn_j``, ``Φ_i ← Φ_i Dn_i``."""
+    G, Phi = C
+    Di = K[1]
+    tmp = np.empty((M_, M_))  # noqa: F821
+    tmp2 = np.empty((M_, M_))  # noqa: F821
+    for i in range(Dn.shape[0]):
+        g_inverse(Dn[i], Di[i])  # noqa: F821
+    for e in range(G.shape[0]):
+        g_compose(Di[D.tail[e]], G[e], tmp)  # noqa: F821
+        g_compose(tmp, Dn[D.head[e]], tmp2)  # noqa: F821
+        for a in range(M_):  # noqa: F821
+            for b in range(M_):  # noqa: F821
+                G[e, a, b] = tmp2[a, b]
+    for i in range(Phi.shape[0]):
+        g_compose(Phi[i], Dn[i], tmp)  # noqa: F821
+        for a in range(M_):  # noqa: F821
+            for b in range(M_):  # noqa: F821
+                Phi[i, a, b] = tmp[a, b]
+
+
+def op_drift(D, C, tau, N, K):
+    Dn = K[0]
+    xi = np.empty(R_)  # noqa: F821
+    for i in range(N.shape[0]):
+        for k in range(R_):  # noqa: F821
+            xi[k] = tau * N[i, k]
+        g_exp(xi, Dn[i])  # noqa: F821
+    op_move(D, C, Dn, K)
+
+
+def op_drift_naive(D, C, tau, N, K):
+    G, Phi = C
+    Nh = K[0]
+    tmp = np.empty((M_, M_))  # noqa: F821
+    xi = np.empty(R_)  # noqa: F821
+    for i in range(N.shape[0]):
+        for k in range(R_):  # noqa: F821
+            xi[k] = tau * N[i, k]
+        g_hat(xi, Nh[i])  # noqa: F821
+    for e in range(G.shape[0]):
+        i, j = D.tail[e], D.head[e]
+        for a in range(M_):  # noqa: F821
+            for b in range(M_):  # noqa: F821
+                s = G[e, a, b]
+                for c in range(M_):  # noqa: F821
+                    s += -Nh[i, a, c] * G[e, c, b] + G[e, a, c] * Nh[j, c, b]
+                tmp[a, b] = s
+        for a in range(M_):  # noqa: F821
+            for b in range(M_):  # noqa: F821
+                G[e, a, b] = tmp[a, b]
+    for i in range(Phi.shape[0]):
+        for a in range(M_):  # noqa: F821
+            for b in range(M_):  # noqa: F821
+                s = Phi[i, a, b]
+                for c in range(M_):  # noqa: F821
+                    s += Phi[i, a, c] * Nh[i, c, b]
+                tmp[a, b] = s
+        for a in range(M_):  # noqa: F821
+            for b in range(M_):  # noqa: F821
+                Phi[i, a, b] = tmp[a, b]
+
+
+def op_powers(D, C, N, t, K):
+    if not D.has_power:
+        return 0.0, 0.0
+    Phi = C[1]
+    vec = np.empty(R_)  # noqa: F821
+    diss = 0.0
+    ext = 0.0
+    for i in range(N.shape[0]):
+        for k in range(R_):  # noqa: F821
+            diss += D.w[i] * D.damp[k] * N[i, k] * N[i, k]
+            ext += D.w[i] * D.ubody[k] * N[i, k]
+    for p in range(D.end_idx.shape[0]):
+        i = D.end_idx[p]
+        if D.end_follow[p]:
+            for k in range(R_):  # noqa: F821
+                ext += D.end_face[p] * D.end_load[p, k] * N[i, k]
+        else:
+            _dead_to_body(D, Phi[i], D.end_load[p], vec)
+            for k in range(R_):  # noqa: F821
+                ext += D.end_face[p] * vec[k] * N[i, k]
+    return diss, ext
+
+
+def op_kinetic(D, S):
+    e = 0.0
+    for i in range(S.shape[0]):
+        for k in range(R_):  # noqa: F821
+            e += 0.5 * D.w[i] * S[i, k] * S[i, k] * abs(D.inv_metric[k, k])
+    return e
+
+
+def op_finite_config(C):
+    for arr in C:
+        for v in arr.ravel():
+            if not np.isfinite(v):
+                return False
+    return True
+
+
+def op_copy_config(C, C2):
+    for k in range(len(C)):
+        C2[k][...] = C[k]
+
+
+def op_new_config(C):
+    return (C[0].copy(), C[1].copy())
+
+
+_OPERATORS = (op_work, op_velocity, op_constrain, _dead_to_body, _edge_to_nodes, op_force, op_move, op_drift,
+              op_drift_naive, op_powers,
+              op_kinetic, op_finite_config, op_copy_config, op_new_config)
+
+
+# ---------------------------------------------------------------------------- building the set
+def _supported_loads(scheme) -> tuple | None:
+    """(damp, ubody) of the loads the operators run — ``Damping`` and body-frame
+    ``UniformForce`` — or None when a load or a boundary is of another kind."""
+    from ..problem import Clamped, Damping, Free, UniformForce
+
+    r = scheme.group.dim
+    damp, ubody = np.zeros(r), np.zeros(r)
+    for load in scheme.problem.loads:
+        if type(load) is Damping:
+            damp = damp + np.asarray(load.coefficients, dtype=float)
+        elif type(load) is UniformForce and load.frame == "body":
+            ubody = ubody + np.asarray(load.components, dtype=float)
+        else:
+            return None
+    if any(type(b) not in (Free, Clamped) for b in scheme.problem.boundaries.values()):
+        return None
+    return damp, ubody
+
+
+def _why_not(scheme) -> str | None:
+    """Why the operator set does not cover this problem, or None when it does."""
+    from ..medium import Medium
+    from .base import Scheme
+    from .lattice import Lattice
+
+    medium = scheme.medium
+    if scheme.group.point_kernels() is None:
+        return f"the group {scheme.group!r} has no numba point kernels"
+    if medium.point_kernels() is None:
+        return f"the medium {medium.name!r} declares no point kernels (Medium.point_kernels)"
+    for name in ("force", "internal_force", "drift", "frames", "_boundary_power", "_axis_stress", "initial_state",
+                 "_key"):
+        if getattr(type(scheme), name) is not getattr(Lattice, name):
+            return f"the scheme overrides {name}"
+    for name in ("velocity", "constrain", "powers", "has_external_power", "drag"):
+        if getattr(type(scheme), name) is not getattr(Scheme, name):
+            return f"the scheme overrides {name}"
+    for name in ("velocity", "body_force"):
+        if getattr(type(medium), name) is not getattr(Medium, name):
+            return f"the medium overrides {name}"
+    if getattr(medium, "velocity_dependent_forces", False):
+        return "the medium has velocity-dependent forces"
+    if _supported_loads(scheme) is None:
+        return "a load or boundary is not one of Damping, body-frame UniformForce, Free, Clamped"
+    if any(not b.follower for _, b in scheme._end_loads) and not scheme.track:
+        return "a dead end load needs stepped frames"
+    return None
+
+
+def check_kernels(medium, kernels, d: int, r: int) -> None:
+    """Raise ``ValueError`` naming the medium when its point kernels disagree with its
+    ``stress_at`` at a few strains near the rest strain (a declaration that does not describe
+    the medium would make the compiled loops run other physics than the reference path)."""
+    X0 = np.ascontiguousarray(np.asarray(medium.rest_strain(), dtype=float).reshape(d, r))
+    params = np.ascontiguousarray(kernels.params, dtype=float).ravel()
+    rng = np.random.default_rng(0)
+    for _ in range(3):
+        X = np.ascontiguousarray(X0 + 0.05 * rng.standard_normal((d, r)))
+        Q = np.empty((d, r))
+        kernels.stress(X, X0, params, Q)
+        ref = np.asarray(medium.stress_at(X[None], X0[None]), dtype=float).reshape(d, r)
+        scale = max(float(np.max(np.abs(ref))), 1e-300)
+        if not float(np.max(np.abs(Q - ref))) <= 1e-9 * scale:
+            raise ValueError(
+                f"medium {medium.name!r}: point_kernels() disagree with stress() (relative difference "
+                f"{float(np.max(np.abs(Q - ref))) / scale:.1e} at a strain near the rest strain); fix the kernels, "
+                "or return None from point_kernels() to run the medium on the numpy path")
+
+
+def lattice_operators(scheme):
+    """The compiled operator set of a lattice scheme, or None when the problem is not covered
+    (``scheme.compiled_operators()`` explains why in ``OperatorSet.reason``)."""
+    from ..compiled.kernels import medium_fragment
+    from ..compiled.operators import OperatorSet
+
+    reason = _why_not(scheme)
+    if reason is not None:
+        return OperatorSet.declined(reason)
+    grid, group, medium = scheme.grid, scheme.group, scheme.medium
+    kernels = medium.point_kernels()
+    d, r, m = grid.d, group.dim, group.matrix_size
+    check_kernels(medium, kernels, d, r)
+    shape = tuple(int(s) for s in grid.shape)
+    n = int(np.prod(shape))
+    numbers = np.arange(n).reshape(shape)
+    h = [float(v) for v in scheme.h]
+    cell = float(np.prod(h))
+    tails, heads, axes, invh, scale = [], [], [], [], []
+    for a in range(d):
+        t, hd = scheme._ends(numbers, a)
+        tails.append(t.ravel())
+        heads.append(hd.ravel())
+        axes.append(np.full(t.size, a))
+        invh.append(np.full(t.size, 1.0 / h[a]))
+        scale.append(np.full(t.size, cell / h[a]))
+    E = int(sum(t.size for t in tails))
+    X0 = np.asarray(medium.rest_strain(), dtype=float).reshape(d, r)
+    if scheme.problem.reference is not None:
+        X0e = np.concatenate([scheme.edge_rest_strains(a).reshape(-1, d, r) for a in range(d)])
+    else:
+        X0e = np.broadcast_to(X0, (E, d, r))
+    if scheme.coupled:
+        corners = scheme.corners()
+        offsets = np.cumsum([0] + [t.size for t in tails])[:d]
+        cedge = corners["edge"] + offsets[None, :]
+        cw, cX0 = corners["weight"], corners["X0"]
+    else:
+        cedge, cw, cX0 = np.zeros((0, d), dtype=np.int64), np.zeros(0), np.zeros((0, d, r))
+    damp, ubody = _supported_loads(scheme)
+    weights = np.ascontiguousarray(scheme.weights, dtype=float).reshape(n)
+    entries = scheme.end_load_entries()
+    clamped = np.ascontiguousarray(scheme._clamped, dtype=np.bool_).reshape(n)
+    data = LatticeData(
+        d=d, r=r, m=m, affine=bool(getattr(group, "affine", False)), track=bool(scheme.track),
+        tail=np.concatenate(tails).astype(np.int64), head=np.concatenate(heads).astype(np.int64),
+        eaxis=np.concatenate(axes).astype(np.int64), einvh=np.concatenate(invh), escale=np.concatenate(scale),
+        X0e=np.ascontiguousarray(X0e), coupled=bool(scheme.coupled), cedge=np.ascontiguousarray(cedge, dtype=np.int64),
+        cw=np.ascontiguousarray(cw, dtype=float), cX0=np.ascontiguousarray(cX0, dtype=float),
+        params=np.ascontiguousarray(kernels.params, dtype=float).ravel(),
+        winv=1.0 / weights, w=weights,
+        inv_metric=np.ascontiguousarray(scheme.inverse_metric, dtype=float),
+        live=np.ascontiguousarray(scheme.live, dtype=np.bool_), clamped=clamped, any_clamped=bool(clamped.any()),
+        damp=damp, ubody=ubody,
+        end_idx=np.array([i for i, _, _ in entries], dtype=np.int64),
+        end_load=np.array([np.asarray(b.load, dtype=float) for _, b, _ in entries], dtype=float).reshape(-1, r),
+        end_follow=np.array([bool(b.follower) for _, b, _ in entries], dtype=np.bool_),
+        end_div=np.array([1.0 / (0.5 * h[a]) for _, _, a in entries], dtype=float),
+        end_face=np.array([weights[i] / (0.5 * h[a]) for i, _, a in entries], dtype=float),
+        has_power=bool(scheme.has_external_power()),
+    )
+    keys = [scheme._key(a) for a in range(d)]
+    frame_key = "Phi" if scheme.track else "Phi_root"
+
+    def pack(state):
+        G = np.concatenate([np.asarray(state.arrays[k], dtype=float).reshape(-1, m, m) for k in keys])
+        Phi = np.ascontiguousarray(state.arrays[frame_key], dtype=float).reshape(-1, m, m).copy()
+        return (np.ascontiguousarray(G), Phi)
+
+    def unpack(state, C):
+        G, Phi = C
+        start = 0
+        for k in keys:
+            shape_k = state.arrays[k].shape
+            count = int(np.prod(shape_k[:-2]))
+            state.arrays[k] = G[start:start + count].reshape(shape_k).copy()
+            start += count
+        state.arrays[frame_key] = Phi.reshape(state.arrays[frame_key].shape).copy()
+
+    def accepts(state) -> bool:
+        return set(state.arrays) == {*keys, frame_key}
+
+    fragments = [group.point_kernels(), medium_fragment(kernels),
+                 Fragment(imports={"LatticeData": (__name__, "LatticeData")}, constants={"D_": d, "R_": r, "M_": m},
+                          source=njit_source(*_OPERATORS))]
+    return OperatorSet(label=f"lattice × {group!r} × {medium.name}", key=f"lattice-{group!r}-{medium.name}",
+                       fragments=fragments, data=data, pack=pack, unpack=unpack, accepts=accepts, nodes=n)
