@@ -12,6 +12,8 @@ from __future__ import annotations
 
 from typing import Any
 
+import numpy as np
+
 from .continuation import continuation
 from .grid import Grid
 from .io import open_dataset
@@ -85,6 +87,11 @@ def medium(name: str, **params: Any) -> Medium:
 
     cls = get_registry().get("media", name)
     try:
-        return cls(**params)
+        with np.errstate(over="raise", invalid="raise", divide="raise"):
+            return cls(**params)
     except TypeError as exc:
         raise TypeError(f"medium {name!r}: {exc}") from None
+    except ArithmeticError as exc:  # a parameter so extreme that a derived quantity overflows
+        from .scene import _out_of_range
+
+        raise ValueError(f"medium {name!r}: {_out_of_range(params, exc)}") from None

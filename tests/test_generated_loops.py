@@ -29,6 +29,12 @@ TOL = 1e-12
 INTEGRATORS = ["lie-verlet", "rkmk4", "lie-euler", "forward-euler"]
 
 
+def _sets(fast):
+    """``fast`` in ``make test``; every explicit integrator under ``slow`` (each further loop of
+    a generated module compiles for about 10 s)."""
+    return [pytest.param(fast, id="fast"), pytest.param(INTEGRATORS, id="all", marks=pytest.mark.slow)]
+
+
 def _compare(problem, integrators, names=("S", "X", "kinetic_energy", "potential_energy", "dissipated_energy",
                                           "external_work"), **kw):
     for integ in integrators:
@@ -60,7 +66,8 @@ def _sheet(reference: bool, boundaries=None, loads=(), velocity=True):
                    boundaries=boundaries or {}, loads=list(loads))
 
 
-def test_sigma_model_on_s3_d2_runs_compiled_and_agrees():
+@pytest.mark.parametrize("integrators", _sets(["lie-verlet"]))
+def test_sigma_model_on_s3_d2_runs_compiled_and_agrees(integrators):
     """SO(4) (the sigma model on S³) in d = 2: no hand-written loop covers it."""
     medium = cartan.medium("sigma-model", n=3, d=2)
     grid = Grid((10, 8), 1.0, periodic=True)
@@ -68,22 +75,24 @@ def test_sigma_model_on_s3_d2_runs_compiled_and_agrees():
     scheme = Lattice(problem)
     assert scheme.compiled_plan("_lattice_compiled") is None  # the hand-written loops decline
     assert scheme.compiled_operators().ok
-    _compare(problem, INTEGRATORS)
+    _compare(problem, integrators)
 
 
-def test_lorentz_group_toy_runs_compiled_and_agrees():
+@pytest.mark.parametrize("integrators", _sets(["lie-verlet"]))
+def test_lorentz_group_toy_runs_compiled_and_agrees(integrators):
     """A quadratic rod on SO(1,3) (a non-compact group)."""
     problem = arc_problem(n=15, group="SO13", curvature=0.5, velocity=np.linspace(0.1, 0.3, 6))
     assert Lattice(problem).compiled_operators().ok
-    _compare(problem, ["lie-verlet", "rkmk4", "lie-euler"], dt=1e-3, t_end=0.01)
+    _compare(problem, integrators, dt=1e-3, t_end=0.01)
 
 
-def test_poincare_toy_runs_compiled_with_van_loan_kernels():
+@pytest.mark.parametrize("integrators", _sets(["rkmk4"]))
+def test_poincare_toy_runs_compiled_with_van_loan_kernels(integrators):
     """The Poincaré group has no closed-form dexp⁻¹ or 𝓔 kernels: the generated module builds
     them from ad by the Van Loan block exponential, and the loops agree with the reference."""
     problem = arc_problem(n=9, group="Poincare", curvature=0.3, velocity=np.linspace(0.1, 0.3, 10))
     assert "_vanloan_E" in cartan.group("Poincare").point_kernels().imports
-    _compare(problem, INTEGRATORS, dt=1e-3, t_end=0.01)
+    _compare(problem, integrators, dt=1e-3, t_end=0.01)
 
 
 def test_van_loan_kernels_match_the_reference():
@@ -106,7 +115,8 @@ def test_van_loan_kernels_match_the_reference():
     assert np.max(np.abs(out - ref)) <= 1e-12 * np.max(np.abs(ref))
 
 
-def test_coupled_nonquadratic_sheet_with_reference_runs_compiled_and_agrees():
+@pytest.mark.parametrize("integrators", _sets(["lie-verlet", "lie-euler"]))
+def test_coupled_nonquadratic_sheet_with_reference_runs_compiled_and_agrees(integrators):
     """Non-quadratic, axis-coupled energy on SE(3), d = 2, with a rest strain that varies over
     the body, clamped and follower-loaded faces and damping: every explicit integrator."""
     problem = _sheet(True, boundaries={"u-start": Clamped(),
@@ -114,7 +124,7 @@ def test_coupled_nonquadratic_sheet_with_reference_runs_compiled_and_agrees():
                      loads=[Damping(0.1)])
     scheme = Lattice(problem)
     assert scheme.coupled and scheme.compiled_operators().ok
-    _compare(problem, INTEGRATORS)
+    _compare(problem, integrators)
     relax = _sheet(True, boundaries={"u-start": Clamped()}, loads=[Damping(1.0)], velocity=False)
     for order in (1, 2):
         _compare(relax, [cartan.registry("integrators")["overdamped"](order=order)],
@@ -259,13 +269,14 @@ def test_indefinite_nondiagonal_metric_legendre_map():
     assert np.any(np.linalg.eigvalsh(med.kinetic_metric()) < 0)  # really indefinite
 
 
-def test_indefinite_metric_runs_compiled_and_agrees():
+@pytest.mark.parametrize("integrators", _sets(["lie-verlet"]))
+def test_indefinite_metric_runs_compiled_and_agrees(integrators):
     """SO(1,3) with a non-diagonal indefinite kinetic metric: lie-verlet splits the free flow
     along the metric's eigenvectors; compiled and reference agree."""
     problem = _indefinite_problem()
     scheme = Lattice(problem)
     assert not scheme.diagonal_metric and scheme.compiled_plan("_lattice_compiled") is None
-    _compare(problem, ["lie-verlet", "rkmk4", "lie-euler"], dt=1e-3, t_end=0.01)
+    _compare(problem, integrators, dt=1e-3, t_end=0.01)
 
 
 def test_indefinite_metric_lie_verlet_energy_second_order():

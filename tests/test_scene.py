@@ -510,3 +510,14 @@ def test_free_end_arguments_are_checked():
     for load in ("1", [0, 0, "1", 0, 0, 0], [True] * 6, [[1.0]], [np.nan] * 6):
         with pytest.raises(ValueError, match="load must be"):
             cartan.Free(load=load)
+
+
+def test_api_medium_with_an_overflowing_parameter_is_a_value_error():
+    """The Python API, like scene files: a parameter so large that a derived quantity overflows
+    is a ValueError naming it, not an OverflowError from inside the medium."""
+    import cartan
+
+    with pytest.raises(ValueError, match=r"medium 'cosserat-rod': radius = 1e\+100 is out of range"):
+        cartan.medium("cosserat-rod", E=1e6, G=1e6 / 3, radius=1e100, density=1000.0)
+    with pytest.raises(ValueError, match="E must be a real number"):
+        cartan.medium("cosserat-rod", E="1e5", G=1e6 / 3, radius=0.02, density=1000.0)
