@@ -400,17 +400,12 @@ def lattice_operators(scheme):
     check_kernels(medium, kernels, d, r)
     shape = tuple(int(s) for s in grid.shape)
     n = int(np.prod(shape))
-    numbers = np.arange(n).reshape(shape)
     h = [float(v) for v in scheme.h]
     cell = float(np.prod(h))
-    tails, heads, axes, invh, scale = [], [], [], [], []
-    for a in range(d):
-        t, hd = scheme._ends(numbers, a)
-        tails.append(t.ravel())
-        heads.append(hd.ravel())
-        axes.append(np.full(t.size, a))
-        invh.append(np.full(t.size, 1.0 / h[a]))
-        scale.append(np.full(t.size, cell / h[a]))
+    tails, heads = scheme.edge_nodes()
+    axes = [np.full(t.size, a) for a, t in enumerate(tails)]
+    invh = [np.full(t.size, 1.0 / h[a]) for a, t in enumerate(tails)]
+    scale = [np.full(t.size, cell / h[a]) for a, t in enumerate(tails)]
     E = int(sum(t.size for t in tails))
     X0 = np.asarray(medium.rest_strain(), dtype=float).reshape(d, r)
     if scheme.problem.reference is not None:

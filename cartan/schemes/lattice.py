@@ -227,6 +227,13 @@ class Lattice(Scheme):
         full[..., axis, :] = X
         return self.medium.stress_at(full, X0)[..., axis, :], full
 
+    def edge_nodes(self) -> tuple[list[np.ndarray], list[np.ndarray]]:
+        """Per axis, the flat (C-order) nodes at the tail and at the head of each edge, in the
+        order of that axis' edge array: ``(tails, heads)``, two lists of ``[E_α]`` int arrays."""
+        numbers = np.arange(int(np.prod(self.grid.shape))).reshape(self.grid.shape)
+        ends = [self._ends(numbers, a) for a in range(self.grid.d)]
+        return [t.ravel() for t, _ in ends], [hd.ravel() for _, hd in ends]
+
     def corners(self) -> dict[str, np.ndarray]:
         """The corners of a coupled lattice (see the module docstring), built once.
 
@@ -243,16 +250,13 @@ class Lattice(Scheme):
             return held
         d, r, shape = self.grid.d, self.group.dim, self.grid.shape
         n = int(np.prod(shape))
-        numbers = np.arange(n).reshape(shape)
-        after, before, tails, heads = [], [], [], []
-        for a in range(d):
-            t, hd = self._ends(numbers, a)
-            tails.append(t.ravel())
-            heads.append(hd.ravel())
+        tails, heads = self.edge_nodes()
+        after, before = [], []
+        for t, hd in zip(tails, heads):
             ea = np.full(n, -1)
             eb = np.full(n, -1)
-            ea[t.ravel()] = np.arange(t.size)
-            eb[hd.ravel()] = np.arange(t.size)
+            ea[t] = np.arange(t.size)
+            eb[hd] = np.arange(t.size)
             after.append(ea)
             before.append(eb)
         count = np.ones(n)
