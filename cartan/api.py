@@ -6,6 +6,11 @@
 with the errors and warnings a run can raise (``InstabilityError``, ``StabilityWarning``,
 ``SceneError``).  Importing this module does not import xarray (that happens on the first
 run or read).
+
+This is the layer where scenes and runs meet: :mod:`cartan.scene` (reading scenes) and
+:mod:`cartan.simulate` (running problems) import neither the other, and reach each other
+through this module (``Scene.run`` runs :func:`simulate`; :func:`simulate` reads a scene file,
+name or checkpointed scene with :func:`load_scene` and :func:`scene`).
 """
 
 from __future__ import annotations

@@ -59,12 +59,14 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from .state import State
+
 if TYPE_CHECKING:  # pragma: no cover
     import xarray as xr
 
     from .integrators.base import Integrator
     from .problem import Problem
-    from .schemes.base import Scheme, State
+    from .schemes.base import Scheme
 
 __all__ = [
     "build_dataset",
@@ -510,8 +512,6 @@ def read_checkpoint(path: str | os.PathLike) -> tuple[State, dict[str, Any], dic
         (a checksum error, or a field missing or out of range, named in the message).
     """
     import xarray as xr
-
-    from .schemes.base import State
 
     path = pathlib.Path(path)
     if not path.exists():

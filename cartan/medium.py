@@ -205,17 +205,29 @@ def quadratic_energy_point(X, X0, p):  # pragma: no cover - compiled
 
 @njit(cache=True)
 def quadratic_stress_point(X, X0, p, Q):  # pragma: no cover - compiled
-    """``Q = C (X − X₀)`` (see :func:`quadratic_energy_point`)."""
+    """``Q = C (X − X₀)`` (see :func:`quadratic_energy_point`).
+
+    The axes whose strain is at rest add exact zeros and are skipped (the lattice evaluates
+    each edge with the other axes at rest): the result is that of the full product."""
     d, r = X.shape
-    col = 0
+    dr = d * r
+    moved = 0  # bit b: axis b is off its rest strain (d ≤ 63)
+    for b in range(d):
+        for j in range(r):
+            if X[b, j] - X0[b, j] != 0.0:
+                moved |= 1 << b
+                break
+    row = 0
     for a in range(d):
         for k in range(r):
             s = 0.0
             for b in range(d):
-                for j in range(r):
-                    s += p[col] * (X[b, j] - X0[b, j])
-                    col += 1
+                if moved >> b & 1:
+                    col = row * dr + b * r
+                    for j in range(r):
+                        s += p[col + j] * (X[b, j] - X0[b, j])
             Q[a, k] = s
+            row += 1
 
 
 class Medium(abc.ABC):

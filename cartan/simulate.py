@@ -1,5 +1,24 @@
 """``cartan.simulate``: run a problem or scene, save frames, checkpoint, detect blow-up.
 
+:func:`simulate` works in two phases.  :func:`_resolve_run` settles the run before any step:
+every setting from the argument, else the restart file, else the scene's ``[run]`` table, else
+the default; the scheme and integrator; the CFL estimate and Δt (half the estimate, rounded
+down, when none is given; a :class:`StabilityWarning` above it); the step count, the output
+file and the memory of the frames; it returns a :class:`_ResolvedRun`.  :func:`_execute_run`
+runs it: the save loop below.  Δt reaches the step loop from ``cartan run --dt`` through four
+functions::
+
+    cartan run --dt    cartan.cli_run._run
+      1  simulate(dt=...)
+      2  _resolve_run(...)          → _ResolvedRun.dt (argument > checkpoint > scene > CFL estimate)
+      3  _execute_run(run)          the save loop
+      4  _advance(..., dt, ...)     → integrator.compiled_advance / scheme.compiled_advance /
+                                      integrator.run_compiled_loop / integrator.step
+
+This module does not import :mod:`cartan.scene` (nor does that module import this one): the
+step and memory limits come from :mod:`cartan.limits`, and scene files, names and the scene
+kept in a checkpoint are read through the run-level API, :mod:`cartan.api`.
+
 The run loop advances the state between saves (:func:`_advance`), records a frame
 (:func:`cartan.io.frame_record`), and every ``checkpoint_every`` saves writes the whole run
 so far plus the exact state to the output file, so that ``simulate(..., restart=path)``
@@ -50,18 +69,22 @@ import sys
 import tempfile
 import warnings
 from collections.abc import Callable, Mapping
+from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
 from .integrators.base import Integrator
+from .limits import DEFAULT_MAX_STEPS, STEPS_ENV, check_memory, state_bytes, step_limit
 from .plugins import get_registry
 from .problem import Problem
-from .scene import DEFAULT_MAX_STEPS, STEPS_ENV, Scene, check_memory, load_scene, scene, state_bytes, step_limit
-from .schemes.base import Scheme, State
+from .schemes.base import Scheme
+from .state import State
 
 if TYPE_CHECKING:  # pragma: no cover
     import xarray as xr
+
+    from .api import Scene
 
 __all__ = ["InstabilityError", "StabilityWarning", "simulate"]
 
@@ -133,8 +156,14 @@ def _name_of(spec: Any) -> str:
 
 
 def _as_scene(obj: Any) -> tuple[Problem, Scene | None]:
+    """What to run: ``(problem, scene)`` from a Problem, a Scene, a scene file or dict, or a
+    registered scene name.  Scenes are read by the run-level API (:mod:`cartan.api`), the layer
+    that joins scenes and runs, so that this module and :mod:`cartan.scene` import neither
+    the other."""
     if isinstance(obj, Problem):
         return obj, None
+    from .api import Scene, load_scene, scene
+
     if isinstance(obj, Scene):
         return obj.problem, obj
     if isinstance(obj, pathlib.PurePath) or (isinstance(obj, str) and obj.endswith(".toml")):
@@ -327,8 +356,10 @@ def _make_guard(scheme: Scheme, integrator: Integrator, growth: float | None, e0
 
     Every step: non-finite momentum (or configuration, for integrators without momentum).
     At k = 1, 2, 4, 8, …: the energy-balance test of :func:`_balance` on K and V (two
-    energy evaluations, from the compiled plan's quadratic energy when the lattice has one and
-    ``scheme.compiled_diagnostics`` is set: ``cartan.schemes._lattice_diagnostics.guard_energies``),
+    energy evaluations; with ``scheme.compiled_diagnostics`` set, from the hand-written plan's
+    quadratic energy when the lattice has one, ``cartan.schemes._lattice_diagnostics.guard_energies``,
+    else, when the operator set's loops take the steps, from the operator set,
+    :func:`cartan.compiled.diagnostics.guard_energies`),
     which also raises the energy scale ``scale[0]`` and marks it established (``scale[1] ≥ 1``).
     At the other steps, once the scale is established: the kinetic energy ½Σ w S²/m against
     ``growth × scale[0]`` (one pass over S).
@@ -339,7 +370,14 @@ def _make_guard(scheme: Scheme, integrator: Integrator, growth: float | None, e0
     momentum = integrator.uses_momentum
     compiled_energies = bool(getattr(scheme, "compiled_diagnostics", False)) and growth is not None
     if compiled_energies:
-        from .schemes._lattice_diagnostics import guard_energies
+        from .compiled.diagnostics import guard_energies as generated_energies
+        from .schemes._lattice_diagnostics import guard_energies as plan_energies
+
+        generated = not scheme.has_hand_written_loops()
+
+        def guard_energies(scheme: Scheme, state: State) -> tuple[float, float] | None:
+            fast = plan_energies(scheme, state)
+            return fast if fast is not None or not generated else generated_energies(scheme, state)
 
     def kinetic_limit() -> float:
         """The bound the kinetic test applies now (inf while it is off): for compiled loops,
@@ -439,6 +477,20 @@ def _truncate(records: Mapping[str, list], n: int) -> dict[str, list]:
     return {k: list(v[:n]) for k, v in records.items()}
 
 
+def _resolution_note(scheme: Scheme, good: State, failed: State) -> str:
+    """``"; <why the shape is under-resolved>"`` when the last good or the failed state turns
+    neighbouring frames by more than :data:`cartan.resolution.LIMIT` (then no Δt helps), else
+    ``""``."""
+    from .resolution import under_resolved
+
+    with np.errstate(all="ignore"):
+        for st in (failed, good):
+            note = under_resolved(scheme, st)
+            if note is not None:
+                return f"; {note}"
+    return ""
+
+
 def _describe_dt(dt: float, dt_max: float) -> str:
     if dt_max == 0:
         return f"Δt = {dt:.3g} exceeds the CFL estimate 0 (no stable Δt for undamped motion)"
@@ -491,6 +543,69 @@ def _checkpoint_scene_path(info: Mapping[str, Any], attrs: Mapping[str, Any] | N
         return None
     value = config.get("scene_path") if isinstance(config, dict) else None
     return value if isinstance(value, str) and value else None
+
+
+# ---------------------------------------------------------------------------- a resolved run
+@dataclass
+class _ResolvedRun:
+    """A run whose settings are all settled: what :func:`_resolve_run` returns and
+    :func:`_execute_run` carries out.
+
+    Attributes
+    ----------
+    problem : Problem
+    scheme : Scheme
+    integrator : Integrator
+        With its counters taken over from the checkpoint on a restart.
+    state : State
+        The state the loop starts from (advanced in place by it).
+    dt, dt_max : float
+        The time step and the integrator's CFL estimate.
+    nsteps : int
+        Steps from t = 0 to ``t_end`` (a restart continues from ``step``).
+    save_every : int
+    checkpoint_every : int or None
+    output : pathlib.Path or None
+        Checked to be writable.
+    growth : float or None
+        The blow-up threshold, None when the energy tests are off.
+    compiled : bool
+    progress : bool or None
+    info : dict
+        ``problem``, ``run``, ``scene`` and ``scene_path`` of ``cartan_config`` (the counters
+        are added when a file is written).
+    history : str
+        The ``history`` attribute.
+    records : dict of str → list
+        The frames so far (the initial one, or those of the checkpoint).
+    step, nsaves : int
+        Steps done and frames saved so far.
+    e0 : float
+        The initial energy K + V.
+    scale : list
+        ``[energy scale, established]`` of the blow-up tests.
+    """
+
+    problem: Problem
+    scheme: Scheme
+    integrator: Integrator
+    state: State
+    dt: float
+    dt_max: float
+    nsteps: int
+    save_every: int
+    checkpoint_every: int | None
+    output: pathlib.Path | None
+    growth: float | None
+    compiled: bool
+    progress: bool | None
+    info: dict[str, Any]
+    history: str
+    records: dict[str, list]
+    step: int
+    nsaves: int
+    e0: float
+    scale: list
 
 
 # ---------------------------------------------------------------------------- simulate
@@ -573,8 +688,8 @@ def simulate(
         Text recorded in the ``history`` attribute (default: a description of this call).
     max_steps : int, optional
         The most time steps the run may take (default: the environment variable
-        ``CARTAN_MAX_STEPS``, else 10⁹; :func:`cartan.scene.step_limit`).  The frames kept in
-        memory are bounded too (:func:`cartan.scene.check_memory`, ``CARTAN_MAX_MEMORY``).
+        ``CARTAN_MAX_STEPS``, else 10⁹; :func:`cartan.limits.step_limit`).  The frames kept in
+        memory are bounded too (:func:`cartan.limits.check_memory`, ``CARTAN_MAX_MEMORY``).
 
     Returns
     -------
@@ -589,6 +704,53 @@ def simulate(
     ValueError
         Bad settings (naming them and the allowed range), a damaged restart file, an output
         that cannot be written; :class:`~cartan.scene.SceneError` for bad scenes.
+    """
+    run = _resolve_run(
+        problem_or_scene, integrator, scheme, dt, t_end, save_every, output, restart, checkpoint_every,
+        integrator_options, scheme_options, progress, max_energy_growth,
+        compiled=compiled, command=command, max_steps=max_steps,
+    )
+    return _execute_run(run)
+
+
+def _resolve_run(
+    problem_or_scene: Problem | Scene | str | os.PathLike | None,
+    integrator: str | type[Integrator] | Integrator | None,
+    scheme: str | type[Scheme] | None,
+    dt: float | None,
+    t_end: float | None,
+    save_every: int | None,
+    output: str | os.PathLike | None,
+    restart: str | os.PathLike | None,
+    checkpoint_every: int | None,
+    integrator_options: Mapping[str, Any] | None,
+    scheme_options: Mapping[str, Any] | None,
+    progress: bool | None,
+    max_energy_growth: float | None,
+    *,
+    compiled: bool,
+    command: str | None,
+    max_steps: int | None,
+) -> _ResolvedRun:
+    """Settle everything :func:`simulate` runs, before any step is taken.
+
+    The arguments are those of :func:`simulate`.  Each setting comes from the argument, else
+    the restart file, else the scene's ``[run]`` table, else the default; the scheme and
+    integrator are built, a checkpoint is checked against them, the CFL estimate is computed
+    (or taken from a checkpoint of the same integrator and scheme) and Δt defaults to half of
+    it; the step count, the output file and the memory of the frames are checked; a Δt above
+    the estimate gives a :class:`StabilityWarning` (pointing at the caller of
+    :func:`simulate`); the initial frame is recorded (a fresh run) or the frames and energy
+    reference of the checkpoint are taken over.
+
+    Returns
+    -------
+    _ResolvedRun
+
+    Raises
+    ------
+    ValueError, TypeError
+        As :func:`simulate`, for bad settings; nothing has been run or written.
     """
     from . import io
 
@@ -746,7 +908,7 @@ def simulate(
             f"{_describe_dt(dt, dt_max)} of {integ_obj.name!r} on {scheme_obj.name!r} "
             f"(grid spacing {min(problem.grid.spacing):.3g}); the run is likely to blow up",
             StabilityWarning,
-            stacklevel=2,
+            stacklevel=3,  # the caller of simulate
         )
 
     run_config = {
@@ -783,22 +945,6 @@ def simulate(
         if scene_path is None:
             scene_path = ck_scene_path
 
-    def config() -> dict[str, Any]:
-        return {
-            "problem": problem_dict,
-            "run": run_config,
-            "counters": {
-                "nstep": integ_obj.nstep,
-                "nforce": integ_obj.nforce,
-                "wall_time": integ_obj.wall_time,
-            },
-            "scene": scene_source,
-            "scene_path": scene_path,
-        }
-
-    def dataset(recs: Mapping[str, list]) -> xr.Dataset:
-        return io.build_dataset(scheme_obj, recs, config=config(), history=history)
-
     # -- frames so far, energy reference
     if ck_info is not None:
         records = {k: list(v) for k, v in ck_records.items()}
@@ -818,17 +964,74 @@ def simulate(
         e0 = rec["kinetic_energy"] + rec["potential_energy"]
         scale = [_magnitude(rec), 0]
 
-    def checkpoint(st: State, nframes: int, at_step: int, at_saves: int) -> xr.Dataset:
-        info = {
-            "problem": problem_dict,
-            "run": run_config,
+    return _ResolvedRun(
+        problem=problem,
+        scheme=scheme_obj,
+        integrator=integ_obj,
+        state=state,
+        dt=dt,
+        dt_max=dt_max,
+        nsteps=total,
+        save_every=save_every,
+        checkpoint_every=checkpoint_every,
+        output=output,
+        growth=growth,
+        compiled=bool(compiled),
+        progress=progress,
+        info={"problem": problem_dict, "run": run_config, "scene": scene_source, "scene_path": scene_path},
+        history=history,
+        records=records,
+        step=step,
+        nsaves=nsaves,
+        e0=e0,
+        scale=scale,
+    )
+
+
+def _execute_run(run: _ResolvedRun) -> xr.Dataset:
+    """Run what :func:`_resolve_run` settled: the save loop (see the module docstring).
+
+    Parameters
+    ----------
+    run : _ResolvedRun
+        Executed once: its state, frames and energy scale are updated in place.
+
+    Returns
+    -------
+    xarray.Dataset
+        The frames and diagnostics; also written to ``run.output`` when there is one.
+
+    Raises
+    ------
+    InstabilityError
+        When the run blows up (the last good state is on disk, see the exception).
+    """
+    from . import io
+
+    problem, scheme_obj, integ_obj, state = run.problem, run.scheme, run.integrator, run.state
+    dt, dt_max, total, save_every = run.dt, run.dt_max, run.nsteps, run.save_every
+    checkpoint_every, output, growth, e0 = run.checkpoint_every, run.output, run.growth, run.e0
+    records, scale, step, nsaves = run.records, run.scale, run.step, run.nsaves
+
+    def config() -> dict[str, Any]:
+        return {
+            "problem": run.info["problem"],
+            "run": run.info["run"],
             "counters": {
                 "nstep": integ_obj.nstep,
                 "nforce": integ_obj.nforce,
                 "wall_time": integ_obj.wall_time,
             },
-            "scene": scene_source,
-            "scene_path": scene_path,
+            "scene": run.info["scene"],
+            "scene_path": run.info["scene_path"],
+        }
+
+    def dataset(recs: Mapping[str, list]) -> xr.Dataset:
+        return io.build_dataset(scheme_obj, recs, config=config(), history=run.history)
+
+    def checkpoint(st: State, nframes: int, at_step: int, at_saves: int) -> xr.Dataset:
+        info = {
+            **config(),
             "step": at_step,
             "nsaves": at_saves,
             "nframes": nframes,
@@ -840,7 +1043,7 @@ def simulate(
 
     guard = _make_guard(scheme_obj, integ_obj, growth, e0, scale)
     bar = None
-    if _show_progress(progress) and step < total:
+    if _show_progress(run.progress) and step < total:
         from tqdm.auto import tqdm
 
         bar = tqdm(
@@ -857,7 +1060,7 @@ def simulate(
             n = min(save_every - step % save_every, total - step)
             good = state.copy()
             good_info = (len(records["time"]), step, nsaves, list(scale))
-            done, reason = _advance(integ_obj, scheme_obj, state, dt, n, guard, compiled=compiled)
+            done, reason = _advance(integ_obj, scheme_obj, state, dt, n, guard, compiled=run.compiled)
             step += done
             if reason is None:
                 rec = io.frame_record(scheme_obj, integ_obj, state)
@@ -875,8 +1078,9 @@ def simulate(
                                   else f" (nothing was written to {output})")
                 except (OSError, ValueError) as exc:
                     path, where = None, f"could not be saved ({' '.join(str(exc).split())})"
+                note = _resolution_note(scheme_obj, good, state) if dt <= dt_max else ""
                 raise InstabilityError(
-                    f"unstable at step {step} (t = {state.t:.6g}): {reason}; {_describe_dt(dt, dt_max)}; "
+                    f"unstable at step {step} (t = {state.t:.6g}): {reason}; {_describe_dt(dt, dt_max)}{note}; "
                     f"last good state (t = {good.t:.6g}) {where}",
                     step=step,
                     time=float(state.t),

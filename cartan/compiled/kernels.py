@@ -2,7 +2,8 @@
 
 Group kernels
     ``g_<op>`` for every ``op`` of :data:`GROUP_OPS` (signatures in
-    :meth:`cartan.groups.base.SymmetryGroup.point_kernels`).
+    :meth:`cartan.groups.base.SymmetryGroup.point_kernels`), and the fused operations of
+    :data:`FUSED_OPS` (a product with a matrix, without the matrix, when the group has them).
 Medium kernels
     ``m_energy(X, X0, p) -> float`` and ``m_stress(X, X0, p, Q)`` — the potential energy
     density U and the stress Q = ∂U/∂X at one point, X, X0 and Q of shape ``(d, r)`` (the
@@ -35,6 +36,19 @@ def g_{op}({arg}, v, out):
 """
 FUSED_OPS = {op: _FUSED.format(op=op, arg=arg, matrix=matrix)
              for op, arg, matrix in (("Ad_T", "g", "Ad"), ("dexp_inv_T", "xi", "dexp_inv"))}
+#: both ends of an edge at once: ``dexp⁻¹(−ξ) = dexp⁻¹(ξ) + ad_ξ`` (``x/(eˣ − 1)`` at −x is
+#: ``x/(eˣ − 1) + x``), so ``dexp⁻¹(−ξ)ᵀv`` is ``dexp⁻¹(ξ)ᵀv + ad_ξᵀv``
+FUSED_OPS["dexp_inv_T_pair"] = """
+def g_dexp_inv_T_pair(xi, v, out, out_neg):
+    g_dexp_inv_T(xi, v, out)
+    A = np.empty((R_, R_))
+    g_ad(xi, A)
+    for k in range(R_):
+        s = out[k]
+        for j in range(R_):
+            s += A[j, k] * v[j]
+        out_neg[k] = s
+"""
 
 
 #: 𝓔 and dexp⁻¹ for a group without closed forms: the Van Loan block exponential
@@ -58,8 +72,8 @@ def group_fragment(module: str, prefix: str, ops=GROUP_OPS) -> Fragment | None:
     missing, except ``E`` and ``dexp_inv``, which come from the Van Loan block exponential
     (:mod:`cartan.groups._generic_kernels`) when the module has neither.  The fused operations
     of :data:`FUSED_OPS` (``g_Ad_T(g, v, out)`` = Ad_gᵀv, ``g_dexp_inv_T(xi, v, out)`` =
-    dexp⁻¹(ξ)ᵀv) are bound the same way when the module has them, and built from the matrices
-    otherwise."""
+    dexp⁻¹(ξ)ᵀv, ``g_dexp_inv_T_pair(xi, v, out, out_neg)`` = dexp⁻¹(ξ)ᵀv and dexp⁻¹(−ξ)ᵀv)
+    are bound the same way when the module has them, and built from the matrices otherwise."""
     mod = importlib.import_module(module)
     imports = {}
     vanloan = not any(hasattr(mod, f"{prefix}_{op}_point") for op in ("E", "dexp_inv"))
@@ -78,12 +92,14 @@ def group_fragment(module: str, prefix: str, ops=GROUP_OPS) -> Fragment | None:
 
 
 def with_fused(frag: Fragment, module: str | None = None, prefix: str = "") -> Fragment:
-    """Add the fused operations to a group's fragment: the module's closed forms where it has
-    them, the defaults of :data:`FUSED_OPS` otherwise."""
+    """Add the fused operations to a group's fragment: those it binds already, else the module's
+    closed forms where it has them, else the defaults of :data:`FUSED_OPS`."""
     mod = importlib.import_module(module) if module else None
     sources = [frag.source] if frag.source.strip() else []
     for op, default in FUSED_OPS.items():
         name = f"{prefix}_{op}_point"
+        if f"g_{op}" in frag.imports:  # bound by the group already
+            continue
         if mod is not None and hasattr(mod, name):
             frag.imports[f"g_{op}"] = (module, name)
         else:

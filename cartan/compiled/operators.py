@@ -15,9 +15,14 @@ from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any
 
-from .codegen import Fragment
+from .codegen import Fragment, generate
 
-__all__ = ["OperatorSet"]
+__all__ = ["LOOP_SOURCES", "OperatorSet"]
+
+#: the modules whose ``loop_fragment()`` joins every generated module, by name (the loops and
+#: the diagnostics that run over an operator set); the functions of a generated module compile
+#: on first call only, so one module serves every loop and the operators compile once
+LOOP_SOURCES = ("cartan.integrators.loops", "cartan.compiled.diagnostics")
 
 
 @dataclass
@@ -67,3 +72,13 @@ class OperatorSet:
     @property
     def ok(self) -> bool:
         return self.reason is None
+
+    def generated(self):
+        """The generated module of these operators with every loop of :data:`LOOP_SOURCES`
+        (written and imported once per operator set; its functions compile on first call)."""
+        if self.module is None:
+            import importlib
+
+            loops = [importlib.import_module(name).loop_fragment() for name in LOOP_SOURCES]
+            self.module = generate(f"ops-{self.key}", [*self.fragments, *loops])
+        return self.module

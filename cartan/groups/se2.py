@@ -74,21 +74,24 @@ __all__ = [
 
 
 # ---------------------------------------------------------------------- numba point kernels
-@njit(cache=True)
+# ``inline='always'``: a kernel and the kernels it calls are compiled into the function that calls
+# them (an out-of-line call of a compiled function is opaque to LLVM and costs more than the
+# arithmetic of a point kernel); called from Python they compile as usual.
+@njit(cache=True, inline='always')
 def _zero_affine_row(out):
     out[0, 0] = 0.0
     out[0, 1] = 0.0
     out[0, 2] = 0.0
 
 
-@njit(cache=True)
+@njit(cache=True, inline='always')
 def _unit_last_row(out):
     out[2, 0] = 0.0
     out[2, 1] = 0.0
     out[2, 2] = 1.0
 
 
-@njit(cache=True)
+@njit(cache=True, inline='always')
 def se2_hat_point(xi, out):
     """``out`` (3, 3) ← ``[[0, 0, 0], [v1, 0, −ω], [v2, ω, 0]]`` for ``xi = (v1, v2, ω)``."""
     _zero_affine_row(out)
@@ -100,7 +103,7 @@ def se2_hat_point(xi, out):
     out[2, 2] = 0.0
 
 
-@njit(cache=True)
+@njit(cache=True, inline='always')
 def se2_vee_point(A, out):
     """``out`` (3,) ← ``(A21, A31, ½(A32 − A23))`` for ``A`` (3, 3)."""
     out[0] = A[1, 0]
@@ -108,7 +111,7 @@ def se2_vee_point(A, out):
     out[2] = 0.5 * (A[2, 1] - A[1, 2])
 
 
-@njit(cache=True)
+@njit(cache=True, inline='always')
 def se2_compose_point(g, h, out):
     """``out`` (3, 3) ← ``g h``; ``out`` must not alias the inputs."""
     for i in range(3):
@@ -116,7 +119,7 @@ def se2_compose_point(g, h, out):
             out[i, j] = g[i, 0] * h[0, j] + g[i, 1] * h[1, j] + g[i, 2] * h[2, j]
 
 
-@njit(cache=True)
+@njit(cache=True, inline='always')
 def se2_inverse_point(g, out):
     """``out`` (3, 3) ← ``g⁻¹ = (−Rᵀa; Rᵀ)``; ``out`` must not alias ``g``."""
     a1, a2 = g[1, 0], g[2, 0]
@@ -131,14 +134,14 @@ def se2_inverse_point(g, out):
     out[2, 2] = g[2, 2]
 
 
-@njit(cache=True)
+@njit(cache=True, inline='always')
 def se2_act_point(g, x, out):
     """``out`` (2,) ← ``R x + a``."""
     out[0] = g[1, 1] * x[0] + g[1, 2] * x[1] + g[1, 0]
     out[1] = g[2, 1] * x[0] + g[2, 2] * x[1] + g[2, 0]
 
 
-@njit(cache=True)
+@njit(cache=True, inline='always')
 def se2_exp_point(xi, out):
     """``out`` (3, 3) ← ``exp(hat(ξ)) = (V v; R(ω))`` for ``xi = (v1, v2, ω)``."""
     v1, v2, w = xi[0], xi[1], xi[2]
@@ -157,7 +160,7 @@ def se2_exp_point(xi, out):
     out[2, 2] = c
 
 
-@njit(cache=True)
+@njit(cache=True, inline='always')
 def se2_log_point(g, out):
     """``out`` (3,) ← principal logarithm ``(v1, v2, ω)`` of ``g`` (3, 3), ``|ω| ≤ π``."""
     w = np.arctan2(g[2, 1] - g[1, 2], g[1, 1] + g[2, 2])
@@ -169,7 +172,7 @@ def se2_log_point(g, out):
     out[2] = w
 
 
-@njit(cache=True)
+@njit(cache=True, inline='always')
 def se2_Ad_point(g, out):
     """``out`` (3, 3) ← ``Ad_g = [[R, −J a], [0, 1]]``."""
     out[0, 0] = g[1, 1]
@@ -181,7 +184,7 @@ def se2_Ad_point(g, out):
     _unit_last_row(out)
 
 
-@njit(cache=True)
+@njit(cache=True, inline='always')
 def se2_ad_point(xi, out):
     """``out`` (3, 3) ← ``ad_ξ = [[0, −ω, v2], [ω, 0, −v1], [0, 0, 0]]``."""
     out[0, 0] = 0.0
@@ -195,7 +198,7 @@ def se2_ad_point(xi, out):
     out[2, 2] = 0.0
 
 
-@njit(cache=True)
+@njit(cache=True, inline='always')
 def se2_bracket_point(xi, eta, out):
     """``out`` (3,) ← ``[ξ, η] = ad_ξ η``."""
     out[0] = xi[1] * eta[2] - xi[2] * eta[1]
@@ -203,7 +206,7 @@ def se2_bracket_point(xi, eta, out):
     out[2] = 0.0
 
 
-@njit(cache=True)
+@njit(cache=True, inline='always')
 def _dexp_scaled(v1, v2, w, s, out):
     """``out`` (3, 3) ← ``s·dexp(v1, v2, w)``."""
     a = so3_exp_coeffs(w * w)[0]
@@ -221,13 +224,13 @@ def _dexp_scaled(v1, v2, w, s, out):
     out[2, 2] = s
 
 
-@njit(cache=True)
+@njit(cache=True, inline='always')
 def se2_dexp_point(xi, out):
     """``out`` (3, 3) ← ``dexp(ξ) = [[V, p], [0, 1]]``."""
     _dexp_scaled(xi[0], xi[1], xi[2], 1.0, out)
 
 
-@njit(cache=True)
+@njit(cache=True, inline='always')
 def se2_dexp_inv_point(xi, out):
     """``out`` (3, 3) ← ``dexp(ξ)⁻¹ = [[V⁻¹, q], [0, 1]]``."""
     v1, v2, w = xi[0], xi[1], xi[2]
@@ -244,7 +247,7 @@ def se2_dexp_inv_point(xi, out):
     _unit_last_row(out)
 
 
-@njit(cache=True)
+@njit(cache=True, inline='always')
 def se2_E_point(dt, xi, out):
     """``out`` (3, 3) ← ``𝓔(Δt, ξ) = Δt·dexp(Δt ξ)`` for scalar ``dt``."""
     _dexp_scaled(dt * xi[0], dt * xi[1], dt * xi[2], dt, out)

@@ -67,6 +67,7 @@ __all__ = [
     "se3_bracket_point",
     "se3_compose_point",
     "se3_dexp_coeffs",
+    "se3_dexp_inv_T_pair_point",
     "se3_dexp_inv_point",
     "se3_dexp_point",
     "se3_exp_coeffs",
@@ -86,30 +87,30 @@ TAYLOR_E = (-6.0 / 1307674368000.0, 5.0 / 6227020800.0, -4.0 / 39916800.0, 3.0 /
 
 
 # ---------------------------------------------------------------------- shared arithmetic
-@register_jitable
+@register_jitable(inline='always')
 def _exp_coeffs3_direct(t2):
     a, b = _exp_coeffs_direct(t2)
     return a, b, _C_direct(t2)
 
 
-@register_jitable
+@register_jitable(inline='always')
 def _exp_coeffs3_series(t2):
     return horner(t2, TAYLOR_A), horner(t2, TAYLOR_B), horner(t2, TAYLOR_C)
 
 
-@register_jitable
+@register_jitable(inline='always')
 def _dexp_coeffs_direct(t2):
     b = _exp_coeffs_direct(t2)[1]
     c = _C_direct(t2)
     return b, c, (0.5 - b) / t2, (3.0 * c - b) / (2.0 * t2)
 
 
-@register_jitable
+@register_jitable(inline='always')
 def _dexp_coeffs_series(t2):
     return horner(t2, TAYLOR_B), horner(t2, TAYLOR_C), horner(t2, TAYLOR_D), horner(t2, TAYLOR_E)
 
 
-@register_jitable
+@register_jitable(inline='always')
 def _V_apply(w0, w1, w2, b, c, v0, v1, v2):
     """``v + b (w × v) + c w × (w × v)`` (``J(w) v`` or ``J⁻¹(w) v``) by components."""
     u0, u1, u2 = cross3(w0, w1, w2, v0, v1, v2)
@@ -117,7 +118,7 @@ def _V_apply(w0, w1, w2, b, c, v0, v1, v2):
     return v0 + b * u0 + c * z0, v1 + b * u1 + c * z1, v2 + b * u2 + c * z2
 
 
-@register_jitable
+@register_jitable(inline='always')
 def _Q_apply(r0, r1, r2, p0, p1, p2, c, d, e, v0, v1, v2):
     """``Q v`` for translation ``r`` (``P = r̂``), rotation ``p`` (``K = p̂``) and coefficients
     ``(C, D, E)``, by chained cross products."""
@@ -144,7 +145,10 @@ _UNIT = ((1.0, 0.0, 0.0), (0.0, 1.0, 0.0), (0.0, 0.0, 1.0))
 
 
 # ---------------------------------------------------------------------- numba point kernels
-@njit(cache=True)
+# ``inline='always'``: a kernel and the kernels it calls are compiled into the function that calls
+# them (an out-of-line call of a compiled function is opaque to LLVM and costs more than the
+# arithmetic of a point kernel); called from Python they compile as usual.
+@njit(cache=True, inline='always')
 def se3_exp_coeffs(t2):
     """``(A, B, C) = (sin θ/θ, (1 − cos θ)/θ², (θ − sin θ)/θ³)`` for ``t2 = θ²``."""
     if t2 < SMALL_THETA2:
@@ -152,7 +156,7 @@ def se3_exp_coeffs(t2):
     return _exp_coeffs3_direct(t2)
 
 
-@njit(cache=True)
+@njit(cache=True, inline='always')
 def se3_dexp_coeffs(t2):
     """``(B, C, D, E)``: the coefficients of ``J`` and of the ``Q`` block for ``t2 = θ²``."""
     if t2 < SMALL_THETA2:
@@ -160,7 +164,7 @@ def se3_dexp_coeffs(t2):
     return _dexp_coeffs_direct(t2)
 
 
-@njit(cache=True)
+@njit(cache=True, inline='always')
 def se3_hat_point(xi, out):
     """``out`` (4, 4) ← ``{a1; a2} = [[0, 0ᵀ], [a1, â2]]`` for ``xi`` (6,)."""
     out[0, 0] = 0.0
@@ -181,7 +185,7 @@ def se3_hat_point(xi, out):
     out[3, 3] = 0.0
 
 
-@njit(cache=True)
+@njit(cache=True, inline='always')
 def se3_vee_point(A, out):
     """``out`` (6,) ← ``(A[1:, 0], vee(A[1:, 1:]))`` for ``A`` (4, 4)."""
     out[0] = A[1, 0]
@@ -190,7 +194,7 @@ def se3_vee_point(A, out):
     so3_vee_point(A[1:, 1:], out[3:])
 
 
-@njit(cache=True)
+@njit(cache=True, inline='always')
 def se3_compose_point(g, h, out):
     """``out`` (4, 4) ← ``g h = (A_g a_h + a_g; A_g A_h)``; ``out`` must not alias the inputs."""
     out[0, 0] = 1.0
@@ -202,7 +206,7 @@ def se3_compose_point(g, h, out):
             out[i, j] = g[i, 1] * h[1, j] + g[i, 2] * h[2, j] + g[i, 3] * h[3, j]
 
 
-@njit(cache=True)
+@njit(cache=True, inline='always')
 def se3_inverse_point(g, out):
     """``out`` (4, 4) ← ``g⁻¹ = (−Aᵀa; Aᵀ)``; ``out`` must not alias ``g``."""
     out[0, 0] = 1.0
@@ -214,14 +218,14 @@ def se3_inverse_point(g, out):
             out[i, j] = g[j, i]
 
 
-@njit(cache=True)
+@njit(cache=True, inline='always')
 def se3_act_point(g, x, out):
     """``out`` (3,) ← ``A x + a`` for ``g = (a; A)`` (4, 4) and ``x`` (3,)."""
     for i in range(3):
         out[i] = g[i + 1, 1] * x[0] + g[i + 1, 2] * x[1] + g[i + 1, 3] * x[2] + g[i + 1, 0]
 
 
-@njit(cache=True)
+@njit(cache=True, inline='always')
 def se3_exp_point(xi, out):
     """``out`` (4, 4) ← ``exp({a1; a2}) = (J(a2) a1; exp(â2))`` for ``xi`` (6,)."""
     w0, w1, w2 = xi[3], xi[4], xi[5]
@@ -237,7 +241,7 @@ def se3_exp_point(xi, out):
     out[3, 0] = t[2]
 
 
-@njit(cache=True)
+@njit(cache=True, inline='always')
 def se3_log_point(g, out):
     """``out`` (6,) ← principal logarithm of ``g`` (4, 4): ``a2 = log A``, ``a1 = J⁻¹(a2) a``."""
     so3_log_point(g[1:, 1:], out[3:])
@@ -249,7 +253,7 @@ def se3_log_point(g, out):
     out[2] = t[2]
 
 
-@njit(cache=True)
+@njit(cache=True, inline='always')
 def se3_Ad_point(g, out):
     """``out`` (6, 6) ← ``Ad_g = [[A, âA], [0, A]]`` for ``g = (a; A)`` (4, 4)."""
     a0, a1, a2 = g[1, 0], g[2, 0], g[3, 0]
@@ -262,7 +266,7 @@ def se3_Ad_point(g, out):
             out[i, j + 3] = col[i]
 
 
-@njit(cache=True)
+@njit(cache=True, inline='always')
 def se3_ad_point(xi, out):
     """``out`` (6, 6) ← ``ad_ξ = [[â2, â1], [0, â2]]`` for ``xi`` (6,)."""
     for i in range(3):
@@ -291,7 +295,7 @@ def se3_ad_point(xi, out):
     out[2, 5] = 0.0
 
 
-@njit(cache=True)
+@njit(cache=True, inline='always')
 def se3_bracket_point(xi, eta, out):
     """``out`` (6,) ← ``[ξ, η] = (a2 × b1 + a1 × b2, a2 × b2)``."""
     u = cross3(xi[3], xi[4], xi[5], eta[0], eta[1], eta[2])
@@ -305,7 +309,7 @@ def se3_bracket_point(xi, eta, out):
     out[5] = w[2]
 
 
-@njit(cache=True)
+@njit(cache=True, inline='always')
 def _se3_dexp_fill(r0, r1, r2, w0, w1, w2, s, out):
     """``out`` (6, 6) ← ``s·dexp({r; w}) = s [[J, Q], [0, J]]``."""
     b, c, d, e = se3_dexp_coeffs(w0 * w0 + w1 * w1 + w2 * w2)
@@ -318,19 +322,19 @@ def _se3_dexp_fill(r0, r1, r2, w0, w1, w2, s, out):
             out[i, j + 3] = s * q[i]
 
 
-@njit(cache=True)
+@njit(cache=True, inline='always')
 def se3_dexp_point(xi, out):
     """``out`` (6, 6) ← ``dexp(ξ) = [[J, Q], [0, J]]`` for ``xi`` (6,)."""
     _se3_dexp_fill(xi[0], xi[1], xi[2], xi[3], xi[4], xi[5], 1.0, out)
 
 
-@njit(cache=True)
+@njit(cache=True, inline='always')
 def se3_E_point(dt, xi, out):
     """``out`` (6, 6) ← ``𝓔(Δt, ξ) = Δt·dexp(Δt ξ)`` for scalar ``dt``."""
     _se3_dexp_fill(dt * xi[0], dt * xi[1], dt * xi[2], dt * xi[3], dt * xi[4], dt * xi[5], dt, out)
 
 
-@njit(cache=True)
+@njit(cache=True, inline='always')
 def se3_dexp_inv_point(xi, out):
     """``out`` (6, 6) ← ``dexp(ξ)⁻¹ = [[J⁻¹, −J⁻¹QJ⁻¹], [0, J⁻¹]]`` for ``xi`` (6,)."""
     r0, r1, r2, w0, w1, w2 = xi[0], xi[1], xi[2], xi[3], xi[4], xi[5]
@@ -356,7 +360,7 @@ def se3_dexp_inv_point(xi, out):
             out[i + 3, j] = 0.0
 
 
-@njit(cache=True)
+@njit(cache=True, inline='always')
 def se3_Ad_T_point(g, v, out):
     """``out`` (6,) ← ``Ad_gᵀ v = (Aᵀv_t; Aᵀ(v_r − a × v_t))`` for ``g = (a; A)`` (4, 4)."""
     u0, u1, u2 = cross3(g[1, 0], g[2, 0], g[3, 0], v[0], v[1], v[2])
@@ -366,7 +370,7 @@ def se3_Ad_T_point(g, v, out):
         out[j + 3] = g[1, j + 1] * w0 + g[2, j + 1] * w1 + g[3, j + 1] * w2
 
 
-@njit(cache=True)
+@njit(cache=True, inline='always')
 def se3_dexp_inv_T_point(xi, q, out):
     """``out`` (6,) ← ``dexp(ξ)⁻ᵀ q = (J⁻ᵀq_t; J⁻ᵀ(q_r − Qᵀ J⁻ᵀ q_t))`` without the matrix:
     ``J⁻ᵀ = I + ½K + cK²`` and ``Qᵀ(r, w) = −Q(r, −w)`` (the transpose of
@@ -379,6 +383,20 @@ def se3_dexp_inv_T_point(xi, q, out):
     b = _Q_apply(r0, r1, r2, -w0, -w1, -w2, c, d, e, a0, a1, a2)
     v0, v1, v2 = _V_apply(w0, w1, w2, 0.5, cinv, q[3] + b[0], q[4] + b[1], q[5] + b[2])
     out[0], out[1], out[2], out[3], out[4], out[5] = a0, a1, a2, v0, v1, v2
+
+
+@njit(cache=True, inline='always')
+def se3_dexp_inv_T_pair_point(xi, q, out, out_neg):
+    """``out`` (6,) ← ``dexp(ξ)⁻ᵀ q`` (:func:`se3_dexp_inv_T_point`) and ``out_neg`` (6,) ←
+    ``dexp(−ξ)⁻ᵀ q = dexp(ξ)⁻ᵀ q + ad_ξᵀ q`` (``dexp⁻¹(−ξ) = dexp⁻¹(ξ) + ad_ξ``), with
+    ``ad_ξᵀ q = (q_t × w; q_t × r + q_r × w)``."""
+    se3_dexp_inv_T_point(xi, q, out)
+    r0, r1, r2, w0, w1, w2 = xi[0], xi[1], xi[2], xi[3], xi[4], xi[5]
+    a0, a1, a2 = cross3(q[0], q[1], q[2], w0, w1, w2)
+    b0, b1, b2 = cross3(q[0], q[1], q[2], r0, r1, r2)
+    c0, c1, c2 = cross3(q[3], q[4], q[5], w0, w1, w2)
+    out_neg[0], out_neg[1], out_neg[2] = out[0] + a0, out[1] + a1, out[2] + a2
+    out_neg[3], out_neg[4], out_neg[5] = out[3] + (b0 + c0), out[4] + (b1 + c1), out[5] + (b2 + c2)
 
 
 # ---------------------------------------------------------------------- numba batch loops

@@ -45,7 +45,10 @@ __all__ = [
 
 
 # ---------------------------------------------------------------------- numba point kernels
-@njit(cache=True)
+# ``inline='always'``: a kernel and the kernels it calls are compiled into the function that calls
+# them (an out-of-line call of a compiled function is opaque to LLVM and costs more than the
+# arithmetic of a point kernel); called from Python they compile as usual.
+@njit(cache=True, inline='always')
 def so2_hat_point(xi, out):
     """``out`` (2, 2) ← ``hat(θ)`` for ``xi`` (1,)."""
     out[0, 0] = 0.0
@@ -54,13 +57,13 @@ def so2_hat_point(xi, out):
     out[1, 1] = 0.0
 
 
-@njit(cache=True)
+@njit(cache=True, inline='always')
 def so2_vee_point(A, out):
     """``out`` (1,) ← ``½(A21 − A12)`` for ``A`` (2, 2)."""
     out[0] = 0.5 * (A[1, 0] - A[0, 1])
 
 
-@njit(cache=True)
+@njit(cache=True, inline='always')
 def so2_exp_point(xi, out):
     """``out`` (2, 2) ← the rotation by ``θ = xi[0]``."""
     c = np.cos(xi[0])
@@ -71,13 +74,13 @@ def so2_exp_point(xi, out):
     out[1, 1] = c
 
 
-@njit(cache=True)
+@njit(cache=True, inline='always')
 def so2_log_point(R, out):
     """``out`` (1,) ← ``atan2(R21 − R12, R11 + R22)`` ∈ (−π, π] for ``R`` (2, 2)."""
     out[0] = np.arctan2(R[1, 0] - R[0, 1], R[0, 0] + R[1, 1])
 
 
-@njit(cache=True)
+@njit(cache=True, inline='always')
 def so2_compose_point(R1, R2, out):
     """``out`` (2, 2) ← ``R1 R2``; ``out`` must not alias the inputs."""
     for i in range(2):
@@ -85,7 +88,7 @@ def so2_compose_point(R1, R2, out):
             out[i, j] = R1[i, 0] * R2[0, j] + R1[i, 1] * R2[1, j]
 
 
-@njit(cache=True)
+@njit(cache=True, inline='always')
 def so2_inverse_point(R, out):
     """``out`` (2, 2) ← ``Rᵀ``; ``out`` must not alias ``R``."""
     out[0, 0] = R[0, 0]
@@ -94,44 +97,44 @@ def so2_inverse_point(R, out):
     out[1, 1] = R[1, 1]
 
 
-@njit(cache=True)
+@njit(cache=True, inline='always')
 def so2_act_point(R, x, out):
     """``out`` (2,) ← ``R x``."""
     out[0] = R[0, 0] * x[0] + R[0, 1] * x[1]
     out[1] = R[1, 0] * x[0] + R[1, 1] * x[1]
 
 
-@njit(cache=True)
+@njit(cache=True, inline='always')
 def so2_Ad_point(R, out):
     """``out`` (1, 1) ← ``Ad_R = 1``."""
     out[0, 0] = 1.0
 
 
-@njit(cache=True)
+@njit(cache=True, inline='always')
 def so2_ad_point(xi, out):
     """``out`` (1, 1) ← ``ad_θ = 0``."""
     out[0, 0] = 0.0
 
 
-@njit(cache=True)
+@njit(cache=True, inline='always')
 def so2_bracket_point(xi, eta, out):
     """``out`` (1,) ← ``[θ, φ] = 0``."""
     out[0] = 0.0
 
 
-@njit(cache=True)
+@njit(cache=True, inline='always')
 def so2_dexp_point(xi, out):
     """``out`` (1, 1) ← ``dexp(θ) = 1``."""
     out[0, 0] = 1.0
 
 
-@njit(cache=True)
+@njit(cache=True, inline='always')
 def so2_dexp_inv_point(xi, out):
     """``out`` (1, 1) ← ``dexp(θ)⁻¹ = 1``."""
     out[0, 0] = 1.0
 
 
-@njit(cache=True)
+@njit(cache=True, inline='always')
 def so2_E_point(dt, xi, out):
     """``out`` (1, 1) ← ``𝓔(Δt, Y) = Δt`` for scalar ``dt``."""
     out[0, 0] = dt

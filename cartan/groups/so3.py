@@ -47,6 +47,7 @@ __all__ = [
     "so3_compose_point",
     "so3_dexp_coeffs",
     "so3_dexp_inv_coeff",
+    "so3_dexp_inv_T_pair_point",
     "so3_dexp_inv_point",
     "so3_dexp_point",
     "so3_E_point",
@@ -87,13 +88,13 @@ def horner(t, coeffs):
     return acc
 
 
-@register_jitable
+@register_jitable(inline='always')
 def cross3(a0, a1, a2, b0, b1, b2):
     """Components of the cross product ``a × b = â b``."""
     return a1 * b2 - a2 * b1, a2 * b0 - a0 * b2, a0 * b1 - a1 * b0
 
 
-@register_jitable
+@register_jitable(inline='always')
 def _exp_coeffs_direct(t2):
     th = np.sqrt(t2)
     h = 0.5 * th
@@ -101,24 +102,24 @@ def _exp_coeffs_direct(t2):
     return np.sin(th) / th, 0.5 * sh * sh
 
 
-@register_jitable
+@register_jitable(inline='always')
 def _exp_coeffs_series(t2):
     return horner(t2, TAYLOR_A), horner(t2, TAYLOR_B)
 
 
-@register_jitable
+@register_jitable(inline='always')
 def _C_direct(t2):
     th = np.sqrt(t2)
     return (th - np.sin(th)) / (th * t2)
 
 
-@register_jitable
+@register_jitable(inline='always')
 def _cinv_direct(t2):
     h = 0.5 * np.sqrt(t2)
     return (1.0 - h * np.cos(h) / np.sin(h)) / t2
 
 
-@register_jitable
+@register_jitable(inline='always')
 def _poly_entries(x, y, z, a, b, s):
     """Entries (row-major) of ``s (I + a K + b K²)``, ``K = hat(x, y, z)``."""
     xy = x * y
@@ -131,7 +132,7 @@ def _poly_entries(x, y, z, a, b, s):
     )
 
 
-@register_jitable
+@register_jitable(inline='always')
 def _quat_from_matrix(r00, r01, r02, r10, r11, r12, r20, r21, r22, case):
     """Unnormalised quaternion ``4 q_k q`` of a rotation matrix, ``k`` the chosen ``case``.
 
@@ -167,7 +168,7 @@ def quat_of_matrix(r00, r01, r02, r10, r11, r12, r20, r21, r22):
     return qw, qx, qy, qz
 
 
-@register_jitable
+@register_jitable(inline='always')
 def _log_factor_series(s, c):
     """``θ/|q_v|`` for ``|q_v| ≤ 1e-4 |q_w|``: ``(2/c) atan(x)/x``, ``x = s/c``."""
     x = s / c
@@ -175,7 +176,7 @@ def _log_factor_series(s, c):
     return (2.0 / c) * (1.0 + x2 * (-1.0 / 3.0 + x2 * (1.0 / 5.0)))
 
 
-@register_jitable
+@register_jitable(inline='always')
 def _log_factor_direct(s, c):
     return 2.0 * np.arctan2(s, c) / s
 
@@ -185,7 +186,10 @@ LOG_SMALL_RATIO = 1e-4
 
 
 # ---------------------------------------------------------------------- numba point kernels
-@njit(cache=True)
+# ``inline='always'``: a kernel and the kernels it calls are compiled into the function that calls
+# them (an out-of-line call of a compiled function is opaque to LLVM and costs more than the
+# arithmetic of a point kernel); called from Python they compile as usual.
+@njit(cache=True, inline='always')
 def so3_exp_coeffs(t2):
     """``(A, B) = (sin θ/θ, (1 − cos θ)/θ²)`` as functions of ``t2 = θ²``."""
     if t2 < SMALL_THETA2:
@@ -193,7 +197,7 @@ def so3_exp_coeffs(t2):
     return _exp_coeffs_direct(t2)
 
 
-@njit(cache=True)
+@njit(cache=True, inline='always')
 def so3_dexp_coeffs(t2):
     """``(B, C) = ((1 − cos θ)/θ², (θ − sin θ)/θ³)``, the coefficients of ``J = I + BK + CK²``."""
     if t2 < SMALL_THETA2:
@@ -201,7 +205,7 @@ def so3_dexp_coeffs(t2):
     return _exp_coeffs_direct(t2)[1], _C_direct(t2)
 
 
-@njit(cache=True)
+@njit(cache=True, inline='always')
 def so3_dexp_inv_coeff(t2):
     """``c = (1 − (θ/2) cot(θ/2))/θ²``, the coefficient of ``J⁻¹ = I − ½K + cK²``."""
     if t2 < SMALL_THETA2:
@@ -209,7 +213,7 @@ def so3_dexp_inv_coeff(t2):
     return _cinv_direct(t2)
 
 
-@njit(cache=True)
+@njit(cache=True, inline='always')
 def so3_poly_point(x, y, z, a, b, s, out):
     """Fill ``out`` (3, 3) with ``s (I + a K + b K²)``, ``K = hat(x, y, z)``."""
     e = _poly_entries(x, y, z, a, b, s)
@@ -224,7 +228,7 @@ def so3_poly_point(x, y, z, a, b, s, out):
     out[2, 2] = e[8]
 
 
-@njit(cache=True)
+@njit(cache=True, inline='always')
 def so3_hat_point(w, out):
     """``out`` (3, 3) ← ``ŵ`` for ``w`` (3,)."""
     out[0, 0] = 0.0
@@ -238,7 +242,7 @@ def so3_hat_point(w, out):
     out[2, 2] = 0.0
 
 
-@njit(cache=True)
+@njit(cache=True, inline='always')
 def so3_vee_point(A, out):
     """``out`` (3,) ← ``½(A32 − A23, A13 − A31, A21 − A12)`` for ``A`` (3, 3)."""
     out[0] = 0.5 * (A[2, 1] - A[1, 2])
@@ -246,7 +250,7 @@ def so3_vee_point(A, out):
     out[2] = 0.5 * (A[1, 0] - A[0, 1])
 
 
-@njit(cache=True)
+@njit(cache=True, inline='always')
 def so3_compose_point(R1, R2, out):
     """``out`` (3, 3) ← ``R1 R2``; ``out`` must not alias the inputs."""
     for i in range(3):
@@ -254,7 +258,7 @@ def so3_compose_point(R1, R2, out):
             out[i, j] = R1[i, 0] * R2[0, j] + R1[i, 1] * R2[1, j] + R1[i, 2] * R2[2, j]
 
 
-@njit(cache=True)
+@njit(cache=True, inline='always')
 def so3_inverse_point(R, out):
     """``out`` (3, 3) ← ``Rᵀ``; ``out`` must not alias ``R``."""
     for i in range(3):
@@ -262,21 +266,21 @@ def so3_inverse_point(R, out):
             out[i, j] = R[j, i]
 
 
-@njit(cache=True)
+@njit(cache=True, inline='always')
 def so3_act_point(R, x, out):
     """``out`` (3,) ← ``R x``."""
     for i in range(3):
         out[i] = R[i, 0] * x[0] + R[i, 1] * x[1] + R[i, 2] * x[2]
 
 
-@njit(cache=True)
+@njit(cache=True, inline='always')
 def so3_Ad_T_point(R, v, out):
     """``out`` (3,) ← ``Ad_Rᵀ v = Rᵀ v``."""
     for j in range(3):
         out[j] = R[0, j] * v[0] + R[1, j] * v[1] + R[2, j] * v[2]
 
 
-@njit(cache=True)
+@njit(cache=True, inline='always')
 def so3_dexp_inv_T_point(w, v, out):
     """``out`` (3,) ← ``J⁻ᵀ(w) v = v + ½ w × v + c w × (w × v)`` (the transpose of
     :func:`so3_dexp_inv_point`), without the matrix."""
@@ -286,7 +290,19 @@ def so3_dexp_inv_T_point(w, v, out):
     out[0], out[1], out[2] = v[0] + 0.5 * u0 + c * z0, v[1] + 0.5 * u1 + c * z1, v[2] + 0.5 * u2 + c * z2
 
 
-@njit(cache=True)
+@njit(cache=True, inline='always')
+def so3_dexp_inv_T_pair_point(w, v, out, out_neg):
+    """``out`` (3,) ← ``J⁻ᵀ(w) v`` and ``out_neg`` (3,) ← ``J⁻ᵀ(−w) v = v − ½ w × v + c w × (w × v)``:
+    both ends of an edge from one set of products."""
+    c = so3_dexp_inv_coeff(w[0] * w[0] + w[1] * w[1] + w[2] * w[2])
+    u0, u1, u2 = cross3(w[0], w[1], w[2], v[0], v[1], v[2])
+    z0, z1, z2 = cross3(w[0], w[1], w[2], u0, u1, u2)
+    e0, e1, e2 = v[0] + c * z0, v[1] + c * z1, v[2] + c * z2
+    out[0], out[1], out[2] = e0 + 0.5 * u0, e1 + 0.5 * u1, e2 + 0.5 * u2
+    out_neg[0], out_neg[1], out_neg[2] = e0 - 0.5 * u0, e1 - 0.5 * u1, e2 - 0.5 * u2
+
+
+@njit(cache=True, inline='always')
 def so3_Ad_point(R, out):
     """``out`` (3, 3) ← ``Ad_R = R``."""
     for i in range(3):
@@ -294,13 +310,13 @@ def so3_Ad_point(R, out):
             out[i, j] = R[i, j]
 
 
-@njit(cache=True)
+@njit(cache=True, inline='always')
 def so3_ad_point(w, out):
     """``out`` (3, 3) ← ``ad_w = ŵ``."""
     so3_hat_point(w, out)
 
 
-@njit(cache=True)
+@njit(cache=True, inline='always')
 def so3_bracket_point(u, v, out):
     """``out`` (3,) ← ``[u, v] = u × v``."""
     c = cross3(u[0], u[1], u[2], v[0], v[1], v[2])
@@ -309,7 +325,7 @@ def so3_bracket_point(u, v, out):
     out[2] = c[2]
 
 
-@njit(cache=True)
+@njit(cache=True, inline='always')
 def so3_exp_point(w, out):
     """``out`` (3, 3) ← ``exp(ŵ) = I + A K + B K²`` for ``w`` (3,)."""
     x, y, z = w[0], w[1], w[2]
@@ -317,7 +333,7 @@ def so3_exp_point(w, out):
     so3_poly_point(x, y, z, a, b, 1.0, out)
 
 
-@njit(cache=True)
+@njit(cache=True, inline='always')
 def so3_log_point(R, out):
     """``out`` (3,) ← principal logarithm ``w`` of ``R`` (3, 3), ``|w| ≤ π``."""
     r00, r01, r02 = R[0, 0], R[0, 1], R[0, 2]
@@ -334,7 +350,7 @@ def so3_log_point(R, out):
     out[2] = f * qz
 
 
-@njit(cache=True)
+@njit(cache=True, inline='always')
 def so3_dexp_point(w, out):
     """``out`` (3, 3) ← ``dexp(w) = J(w) = I + B K + C K²``."""
     x, y, z = w[0], w[1], w[2]
@@ -342,7 +358,7 @@ def so3_dexp_point(w, out):
     so3_poly_point(x, y, z, b, c, 1.0, out)
 
 
-@njit(cache=True)
+@njit(cache=True, inline='always')
 def so3_dexp_inv_point(w, out):
     """``out`` (3, 3) ← ``dexp(w)⁻¹ = I − ½K + c K²``."""
     x, y, z = w[0], w[1], w[2]
@@ -350,7 +366,7 @@ def so3_dexp_inv_point(w, out):
     so3_poly_point(x, y, z, -0.5, c, 1.0, out)
 
 
-@njit(cache=True)
+@njit(cache=True, inline='always')
 def so3_E_point(dt, w, out):
     """``out`` (3, 3) ← ``𝓔(Δt, w) = Δt·dexp(Δt w)`` for scalar ``dt``."""
     x, y, z = dt * w[0], dt * w[1], dt * w[2]

@@ -145,7 +145,10 @@ def son_tables(n):
 
 
 # ---------------------------------------------------------------------- any n: numba kernels
-@njit(cache=True)
+# ``inline='always'``: a kernel and the kernels it calls are compiled into the function that calls
+# them (an out-of-line call of a compiled function is opaque to LLVM and costs more than the
+# arithmetic of a point kernel); called from Python they compile as usual.
+@njit(cache=True, inline='always')
 def son_hat_point(xi, I, J, S, out):
     """``out`` (n, n) ← ``hat(ξ)`` for ``xi`` (r,) and the tables of :func:`son_tables`."""
     out[:, :] = 0.0
@@ -154,14 +157,14 @@ def son_hat_point(xi, I, J, S, out):
         out[I[k], J[k]] = -S[k] * xi[k]
 
 
-@njit(cache=True)
+@njit(cache=True, inline='always')
 def son_vee_point(A, I, J, S, out):
     """``out`` (r,) ← ``S_k ½(A_JI − A_IJ)`` for ``A`` (n, n)."""
     for k in range(out.shape[0]):
         out[k] = S[k] * (0.5 * (A[J[k], I[k]] - A[I[k], J[k]]))
 
 
-@njit(cache=True)
+@njit(cache=True, inline='always')
 def son_compose_point(g, h, out):
     """``out`` (n, n) ← ``g h``; ``out`` must not alias the inputs."""
     n = g.shape[0]
@@ -173,7 +176,7 @@ def son_compose_point(g, h, out):
             out[i, j] = acc
 
 
-@njit(cache=True)
+@njit(cache=True, inline='always')
 def son_inverse_point(g, out):
     """``out`` (n, n) ← ``gᵀ``; ``out`` must not alias ``g``."""
     n = g.shape[0]
@@ -182,7 +185,7 @@ def son_inverse_point(g, out):
             out[i, j] = g[j, i]
 
 
-@njit(cache=True)
+@njit(cache=True, inline='always')
 def son_act_point(g, x, out):
     """``out`` (n,) ← ``g x``."""
     n = g.shape[0]
@@ -193,7 +196,7 @@ def son_act_point(g, x, out):
         out[i] = acc
 
 
-@njit(cache=True)
+@njit(cache=True, inline='always')
 def son_Ad_point(g, I, J, S, out):
     """``out`` (r, r) ← ``Ad_g``, the second compound matrix of ``g`` (n, n) in the basis."""
     r = out.shape[0]
@@ -204,7 +207,7 @@ def son_Ad_point(g, I, J, S, out):
             out[k, m] = (S[k] * S[m]) * (g[ik, il] * g[jk, jl] - g[ik, jl] * g[jk, il])
 
 
-@njit(cache=True)
+@njit(cache=True, inline='always')
 def son_ad_point(xi, I, J, S, PK, PS, out):
     """``out`` (r, r) ← ``ad_ξ`` for ``xi`` (r,) (each entry is ``±ξ_m`` or 0)."""
     r = out.shape[0]
@@ -224,7 +227,7 @@ def son_ad_point(xi, I, J, S, PK, PS, out):
             out[k, m] = (S[k] * S[m]) * v
 
 
-@njit(cache=True)
+@njit(cache=True, inline='always')
 def son_bracket_point(xi, eta, I, J, S, PK, PS, out):
     """``out`` (r,) ← ``[ξ, η] = vee(ξ̂η̂ − η̂ξ̂)``."""
     n = PK.shape[0]
@@ -285,7 +288,7 @@ def _Ad_batch(g, out):
         son_Ad_point(g[p], I, J, S, out[p])
 
 
-@register_jitable
+@register_jitable(inline='always')
 def _n_of_dim(r):
     """The n with ``n(n−1)/2 = r``."""
     n = 2
@@ -367,7 +370,7 @@ _QLOG_SMALL = 1e-4
 
 
 # ---------------------------------------------------------------------- n = 4: shared arithmetic
-@register_jitable
+@register_jitable(inline='always')
 def _poly3(x, y, z, a, b):
     """Entries (row-major) of ``I + a K + b K²``, ``K = hat(x, y, z)`` (the so(3) hat)."""
     xy = x * y
@@ -380,41 +383,45 @@ def _poly3(x, y, z, a, b):
     )
 
 
-@register_jitable
+@register_jitable(inline='always')
 def _qlog_factor_series(s, c):
     x = s / c
     x2 = x * x
     return (1.0 / c) * (1.0 + x2 * (-1.0 / 3.0 + x2 * (1.0 / 5.0)))
 
 
-@register_jitable
+@register_jitable(inline='always')
 def _qlog_factor_direct(s, c):
     return np.arctan2(s, c) / s
 
 
 # ---------------------------------------------------------------------- n = 4: numba kernels
-@njit(cache=True)
+@njit(cache=True, inline='always')
 def _so4_uw(x0, x1, x2, x3, x4, x5):
     """``(u; w) = Cᵀξ/2`` as a 6-tuple."""
-    xi = (x0, x1, x2, x3, x4, x5)
-    return (
-        0.5 * (_Q_US[0, 0] * xi[_Q_UR[0, 0]] + _Q_US[0, 1] * xi[_Q_UR[0, 1]]),
-        0.5 * (_Q_US[1, 0] * xi[_Q_UR[1, 0]] + _Q_US[1, 1] * xi[_Q_UR[1, 1]]),
-        0.5 * (_Q_US[2, 0] * xi[_Q_UR[2, 0]] + _Q_US[2, 1] * xi[_Q_UR[2, 1]]),
-        0.5 * (_Q_WS[0, 0] * xi[_Q_WR[0, 0]] + _Q_WS[0, 1] * xi[_Q_WR[0, 1]]),
-        0.5 * (_Q_WS[1, 0] * xi[_Q_WR[1, 0]] + _Q_WS[1, 1] * xi[_Q_WR[1, 1]]),
-        0.5 * (_Q_WS[2, 0] * xi[_Q_WR[2, 0]] + _Q_WS[2, 1] * xi[_Q_WR[2, 1]]),
-    )
+    return (0.5 * (x3 - x2), 0.5 * (x1 + x4), 0.5 * (x5 - x0),
+            0.5 * (-x2 - x3), 0.5 * (x1 - x4), 0.5 * (-x0 - x5))
 
 
-@njit(cache=True)
+@register_jitable(inline='always')
+def _so4_xi_out(u0, u1, u2, w0, w1, w2, out):
+    """``out`` (6,) ← ``C (u; w)``: the so(4) components of the pair of pure quaternions."""
+    out[0] = -u2 - w2
+    out[1] = u1 + w1
+    out[2] = -u0 - w0
+    out[3] = u0 - w0
+    out[4] = u1 - w1
+    out[5] = u2 - w2
+
+
+@njit(cache=True, inline='always')
 def _qexp(x, y, z):
     t2 = x * x + y * y + z * z
     a = so3_exp_coeffs(t2)[0]
     return (np.cos(np.sqrt(t2)), a * x, a * y, a * z)
 
 
-@njit(cache=True)
+@njit(cache=True, inline='always')
 def _qlog(q0, q1, q2, q3):
     s = np.sqrt(q1 * q1 + q2 * q2 + q3 * q3)
     if s == 0.0:
@@ -426,43 +433,71 @@ def _qlog(q0, q1, q2, q3):
     return (f * q1, f * q2, f * q3)
 
 
-@njit(cache=True)
+@njit(cache=True, inline='always')
 def so4_exp_point(xi, out):
     """``out`` (4, 4) ← ``exp(hat(ξ))``: the matrix of ``x ↦ e^u x e^w`` for ``xi`` (6,)."""
     uw = _so4_uw(xi[0], xi[1], xi[2], xi[3], xi[4], xi[5])
-    p = _qexp(uw[0], uw[1], uw[2])
-    q = _qexp(uw[3], uw[4], uw[5])
-    for a in range(4):
-        for b in range(4):
-            acc = 0.0
-            for m in range(4):
-                acc += _Q_EXP[a, b, m, 2] * (p[_Q_EXP[a, b, m, 0]] * q[_Q_EXP[a, b, m, 1]])
-            out[a, b] = acc
+    p0, p1, p2, p3 = _qexp(uw[0], uw[1], uw[2])
+    q0, q1, q2, q3 = _qexp(uw[3], uw[4], uw[5])
+    out[0, 0] = p0 * q0 - p1 * q1 + p2 * q2 + p3 * q3
+    out[0, 1] = p0 * q3 - p1 * q2 - p2 * q1 - p3 * q0
+    out[0, 2] = -p0 * q2 - p1 * q3 + p2 * q0 - p3 * q1
+    out[0, 3] = p0 * q1 + p1 * q0 + p2 * q3 - p3 * q2
+    out[1, 0] = -p0 * q3 - p1 * q2 - p2 * q1 + p3 * q0
+    out[1, 1] = p0 * q0 + p1 * q1 - p2 * q2 + p3 * q3
+    out[1, 2] = p0 * q1 - p1 * q0 - p2 * q3 - p3 * q2
+    out[1, 3] = p0 * q2 - p1 * q3 + p2 * q0 + p3 * q1
+    out[2, 0] = p0 * q2 - p1 * q3 - p2 * q0 - p3 * q1
+    out[2, 1] = -p0 * q1 + p1 * q0 - p2 * q3 - p3 * q2
+    out[2, 2] = p0 * q0 + p1 * q1 + p2 * q2 - p3 * q3
+    out[2, 3] = p0 * q3 + p1 * q2 - p2 * q1 + p3 * q0
+    out[3, 0] = -p0 * q1 - p1 * q0 + p2 * q3 - p3 * q2
+    out[3, 1] = -p0 * q2 - p1 * q3 - p2 * q0 + p3 * q1
+    out[3, 2] = -p0 * q3 + p1 * q2 - p2 * q1 - p3 * q0
+    out[3, 3] = p0 * q0 - p1 * q1 - p2 * q2 - p3 * q3
 
 
-@njit(cache=True)
+@njit(cache=True, inline='always')
 def so4_log_point(R, out):
-    """``out`` (6,) ← the principal logarithm of ``R`` (4, 4) (allocates a 4 × 4 scratch)."""
-    A = np.empty((4, 4))
-    for c in range(4):
-        for d in range(4):
-            acc = 0.0
-            for m in range(4):
-                acc += _Q_LOG[c, d, m, 2] * R[_Q_LOG[c, d, m, 0], _Q_LOG[c, d, m, 1]]
-            A[c, d] = 0.25 * acc
-    best = -1.0
-    dstar = 0
-    for d in range(4):
-        nd = A[0, d] * A[0, d] + A[1, d] * A[1, d] + A[2, d] * A[2, d] + A[3, d] * A[3, d]
-        if nd > best:
-            best = nd
-            dstar = d
+    """``out`` (6,) ← the principal logarithm of ``R`` (4, 4)."""
+    # A[c, d] = p_c q_d, each a quarter of a signed sum of four entries of R
+    a00 = 0.25 * (R[0, 0] + R[1, 1] + R[2, 2] + R[3, 3])
+    a01 = 0.25 * (R[0, 3] + R[1, 2] - R[2, 1] - R[3, 0])
+    a02 = 0.25 * (-R[0, 2] + R[1, 3] + R[2, 0] - R[3, 1])
+    a03 = 0.25 * (R[0, 1] - R[1, 0] + R[2, 3] - R[3, 2])
+    a10 = 0.25 * (R[0, 3] - R[1, 2] + R[2, 1] - R[3, 0])
+    a11 = 0.25 * (-R[0, 0] + R[1, 1] + R[2, 2] - R[3, 3])
+    a12 = 0.25 * (-R[0, 1] - R[1, 0] + R[2, 3] + R[3, 2])
+    a13 = 0.25 * (-R[0, 2] - R[1, 3] - R[2, 0] - R[3, 1])
+    a20 = 0.25 * (R[0, 2] + R[1, 3] - R[2, 0] - R[3, 1])
+    a21 = 0.25 * (-R[0, 1] - R[1, 0] - R[2, 3] - R[3, 2])
+    a22 = 0.25 * (R[0, 0] - R[1, 1] + R[2, 2] - R[3, 3])
+    a23 = 0.25 * (R[0, 3] - R[1, 2] - R[2, 1] + R[3, 0])
+    a30 = 0.25 * (-R[0, 1] + R[1, 0] + R[2, 3] - R[3, 2])
+    a31 = 0.25 * (-R[0, 2] + R[1, 3] - R[2, 0] + R[3, 1])
+    a32 = 0.25 * (-R[0, 3] - R[1, 2] - R[2, 1] - R[3, 0])
+    a33 = 0.25 * (R[0, 0] + R[1, 1] - R[2, 2] - R[3, 3])
+    # p from the largest column of A
+    best = a00 * a00 + a10 * a10 + a20 * a20 + a30 * a30
+    p0, p1, p2, p3 = a00, a10, a20, a30
+    nd = a01 * a01 + a11 * a11 + a21 * a21 + a31 * a31
+    if nd > best:
+        best = nd
+        p0, p1, p2, p3 = a01, a11, a21, a31
+    nd = a02 * a02 + a12 * a12 + a22 * a22 + a32 * a32
+    if nd > best:
+        best = nd
+        p0, p1, p2, p3 = a02, a12, a22, a32
+    nd = a03 * a03 + a13 * a13 + a23 * a23 + a33 * a33
+    if nd > best:
+        best = nd
+        p0, p1, p2, p3 = a03, a13, a23, a33
     nrm = np.sqrt(best)
-    p0, p1, p2, p3 = A[0, dstar] / nrm, A[1, dstar] / nrm, A[2, dstar] / nrm, A[3, dstar] / nrm
-    q0 = A[0, 0] * p0 + A[1, 0] * p1 + A[2, 0] * p2 + A[3, 0] * p3
-    q1 = A[0, 1] * p0 + A[1, 1] * p1 + A[2, 1] * p2 + A[3, 1] * p3
-    q2 = A[0, 2] * p0 + A[1, 2] * p1 + A[2, 2] * p2 + A[3, 2] * p3
-    q3 = A[0, 3] * p0 + A[1, 3] * p1 + A[2, 3] * p2 + A[3, 3] * p3
+    p0, p1, p2, p3 = p0 / nrm, p1 / nrm, p2 / nrm, p3 / nrm
+    q0 = a00 * p0 + a10 * p1 + a20 * p2 + a30 * p3
+    q1 = a01 * p0 + a11 * p1 + a21 * p2 + a31 * p3
+    q2 = a02 * p0 + a12 * p1 + a22 * p2 + a32 * p3
+    q3 = a03 * p0 + a13 * p1 + a23 * p2 + a33 * p3
     nq = np.sqrt(q0 * q0 + q1 * q1 + q2 * q2 + q3 * q3)
     q0, q1, q2, q3 = q0 / nq, q1 / nq, q2 / nq, q3 / nq
     # principal branch: half-angles α + β ≤ π.  (p₀ + q₀ has the right sign but is second-order
@@ -472,13 +507,12 @@ def so4_log_point(R, out):
     if alpha + beta > np.pi:
         p0, p1, p2, p3 = -p0, -p1, -p2, -p3
         q0, q1, q2, q3 = -q0, -q1, -q2, -q3
-    u = _qlog(p0, p1, p2, p3)
-    w = _qlog(q0, q1, q2, q3)
-    for i in range(6):
-        out[i] = _Q_SU[i] * u[_Q_AU[i]] + _Q_SW[i] * w[_Q_AW[i]]
+    u0, u1, u2 = _qlog(p0, p1, p2, p3)
+    w0, w1, w2 = _qlog(q0, q1, q2, q3)
+    _so4_xi_out(u0, u1, u2, w0, w1, w2, out)
 
 
-@njit(cache=True)
+@njit(cache=True, inline='always')
 def _so4_blocks(xi, inverse, s, out):
     """``out`` (6, 6) ← ``s·C diag(F(2u), F(−2w)) Cᵀ/2``, ``F`` = dexp or dexp⁻¹ of so(3)."""
     uw = _so4_uw(s * xi[0], s * xi[1], s * xi[2], s * xi[3], s * xi[4], s * xi[5])
@@ -502,22 +536,112 @@ def _so4_blocks(xi, inverse, s, out):
                                     + (_Q_SW[i] * _Q_SW[j]) * jw[3 * _Q_AW[i] + _Q_AW[j]]))
 
 
-@njit(cache=True)
+@njit(cache=True, inline='always')
 def so4_dexp_point(xi, out):
     """``out`` (6, 6) ← ``dexp(ξ) = C diag(J(2u), J(−2w)) Cᵀ/2``."""
     _so4_blocks(xi, False, 1.0, out)
 
 
-@njit(cache=True)
+@njit(cache=True, inline='always')
 def so4_dexp_inv_point(xi, out):
     """``out`` (6, 6) ← ``dexp(ξ)⁻¹ = C diag(J⁻¹(2u), J⁻¹(−2w)) Cᵀ/2``."""
     _so4_blocks(xi, True, 1.0, out)
 
 
-@njit(cache=True)
+@njit(cache=True, inline='always')
 def so4_E_point(dt, xi, out):
     """``out`` (6, 6) ← ``𝓔(Δt, ξ) = Δt·dexp(Δt ξ)`` for scalar ``dt``."""
     _so4_blocks(xi, False, dt, out)
+
+
+@register_jitable
+def _so4_jinv_T_parts(xi, v):
+    """The pieces of ``dexp(±ξ)⁻ᵀ v`` on the two so(3) factors: ``(h, ½x × h, c x × (x × h))`` for
+    ``x = 2u``, ``h = (Cᵀv/2)_u``, then the same for ``x = −2w``, ``h = (Cᵀv/2)_w``, with ``c`` the
+    SO(3) coefficient of ``J⁻¹`` (``dexp(ξ)⁻ᵀ = C diag(J⁻ᵀ(2u), J⁻ᵀ(−2w)) Cᵀ/2``)."""
+    uw = _so4_uw(xi[0], xi[1], xi[2], xi[3], xi[4], xi[5])
+    hv = _so4_uw(v[0], v[1], v[2], v[3], v[4], v[5])
+    x0, x1, x2 = 2.0 * uw[0], 2.0 * uw[1], 2.0 * uw[2]
+    cu = so3_dexp_inv_coeff(x0 * x0 + x1 * x1 + x2 * x2)
+    h0, h1, h2 = hv[0], hv[1], hv[2]
+    s0, s1, s2 = x1 * h2 - x2 * h1, x2 * h0 - x0 * h2, x0 * h1 - x1 * h0
+    z0, z1, z2 = x1 * s2 - x2 * s1, x2 * s0 - x0 * s2, x0 * s1 - x1 * s0
+    y0, y1, y2 = -2.0 * uw[3], -2.0 * uw[4], -2.0 * uw[5]
+    cw = so3_dexp_inv_coeff(y0 * y0 + y1 * y1 + y2 * y2)
+    k0, k1, k2 = hv[3], hv[4], hv[5]
+    t0, t1, t2 = y1 * k2 - y2 * k1, y2 * k0 - y0 * k2, y0 * k1 - y1 * k0
+    r0, r1, r2 = y1 * t2 - y2 * t1, y2 * t0 - y0 * t2, y0 * t1 - y1 * t0
+    return (h0 + cu * z0, h1 + cu * z1, h2 + cu * z2, 0.5 * s0, 0.5 * s1, 0.5 * s2,
+            k0 + cw * r0, k1 + cw * r1, k2 + cw * r2, 0.5 * t0, 0.5 * t1, 0.5 * t2)
+
+
+@njit(cache=True, inline='always')
+def so4_dexp_inv_T_point(xi, v, out):
+    """``out`` (6,) ← ``dexp(ξ)⁻ᵀ v`` without the matrix: ``C diag(J⁻ᵀ(2u), J⁻ᵀ(−2w)) Cᵀv/2``,
+    each ``J⁻ᵀ(x)h = h + ½x × h + c x × (x × h)`` (the transpose of :func:`so4_dexp_inv_point`)."""
+    e = _so4_jinv_T_parts(xi, v)
+    _so4_xi_out(e[0] + e[3], e[1] + e[4], e[2] + e[5], e[6] + e[9], e[7] + e[10], e[8] + e[11], out)
+
+
+@njit(cache=True, inline='always')
+def so4_dexp_inv_T_pair_point(xi, v, out, out_neg):
+    """``out`` ← ``dexp(ξ)⁻ᵀ v`` and ``out_neg`` ← ``dexp(−ξ)⁻ᵀ v`` (the odd part changes sign)."""
+    e = _so4_jinv_T_parts(xi, v)
+    _so4_xi_out(e[0] + e[3], e[1] + e[4], e[2] + e[5], e[6] + e[9], e[7] + e[10], e[8] + e[11], out)
+    _so4_xi_out(e[0] - e[3], e[1] - e[4], e[2] - e[5], e[6] - e[9], e[7] - e[10], e[8] - e[11], out_neg)
+
+
+@njit(cache=True, inline='always')
+def so4_compose_point(g, h, out):
+    """``out`` (4, 4) ← ``g h``; ``out`` must not alias the inputs."""
+    for i in range(4):
+        for j in range(4):
+            out[i, j] = g[i, 0] * h[0, j] + g[i, 1] * h[1, j] + g[i, 2] * h[2, j] + g[i, 3] * h[3, j]
+
+
+@njit(cache=True, inline='always')
+def so4_inverse_point(g, out):
+    """``out`` (4, 4) ← ``gᵀ``; ``out`` must not alias ``g``."""
+    for i in range(4):
+        for j in range(4):
+            out[i, j] = g[j, i]
+
+
+@njit(cache=True, inline='always')
+def so4_Ad_T_point(g, v, out):
+    """``out`` (6,) ← ``Ad_gᵀ v = vee(gᵀ v̂ g)`` (``Ad_g`` is orthogonal in the basis of this
+    module: ``Ad_gᵀ = Ad_{gᵀ}``), without the matrix."""
+    v0, v1, v2, v3, v4, v5 = v[0], v[1], v[2], v[3], v[4], v[5]
+    # T = v̂ g
+    t00 = -v5 * g[1, 0] + v4 * g[2, 0] - v2 * g[3, 0]
+    t01 = -v5 * g[1, 1] + v4 * g[2, 1] - v2 * g[3, 1]
+    t02 = -v5 * g[1, 2] + v4 * g[2, 2] - v2 * g[3, 2]
+    t03 = -v5 * g[1, 3] + v4 * g[2, 3] - v2 * g[3, 3]
+    t10 = v5 * g[0, 0] - v3 * g[2, 0] + v1 * g[3, 0]
+    t11 = v5 * g[0, 1] - v3 * g[2, 1] + v1 * g[3, 1]
+    t12 = v5 * g[0, 2] - v3 * g[2, 2] + v1 * g[3, 2]
+    t13 = v5 * g[0, 3] - v3 * g[2, 3] + v1 * g[3, 3]
+    t20 = -v4 * g[0, 0] + v3 * g[1, 0] - v0 * g[3, 0]
+    t21 = -v4 * g[0, 1] + v3 * g[1, 1] - v0 * g[3, 1]
+    t22 = -v4 * g[0, 2] + v3 * g[1, 2] - v0 * g[3, 2]
+    t23 = -v4 * g[0, 3] + v3 * g[1, 3] - v0 * g[3, 3]
+    t30 = v2 * g[0, 0] - v1 * g[1, 0] + v0 * g[2, 0]
+    t31 = v2 * g[0, 1] - v1 * g[1, 1] + v0 * g[2, 1]
+    t32 = v2 * g[0, 2] - v1 * g[1, 2] + v0 * g[2, 2]
+    t33 = v2 * g[0, 3] - v1 * g[1, 3] + v0 * g[2, 3]
+    # vee(gᵀT), entry (i, j) = column i of g times column j of T
+    out[0] = 0.5 * ((g[0, 3] * t02 + g[1, 3] * t12 + g[2, 3] * t22 + g[3, 3] * t32)
+                    - (g[0, 2] * t03 + g[1, 2] * t13 + g[2, 2] * t23 + g[3, 2] * t33))
+    out[1] = -0.5 * ((g[0, 3] * t01 + g[1, 3] * t11 + g[2, 3] * t21 + g[3, 3] * t31)
+                     - (g[0, 1] * t03 + g[1, 1] * t13 + g[2, 1] * t23 + g[3, 1] * t33))
+    out[2] = 0.5 * ((g[0, 3] * t00 + g[1, 3] * t10 + g[2, 3] * t20 + g[3, 3] * t30)
+                    - (g[0, 0] * t03 + g[1, 0] * t13 + g[2, 0] * t23 + g[3, 0] * t33))
+    out[3] = 0.5 * ((g[0, 2] * t01 + g[1, 2] * t11 + g[2, 2] * t21 + g[3, 2] * t31)
+                    - (g[0, 1] * t02 + g[1, 1] * t12 + g[2, 1] * t22 + g[3, 1] * t32))
+    out[4] = -0.5 * ((g[0, 2] * t00 + g[1, 2] * t10 + g[2, 2] * t20 + g[3, 2] * t30)
+                     - (g[0, 0] * t02 + g[1, 0] * t12 + g[2, 0] * t22 + g[3, 0] * t32))
+    out[5] = 0.5 * ((g[0, 1] * t00 + g[1, 1] * t10 + g[2, 1] * t20 + g[3, 1] * t30)
+                    - (g[0, 0] * t01 + g[1, 0] * t11 + g[2, 0] * t21 + g[3, 0] * t31))
 
 
 @njit(cache=True)
@@ -741,7 +865,9 @@ class SO(SymmetryGroup):
         here = __name__
         imports = {"g_exp": (here, "so4_exp_point"), "g_log": (here, "so4_log_point"),
                    "g_dexp_inv": (here, "so4_dexp_inv_point"), "g_E": (here, "so4_E_point"),
-                   "g_compose": (here, "son_compose_point"), "g_inverse": (here, "son_inverse_point"),
+                   "g_compose": (here, "so4_compose_point"), "g_inverse": (here, "so4_inverse_point"),
+                   "g_Ad_T": (here, "so4_Ad_T_point"), "g_dexp_inv_T": (here, "so4_dexp_inv_T_point"),
+                   "g_dexp_inv_T_pair": (here, "so4_dexp_inv_T_pair_point"),
                    "_son_hat": (here, "son_hat_point"), "_son_Ad": (here, "son_Ad_point"),
                    "_son_ad": (here, "son_ad_point")}
         constants = {"SON_I": self._I, "SON_J": self._J, "SON_S": self._S, "SON_PK": self._PK,

@@ -116,6 +116,12 @@ class Integrator(abc.ABC):
         """
         return None
 
+    def compiled_module(self, ops: Any) -> Any:
+        """The generated module that holds this integrator's loop for the operator set ``ops``
+        (default: the set's own module, :meth:`cartan.compiled.operators.OperatorSet.generated`);
+        an integrator with problem-specific kernels (``kinematic``) generates its own."""
+        return ops.generated()
+
     def compiled_loop_done(self, state: State, args: tuple) -> None:  # noqa: B027 - an optional hook
         """Called after a generated loop ran with ``args`` (e.g. to keep a force for the
         next block); the default does nothing."""
@@ -134,8 +140,7 @@ class Integrator(abc.ABC):
         says so on stderr; later runs load it from the cache (:mod:`cartan.compiled.codegen`).
         """
         from .._backend import get_backend
-        from ..compiled.codegen import first_call, generate
-        from .loops import loop_fragment
+        from ..compiled.codegen import first_call
 
         if get_backend() != "numba":
             return False
@@ -147,9 +152,7 @@ class Integrator(abc.ABC):
         if spec is None:
             return False
         name, args = spec
-        module = ops.module
-        if module is None:  # written and imported once per operator set
-            module = ops.module = generate(f"loops-{ops.key}", [*ops.fragments, loop_fragment()])
+        module = self.compiled_module(ops)
         t_start = time.perf_counter()
         config = ops.pack(state)
         S = np.ascontiguousarray(state.S, dtype=float).reshape(ops.nodes, -1).copy()
@@ -161,7 +164,8 @@ class Integrator(abc.ABC):
             check, float(kinetic_limit))
         announce()
         ops.unpack(state, config)
-        state.S = S.reshape(state.S.shape) if self.uses_momentum else np.zeros_like(state.S)
+        if self.uses_momentum:  # (the others leave S as it is; Overdamped zeroes it in compiled_loop_done)
+            state.S = S.reshape(state.S.shape)
         state.t = t
         state.scalars["dissipated_energy"] = diss
         state.scalars["external_work"] = ext

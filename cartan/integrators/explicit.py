@@ -324,6 +324,9 @@ class Overdamped(Integrator):
         gam_inv = np.where(scheme.live, 1.0 / np.where(gam > 0, gam, 1.0), 0.0)
         return "rkmk_loop", (A, b, c, False, 1, gam_inv)
 
+    def compiled_loop_done(self, state: State, args: tuple) -> None:
+        state.S = np.zeros_like(state.S)  # as _step leaves it
+
 
 class Kinematic(Integrator):
     """Prescribed velocity N(t, u, X) (paper §III.B): the configuration follows
@@ -366,3 +369,41 @@ class Kinematic(Integrator):
 
     def _step(self, scheme: Scheme, state: State, dt: float) -> None:
         _rkmk(self, scheme, state, dt, self.order, lambda st, t: self._N(scheme, st, t), dynamics=False)
+
+    def compiled_loop(self, scheme: Scheme, state: State, dt: float):
+        """``rkmk_loop`` with this order's tableau and N = f(t, u, X) (``mode = 2``) when the
+        velocity is a numba-compiled function (``numba.njit``) that a generated module can take
+        (:func:`cartan.integrators.loops.kinematic_fragment`); None (the Python path) otherwise."""
+        if _velocity_fragment(self.velocity_field) is None:
+            return None
+        A, b, c = _TABLEAUX[self.order]
+        return "rkmk_loop", (A, b, c, False, 2, np.zeros(scheme.group.dim))
+
+    def compiled_module(self, ops: Any) -> Any:
+        """The generated module of ``ops``'s operators, every loop and this velocity (keyed by
+        the velocity: its code, its module's source, its captured values), kept per set."""
+        import importlib
+
+        from ..compiled.codegen import generate
+        from ..compiled.operators import LOOP_SOURCES
+
+        cached = getattr(self, "_module", None)
+        if cached is not None and cached[0] is ops:
+            return cached[1]
+        frag = _velocity_fragment(self.velocity_field)
+        loops = [importlib.import_module(name).loop_fragment() for name in LOOP_SOURCES]
+        stem = getattr(getattr(self.velocity_field, "py_func", self.velocity_field), "__name__", "velocity")
+        module = generate(f"kinematic-{ops.key}-{stem}", [*ops.fragments, *loops, frag])
+        self._module = (ops, module)
+        return module
+
+
+def _velocity_fragment(velocity: Callable):
+    """The velocity's kernel fragment when it is a numba CPU dispatcher (``numba.njit``), else None."""
+    from numba.core.registry import CPUDispatcher
+
+    from .loops import kinematic_fragment
+
+    if not isinstance(velocity, CPUDispatcher):
+        return None
+    return kinematic_fragment(velocity)

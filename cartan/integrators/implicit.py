@@ -78,37 +78,37 @@ evaluations and a sparse LU of a banded matrix (lattice, d = 1).
 
 Compiled residual
 -----------------
-When the scheme has the compiled plan of its step loops (``lattice``, d = 1–3, and
-``collocation``, d = 1, on SO(2), SE(2), SO(3), SE(3) with the loads those loops run;
-``docs/performance.md``) and :attr:`~cartan.schemes.base.Scheme.compiled_diagnostics` is set,
-every residual evaluation — those of the finite-difference Jacobian included — is one numba
-call (:mod:`cartan.integrators._implicit_compiled`: drift of a work copy of the configuration
-to the midpoint, the compiled force, the per-node algebra), the norms of the iteration and
-the substitutions of the sparse LU run compiled too, and so does the end of the step.  The
-numpy path (:meth:`ImplicitMidpoint._residual`, ``Scheme.drift``, ``Scheme.force``) stays the
-reference: it runs for every other problem, with the numpy backend, for a subclass that
-overrides :meth:`~ImplicitMidpoint._residual` or :meth:`~Integrator.force`, and under
+When the scheme has a compiled operator set for the problem
+(:meth:`~cartan.schemes.base.Scheme.compiled_operators`: any group with point kernels, any
+medium that declares point kernels, the loads the operators run) and
+:attr:`~cartan.schemes.base.Scheme.compiled_diagnostics` is set, every residual evaluation —
+those of the finite-difference Jacobian included — is one compiled call
+(:mod:`cartan.integrators.newton`: the drift of a work copy of the configuration to the
+midpoint, the scheme's force there, the per-node algebra), and so are the norms of the
+iteration, the substitutions of the sparse LU and the end of the step.  The numpy path
+(:meth:`ImplicitMidpoint._residual`, ``Scheme.drift``, ``Scheme.force``) stays the reference: it
+runs for every other problem, with the numpy backend, for a subclass that overrides
+:meth:`~ImplicitMidpoint._residual` or :meth:`~Integrator.force`, and under
 ``cartan.simulate(..., compiled=False)``.  The two residuals agree to round-off (≤ 1e-12
-relative, ``tests/test_implicit_compiled.py``); the Newton logic, its tolerances and the
-restart semantics are the same on both paths, and a step agrees with the reference to the
-Newton tolerance.
+relative); the Newton logic, its tolerances and the restart semantics are the same on both
+paths, and a step agrees with the reference to the Newton tolerance.
 
 Compiled blocks of steps
 ------------------------
 With the compiled residual, :meth:`ImplicitMidpoint.compiled_advance` — which :func:`cartan.simulate`
-calls for the steps between saves — runs whole blocks of steps in one numba loop
-(:func:`cartan.integrators._implicit_compiled.newton_steps`): the initial iterate, Newton's
-iteration with its convergence, contraction and halving tests, the substitutions of the kept
-factorisation, the end of each step, the midpoint powers and the bookkeeping of :meth:`step`.
-Python runs only when the loop needs a fresh Jacobian — it returns with the current iterate,
-:meth:`_jacobian` builds and factorises the Jacobian there, and the loop continues the same
-step — and when a step fails (the loop's reason becomes the
-:class:`~cartan.statics.ConvergenceError` of :meth:`step`).  :meth:`step` stays the Python
-driver of the same iteration: the two perform the same operations on the same compiled
-pieces, so they give the same iterates, counters and states bit for bit (the dissipated and
-external energies to round-off: the powers are summed in compiled code;
-``tests/test_implicit_loop.py``), and the kept Jacobian and previous ξ pass between them as
-between steps.
+calls for the steps between saves — runs whole blocks of steps in one compiled loop
+(:func:`cartan.integrators.newton.implicit_loop`): the initial iterate, Newton's iteration with
+its convergence, contraction and halving tests, the substitutions of the kept factorisation,
+the end of each step, the midpoint powers and the bookkeeping of :meth:`step`.  Python runs
+only when the loop needs a fresh Jacobian — it returns with the current iterate,
+:meth:`_jacobian` builds it by finite differences of the compiled residual and factorises it
+with ``scipy.sparse.linalg.splu`` there, and the loop continues the same step — and when a
+step fails (the loop's reason becomes the :class:`~cartan.statics.ConvergenceError` of
+:meth:`step`).  :meth:`step` stays the Python driver of the same iteration: the two perform the
+same operations on the same compiled pieces, so they give the same iterates, counters and
+states bit for bit (the dissipated and external energies to round-off: the loop sums the
+midpoint powers with the scheme's compiled ``op_powers``), and the kept Jacobian and previous
+ξ pass between them as between steps.
 """
 
 from __future__ import annotations
@@ -191,13 +191,34 @@ class _Plan:
         self.w_times_m = np.broadcast_to(w * m, (*shape, r))[unknown]  # ‖N‖_M² = Σ w m N²
         self.length = max(1.0, float(np.max(scheme.grid.length)))
         self.flat_unknown = np.flatnonzero(unknown)  # the unknowns in y.ravel() (the order of y[unknown])
-        #: the compiled stage residual (:func:`cartan.integrators._implicit_compiled.stage_residual`),
+        #: the compiled stage residual (:class:`cartan.integrators.newton.Stage`),
         #: built at the first step that may use it; None when the scheme has none
         self.compiled: Any = False
         #: the work arrays of the compiled blocks of steps
-        #: (:class:`cartan.integrators._implicit_compiled.NewtonBlocks`), built at the first block
+        #: (:class:`cartan.integrators.newton.Blocks`), built at the first block
         self.blocks: Any = None
         self.inv = np.where(scheme.live, 1.0 / np.where(scheme.live, scheme.mass, 1.0), 0.0)  # 1/m, 0 on gauge
+
+
+def _stage(scheme: Scheme):
+    """The compiled stage residual of ``scheme`` over its operator set
+    (:class:`cartan.integrators.newton.Stage`), or None: no operator set for the problem, a
+    medium whose momentum is not the base ``m N``, or a group whose ``log_domain_norm`` the
+    compiled domain test does not reproduce (:func:`cartan.integrators.newton.domain_rule`)."""
+    from ..medium import Medium
+    from .newton import Stage, domain_rule, newton_module
+
+    if type(scheme.medium).momentum is not Medium.momentum:
+        return None
+    operators = getattr(scheme, "compiled_operators", None)
+    ops = operators() if operators is not None else None
+    if ops is None or not ops.ok:
+        return None
+    dom = domain_rule(scheme.group)
+    if dom is None:
+        return None
+    return Stage(ops, newton_module(ops), scheme.mass, dom, scheme.group.injectivity_radius,
+                 (*scheme.grid.shape, scheme.group.dim))
 
 
 class ImplicitMidpoint(Integrator):
@@ -297,7 +318,7 @@ class ImplicitMidpoint(Integrator):
 
         Whole blocks of steps — Newton's iteration, the end of each step and the bookkeeping of
         :meth:`step` — run in one numba loop
-        (:func:`cartan.integrators._implicit_compiled.newton_steps`); Python runs only when
+        (:func:`cartan.integrators.newton.implicit_loop`); Python runs only when
         the loop asks for a fresh Jacobian (:meth:`_jacobian` at the loop's current iterate,
         after which the same step continues) and when a step fails.  The steps are those of
         :meth:`step` — the same operations on the same compiled residual, norms and
@@ -327,7 +348,7 @@ class ImplicitMidpoint(Integrator):
         bool
             False, touching nothing, when the compiled residual does not apply (see
             :meth:`_compiled`: the numpy backend, ``scheme.compiled_diagnostics`` cleared, no
-            compiled plan, another state layout, overridden :meth:`_residual` or
+            operator set, another state layout, overridden :meth:`_residual` or
             :meth:`~Integrator.force`) or when a subclass overrides :meth:`step` or
             :meth:`_step`; the caller then runs :meth:`step`.  True when steps were taken.
 
@@ -347,25 +368,25 @@ class ImplicitMidpoint(Integrator):
         nsteps = int(nsteps)
         if nsteps <= 0:
             return True
-        from ..schemes._lattice_compiled import _writable
-        from ._implicit_compiled import (
+        from .newton import (
             DONE,
             FAIL_MAX_ITER,
             FAIL_NO_DECREASE,
             FAIL_NOT_FINITE,
             FAIL_SINGULAR,
             NEED_JACOBIAN,
+            Blocks,
             LUSolve,
-            NewtonBlocks,
         )
 
         t_start = time.perf_counter()
-        state.S = _writable(state.S)  # the loop updates the state's arrays in place
-        for name in state.arrays:
-            state.arrays[name] = _writable(state.arrays[name])
-        kernel.bind(state)
-        if plan.blocks is None or plan.blocks.kernel is not kernel:
-            plan.blocks = NewtonBlocks(kernel, plan.flat_unknown, plan.w_over_m, plan.w_times_m, plan.inv)
+        ops = kernel.ops
+        C = ops.pack(state)  # the configuration and momentum the loop steps, written back at the end
+        S = np.array(state.S, dtype=np.float64).reshape(kernel.n, kernel.r)
+        kernel.bind_arrays(C, S)
+        Cw = kernel._base[2]
+        if plan.blocks is None or plan.blocks.stage is not kernel:
+            plan.blocks = Blocks(kernel, plan.flat_unknown, plan.w_over_m, plan.w_times_m)
         blocks = plan.blocks
         dt = float(dt)
         nstep0 = state.scalars.get("nstep", 0)
@@ -373,17 +394,11 @@ class ImplicitMidpoint(Integrator):
         cache = self._cache if self._cache is not None and self._cache["key"] == key else None
         lu = cache["lu"] if cache is not None and self.reuse_jacobian and cache["dt"] == dt else None
         if lu is not None and not isinstance(lu, LUSolve):
-            lu = LUSolve(lu)  # a factorisation of the numpy path
+            lu = LUSolve(lu, kernel.module.im_lu_solve)  # a factorisation of the numpy path
         blocks.start(None if cache is None else cache["xi"], 0.0 if cache is None else cache["dt"], self.max_iter)
         options = (self.tol, self.contraction, XTOL * plan.length, self.max_iter, MAX_HALVINGS, self.predictor,
                    self.reuse_jacobian)
-        radius = float(scheme.group.injectivity_radius)
-
-        def residual(x: np.ndarray) -> dict[str, np.ndarray] | None:
-            res = kernel(x, dt)
-            if res is not None:
-                self.nforce += 1
-            return res
+        has_power = bool(scheme.has_external_power())
 
         t = state.t
         dissipated = state.scalars.get("dissipated_energy", 0.0)
@@ -394,7 +409,8 @@ class ImplicitMidpoint(Integrator):
         try:
             while True:
                 status, done, nforce, iters, t, dissipated, external, have_lu = blocks.run(
-                    lu, resume, t, dt, nsteps - total, dissipated, external, kinetic_limit, radius, options)
+                    C, S, Cw, lu, resume, t, dt, nsteps - total, dissipated, external, kinetic_limit, has_power,
+                    options)
                 total += done
                 self.nforce += nforce
                 self.newton_iterations += iters
@@ -402,6 +418,14 @@ class ImplicitMidpoint(Integrator):
                     lu = None
                 if status != NEED_JACOBIAN:
                     break
+                t_step = t
+
+                def residual(x: np.ndarray, t_step: float = t_step) -> dict[str, np.ndarray] | None:
+                    res = kernel(x, dt, t_step)
+                    if res is not None:
+                        self.nforce += 1
+                    return res
+
                 try:
                     lu = self._jacobian(residual, blocks.iterate(), plan, True)
                 except (RuntimeError, FloatingPointError) as exc:
@@ -413,6 +437,8 @@ class ImplicitMidpoint(Integrator):
                           FAIL_SINGULAR: _SINGULAR_STEP, FAIL_NO_DECREASE: _NO_DECREASE}[status]
         finally:
             if total > 0:  # the steps done, booked as step() books them
+                ops.unpack(state, C)
+                state.S = S.reshape(state.S.shape)
                 state.t = t
                 state.scalars["dissipated_energy"] = dissipated
                 state.scalars["external_work"] = external
@@ -441,7 +467,7 @@ class ImplicitMidpoint(Integrator):
     def _compiled(self, scheme: Scheme, state: State, plan: _Plan):
         """The compiled stage residual bound to ``state``, or None for the numpy reference
         (:meth:`_residual`): ``scheme.compiled_diagnostics`` cleared (``simulate(...,
-        compiled=False)``), the numpy backend, no compiled plan for the problem, another state
+        compiled=False)``), the numpy backend, no compiled operator set for the problem, another state
         layout, or a subclass overriding :meth:`_residual` or :meth:`force`."""
         if not getattr(scheme, "compiled_diagnostics", True):
             return None
@@ -452,9 +478,7 @@ class ImplicitMidpoint(Integrator):
         if get_backend() != "numba":
             return None
         if plan.compiled is False:
-            from ._implicit_compiled import stage_residual
-
-            plan.compiled = stage_residual(scheme)
+            plan.compiled = _stage(scheme)
         kernel = plan.compiled
         if kernel is None or not kernel.accepts(state):
             return None
@@ -498,9 +522,9 @@ class ImplicitMidpoint(Integrator):
         with np.errstate(all="ignore"):
             lu = spla.splu(J.tocsc())
         if compiled:
-            from ._implicit_compiled import LUSolve
+            from .newton import LUSolve
 
-            lu = LUSolve(lu)
+            lu = LUSolve(lu, self._plan[1].compiled.module.im_lu_solve)
         return lu
 
     # ------------------------------------------------------------------ step
@@ -524,13 +548,11 @@ class ImplicitMidpoint(Integrator):
             def residual(x: np.ndarray) -> dict[str, np.ndarray] | None:
                 return self._residual(scheme, state, x, dt)
         else:
-            from ._implicit_compiled import weighted_norm
-
             def dnorm(y: np.ndarray) -> float:  # the same norms, summed in compiled code
-                return weighted_norm(plan.w_over_m, plan.flat_unknown, np.ravel(y))
+                return kernel.norm(plan.w_over_m, plan.flat_unknown, y)
 
             def vnorm(v: np.ndarray) -> float:
-                return weighted_norm(plan.w_times_m, plan.flat_unknown, np.ravel(v))
+                return kernel.norm(plan.w_times_m, plan.flat_unknown, v)
 
             def residual(x: np.ndarray) -> dict[str, np.ndarray] | None:
                 res = kernel(x, dt)
@@ -551,7 +573,8 @@ class ImplicitMidpoint(Integrator):
         if res is None:
             # no previous step: the better of ξ = ΔtN_k and ξ = 0 (the former is poor, or even
             # beyond the injectivity radius of exp, when S_k carries a stiff oscillation)
-            xi[unk] = dt * scheme.velocity(state)[unk]
+            N_k = scheme.velocity(state) if kernel is None else kernel.velocity(state)
+            xi[unk] = dt * N_k[unk]
             res = residual(xi)
             if np.any(xi):
                 zero = np.zeros_like(xi)
@@ -617,7 +640,7 @@ class ImplicitMidpoint(Integrator):
         self.newton_iterations += it
         # the powers at the midpoint, for the energy bookkeeping of step()
         if scheme.has_external_power():
-            mid = res["mid"] if kernel is None else kernel.midpoint(state, xi)  # (the kernel keeps none)
+            mid = res["mid"] if kernel is None else kernel.drifted(state, xi, 0.5)  # (the kernel keeps none)
             self._mid_powers = scheme.powers(mid, xi / dt, state.t + 0.5 * dt)
         # advance: Φ ← Φ exp(ξ), S ← dexp⁻¹_{−ξ}ᵀ μ + Δt (I − B)ᵀ W
         if kernel is None:

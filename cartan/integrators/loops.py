@@ -13,11 +13,13 @@ Every loop returns ``(done, nforce, t, dissipated, external)``.
 
 from __future__ import annotations
 
+from collections.abc import Callable
+
 import numpy as np
 
 from ..compiled.codegen import Fragment, njit_source
 
-__all__ = ["loop_fragment"]
+__all__ = ["kinematic_fragment", "loop_fragment"]
 
 # names the loops read from the generated module (the scheme's operators, the group's kernels)
 # noqa comments below mark them for the linter.
@@ -65,52 +67,6 @@ def _book(D, C, S, N, t, dt, p0d, p0e, diss, ext, K, check, limit):
             _blown(D, C, S, check, limit))
 
 
-def _free_flow(D, S, pieces, fracs, dt, Dn):
-    """The free flow of ``lie-verlet`` over Δt at every node: the pieces in turn, each
-    ``S ← Ad*_{exp(τN_p)}S`` with ``N_p = P_p S`` (``pieces[p]``, zero at clamped nodes) over
-    ``τ = fracs[p]·Δt``; returns whether anything moved and leaves each node's total motion
-    ``Π_p exp(τN_p)`` in ``Dn`` (the free flow is node-local: the edges follow in one pass)."""
-    xi = np.empty(R_)  # noqa: F821
-    vec = np.empty(R_)  # noqa: F821
-    row = np.empty(R_)  # noqa: F821
-    E = np.empty((M_, M_))  # noqa: F821
-    tmp = np.empty((M_, M_))  # noqa: F821
-    moved = False
-    for i in range(S.shape[0]):
-        first = True
-        clamped = D.any_clamped and D.clamped[i]
-        for p in range(pieces.shape[0]):
-            moving = False
-            for k in range(R_):  # noqa: F821
-                v = 0.0
-                if not clamped:
-                    for j in range(R_):  # noqa: F821
-                        v += pieces[p, k, j] * S[i, j]
-                xi[k] = fracs[p] * dt * v
-                if v != 0.0:
-                    moving = True
-            if not moving:
-                continue
-            moved = True
-            _coad_node(S, i, xi, E, row, vec)
-            if first:
-                for a in range(M_):  # noqa: F821
-                    for b in range(M_):  # noqa: F821
-                        Dn[i, a, b] = E[a, b]
-                first = False
-            else:
-                g_compose(Dn[i], E, tmp)  # noqa: F821
-                for a in range(M_):  # noqa: F821
-                    for b in range(M_):  # noqa: F821
-                        Dn[i, a, b] = tmp[a, b]
-        if first:
-            g_exp(np.zeros(R_), E)  # noqa: F821
-            for a in range(M_):  # noqa: F821
-                for b in range(M_):  # noqa: F821
-                    Dn[i, a, b] = E[a, b]
-    return moved
-
-
 def lie_verlet_loop(D, C, S, W, have_w, velocity_free, pieces, fracs, t, dt, nsteps, diss, ext, check, limit):
     """``lie-verlet``: half kick, exact free flow split into pieces (``pieces`` ``[P, r, r]``,
     ``fracs`` of Δt, palindromic), half kick; W carries the force between steps (FSAL)."""
@@ -130,8 +86,7 @@ def lie_verlet_loop(D, C, S, W, have_w, velocity_free, pieces, fracs, t, dt, nst
             for k in range(R_):  # noqa: F821
                 S[i, k] += 0.5 * dt * W[i, k]
         op_constrain(D, S)  # noqa: F821
-        if _free_flow(D, S, pieces, fracs, dt, Dn):
-            op_move(D, C, Dn, K)  # noqa: F821
+        op_free_flow(D, C, S, pieces, fracs, dt, Dn, K)  # noqa: F821
         op_constrain(D, S)  # noqa: F821
         t1 = t + dt
         op_velocity(D, S, N)  # noqa: F821
@@ -209,9 +164,41 @@ def euler_loop(D, C, S, geometric, t, dt, nsteps, diss, ext, check, limit):
     return done, done, t, diss, ext
 
 
+def _kinematic_velocity(D, C, t, N):
+    """The prescribed N = f(t, u, X) of ``kinematic`` (paper §III.B): ``k_velocity`` the user's
+    kernel, u ``[*shape, d]`` the node coordinates, X ``[*shape, d, r]`` the nodal strains of C;
+    f returns ``[*shape, r]`` (or ``[r]``, the same at every node); zero at clamped nodes."""
+    n = N.shape[0]
+    X = np.empty((n, D_, R_))  # noqa: F821
+    op_nodal_strains(D, C, X)  # noqa: F821
+    u = D.coords.reshape(D.shape + (D_,))  # noqa: F821
+    res = k_velocity(t, u, X.reshape(D.shape + (D_, R_)))  # noqa: F821
+    flat = np.ascontiguousarray(res).reshape(-1)
+    if flat.shape[0] == n * R_:  # noqa: F821
+        for i in range(n):
+            for k in range(R_):  # noqa: F821
+                N[i, k] = flat[i * R_ + k]  # noqa: F821
+    elif flat.shape[0] == R_:  # noqa: F821
+        for i in range(n):
+            for k in range(R_):  # noqa: F821
+                N[i, k] = flat[k]
+    else:
+        raise ValueError("kinematic: velocity(t, u, X) must return N of shape [*grid.shape, r] or [r]")
+    if D.any_clamped:
+        for i in range(n):
+            if D.clamped[i]:
+                for k in range(R_):  # noqa: F821
+                    N[i, k] = 0.0
+
+
 def _stage_velocity(D, C, S, t, mode, gam_inv, N, W, K):
-    """N at a stage: from the momentum (``mode = 0``) or the overdamped N = Γ⁻¹W(N = 0);
-    returns the number of force evaluations (0 or 1)."""
+    """N at a stage: from the momentum (``mode = 0``), the overdamped N = Γ⁻¹W(N = 0)
+    (``mode = 1``) or the prescribed velocity of ``kinematic`` (``mode = 2``, in a module
+    generated with the user's kernel, where ``KINEMATIC_`` is True; elsewhere the branch is
+    compiled away); returns the number of force evaluations (0 or 1)."""
+    if KINEMATIC_ and mode == 2:  # noqa: F821
+        _kinematic_velocity(D, C, t, N)
+        return 0
     if mode == 0:
         op_velocity(D, S, N)  # noqa: F821
         return 0
@@ -230,7 +217,8 @@ def _stage_velocity(D, C, S, t, mode, gam_inv, N, W, K):
 def rkmk_loop(D, C, S, A, b, c, dynamics, mode, gam_inv, t, dt, nsteps, diss, ext, check, limit):
     """Explicit Runge–Kutta–Munthe-Kaas with the tableau ``(A, b, c)`` as data: ``rkmk4``
     (``dynamics``, N from S), ``overdamped`` (``mode = 1``: N = Γ⁻¹W(N = 0); order 1 is
-    Lie–Euler, order 2 Heun) and ``kinematic``; Φ(t + s) = Φ(t) exp(σ(s)), σ̇ = dexp⁻¹_{−σ}N."""
+    Lie–Euler, order 2 Heun) and ``kinematic`` (``mode = 2``: N = f(t, u, X) prescribed);
+    Φ(t + s) = Φ(t) exp(σ(s)), σ̇ = dexp⁻¹_{−σ}N."""
     K = op_work(D)  # noqa: F821
     n = S.shape[0]
     s_count = b.shape[0]
@@ -312,6 +300,59 @@ LOOPS = {"lie_verlet_loop": lie_verlet_loop, "euler_loop": euler_loop, "rkmk_loo
 
 
 def loop_fragment() -> Fragment:
-    """The loops and their helpers as one fragment of a generated module."""
-    return Fragment(source=njit_source(_coad_node, _coad_exp, _blown, _book, _free_flow, lie_verlet_loop,
-                                       _lie_poisson, euler_loop, _stage_velocity, rkmk_loop))
+    """The loops and their helpers as one fragment of a generated module (``KINEMATIC_`` False:
+    :func:`kinematic_fragment` sets it in the modules that carry a prescribed velocity)."""
+    return Fragment(constants={"KINEMATIC_": False},
+                    source=njit_source(_coad_node, _coad_exp, _blown, _book, lie_verlet_loop, _lie_poisson, euler_loop,
+                                       _kinematic_velocity, _stage_velocity, rkmk_loop))
+
+
+def _closure_digest(py: Callable) -> int | None:
+    """A digest of the values a closure captures (0 for none; None when one is not a number,
+    a string or an array), so that closures of the same code over other values get their own
+    generated module (numba freezes captured values into the machine code)."""
+    import hashlib
+
+    cells = py.__closure__ or ()
+    if not cells:
+        return 0
+    digest = hashlib.sha256()
+    for cell in cells:
+        value = cell.cell_contents
+        if isinstance(value, (bool, int, float, str, np.number, np.bool_)):
+            digest.update(repr((type(value).__name__, value)).encode())
+        elif isinstance(value, np.ndarray) and value.dtype.kind in "biuf":
+            digest.update(repr((value.dtype.str, value.shape)).encode() + np.ascontiguousarray(value).tobytes())
+        else:
+            return None
+    return int(digest.hexdigest()[:15], 16)
+
+
+def kinematic_fragment(velocity: Callable) -> Fragment | None:
+    """The user's velocity ``f(t, u, X) -> N`` (a numba-compiled function, or its Python
+    function) as the kernel ``k_velocity`` of a generated module, and ``KINEMATIC_`` True (the
+    fragment comes after :func:`loop_fragment`); None for a closure over values other than
+    numbers, strings and arrays.  An importable function is imported from its module; any
+    other (a script, a notebook, a closure) is registered in :mod:`cartan.compiled.runtime`
+    under a name derived from its code."""
+    import importlib
+
+    from ..compiled import runtime
+
+    py = getattr(velocity, "py_func", velocity)
+    closure = _closure_digest(py)
+    if closure is None:
+        return None
+    module, name = getattr(py, "__module__", None), getattr(py, "__name__", "")
+    importable = False
+    if module and module != "__main__" and not closure:
+        try:
+            found = getattr(importlib.import_module(module), name, None)
+        except ImportError:
+            found = None
+        importable = getattr(found, "py_func", found) is py
+    where = (module, name) if importable else (runtime.__name__, runtime.register(py))
+    constants = {"KINEMATIC_": True}
+    if closure:
+        constants["K_CLOSURE_"] = closure  # the captured values: part of the module's text, hence of its key
+    return Fragment(imports={"k_velocity": where}, constants=constants)

@@ -20,13 +20,34 @@ Operators (``D`` the data, ``C`` the configuration, ``K`` the work arrays of :fu
 ``op_velocity(D, S, N)``          Legendre map N = ∂K*/∂S (gauge and clamped nodes zero)
 ``op_force(D, C, t, N, W, K)``    force density W = D*Q + T (loads, end loads, clamps)
 ``op_drift(D, C, tau, N, K)``     Φ ← Φ exp(τN) exactly on the group
+``op_free_flow(D, C, S, pieces, fracs, dt, Dn, K)`` the exact free flow of ``lie-verlet``
 ``op_drift_naive(D, C, tau, N, K)`` Φ ← Φ + τΦN̂ (forward Euler; leaves the group)
 ``op_constrain(D, S)``            zero the momentum of gauge components and clamped nodes
 ``op_powers(D, C, N, t, K)``      (dissipated, external) power of the loads
-``op_kinetic(D, S)``              kinetic energy ½Σ w S²/m
+``op_kinetic(D, S)``              kinetic energy ``Scheme.kinetic_energy``: ½Σ w S·M⁺S over unclamped nodes
+``op_potential(D, C, K) -> float`` potential energy ``potential_energy(state)``: the medium's
+                                  discrete energy plus the conservative loads' (a constant field)
+``op_nodal_strains(D, C, X)``     X ``[n, d, r]`` ← ``nodal_strains(state)``, nodes in C order
 ``op_finite_config(C)``           whether the configuration is finite
 ``op_copy_config(C, C2)``         C2 ← C (RKMK stages)
 ``op_new_config(C)``              a copy of C
+
+Data fields every set provides (beside its own): ``d``, ``r``, ``m``, ``track``, ``shape``
+(the grid shape, a tuple of ints), ``coords`` ``[n, d]`` (node coordinates in C order:
+``np.stack(np.meshgrid(*[grid.coordinates(a) for a in range(d)], indexing="ij"), -1)``
+flattened), ``w`` ``[n]`` (node weights), ``clamped`` ``[n]``, ``any_clamped``, ``live`` ``[r]``,
+``inv_metric`` ``[r, r]``, ``has_power``.
+
+Loads and boundaries (the lattice): ``Damping`` (``−ΓN``), body-frame ``UniformForce``, a
+constant field ``ConstantFieldPotential`` (gravity: the pull-back of ``U = −ρf·x`` is the body
+force ``Rᵀρf`` on the translations and no moment, paper §IV.B; energy ``−Σ w ρf·x``, x the
+translation of Φ), free ends or faces with follower or dead loads (``n_α Q^α = P``, paper §IV.D),
+clamped ends or faces, periodic axes.
+
+Energies (paper §VI.C)
+    Edge sum ``V = cell Σ_e U(X_e; X₀_e)`` with the other axes at rest, or, for coupled media,
+    the corner sum ``V = Σ_c (w_i/#corners_i) U(X_c; X₀_c)``; the kinetic energy
+    ``K = Σ_i w_i ½ N_i·M N_i = ½ Σ_i w_i S_i·M⁺S_i`` (N = M⁺S, zero at clamped nodes).
 """
 
 from __future__ import annotations
@@ -73,6 +94,13 @@ class LatticeData(NamedTuple):
     end_div: np.ndarray  # [k] 1/(h_α/2): load per face area → force density
     end_face: np.ndarray  # [k] w/(h_α/2): face area share (powers)
     has_power: bool
+    field: np.ndarray  # [k] ρf summed over the constant fields (gravity), k the space dimension (0: none)
+    has_field: bool
+    cell: float  # Π_α h_α, the volume of a cell (edge energies)
+    diagonal: bool  # the kinetic metric is diagonal (M⁺ = diag)
+    nscale: np.ndarray  # [n, d] 1/(number of edges of node i along α): the nodal average of the edge strains
+    shape: tuple  # the grid shape (ints)
+    coords: np.ndarray  # [n, d] node coordinates, C order
 
 
 # ---------------------------------------------------------------------------- operators
@@ -117,18 +145,27 @@ def _dead_to_body(D, Phi, P, out):
     g_Ad_T(tmp, P, out)  # noqa: F821 - a global of the generated module
 
 
+def _field_force(D, Phi, W):
+    """``W_i += Rᵢᵀρf`` on the first k components (the translations): the pull-back of the
+    constant field's potential ``U = −ρf·x`` (paper §IV.B), no moment."""
+    nf = D.field.shape[0]
+    for i in range(W.shape[0]):
+        for k in range(nf):
+            s = 0.0
+            for b in range(nf):
+                s += Phi[i, b + 1, k + 1] * D.field[b]
+            W[i, k] += s
+
+
 def _edge_to_nodes(D, e, xi, q, s, W, vec, vec2):
     """Add the edge stress ``s·q`` of edge e (log ``xi``) to its end nodes:
-    ``W_i += dexp⁻¹(ξ)ᵀ sq``, ``W_j −= dexp⁻¹(−ξ)ᵀ sq`` (both from ξ, as the reference path
-    does: the identity dexp⁻¹(−ξ)ᵀ = Ad_Gᵀ dexp⁻¹(ξ)ᵀ fails off the group, where forward Euler
-    takes the edges)."""
+    ``W_i += dexp⁻¹(ξ)ᵀ sq``, ``W_j −= dexp⁻¹(−ξ)ᵀ sq`` (both from ξ in one call of
+    ``g_dexp_inv_T_pair``, as the reference path does: the identity dexp⁻¹(−ξ)ᵀ = Ad_Gᵀ dexp⁻¹(ξ)ᵀ
+    fails off the group, where forward Euler takes the edges)."""
     i, j = D.tail[e], D.head[e]
-    g_dexp_inv_T(xi, q, vec)  # noqa: F821
+    g_dexp_inv_T_pair(xi, q, vec, vec2)  # noqa: F821
     for k in range(R_):  # noqa: F821
         W[i, k] += s * vec[k]
-        vec[k] = -xi[k]
-    g_dexp_inv_T(vec, q, vec2)  # noqa: F821
-    for k in range(R_):  # noqa: F821
         W[j, k] -= s * vec2[k]
 
 
@@ -183,6 +220,8 @@ def op_force(D, C, t, N, W, K):
     for i in range(n):
         for k in range(R_):  # noqa: F821
             W[i, k] = W[i, k] * D.winv[i] - D.damp[k] * N[i, k] + D.ubody[k]
+    if D.has_field:
+        _field_force(D, Phi, W)
     for p in range(D.end_idx.shape[0]):
         i = D.end_idx[p]
         if D.end_follow[p]:
@@ -218,6 +257,71 @@ def op_move(D, C, Dn, K):
         for a in range(M_):  # noqa: F821
             for b in range(M_):  # noqa: F821
                 Phi[i, a, b] = tmp[a, b]
+
+
+def op_free_flow(D, C, S, pieces, fracs, dt, Dn, K):
+    """The free flow of ``lie-verlet`` over Δt at every node: the pieces in turn, each
+    ``S ← Ad*_{exp(τN_p)}S`` with ``N_p = P_p S`` (``pieces[p]``, zero at clamped nodes) over
+    ``τ = fracs[p]·Δt``; returns whether anything moved and leaves each node's total motion
+    ``Π_p exp(τN_p)`` in ``Dn``; the free flow is node-local, so the edges and frames then follow
+    in one :func:`op_move` by ``Dn``.  ``N_p = P_p S`` runs over the nonzero entries of each row
+    of ``P_p`` only (a piece of a diagonal metric is one direction or one commuting block)."""
+    npieces = pieces.shape[0]
+    cnt = np.zeros((npieces, R_), dtype=np.int64)  # noqa: F821
+    col = np.empty((npieces, R_, R_), dtype=np.int64)  # noqa: F821
+    for p in range(npieces):
+        for k in range(R_):  # noqa: F821
+            for j in range(R_):  # noqa: F821
+                if pieces[p, k, j] != 0.0:
+                    col[p, k, cnt[p, k]] = j
+                    cnt[p, k] += 1
+    xi = np.empty(R_)  # noqa: F821
+    vec = np.empty(R_)  # noqa: F821
+    row = np.empty(R_)  # noqa: F821
+    E = np.empty((M_, M_))  # noqa: F821
+    tmp = np.empty((M_, M_))  # noqa: F821
+    moved = False
+    for i in range(S.shape[0]):
+        first = True
+        clamped = D.any_clamped and D.clamped[i]
+        for p in range(npieces):
+            moving = False
+            for k in range(R_):  # noqa: F821
+                v = 0.0
+                if not clamped:
+                    for c in range(cnt[p, k]):
+                        j = col[p, k, c]
+                        v += pieces[p, k, j] * S[i, j]
+                xi[k] = fracs[p] * dt * v
+                if v != 0.0:
+                    moving = True
+            if not moving:
+                continue
+            moved = True
+            g_exp(xi, E)  # noqa: F821
+            for k in range(R_):  # noqa: F821
+                row[k] = S[i, k]
+            g_Ad_T(E, row, vec)  # noqa: F821
+            for k in range(R_):  # noqa: F821
+                S[i, k] = vec[k]
+            if first:
+                for a in range(M_):  # noqa: F821
+                    for b in range(M_):  # noqa: F821
+                        Dn[i, a, b] = E[a, b]
+                first = False
+            else:
+                g_compose(Dn[i], E, tmp)  # noqa: F821
+                for a in range(M_):  # noqa: F821
+                    for b in range(M_):  # noqa: F821
+                        Dn[i, a, b] = tmp[a, b]
+        if first:
+            g_exp(np.zeros(R_), E)  # noqa: F821
+            for a in range(M_):  # noqa: F821
+                for b in range(M_):  # noqa: F821
+                    Dn[i, a, b] = E[a, b]
+    if moved:
+        op_move(D, C, Dn, K)
+    return moved
 
 
 def op_drift(D, C, tau, N, K):
@@ -288,9 +392,73 @@ def op_powers(D, C, N, t, K):
 def op_kinetic(D, S):
     e = 0.0
     for i in range(S.shape[0]):
+        if D.any_clamped and D.clamped[i]:
+            continue
         for k in range(R_):  # noqa: F821
-            e += 0.5 * D.w[i] * S[i, k] * S[i, k] * abs(D.inv_metric[k, k])
+            if D.diagonal:
+                e += 0.5 * D.w[i] * S[i, k] * S[i, k] * D.inv_metric[k, k]
+            else:
+                v = 0.0
+                for j in range(R_):  # noqa: F821
+                    v += D.inv_metric[k, j] * S[i, j]
+                e += 0.5 * D.w[i] * S[i, k] * v
     return e
+
+
+def op_potential(D, C, K):
+    G, Phi = C
+    xi = np.empty(R_)  # noqa: F821
+    X = np.empty((D_, R_))  # noqa: F821
+    V = 0.0
+    if D.coupled:
+        XI = K[2]
+        for e in range(G.shape[0]):
+            g_log(G[e], xi)  # noqa: F821
+            for k in range(R_):  # noqa: F821
+                XI[e, k] = xi[k]
+        for c in range(D.cw.shape[0]):
+            for b in range(D_):  # noqa: F821
+                e = D.cedge[c, b]
+                for k in range(R_):  # noqa: F821
+                    X[b, k] = XI[e, k] * D.einvh[e]
+            V += D.cw[c] * m_energy(X, D.cX0[c], D.params)  # noqa: F821
+    else:
+        for e in range(G.shape[0]):
+            a = D.eaxis[e]
+            g_log(G[e], xi)  # noqa: F821
+            for b in range(D_):  # noqa: F821
+                for k in range(R_):  # noqa: F821
+                    X[b, k] = D.X0e[e, b, k]
+            for k in range(R_):  # noqa: F821
+                X[a, k] = xi[k] * D.einvh[e]
+            V += D.cell * m_energy(X, D.X0e[e], D.params)  # noqa: F821
+    if D.has_field:
+        for i in range(Phi.shape[0]):
+            s = 0.0
+            for b in range(D.field.shape[0]):
+                s += D.field[b] * Phi[i, b + 1, 0]
+            V -= D.w[i] * s
+    return V
+
+
+def op_nodal_strains(D, C, X):
+    G = C[0]
+    xi = np.empty(R_)  # noqa: F821
+    for i in range(X.shape[0]):
+        for a in range(D_):  # noqa: F821
+            for k in range(R_):  # noqa: F821
+                X[i, a, k] = 0.0
+    for e in range(G.shape[0]):
+        a = D.eaxis[e]
+        g_log(G[e], xi)  # noqa: F821
+        for k in range(R_):  # noqa: F821
+            v = xi[k] * D.einvh[e]
+            X[D.tail[e], a, k] += v
+            X[D.head[e], a, k] += v
+    for i in range(X.shape[0]):
+        for a in range(D_):  # noqa: F821
+            for k in range(R_):  # noqa: F821
+                X[i, a, k] *= D.nscale[i, a]
 
 
 def op_finite_config(C):
@@ -310,16 +478,50 @@ def op_new_config(C):
     return (C[0].copy(), C[1].copy())
 
 
-_OPERATORS = (op_work, op_velocity, op_constrain, _dead_to_body, _edge_to_nodes, op_force, op_move, op_drift,
-              op_drift_naive, op_powers,
-              op_kinetic, op_finite_config, op_copy_config, op_new_config)
+_OPERATORS = (op_work, op_velocity, op_constrain, _dead_to_body, _field_force, _edge_to_nodes, op_force, op_move,
+              op_free_flow, op_drift, op_drift_naive, op_powers, op_kinetic, op_potential, op_nodal_strains,
+              op_finite_config, op_copy_config, op_new_config)
 
 
 # ---------------------------------------------------------------------------- building the set
+def _field_loads(scheme) -> np.ndarray | None:
+    """``ρf`` ``(k,)`` summed over the ``ConstantFieldPotential`` loads (``(0,)`` without one), or
+    None when one of them is not the core's constant field: a load that changes its force,
+    energy or position methods, or whose ``force`` and ``energy`` at a few frames differ from
+    ``Rᵀρf`` on the first k components and ``−ρf·x`` (x = Φ[1:, 0]) — the formulas of
+    :func:`_field_force` and :func:`op_potential`."""
+    from ..problem import ConstantFieldPotential, PotentialLoad
+
+    loads = [ld for ld in scheme.problem.loads if isinstance(ld, ConstantFieldPotential)]
+    if not loads:
+        return np.zeros(0)
+    methods = ("potential_gradient", "potential_energy", "position", "_matrix")
+    if any(type(ld).force is not PotentialLoad.force or type(ld).energy is not PotentialLoad.energy
+           or any(getattr(type(ld), name) is not getattr(ConstantFieldPotential, name) for name in methods)
+           for ld in loads):
+        return None
+    g = scheme.group
+    field = sum(ld.density * np.asarray(ld.field, dtype=float) for ld in loads)
+    k = field.shape[0]
+    if k >= g.matrix_size or k > g.dim:
+        return None
+    Phi = g.exp(np.random.default_rng(0).standard_normal((3, g.dim)))
+    T = np.zeros((3, g.dim))
+    T[:, :k] = np.einsum("ibk,b->ik", Phi[:, 1:k + 1, 1:k + 1], field)
+    force = sum(ld.force(Phi, np.zeros((3, g.dim)), 0.0) for ld in loads)
+    energy = sum(ld.energy(Phi) for ld in loads)
+    # both sides are a few products of O(1) frames with ρf: they agree to round-off of |ρf|
+    scale = 1e-12 * max(1.0, float(np.max(np.abs(field))) * float(np.max(np.abs(Phi))))
+    if np.max(np.abs(force - T)) > scale or np.max(np.abs(energy + Phi[:, 1:k + 1, 0] @ field)) > scale:
+        return None
+    return field
+
+
 def _supported_loads(scheme) -> tuple | None:
-    """(damp, ubody) of the loads the operators run — ``Damping`` and body-frame
-    ``UniformForce`` — or None when a load or a boundary is of another kind."""
-    from ..problem import Clamped, Damping, Free, UniformForce
+    """``(damp, ubody, field)`` of the loads the operators run — ``Damping``, body-frame
+    ``UniformForce`` and the core's ``ConstantFieldPotential`` (:func:`_field_loads`) — or
+    None when a load or a boundary is of another kind."""
+    from ..problem import Clamped, ConstantFieldPotential, Damping, Free, UniformForce
 
     r = scheme.group.dim
     damp, ubody = np.zeros(r), np.zeros(r)
@@ -328,18 +530,19 @@ def _supported_loads(scheme) -> tuple | None:
             damp = damp + np.asarray(load.coefficients, dtype=float)
         elif type(load) is UniformForce and load.frame == "body":
             ubody = ubody + np.asarray(load.components, dtype=float)
-        else:
+        elif not isinstance(load, ConstantFieldPotential):
             return None
-    if any(type(b) not in (Free, Clamped) for b in scheme.problem.boundaries.values()):
+    field = _field_loads(scheme)
+    if field is None or any(type(b) not in (Free, Clamped) for b in scheme.problem.boundaries.values()):
         return None
-    return damp, ubody
+    return damp, ubody, field
 
 
-def _why_not(scheme) -> str | None:
-    """Why the operator set does not cover this problem, or None when it does."""
+def _why_not(scheme, reference: type) -> str | None:
+    """Why the operator set does not cover this problem, or None when it does (``reference``:
+    the scheme class whose methods the operators implement)."""
     from ..medium import Medium
     from .base import Scheme
-    from .lattice import Lattice
 
     medium = scheme.medium
     if scheme.group.point_kernels() is None:
@@ -348,7 +551,7 @@ def _why_not(scheme) -> str | None:
         return f"the medium {medium.name!r} declares no point kernels (Medium.point_kernels)"
     for name in ("force", "internal_force", "drift", "frames", "_boundary_power", "_axis_stress", "initial_state",
                  "_key"):
-        if getattr(type(scheme), name) is not getattr(Lattice, name):
+        if getattr(type(scheme), name) is not getattr(reference, name):
             return f"the scheme overrides {name}"
     for name in ("velocity", "constrain", "powers", "has_external_power", "drag"):
         if getattr(type(scheme), name) is not getattr(Scheme, name):
@@ -358,10 +561,14 @@ def _why_not(scheme) -> str | None:
             return f"the medium overrides {name}"
     if getattr(medium, "velocity_dependent_forces", False):
         return "the medium has velocity-dependent forces"
-    if _supported_loads(scheme) is None:
-        return "a load or boundary is not one of Damping, body-frame UniformForce, Free, Clamped"
+    loads = _supported_loads(scheme)
+    if loads is None:
+        return ("a load or boundary is not one of Damping, body-frame UniformForce, ConstantFieldPotential "
+                "(the core's constant field), Free, Clamped")
     if any(not b.follower for _, b in scheme._end_loads) and not scheme.track:
         return "a dead end load needs stepped frames"
+    if loads[2].size and not scheme.track:
+        return "a constant field (gravity) needs stepped frames"
     return None
 
 
@@ -385,13 +592,24 @@ def check_kernels(medium, kernels, d: int, r: int) -> None:
                 "or return None from point_kernels() to run the medium on the numpy path")
 
 
-def lattice_operators(scheme):
-    """The compiled operator set of a lattice scheme, or None when the problem is not covered
-    (``scheme.compiled_operators()`` explains why in ``OperatorSet.reason``)."""
+def _nodal_scale(n: int, d: int, tails: list, heads: list) -> np.ndarray:
+    """``[n, d]``: 1 over the number of edges along α at each node (2 inside, 1 at the ends of
+    an open axis; 0 where there is none) — :meth:`Lattice.nodal_strains` averages them."""
+    count = np.zeros((n, d))
+    for a in range(d):
+        np.add.at(count[:, a], tails[a], 1.0)
+        np.add.at(count[:, a], heads[a], 1.0)
+    return np.where(count > 0, 1.0 / np.where(count > 0, count, 1.0), 0.0)
+
+
+def lattice_operators(scheme, reference: type):
+    """The compiled operator set of a lattice scheme, or a declined set that says why
+    (``OperatorSet.reason``); ``reference`` is :class:`~cartan.schemes.lattice.Lattice`, whose
+    methods the operators implement (a subclass that overrides one is declined)."""
     from ..compiled.kernels import medium_fragment
     from ..compiled.operators import OperatorSet
 
-    reason = _why_not(scheme)
+    reason = _why_not(scheme, reference)
     if reason is not None:
         return OperatorSet.declined(reason)
     grid, group, medium = scheme.grid, scheme.group, scheme.medium
@@ -419,7 +637,7 @@ def lattice_operators(scheme):
         cw, cX0 = corners["weight"], corners["X0"]
     else:
         cedge, cw, cX0 = np.zeros((0, d), dtype=np.int64), np.zeros(0), np.zeros((0, d, r))
-    damp, ubody = _supported_loads(scheme)
+    damp, ubody, field = _supported_loads(scheme)
     weights = np.ascontiguousarray(scheme.weights, dtype=float).reshape(n)
     entries = scheme.end_load_entries()
     clamped = np.ascontiguousarray(scheme._clamped, dtype=np.bool_).reshape(n)
@@ -440,6 +658,11 @@ def lattice_operators(scheme):
         end_div=np.array([1.0 / (0.5 * h[a]) for _, _, a in entries], dtype=float),
         end_face=np.array([weights[i] / (0.5 * h[a]) for i, _, a in entries], dtype=float),
         has_power=bool(scheme.has_external_power()),
+        field=np.ascontiguousarray(field, dtype=float), has_field=bool(field.size), cell=cell,
+        diagonal=bool(scheme.diagonal_metric), nscale=_nodal_scale(n, d, tails, heads), shape=shape,
+        coords=np.ascontiguousarray(
+            np.stack(np.meshgrid(*[grid.coordinates(a) for a in range(d)], indexing="ij"), -1).reshape(n, d),
+            dtype=float),
     )
     keys = [scheme._key(a) for a in range(d)]
     frame_key = "Phi" if scheme.track else "Phi_root"

@@ -25,7 +25,6 @@ from __future__ import annotations
 
 import abc
 from collections.abc import Callable
-from dataclasses import dataclass, field
 from typing import Any, ClassVar
 
 import numpy as np
@@ -34,6 +33,7 @@ from numba import njit
 from .._backend import get_backend
 from ..medium import Medium
 from ..problem import Clamped, Problem
+from ..state import State  # re-exported: its home is cartan.state
 
 __all__ = ["Scheme", "State", "prefix_products"]
 
@@ -90,34 +90,6 @@ def _prefix_products_kernel(acc: np.ndarray) -> None:  # pragma: no cover - comp
             for i in range(m):
                 for j in range(p):
                     acc[k, b, i, j] = tmp[i, j]
-
-
-@dataclass
-class State:
-    """Everything a run needs to continue exactly: time, momentum, configuration arrays.
-
-    Attributes
-    ----------
-    t : float
-    S : array ``[*shape, r]``
-        Momentum density on the nodes.
-    arrays : dict of str → ndarray
-        Scheme-specific configuration (e.g. ``"Phi"`` node frames, ``"G_u"`` edge elements,
-        ``"X"`` nodal strains).  Saved verbatim in checkpoints.
-    scalars : dict of str → float
-        Accumulators (``"dissipated_energy"``, ``"external_work"``) and the step counter.
-    """
-
-    t: float
-    S: np.ndarray
-    arrays: dict[str, np.ndarray] = field(default_factory=dict)
-    scalars: dict[str, float] = field(default_factory=lambda: {"dissipated_energy": 0.0, "external_work": 0.0})
-
-    def copy(self) -> State:
-        return State(self.t, self.S.copy(), {k: v.copy() for k, v in self.arrays.items()}, dict(self.scalars))
-
-    def is_finite(self) -> bool:
-        return bool(np.all(np.isfinite(self.S)) and all(np.all(np.isfinite(a)) for a in self.arrays.values()))
 
 
 class Scheme(abc.ABC):
@@ -221,6 +193,15 @@ class Scheme(abc.ABC):
 
             plan = self._compiled_plan = importlib.import_module(f"{__package__}.{module}").build_plan(self)
         return plan
+
+    #: the module of the scheme's hand-written compiled loops (``compiled_advance``), if any
+    plan_module: ClassVar[str | None] = None
+
+    def has_hand_written_loops(self) -> bool:
+        """Whether the scheme's hand-written compiled loops take this problem's steps (then the
+        diagnostics around the steps use their plan, and no operator-set module is compiled
+        for them)."""
+        return self.plan_module is not None and self.compiled_plan(self.plan_module) is not None
 
     def _clamp_mask(self) -> np.ndarray:
         mask = np.zeros(self.grid.shape, dtype=bool)
@@ -331,15 +312,23 @@ class Scheme(abc.ABC):
         callable
             ``probe(v)`` for v ``[*shape, r]`` → K v ``[*shape, r]`` (a new array).  When
             :attr:`compiled_diagnostics` is set and the lattice or collocation scheme has a
-            compiled plan for the problem (``docs/performance.md``, ``docs/schemes.md``), the
-            forces and drifts are evaluated by its compiled kernels (the same formulas;
-            round-off apart), otherwise by :meth:`drift` and :meth:`force`.
+            hand-written compiled plan for the problem (``docs/performance.md``,
+            ``docs/schemes.md``), its compiled kernels; else, when the scheme's compiled operator
+            set (:meth:`compiled_operators`) covers the problem and the state, its compiled
+            operators (:func:`cartan.compiled.diagnostics.compiled_stiffness_probe`); otherwise
+            :meth:`drift` and :meth:`force`.  All evaluate the same formulas (round-off apart).
         """
         if self.compiled_diagnostics:
+            from ..compiled.diagnostics import compiled_stiffness_probe as generated_probe
             from ._collocation_diagnostics import compiled_stiffness_probe as collocation_probe
             from ._lattice_diagnostics import compiled_stiffness_probe as lattice_probe
 
-            for compiled_probe in (lattice_probe, collocation_probe):
+            # the hand-written plans first while they exist (their kernels are compiled with the
+            # loops that take the steps), then the operator set
+            probes = [lattice_probe, collocation_probe]
+            if not self.has_hand_written_loops():
+                probes.append(generated_probe)
+            for compiled_probe in probes:
                 probe = compiled_probe(self, state, eps)
                 if probe is not None:
                     return probe

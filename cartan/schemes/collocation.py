@@ -54,6 +54,9 @@ Compiled loops
     compiled loops are tested against (``docs/schemes.md``).  The CFL estimate
     (:meth:`~cartan.schemes.base.Scheme.dt_max`) of those problems takes its stiffness products
     from the same kernels for d = 1 (:mod:`cartan.schemes._collocation_diagnostics`).
+    :meth:`Collocation.compiled_operators` gives the integrators' generated loops the
+    scheme's operators (:mod:`cartan.schemes._collocation_ops`) for any group and medium with
+    point kernels.
 
 What is exact and what is not
     Unlike the ``lattice`` scheme, the stored strains are independent unknowns: temporal
@@ -268,6 +271,7 @@ class Collocation(Scheme):
     """
 
     name = "collocation"
+    plan_module = "_collocation_compiled"
     order = 2
 
     def __init__(self, problem, derivative: str = "fd2", track_frames: bool | None = None):
@@ -354,7 +358,22 @@ class Collocation(Scheme):
         finite, or whose kinetic energy ``½Σ w S²/m`` exceeds ``kinetic_limit``; the number of
         steps done is the increase of ``state.scalars["nstep"]``.
         """
-        return self._run_compiled("_collocation_compiled", integrator, state, dt, nsteps, kinetic_limit)
+        return self._run_compiled(self.plan_module, integrator, state, dt, nsteps, kinetic_limit)
+
+    def compiled_operators(self):
+        """The collocation's compiled operators (:mod:`cartan.schemes._collocation_ops`), built
+        once and kept on the scheme: any group with point kernels, any medium that declares
+        point kernels (axis-coupled energies and a reference configuration included), d = 1–3,
+        ``fd2``, ``fd4``, ``fourier``, open and periodic axes, damping, body-frame uniform
+        forces, constant-field potentials, free (loaded) and clamped ends or faces, any
+        kinetic metric; a declined :class:`~cartan.compiled.operators.OperatorSet` says why
+        otherwise."""
+        ops = self.__dict__.get("_operators")
+        if ops is None:
+            from ._collocation_ops import collocation_operators
+
+            ops = self._operators = collocation_operators(self, Collocation)
+        return ops
 
     # ------------------------------------------------------------------ strains from frames
     def strain_from_frames(self, Phi: np.ndarray, check: bool = False) -> np.ndarray:

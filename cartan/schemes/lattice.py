@@ -63,6 +63,7 @@ class Lattice(Scheme):
     """Discrete Lie-group lattice, generic over the group and the medium."""
 
     name = "lattice"
+    plan_module = "_lattice_compiled"
     order = 2
     strain_location = "edge"
 
@@ -110,7 +111,7 @@ class Lattice(Scheme):
         momentum, configuration) is not finite, or whose kinetic energy ``½Σ w S²/m`` exceeds
         ``kinetic_limit``; the number of steps done is the increase of ``state.scalars["nstep"]``.
         """
-        return self._run_compiled("_lattice_compiled", integrator, state, dt, nsteps, kinetic_limit)
+        return self._run_compiled(self.plan_module, integrator, state, dt, nsteps, kinetic_limit)
 
     def compiled_operators(self):
         """The lattice's compiled operators (:mod:`cartan.schemes._lattice_ops`): any group
@@ -120,7 +121,7 @@ class Lattice(Scheme):
         if ops is None:
             from ._lattice_ops import lattice_operators
 
-            ops = self._operators = lattice_operators(self)
+            ops = self._operators = lattice_operators(self, Lattice)
         return ops
 
     # ------------------------------------------------------------------ layout helpers

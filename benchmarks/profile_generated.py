@@ -1,0 +1,98 @@
+"""Where a generated lie-verlet step spends its time: the operators one by one.
+
+For each case of :mod:`benchmarks.bench_generated` (and the T1 rod of
+:mod:`benchmarks.compare`), the compiled operators of the generated module are called
+directly on the case's packed configuration: ``op_force`` (edge logarithms, medium stress,
+dexp⁻ᵀ to the nodes), the free flow (``op_free_flow``, or the loop's ``_free_flow`` where the
+operator set has none), ``op_move`` (the edges and frames follow the nodes) and
+``op_velocity``; each is reported in ns per node, the median of several repetitions.  A
+report for the terminal: ``python benchmarks/profile_generated.py [case ...]``.
+"""
+
+from __future__ import annotations
+
+import pathlib
+import sys
+import time
+
+import numpy as np
+
+import cartan
+
+ROOT = pathlib.Path(__file__).resolve().parents[1]
+for _p in (ROOT / "tests", ROOT / "benchmarks"):
+    if str(_p) not in sys.path:
+        sys.path.insert(0, str(_p))
+
+CASES = ["t1-rod", "so3-quadratic-gen", "so3-quartic", "se3-coupled", "s3-sigma"]
+
+
+def _median(call, reps: int = 7, inner: int = 10) -> float:
+    times = []
+    for _ in range(reps):
+        t0 = time.perf_counter()
+        for _ in range(inner):
+            call()
+        times.append((time.perf_counter() - t0) / inner)
+    return float(np.median(times))
+
+
+def _scheme(case: str):
+    """The lattice scheme, integrator, state and Δt of a case."""
+    if case == "t1-rod":
+        import compare
+
+        n = 1000
+        problem, dt = compare.cartan_problem(n, compare.t1_velocity(n)), compare.step_size(n)
+    else:
+        import bench_generated
+
+        problem, dt = bench_generated._problem(case), 1e-5
+    scheme = cartan.registry("schemes")["lattice"](problem)
+    integrator = cartan.registry("integrators")["lie-verlet"]()
+    state = scheme.initial_state()
+    if not integrator.run_compiled_loop(scheme, state, dt, 1):
+        raise NotImplementedError(f"{case}: no generated loop")
+    return scheme, integrator, state, dt
+
+
+def profile(case: str) -> dict[str, float]:
+    """ns per node of each operator of one lie-verlet step of ``case``."""
+    scheme, integrator, state, dt = _scheme(case)
+    ops = scheme.compiled_operators()
+    module = ops.generated() if hasattr(ops, "generated") else ops.module
+    D = ops.data
+    C = ops.pack(state)
+    K = module.op_work(D)
+    n, r, m = ops.nodes, D.r, D.m
+    S = np.ascontiguousarray(state.S, dtype=float).reshape(n, -1).copy()
+    N, W = np.empty((n, r)), np.empty((n, r))
+    module.op_velocity(D, S, N)
+    pieces, fracs = integrator.compiled_loop(scheme, state, dt)[1][-2:]
+    Dn = np.empty((n, m, m))
+    tiny = 1e-9 * dt  # the free flow barely moves S between repetitions
+    if hasattr(module, "op_free_flow"):
+        def flow():
+            return module.op_free_flow(D, C, S.copy(), pieces, fracs, tiny, Dn, K)
+    else:
+        def flow():
+            return module._free_flow(D, S.copy(), pieces, fracs, tiny, Dn)
+    flow()
+    cost = {
+        "force": _median(lambda: module.op_force(D, C, 0.0, N, W, K)),
+        "free flow": _median(flow),
+        "move": _median(lambda: module.op_move(D, C, Dn, K)),
+        "velocity": _median(lambda: module.op_velocity(D, S, N)),
+    }
+    return {k: v / n * 1e9 for k, v in cost.items()}
+
+
+def main(argv: list[str] | None = None) -> None:  # pragma: no cover - a report for the terminal
+    for case in argv or CASES:
+        cost = profile(case)
+        parts = "  ".join(f"{k} {v:7.1f}" for k, v in cost.items())
+        print(f"{case:20s} {parts}  (ns per node)")
+
+
+if __name__ == "__main__":
+    main(sys.argv[1:])
