@@ -43,6 +43,7 @@ import numpy as np
 from ..compiled.codegen import Fragment, njit_source
 from ._lattice_ops import (
     _dead_to_body,
+    _supported_loads,
     check_kernels,
     op_constrain,
     op_copy_config,
@@ -359,52 +360,6 @@ _OPERATORS = (op_work, op_velocity, op_constrain, _dead_to_body, _c_diff, _c_mov
 
 
 # ---------------------------------------------------------------------------- building the set
-def _field_loads(scheme) -> np.ndarray | None:
-    """``ρf`` summed over the ``ConstantFieldPotential`` loads, checked against their
-    ``force`` and ``energy`` at a few frames (None when they disagree with ``Rᵀρf`` in the
-    first k force components and ``−ρf·x``, x = Φ[1:, 0])."""
-    from ..problem import ConstantFieldPotential, PotentialLoad
-
-    loads = [ld for ld in scheme.problem.loads if isinstance(ld, ConstantFieldPotential)]
-    if not loads:
-        return np.zeros(0)
-    g = scheme.group
-    if any(type(ld).force is not PotentialLoad.force or type(ld).energy is not PotentialLoad.energy
-           for ld in loads):
-        return None
-    field = sum(ld.density * np.asarray(ld.field, dtype=float) for ld in loads)
-    k = field.shape[0]
-    Phi = g.exp(np.random.default_rng(0).standard_normal((3, g.dim)))
-    T = np.zeros((3, g.dim))
-    T[:, :k] = np.einsum("ibk,b->ik", Phi[:, 1:k + 1, 1:k + 1], field)
-    force = sum(ld.force(Phi, np.zeros((3, g.dim)), 0.0) for ld in loads)
-    energy = sum(ld.energy(Phi) for ld in loads)
-    scale = 1e-12 * max(1.0, float(np.max(np.abs(T))))
-    if np.max(np.abs(force - T)) > scale or np.max(np.abs(energy + Phi[:, 1:k + 1, 0] @ field)) > 10 * scale:
-        return None
-    return field
-
-
-def _loads(scheme) -> tuple | None:
-    """``(damp, ubody, field)`` of the loads the operators run — ``Damping``, body-frame
-    ``UniformForce``, ``ConstantFieldPotential`` — or None for any other load or boundary."""
-    from ..problem import Clamped, ConstantFieldPotential, Damping, Free, UniformForce
-
-    r = scheme.group.dim
-    damp, ubody = np.zeros(r), np.zeros(r)
-    for load in scheme.problem.loads:
-        if type(load) is Damping:
-            damp = damp + np.asarray(load.coefficients, dtype=float)
-        elif type(load) is UniformForce and load.frame == "body":
-            ubody = ubody + np.asarray(load.components, dtype=float)
-        elif not isinstance(load, ConstantFieldPotential):
-            return None
-    field = _field_loads(scheme)
-    if field is None or any(type(b) not in (Free, Clamped) for b in scheme.problem.boundaries.values()):
-        return None
-    return damp, ubody, field
-
-
 def _why_not(scheme, reference: type) -> str | None:
     """Why the operator set does not cover this problem, or None when it does (``reference``:
     the scheme class whose methods the operators implement)."""
@@ -428,7 +383,7 @@ def _why_not(scheme, reference: type) -> str | None:
             return f"the medium overrides {name}"
     if getattr(medium, "velocity_dependent_forces", False):
         return "the medium has velocity-dependent forces"
-    loads = _loads(scheme)
+    loads = _supported_loads(scheme)
     if loads is None:
         return ("a load or boundary is not one of Damping, body-frame UniformForce, ConstantFieldPotential "
                 "(of the library's force), Free, Clamped")
@@ -503,7 +458,7 @@ def collocation_operators(scheme, reference: type):
             indptr[a, j] = len(entries)
             entries += row
             indptr[a, j + 1] = len(entries)
-    damp, ubody, field = _loads(scheme)
+    damp, ubody, field = _supported_loads(scheme)
     node = np.arange(n).reshape(shape)
     ends = [(int(i), axis, sign, H, b, float(f))
             for axis, sl, sign, H, b, face in scheme._free_ends
