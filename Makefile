@@ -6,7 +6,7 @@ VENV   ?= .venv
 PY     := $(VENV)/bin/python
 STAMP  := $(VENV)/.cartan-installed
 OUT    ?= out
-PYTEST_ARGS ?= -n auto
+PYTEST_ARGS ?= -n auto --durations=20
 
 .PHONY: install test test-slow test-all demo demo-rigid-body verify verify-full bench lint clean clean-cache help
 

@@ -729,9 +729,11 @@ def t3_problem(nodes: int):
 
 def run_t3_path(problem, scheme_name: str, integrator: str, compiled: bool, dt: float, nsteps: int
                 ) -> tuple[float, float, float]:
-    """Steps only (no ``simulate`` around them): the scheme's compiled loop, or a loop of
-    ``Integrator.step``; (seconds, closure residual, potential energy) at the end.  Raises
-    NotImplementedError when a compiled loop is asked for and the scheme has none or declines."""
+    """Steps only (no ``simulate`` around them): a compiled loop — the scheme's hand-written
+    one (``compiled_advance``) when it has one, else the integrator's generated loop over the
+    scheme's operators (``run_compiled_loop``) — or a loop of ``Integrator.step``; (seconds,
+    closure residual, potential energy) at the end.  Raises NotImplementedError when a compiled
+    loop is asked for and neither runs the problem."""
     import cartan
 
     scheme = cartan.registry("schemes")[scheme_name](problem)
@@ -741,7 +743,8 @@ def run_t3_path(problem, scheme_name: str, integrator: str, compiled: bool, dt: 
     t0 = time.perf_counter()
     if compiled:
         advance = getattr(scheme, "compiled_advance", None)
-        if advance is None or not advance(integ, state, dt, nsteps):
+        ran = advance is not None and advance(integ, state, dt, nsteps)
+        if not ran and not integ.run_compiled_loop(scheme, state, dt, nsteps):
             raise NotImplementedError(f"{scheme_name} has no compiled loop for {integrator} here")
     else:
         for _ in range(nsteps):

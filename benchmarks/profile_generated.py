@@ -2,15 +2,22 @@
 
 For each case of :mod:`benchmarks.bench_generated` (and the T1 rod of
 :mod:`benchmarks.compare`), the compiled operators of the generated module are called
-directly on the case's packed configuration: ``op_force`` (edge logarithms, medium stress,
-dexp⁻ᵀ to the nodes), the free flow (``op_free_flow``, or the loop's ``_free_flow`` where the
-operator set has none), ``op_move`` (the edges and frames follow the nodes) and
-``op_velocity``; each is reported in ns per node, the median of several repetitions.  A
-report for the terminal: ``python benchmarks/profile_generated.py [case ...]``.
+directly on the case's packed configuration: ``op_force`` (edge logarithms or nodal strains,
+medium stress, the transposed operators back to the nodes), the free flow (``op_free_flow``,
+or the loop's ``_free_flow`` where the operator set has none), ``op_move`` (lattice: the edges
+and frames follow the nodes), ``op_drift`` (collocation: one exact drift, strains and frames)
+and ``op_velocity``; each is reported in ns per node, the median of several repetitions.  A
+report for the terminal::
+
+    python benchmarks/profile_generated.py [--scheme lattice|collocation] [case ...]
+
+On the collocation scheme the T1 rod takes ``fd4`` with stepped frames (the scheme options of
+``compare.T5_FD4``), the other cases ``fd2``.
 """
 
 from __future__ import annotations
 
+import argparse
 import pathlib
 import sys
 import time
@@ -25,6 +32,7 @@ for _p in (ROOT / "tests", ROOT / "benchmarks"):
         sys.path.insert(0, str(_p))
 
 CASES = ["t1-rod", "so3-quadratic-gen", "so3-quartic", "se3-coupled", "s3-sigma"]
+SCHEMES = ("lattice", "collocation")
 
 
 def _median(call, reps: int = 7, inner: int = 10) -> float:
@@ -37,28 +45,31 @@ def _median(call, reps: int = 7, inner: int = 10) -> float:
     return float(np.median(times))
 
 
-def _scheme(case: str):
-    """The lattice scheme, integrator, state and Δt of a case."""
+def _scheme(case: str, scheme_name: str = "lattice"):
+    """The scheme, integrator, state and Δt of a case."""
+    options = {}
     if case == "t1-rod":
         import compare
 
         n = 1000
         problem, dt = compare.cartan_problem(n, compare.t1_velocity(n)), compare.step_size(n)
+        if scheme_name == "collocation":
+            options = dict(compare.T5_FD4)
     else:
         import bench_generated
 
         problem, dt = bench_generated._problem(case), 1e-5
-    scheme = cartan.registry("schemes")["lattice"](problem)
+    scheme = cartan.registry("schemes")[scheme_name](problem, **options)
     integrator = cartan.registry("integrators")["lie-verlet"]()
     state = scheme.initial_state()
     if not integrator.run_compiled_loop(scheme, state, dt, 1):
-        raise NotImplementedError(f"{case}: no generated loop")
+        raise NotImplementedError(f"{case}: no generated loop on the {scheme_name} scheme")
     return scheme, integrator, state, dt
 
 
-def profile(case: str) -> dict[str, float]:
-    """ns per node of each operator of one lie-verlet step of ``case``."""
-    scheme, integrator, state, dt = _scheme(case)
+def profile(case: str, scheme_name: str = "lattice") -> dict[str, float]:
+    """ns per node of each operator of one lie-verlet step of ``case`` on ``scheme_name``."""
+    scheme, integrator, state, dt = _scheme(case, scheme_name)
     ops = scheme.compiled_operators()
     module = ops.generated() if hasattr(ops, "generated") else ops.module
     D = ops.data
@@ -70,7 +81,7 @@ def profile(case: str) -> dict[str, float]:
     module.op_velocity(D, S, N)
     pieces, fracs = integrator.compiled_loop(scheme, state, dt)[1][-2:]
     Dn = np.empty((n, m, m))
-    tiny = 1e-9 * dt  # the free flow barely moves S between repetitions
+    tiny = 1e-9 * dt  # the free flow barely moves S (and C) between repetitions
     if hasattr(module, "op_free_flow"):
         def flow():
             return module.op_free_flow(D, C, S.copy(), pieces, fracs, tiny, Dn, K)
@@ -81,15 +92,22 @@ def profile(case: str) -> dict[str, float]:
     cost = {
         "force": _median(lambda: module.op_force(D, C, 0.0, N, W, K)),
         "free flow": _median(flow),
-        "move": _median(lambda: module.op_move(D, C, Dn, K)),
-        "velocity": _median(lambda: module.op_velocity(D, S, N)),
     }
+    if scheme_name == "lattice":
+        cost["move"] = _median(lambda: module.op_move(D, C, Dn, K))
+    else:
+        cost["drift"] = _median(lambda: module.op_drift(D, C, tiny, N, K))
+    cost["velocity"] = _median(lambda: module.op_velocity(D, S, N))
     return {k: v / n * 1e9 for k, v in cost.items()}
 
 
 def main(argv: list[str] | None = None) -> None:  # pragma: no cover - a report for the terminal
-    for case in argv or CASES:
-        cost = profile(case)
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--scheme", choices=SCHEMES, default="lattice")
+    parser.add_argument("cases", nargs="*", default=CASES)
+    args = parser.parse_args(argv)
+    for case in args.cases:
+        cost = profile(case, args.scheme)
         parts = "  ".join(f"{k} {v:7.1f}" for k, v in cost.items())
         print(f"{case:20s} {parts}  (ns per node)")
 

@@ -829,9 +829,7 @@ def _resolve_run(
                     f"problem's state {np.shape(b)}"
                 )
         state = ck_state
-        integ_obj.nstep = int(ck_info["counters"]["nstep"])
-        integ_obj.nforce = int(ck_info["counters"]["nforce"])
-        integ_obj.wall_time = float(ck_info["counters"]["wall_time"])
+        integ_obj.set_counters(ck_info["counters"])
     else:
         state = scheme_obj.initial_state()
         state.scalars.setdefault("nstep", 0)
@@ -1017,11 +1015,7 @@ def _execute_run(run: _ResolvedRun) -> xr.Dataset:
         return {
             "problem": run.info["problem"],
             "run": run.info["run"],
-            "counters": {
-                "nstep": integ_obj.nstep,
-                "nforce": integ_obj.nforce,
-                "wall_time": integ_obj.wall_time,
-            },
+            "counters": integ_obj.counters(),
             "scene": run.info["scene"],
             "scene_path": run.info["scene_path"],
         }

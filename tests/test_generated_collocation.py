@@ -278,7 +278,5 @@ def test_closed_rods_fourier(group):
 
 
 @SLOW
-@pytest.mark.xfail(strict=True, reason="lie_verlet_loop composes the free-flow pieces into one op_move per step; "
-                   "collocation strains need each piece's drift (op_free_flow)")
 def test_se3_rod_lie_verlet_in_the_generated_loop():
     _compare(rod_problem("dead", n=11), "lie-verlet")

@@ -242,13 +242,47 @@ def test_generated_module_name_follows_its_kernels(tmp_path, monkeypatch):
 def test_first_compile_is_announced_once(tmp_path, monkeypatch, capsys):
     monkeypatch.setenv("CARTAN_CACHE_DIR", str(tmp_path))
     module = codegen.generate("announce", [codegen.Fragment(source="def f(x):\n    return x\n")])
-    done = codegen.first_call(module, "f", "a probe")
-    module.f(1.0)
-    done()
+    with codegen.first_call(module, "f", "a probe"):
+        module.f(1.0)
     err = capsys.readouterr().err
     assert "compiling a probe" in err and "compiled a probe" in err
-    codegen.first_call(module, "f", "a probe")()
+    with codegen.first_call(module, "f", "a probe"):
+        module.f(2.0)
     assert capsys.readouterr().err == ""
+
+
+def test_a_failed_first_call_is_not_recorded_and_releases_its_lock(tmp_path, monkeypatch, capsys):
+    """An error inside the first call leaves no marker (the next call announces again) and
+    frees the lock (another ``first_call`` of the same function does not wait forever)."""
+    monkeypatch.setenv("CARTAN_CACHE_DIR", str(tmp_path))
+    module = codegen.generate("failing", [codegen.Fragment(source="def f(x):\n    return x\n")])
+    with pytest.raises(RuntimeError), codegen.first_call(module, "f", "a probe"):
+        raise RuntimeError("inside the first call")
+    assert not list(tmp_path.glob("generated/*.f.compiled"))
+    with codegen.first_call(module, "f", "a probe"):
+        module.f(1.0)
+    assert "compiled a probe" in capsys.readouterr().err
+    assert list(tmp_path.glob("generated/*.f.compiled"))
+
+
+def test_a_second_process_waits_for_the_first_compile(tmp_path):
+    """Two processes reaching the same first call: one compiles (and announces), the other
+    waits for it and announces nothing."""
+    import os
+    import subprocess
+
+    code = ("import sys, time\n"
+            "from cartan.compiled import codegen\n"
+            "m = codegen.generate('race', [codegen.Fragment(source='def f(x):\\n    return x + 1.0\\n')])\n"
+            "with codegen.first_call(m, 'f', 'the race'):\n"
+            "    time.sleep(float(sys.argv[1]))\n"
+            "    m.f(1.0)\n")
+    env = {**os.environ, "CARTAN_CACHE_DIR": str(tmp_path)}
+    procs = [subprocess.Popen([sys.executable, "-c", code, delay], env=env, stderr=subprocess.PIPE, text=True)
+             for delay in ("2.0", "0.0")]
+    errs = [p.communicate(timeout=300)[1] for p in procs]
+    assert all(p.returncode == 0 for p in procs), errs
+    assert sum("compiling the race" in e for e in errs) == 1, errs
 
 
 def _indefinite_problem(n=13):

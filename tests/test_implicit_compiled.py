@@ -1,8 +1,8 @@
 """``implicit-midpoint`` with its compiled stage residual against the numpy reference.
 
 ``ImplicitMidpoint._residual`` (``Scheme.drift``, ``Scheme.force`` and batched group
-operations) is the reference; ``cartan.integrators._implicit_compiled`` evaluates the same
-residual in one numba call when the scheme has the compiled plan of its step loops.  The
+operations) is the reference; the stage of ``cartan.integrators.newton`` evaluates the same
+residual in one numba call over the scheme's compiled operator set.  The
 pieces of the residual must agree to 1e-12 relative (round-off of the compiled kernels, which
 differ from the numpy ones in summation order and closed forms); whole steps agree to the
 Newton tolerance (both paths stop within it of the same stage solution); the reference path
@@ -19,8 +19,8 @@ from toys import QuadraticMedium, rel_error, rod_problem
 import cartan
 from cartan import _backend
 from cartan.grid import Grid
-from cartan.integrators._implicit_compiled import LUSolve, stage_residual
 from cartan.integrators.implicit import ImplicitMidpoint
+from cartan.integrators.implicit import _stage as stage_residual
 from cartan.problem import Clamped, Damping, InitialState, Problem, UniformForce
 from cartan.schemes.collocation import Collocation
 from cartan.schemes.lattice import Lattice
@@ -223,7 +223,7 @@ def test_the_compiled_path_does_not_call_the_reference(monkeypatch):
 
 
 def test_without_a_compiled_plan_the_reference_runs():
-    """A spatial (dead) uniform force is not among the loads of the compiled plans."""
+    """A spatial (dead) uniform force is not among the loads of the compiled operator sets."""
     base = rod_problem("dead")
     problem = Problem(base.medium, base.grid, base.initial, {"start": Clamped()},
                       [UniformForce([0.0, -1.0, 0.0, 0.0, 0.0, 0.0], frame="spatial")])
@@ -263,13 +263,16 @@ def test_lu_solve_matches_superlu():
     import scipy.sparse as sp
     import scipy.sparse.linalg as spla
 
+    from cartan.integrators.newton import LUSolve
+
     rng = np.random.default_rng(2)
     n = 300
     A = sp.random(n, n, density=0.02, random_state=rng) + sp.diags(5.0 + rng.random(n))
     A = A.tocsc()
     lu = spla.splu(A)
     b = rng.standard_normal(n)
-    x = LUSolve(lu).solve(b)
+    kernel = stage_residual(CASES["lattice-SO2"][0]())
+    x = LUSolve(lu, kernel.module.im_lu_solve).solve(b)
     # the same factors, substituted in another order: round-off of a well-conditioned system
     assert rel_error(x, lu.solve(b)) <= 1e-13
     assert np.abs(A @ x - b).max() <= 1e-12 * np.abs(b).max()

@@ -3,9 +3,9 @@
 The Python driver — ``ImplicitMidpoint.step``, one step per call, Newton's iteration in
 Python around the compiled residual, norms and substitutions — is the reference here:
 ``compiled_advance`` runs the same operations on the same compiled pieces in one numba loop
-(``cartan.integrators._implicit_compiled.newton_steps``), so the iterates, the counters and
+(``cartan.integrators.newton.implicit_loop`` over the scheme's operator set), so the iterates, the counters and
 the states must be the same bit for bit.  The only sums done differently are the midpoint
-powers of the loads (``Scheme.powers`` in numpy against ``midpoint_powers``): the dissipated
+powers of the loads (``Scheme.powers`` in numpy against the operator set's ``op_powers``): the dissipated
 energy and the external work agree to round-off, required ≤ 1e-12 relative.  Against the numpy
 reference (``compiled_diagnostics`` cleared) the steps agree to the Newton tolerance, as
 ``tests/test_implicit_compiled.py`` requires of single steps.

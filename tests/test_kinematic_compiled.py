@@ -1,4 +1,4 @@
-"""The compiled loop of the ``kinematic`` integrator (``cartan.schemes._kinematic_compiled``).
+"""The compiled loop of the ``kinematic`` integrator (the generated RKMK loop with a numba velocity).
 
 With a numba-compiled velocity ``f(t, u, X)`` the lattice and collocation schemes run the
 prescribed-velocity RKMK steps in one compiled loop; it must agree with the Python reference
@@ -117,7 +117,7 @@ def test_rigid_motion_is_exact(scheme_type):
     scheme = scheme_type(prob, track_frames=True)
     state = scheme.initial_state()
     X0 = np.asarray(scheme.strains(state))[:, 0].copy()
-    assert scheme.compiled_advance(Kinematic(velocity=rigid, order=4), state, 0.02, 50)
+    assert toys.advance_compiled(scheme, Kinematic(velocity=rigid, order=4), state, 0.02, 50)
     G = scheme.group
     assert np.max(np.abs(scheme.frames(state) - G.compose(prob.initial.Phi, G.exp(1.0 * XI)))) < 1e-12
     assert np.max(np.abs(np.asarray(scheme.strains(state))[:, 0] - X0 @ G.Ad(G.exp(-XI)).T)) < 1e-12
@@ -128,7 +128,7 @@ def test_python_velocity_declines():
     state = scheme.initial_state()
     before = state.copy()
     integ = Kinematic(velocity=wave.py_func)
-    assert not scheme.compiled_advance(integ, state, 0.01, 3)
+    assert not toys.advance_compiled(scheme, integ, state, 0.01, 3)
     assert all(np.array_equal(state.arrays[k], before.arrays[k]) for k in before.arrays)
     assert integ.nstep == 0
 
@@ -140,7 +140,7 @@ def test_stops_after_the_first_non_finite_step(scheme_type):
     scheme = scheme_type(rod_problem("dead", n=16), track_frames=True)
     state = scheme.initial_state()
     state.scalars["nstep"] = 0
-    assert scheme.compiled_advance(Kinematic(velocity=blows_up, order=4), state, 0.01, 10)
+    assert toys.advance_compiled(scheme, Kinematic(velocity=blows_up, order=4), state, 0.01, 10)
     assert state.scalars["nstep"] == 4
     frames = scheme.frames(state)
     assert not np.all(np.isfinite(frames))
@@ -149,7 +149,7 @@ def test_stops_after_the_first_non_finite_step(scheme_type):
 def test_wrong_shape_is_an_error():
     scheme = Lattice(rod_problem("dead"), track_frames=True)
     with pytest.raises(ValueError, match=r"must return N of shape"):
-        scheme.compiled_advance(Kinematic(velocity=wrong_shape), scheme.initial_state(), 0.01, 2)
+        toys.advance_compiled(scheme, Kinematic(velocity=wrong_shape), scheme.initial_state(), 0.01, 2)
 
 
 def test_simulate_compiled_agrees_with_reference():

@@ -37,12 +37,7 @@ LEGACY = (
     "cartan/schemes/_lattice_compiled_kernels.py",
     "cartan/schemes/_lattice_compiled_plan.py",
     "cartan/schemes/_lattice_compiled_soa.py",
-    "cartan/schemes/_collocation_compiled.py",
-    "cartan/schemes/_collocation_compiled_nd.py",
-    "cartan/schemes/_kinematic_compiled.py",
     "cartan/schemes/_lattice_diagnostics.py",
-    "cartan/schemes/_collocation_diagnostics.py",
-    "cartan/integrators/_implicit_compiled.py",
 )
 
 def module_name(path: pathlib.Path) -> str:

@@ -19,6 +19,7 @@ import netCDF4
 import numba
 import numpy as np
 import pytest
+from toys import advance_compiled
 
 import cartan
 from cartan import io
@@ -310,8 +311,9 @@ BLOCK_INTEGRATORS = {
 
 
 def _advance_in_blocks(scheme, make, dt: float, blocks, saved: bool):
-    """``sum(blocks)`` compiled steps (the integrator's own blocks, else the scheme's loops) in
-    calls of ``blocks`` steps, or None when the compiled path declines; with ``saved``, the
+    """``sum(blocks)`` compiled steps (the integrator's own blocks, else the scheme's hand-written
+    loops, else the generated loop) in calls of ``blocks`` steps, or None when the compiled
+    path declines; with ``saved``, the
     integrator's velocity is asked for before every call, as a saved frame asks for it."""
     state = scheme.initial_state()
     state.scalars.setdefault("nstep", 0)
@@ -320,14 +322,14 @@ def _advance_in_blocks(scheme, make, dt: float, blocks, saved: bool):
     for size in blocks:
         if saved:
             integ.velocity(scheme, state)
-        ran = own(scheme, state, dt, size) if own is not None else scheme.compiled_advance(integ, state, dt, size)
+        ran = own(scheme, state, dt, size) if own is not None else advance_compiled(scheme, integ, state, dt, size)
         if not ran:
             return None
     return state
 
 
-#: (integrator, problem) pairs; ``kinematic`` on the rod only (its loop, compiled per process
-#: for each velocity function, scheme and grid dimension, costs seconds per combination)
+#: (integrator, problem) pairs; ``kinematic`` on the rod only (its generated loop, one module per
+#: velocity function, scheme and grid dimension, compiles in seconds per combination)
 BLOCK_CASES = [(key, problem) for problem in PROBLEMS for key in BLOCK_INTEGRATORS
                if key != "kinematic" or problem == "rod"]
 

@@ -191,21 +191,51 @@ def generate(kind: str, fragments: Iterable[Fragment]) -> ModuleType:
     return module
 
 
-def first_call(module: ModuleType, function: str, what: str) -> Callable[[], None]:
-    """Announce on stderr that ``what`` (``module.function``) compiles, the first time only.
+class first_call:  # noqa: N801 - used as a function: ``with first_call(...):``
+    """Around the first call of ``module.function``: announce on stderr that ``what`` compiles,
+    and compile it in one process at a time.
 
-    Returns a function to call once the compiled code has run, which records that the
-    machine code is now in the cache and reports the compile time.
+    A context manager.  The first time ``function`` of a generated module runs on a machine it
+    is compiled and its machine code written to the cache; ``with first_call(...)`` around that
+    call says so on stderr (what, and that it happens once) and reports the compile time.
+    Processes that reach the same first call meanwhile (parallel runs, test workers) wait on a
+    lock file beside the module and then load the machine code from the cache instead of
+    compiling it again.  Later calls, and calls in later processes, do nothing.
     """
-    marker: Path = module.__cartan_marker__.with_suffix(f".{function}.compiled")
-    if marker.exists():
-        return lambda: None
-    print(f"cartan: compiling {what} (once; later runs load it from {marker.parent})", file=sys.stderr,
-          flush=True)
-    t0 = time.perf_counter()
 
-    def done() -> None:
-        marker.touch()
-        print(f"cartan: compiled {what} in {time.perf_counter() - t0:.1f} s", file=sys.stderr, flush=True)
+    def __init__(self, module: ModuleType, function: str, what: str):
+        self.marker: Path = module.__cartan_marker__.with_suffix(f".{function}.compiled")
+        self.what = what
+        self._lock: Any = None
+        self._t0 = 0.0
 
-    return done
+    def __enter__(self) -> first_call:
+        if self.marker.exists():
+            return self
+        try:
+            import fcntl
+        except ImportError:  # no advisory locks on this platform: each process compiles
+            fcntl = None
+        if fcntl is not None:
+            self._lock = open(self.marker.with_suffix(".lock"), "a")  # noqa: SIM115 - held until __exit__
+            fcntl.flock(self._lock, fcntl.LOCK_EX)
+            if self.marker.exists():  # compiled by another process while this one waited
+                self._release()
+                return self
+        print(f"cartan: compiling {self.what} (once; later runs load it from {self.marker.parent})",
+              file=sys.stderr, flush=True)
+        self._t0 = time.perf_counter()
+        return self
+
+    def __exit__(self, kind: Any, value: Any, tb: Any) -> None:
+        if self._t0 and kind is None:
+            self.marker.touch()
+            print(f"cartan: compiled {self.what} in {time.perf_counter() - self._t0:.1f} s", file=sys.stderr,
+                  flush=True)
+        self._t0 = 0.0
+        self._release()
+
+    def _release(self) -> None:
+        if self._lock is not None:
+            self._lock.close()  # (closing the file releases the lock)
+            self._lock = None

@@ -112,14 +112,13 @@ def compiled_stiffness_probe(scheme, state, eps: float) -> Callable[[np.ndarray]
     r = int(np.prod(shape)) // n
     Wp, Wm = np.empty((n, r)), np.empty((n, r))
     eps, t = float(eps), float(state.t)
-    announce = [first_call(module, "diag_stiffness_probe", f"the stiffness probe for {ops.label}")]
+    what = f"the stiffness probe for {ops.label}"
 
     def probe(v: np.ndarray) -> np.ndarray:
         V = np.ascontiguousarray(v, dtype=float).reshape(n, r)
         out = np.empty((n, r))
-        module.diag_stiffness_probe(data, C0, Cs, V, eps, t, Wp, Wm, out, work)
-        if announce:
-            announce.pop()()
+        with first_call(module, "diag_stiffness_probe", what):
+            module.diag_stiffness_probe(data, C0, Cs, V, eps, t, Wp, Wm, out, work)
         return out.reshape(shape)
 
     return probe
@@ -196,8 +195,7 @@ def guard_energies(scheme, state) -> tuple[float, float] | None:
     if "work" not in held:
         held["work"] = module.op_work(ops.data)
     S = np.ascontiguousarray(state.S, dtype=float).reshape(ops.nodes, -1)
-    announce = first_call(module, "op_potential", f"the energies for {ops.label}")
-    K = float(module.op_kinetic(ops.data, S))
-    V = float(module.op_potential(ops.data, ops.pack(state), held["work"]))
-    announce()
+    with first_call(module, "op_potential", f"the energies for {ops.label}"):
+        K = float(module.op_kinetic(ops.data, S))
+        V = float(module.op_potential(ops.data, ops.pack(state), held["work"]))
     return K, V

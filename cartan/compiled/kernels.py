@@ -49,6 +49,50 @@ def g_dexp_inv_T_pair(xi, v, out, out_neg):
             s += A[j, k] * v[j]
         out_neg[k] = s
 """
+#: ``out[a] = Ad_{g⁻¹} X[a]`` for every row of ``X`` ``(k, r)`` (the strains of a node moved by g)
+FUSED_OPS["Ad_inv_apply"] = """
+def g_Ad_inv_apply(g, X, out, work):
+    gi, A = work[0], work[1]
+    g_inverse(g, gi)
+    g_Ad(gi, A)
+    for a in range(X.shape[0]):
+        for k in range(R_):
+            s = 0.0
+            for j in range(R_):
+                s += A[k, j] * X[a, j]
+            out[a, k] = s
+"""
+#: ``out[a] = 𝓔(τ, ξ) V[a]`` for every row of ``V`` ``(k, r)``
+FUSED_OPS["E_apply"] = """
+def g_E_apply(tau, xi, V, out, work):
+    Em = work[2]
+    g_E(tau, xi, Em)
+    for a in range(V.shape[0]):
+        for k in range(R_):
+            s = 0.0
+            for j in range(R_):
+                s += Em[k, j] * V[a, j]
+            out[a, k] = s
+"""
+
+#: ``out = dexp⁻¹(ξ) v`` (the RKMK stage increments σ̇ = dexp⁻¹_{−σ} N)
+FUSED_OPS["dexp_inv_apply"] = """
+def g_dexp_inv_apply(xi, v, out, work):
+    A = work[1]
+    g_dexp_inv(xi, A)
+    for k in range(R_):
+        s = 0.0
+        for j in range(R_):
+            s += A[k, j] * v[j]
+        out[k] = s
+"""
+
+#: the scratch of the default fused operations, allocated once by their callers and passed as
+#: ``work`` (closed forms ignore it): ``(m × m, r × r, r × r)``
+_WORK = """
+def g_work():
+    return (np.empty((M_, M_)), np.empty((R_, R_)), np.empty((R_, R_)))
+"""
 
 
 #: 𝓔 and dexp⁻¹ for a group without closed forms: the Van Loan block exponential
@@ -71,9 +115,18 @@ def group_fragment(module: str, prefix: str, ops=GROUP_OPS) -> Fragment | None:
     """``g_<op>`` bound to ``<module>.<prefix>_<op>_point``; None when one of ``ops`` is
     missing, except ``E`` and ``dexp_inv``, which come from the Van Loan block exponential
     (:mod:`cartan.groups._generic_kernels`) when the module has neither.  The fused operations
-    of :data:`FUSED_OPS` (``g_Ad_T(g, v, out)`` = Ad_gᵀv, ``g_dexp_inv_T(xi, v, out)`` =
-    dexp⁻¹(ξ)ᵀv, ``g_dexp_inv_T_pair(xi, v, out, out_neg)`` = dexp⁻¹(ξ)ᵀv and dexp⁻¹(−ξ)ᵀv)
-    are bound the same way when the module has them, and built from the matrices otherwise."""
+    of :data:`FUSED_OPS` are bound the same way when the module has them, and built from the
+    matrices otherwise:
+
+    ``g_Ad_T(g, v, out)``                      Ad_gᵀv
+    ``g_dexp_inv_T(xi, v, out)``               dexp⁻¹(ξ)ᵀv
+    ``g_dexp_inv_T_pair(xi, v, out, out_neg)`` dexp⁻¹(ξ)ᵀv and dexp⁻¹(−ξ)ᵀv
+    ``g_Ad_inv_apply(g, X, out, work)``        ``out[a] = Ad_{g⁻¹} X[a]``, X and out ``(k, r)``
+    ``g_E_apply(tau, xi, V, out, work)``       ``out[a] = 𝓔(τ, ξ) V[a]``, V and out ``(k, r)``
+    ``g_dexp_inv_apply(xi, v, out, work)``     ``out = dexp⁻¹(ξ) v``
+
+    ``work`` is the scratch ``g_work()`` returns (allocated once by the caller; closed forms do
+    not touch it); ``out`` must not alias the inputs."""
     mod = importlib.import_module(module)
     imports = {}
     vanloan = not any(hasattr(mod, f"{prefix}_{op}_point") for op in ("E", "dexp_inv"))
@@ -93,7 +146,8 @@ def group_fragment(module: str, prefix: str, ops=GROUP_OPS) -> Fragment | None:
 
 def with_fused(frag: Fragment, module: str | None = None, prefix: str = "") -> Fragment:
     """Add the fused operations to a group's fragment: those it binds already, else the module's
-    closed forms where it has them, else the defaults of :data:`FUSED_OPS`."""
+    closed forms where it has them, else the defaults of :data:`FUSED_OPS`; and ``g_work()``,
+    the defaults' scratch."""
     mod = importlib.import_module(module) if module else None
     sources = [frag.source] if frag.source.strip() else []
     for op, default in FUSED_OPS.items():
@@ -104,6 +158,8 @@ def with_fused(frag: Fragment, module: str | None = None, prefix: str = "") -> F
             frag.imports[f"g_{op}"] = (module, name)
         else:
             sources.append(default)
+    if "g_work" not in frag.imports:
+        sources.append(_WORK)
     frag.source = "\n\n".join(s.strip("\n") + "\n" for s in sources)
     return frag
 

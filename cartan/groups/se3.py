@@ -60,7 +60,9 @@ from .so3 import (
 
 __all__ = [
     "SE3",
+    "se3_Ad_inv_apply_point",
     "se3_Ad_point",
+    "se3_E_apply_point",
     "se3_E_point",
     "se3_act_point",
     "se3_ad_point",
@@ -68,6 +70,7 @@ __all__ = [
     "se3_compose_point",
     "se3_dexp_coeffs",
     "se3_dexp_inv_T_pair_point",
+    "se3_dexp_inv_apply_point",
     "se3_dexp_inv_point",
     "se3_dexp_point",
     "se3_exp_coeffs",
@@ -397,6 +400,51 @@ def se3_dexp_inv_T_pair_point(xi, q, out, out_neg):
     c0, c1, c2 = cross3(q[3], q[4], q[5], w0, w1, w2)
     out_neg[0], out_neg[1], out_neg[2] = out[0] + a0, out[1] + a1, out[2] + a2
     out_neg[3], out_neg[4], out_neg[5] = out[3] + (b0 + c0), out[4] + (b1 + c1), out[5] + (b2 + c2)
+
+
+@njit(cache=True, inline='always')
+def se3_dexp_inv_apply_point(xi, v, out, work):
+    """``out`` (6,) ← ``dexp(ξ)⁻¹ v = (J⁻¹(v_t − Q b); b)``, ``b = J⁻¹ v_r``, without the matrix
+    (:func:`se3_dexp_inv_point`: ``[[J⁻¹, −J⁻¹QJ⁻¹], [0, J⁻¹]]``); ``work`` is unused."""
+    r0, r1, r2, w0, w1, w2 = xi[0], xi[1], xi[2], xi[3], xi[4], xi[5]
+    t2 = w0 * w0 + w1 * w1 + w2 * w2
+    cinv = so3_dexp_inv_coeff(t2)
+    _, c, d, e = se3_dexp_coeffs(t2)
+    b0, b1, b2 = _V_apply(w0, w1, w2, -0.5, cinv, v[3], v[4], v[5])
+    q = _Q_apply(r0, r1, r2, w0, w1, w2, c, d, e, b0, b1, b2)
+    a0, a1, a2 = _V_apply(w0, w1, w2, -0.5, cinv, v[0] - q[0], v[1] - q[1], v[2] - q[2])
+    out[0], out[1], out[2], out[3], out[4], out[5] = a0, a1, a2, b0, b1, b2
+
+
+@njit(cache=True, inline='always')
+def se3_Ad_inv_apply_point(g, X, out, work):
+    """``out[a]`` (6,) ← ``Ad_{g⁻¹} X[a] = (Aᵀ(x_t − a × x_r); Aᵀx_r)`` for every row
+    ``X[a] = (x_t; x_r)`` of ``X`` ``(k, 6)`` and ``g = (a; A)`` (4, 4), without the matrix
+    (the inverse of ``Ad_g = [[A, âA], [0, A]]``); ``work`` is unused."""
+    for r in range(X.shape[0]):
+        y0, y1, y2 = X[r, 3], X[r, 4], X[r, 5]
+        c0, c1, c2 = cross3(g[1, 0], g[2, 0], g[3, 0], y0, y1, y2)
+        u0, u1, u2 = X[r, 0] - c0, X[r, 1] - c1, X[r, 2] - c2
+        for j in range(3):
+            out[r, j] = g[1, j + 1] * u0 + g[2, j + 1] * u1 + g[3, j + 1] * u2
+            out[r, j + 3] = g[1, j + 1] * y0 + g[2, j + 1] * y1 + g[3, j + 1] * y2
+
+
+@njit(cache=True, inline='always')
+def se3_E_apply_point(dt, xi, V, out, work):
+    """``out[a]`` (6,) ← ``𝓔(Δt, ξ) V[a] = Δt (J v_t + Q v_r; J v_r)`` for every row
+    ``V[a] = (v_t; v_r)`` of ``V`` ``(k, 6)``, ``J = J(w)`` and ``Q = Q(r, w)`` at
+    ``(r; w) = Δt ξ`` (:func:`se3_E_point`), by cross products; ``work`` is unused."""
+    r0, r1, r2 = dt * xi[0], dt * xi[1], dt * xi[2]
+    w0, w1, w2 = dt * xi[3], dt * xi[4], dt * xi[5]
+    b, c, d, e = se3_dexp_coeffs(w0 * w0 + w1 * w1 + w2 * w2)
+    for a in range(V.shape[0]):
+        p0, p1, p2 = V[a, 3], V[a, 4], V[a, 5]
+        j0, j1, j2 = _V_apply(w0, w1, w2, b, c, V[a, 0], V[a, 1], V[a, 2])
+        q0, q1, q2 = _Q_apply(r0, r1, r2, w0, w1, w2, c, d, e, p0, p1, p2)
+        k0, k1, k2 = _V_apply(w0, w1, w2, b, c, p0, p1, p2)
+        out[a, 0], out[a, 1], out[a, 2] = dt * (j0 + q0), dt * (j1 + q1), dt * (j2 + q2)
+        out[a, 3], out[a, 4], out[a, 5] = dt * k0, dt * k1, dt * k2
 
 
 # ---------------------------------------------------------------------- numba batch loops

@@ -40,6 +40,7 @@ from .base import SymmetryGroup
 
 __all__ = [
     "SO3",
+    "so3_Ad_inv_apply_point",
     "so3_Ad_point",
     "so3_act_point",
     "so3_ad_point",
@@ -50,6 +51,8 @@ __all__ = [
     "so3_dexp_inv_T_pair_point",
     "so3_dexp_inv_point",
     "so3_dexp_point",
+    "so3_E_apply_point",
+    "so3_dexp_inv_apply_point",
     "so3_E_point",
     "so3_exp_coeffs",
     "so3_exp_point",
@@ -300,6 +303,42 @@ def so3_dexp_inv_T_pair_point(w, v, out, out_neg):
     e0, e1, e2 = v[0] + c * z0, v[1] + c * z1, v[2] + c * z2
     out[0], out[1], out[2] = e0 + 0.5 * u0, e1 + 0.5 * u1, e2 + 0.5 * u2
     out_neg[0], out_neg[1], out_neg[2] = e0 - 0.5 * u0, e1 - 0.5 * u1, e2 - 0.5 * u2
+
+
+@njit(cache=True, inline='always')
+def so3_dexp_inv_apply_point(w, v, out, work):
+    """``out`` (3,) ← ``J⁻¹(w) v = v − ½ w × v + c w × (w × v)`` (:func:`so3_dexp_inv_point`)
+    without the matrix; ``work`` is unused (the scratch of the generic form)."""
+    c = so3_dexp_inv_coeff(w[0] * w[0] + w[1] * w[1] + w[2] * w[2])
+    u0, u1, u2 = cross3(w[0], w[1], w[2], v[0], v[1], v[2])
+    z0, z1, z2 = cross3(w[0], w[1], w[2], u0, u1, u2)
+    out[0], out[1], out[2] = v[0] - 0.5 * u0 + c * z0, v[1] - 0.5 * u1 + c * z1, v[2] - 0.5 * u2 + c * z2
+
+
+@njit(cache=True, inline='always')
+def so3_Ad_inv_apply_point(R, X, out, work):
+    """``out[a]`` (3,) ← ``Ad_{R⁻¹} X[a] = Rᵀ X[a]`` for every row of ``X`` ``(k, 3)``; ``work``
+    is unused (the scratch of the generic form)."""
+    for a in range(X.shape[0]):
+        x0, x1, x2 = X[a, 0], X[a, 1], X[a, 2]
+        for j in range(3):
+            out[a, j] = R[0, j] * x0 + R[1, j] * x1 + R[2, j] * x2
+
+
+@njit(cache=True, inline='always')
+def so3_E_apply_point(dt, w, V, out, work):
+    """``out[a]`` (3,) ← ``𝓔(Δt, w) V[a] = Δt (v + B u × v + C u × (u × v))``, ``u = Δt w``, for
+    every row ``v`` of ``V`` ``(k, 3)``, without the matrix (:func:`so3_E_point`); ``work`` is
+    unused."""
+    x, y, z = dt * w[0], dt * w[1], dt * w[2]
+    b, c = so3_dexp_coeffs(x * x + y * y + z * z)
+    for a in range(V.shape[0]):
+        v0, v1, v2 = V[a, 0], V[a, 1], V[a, 2]
+        u0, u1, u2 = cross3(x, y, z, v0, v1, v2)
+        z0, z1, z2 = cross3(x, y, z, u0, u1, u2)
+        out[a, 0] = dt * (v0 + b * u0 + c * z0)
+        out[a, 1] = dt * (v1 + b * u1 + c * z1)
+        out[a, 2] = dt * (v2 + b * u2 + c * z2)
 
 
 @njit(cache=True, inline='always')

@@ -62,6 +62,16 @@ class Integrator(abc.ABC):
         self.nforce = 0
         self.wall_time = 0.0
 
+    def counters(self) -> dict[str, int | float]:
+        """The counters ``{"nstep", "nforce", "wall_time"}`` (what a checkpoint records)."""
+        return {"nstep": int(self.nstep), "nforce": int(self.nforce), "wall_time": float(self.wall_time)}
+
+    def set_counters(self, counters: dict[str, Any]) -> None:
+        """Continue counting from ``counters`` (as :meth:`counters` returned them: a restart)."""
+        self.nstep = int(counters["nstep"])
+        self.nforce = int(counters["nforce"])
+        self.wall_time = float(counters["wall_time"])
+
     def options(self) -> dict[str, Any]:
         return {}
 
@@ -86,11 +96,11 @@ class Integrator(abc.ABC):
         p0 = self._powers(scheme, state)
         self._step(scheme, state, dt)
         state.t = state.t + dt
-        p1 = self._powers(scheme, state)
+        state.scalars["nstep"] = state.scalars.get("nstep", 0) + 1  # (before p1: a velocity cached
+        p1 = self._powers(scheme, state)  # for the powers at the end is the next step's start)
         for key in ("dissipated", "external"):
             name = "dissipated_energy" if key == "dissipated" else "external_work"
             state.scalars[name] = state.scalars.get(name, 0.0) + 0.5 * dt * (p0[key] + p1[key])
-        state.scalars["nstep"] = state.scalars.get("nstep", 0) + 1
         self.nstep += 1
         self.wall_time += time.perf_counter() - t0
 
@@ -157,12 +167,11 @@ class Integrator(abc.ABC):
         config = ops.pack(state)
         S = np.ascontiguousarray(state.S, dtype=float).reshape(ops.nodes, -1).copy()
         check = 1 if self.uses_momentum else 2
-        announce = first_call(module, name, f"the {self.name} loop for {ops.label}")
-        done, nforce, t, diss, ext = getattr(module, name)(
-            ops.data, config, S, *args, float(state.t), float(dt), int(nsteps),
-            float(state.scalars.get("dissipated_energy", 0.0)), float(state.scalars.get("external_work", 0.0)),
-            check, float(kinetic_limit))
-        announce()
+        with first_call(module, name, f"the {self.name} loop for {ops.label}"):
+            done, nforce, t, diss, ext = getattr(module, name)(
+                ops.data, config, S, *args, float(state.t), float(dt), int(nsteps),
+                float(state.scalars.get("dissipated_energy", 0.0)), float(state.scalars.get("external_work", 0.0)),
+                check, float(kinetic_limit))
         ops.unpack(state, config)
         if self.uses_momentum:  # (the others leave S as it is; Overdamped zeroes it in compiled_loop_done)
             state.S = S.reshape(state.S.shape)

@@ -220,12 +220,13 @@ _TABLEAUX = TABLEAUX
 
 
 def _rkmk(integ: Integrator, scheme: Scheme, state: State, dt: float, order: int,
-          velocity: Callable[[State, float], np.ndarray], dynamics: bool) -> None:
+          velocity: Callable[[State, float], np.ndarray], dynamics: bool, first: np.ndarray | None = None) -> None:
     """One explicit Runge–Kutta–Munthe-Kaas step (Munthe-Kaas 1999).
 
     Φ(t+s) = Φ(t) exp(σ(s)) with ``σ̇ = dexp⁻¹_{−σ} N`` (right-trivialised: our ``dexp`` is
     the left Jacobian, and Φ̇ = ΦN), S by the same Runge–Kutta tableau on
-    ``Ṡ = ad_NᵀS + W`` when ``dynamics`` is True.
+    ``Ṡ = ad_NᵀS + W`` when ``dynamics`` is True; ``first``, when given, is the velocity of
+    the first stage (the state's own, already known).
     """
     g = scheme.group
     A, b, c = _TABLEAUX[order]
@@ -240,7 +241,7 @@ def _rkmk(integ: Integrator, scheme: Scheme, state: State, dt: float, order: int
         if np.any(sigma):
             scheme.drift(stage, 1.0, sigma, exact=True)
         t_i = state.t + c[i] * dt
-        N = velocity(stage, t_i)
+        N = first if (i == 0 and first is not None) else velocity(stage, t_i)
         k_sig.append(np.einsum("...ij,...j->...i", g.dexp_inv(-sigma), N))
         if dynamics:
             W = integ.force(scheme, stage, N, t_i)
@@ -264,7 +265,8 @@ class RKMK4(Integrator):
 
     def compiled_loop(self, scheme: Scheme, state: State, dt: float):
         A, b, c = _TABLEAUX[4]
-        return "rkmk_loop", (A, b, c, True, 0, np.zeros(scheme.group.dim))
+        r = scheme.group.dim
+        return "rkmk_loop", (A, b, c, True, 0, np.zeros(r), np.zeros((1, r)), np.zeros(1, dtype=np.int64))
 
 
 class Overdamped(Integrator):
@@ -305,7 +307,7 @@ class Overdamped(Integrator):
         if self._cache is not None and self._cache[0] == key:
             return self._cache[1]
         N = self.drift_velocity(scheme, state, state.t)
-        self._cache = (key, N)
+        self._cache = (key, N, False)  # (False: computed by the reference path)
         return N
 
     def _step(self, scheme: Scheme, state: State, dt: float) -> None:
@@ -313,7 +315,8 @@ class Overdamped(Integrator):
             N = self.velocity(scheme, state)
             scheme.drift(state, dt, N, exact=True)
         else:
-            _rkmk(self, scheme, state, dt, 2, lambda st, t: self.drift_velocity(scheme, st, t), dynamics=False)
+            _rkmk(self, scheme, state, dt, 2, lambda st, t: self.drift_velocity(scheme, st, t), dynamics=False,
+                  first=self.velocity(scheme, state))
         state.S = np.zeros_like(state.S)
 
     def compiled_loop(self, scheme: Scheme, state: State, dt: float):
@@ -322,10 +325,21 @@ class Overdamped(Integrator):
             return None  # the Python step raises the error that names the components
         A, b, c = _TABLEAUX[self.order]
         gam_inv = np.where(scheme.live, 1.0 / np.where(gam > 0, gam, 1.0), 0.0)
-        return "rkmk_loop", (A, b, c, False, 1, gam_inv)
+        key = (id(state), state.t, state.scalars.get("nstep", 0))
+        # only a velocity the compiled kernels computed (bit for bit what the loop would compute
+        # from the state): then the steps do not depend on saves, and a restart continues exactly
+        have = np.array([self._cache is not None and self._cache[0] == key and self._cache[2]], dtype=np.int64)
+        N0 = (np.array(self._cache[1], dtype=float) if have[0] else np.zeros(state.S.shape)).reshape(-1, len(gam))
+        return "rkmk_loop", (A, b, c, False, 1, gam_inv, N0, have)
 
     def compiled_loop_done(self, state: State, args: tuple) -> None:
-        state.S = np.zeros_like(state.S)  # as _step leaves it
+        """S = 0 as :meth:`_step` leaves it; the velocity of the final state, when the loop
+        computed it (for the powers), cached for the next step as :meth:`velocity` caches it."""
+        state.S = np.zeros_like(state.S)
+        N, have = args[-2], args[-1]
+        if have[0]:
+            self._cache = ((id(state), state.t, state.scalars.get("nstep", 0)), N.reshape(state.S.shape).copy(),
+                           True)
 
 
 class Kinematic(Integrator):
@@ -377,7 +391,8 @@ class Kinematic(Integrator):
         if _velocity_fragment(self.velocity_field) is None:
             return None
         A, b, c = _TABLEAUX[self.order]
-        return "rkmk_loop", (A, b, c, False, 2, np.zeros(scheme.group.dim))
+        r = scheme.group.dim
+        return "rkmk_loop", (A, b, c, False, 2, np.zeros(r), np.zeros((1, r)), np.zeros(1, dtype=np.int64))
 
     def compiled_module(self, ops: Any) -> Any:
         """The generated module of ``ops``'s operators, every loop and this velocity (keyed by

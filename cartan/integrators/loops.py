@@ -214,11 +214,16 @@ def _stage_velocity(D, C, S, t, mode, gam_inv, N, W, K):
     return 1
 
 
-def rkmk_loop(D, C, S, A, b, c, dynamics, mode, gam_inv, t, dt, nsteps, diss, ext, check, limit):
+def rkmk_loop(D, C, S, A, b, c, dynamics, mode, gam_inv, N0, have, t, dt, nsteps, diss, ext, check, limit):
     """Explicit Runge–Kutta–Munthe-Kaas with the tableau ``(A, b, c)`` as data: ``rkmk4``
     (``dynamics``, N from S), ``overdamped`` (``mode = 1``: N = Γ⁻¹W(N = 0); order 1 is
     Lie–Euler, order 2 Heun) and ``kinematic`` (``mode = 2``: N = f(t, u, X) prescribed);
-    Φ(t + s) = Φ(t) exp(σ(s)), σ̇ = dexp⁻¹_{−σ}N."""
+    Φ(t + s) = Φ(t) exp(σ(s)), σ̇ = dexp⁻¹_{−σ}N.
+
+    Overdamped velocities cost a force each and are not recomputed where known: ``N0``
+    ``[n, r]`` is the velocity of the initial state when ``have[0]`` (the integrator's cache),
+    the velocity computed for the powers at the end of a step is the first stage's of the next,
+    and on return ``N0``/``have`` hold the final state's velocity when it was computed."""
     K = op_work(D)  # noqa: F821
     n = S.shape[0]
     s_count = b.shape[0]
@@ -228,11 +233,19 @@ def rkmk_loop(D, C, S, A, b, c, dynamics, mode, gam_inv, t, dt, nsteps, diss, ex
     Sst = S.copy()
     N = np.empty((n, R_))  # noqa: F821
     W = np.empty((n, R_))  # noqa: F821
-    J = np.empty((R_, R_))  # noqa: F821
+    wk = g_work()  # noqa: F821
     xi = np.empty(R_)  # noqa: F821
+    row = np.empty(R_)  # noqa: F821
     Cst = op_new_config(C)  # noqa: F821
     nforce = 0
-    nforce += _stage_velocity(D, C, S, t, mode, gam_inv, N, W, K)
+    known = mode == 1 and have[0] != 0  # N holds the velocity of (C, t)
+    if known:
+        N[:, :] = N0
+    elif mode != 1 or D.has_power:
+        nforce += _stage_velocity(D, C, S, t, mode, gam_inv, N, W, K)
+        known = mode == 1
+    else:
+        N[:, :] = 0.0
     p0d, p0e = op_powers(D, C, N, t, K)  # noqa: F821
     done = 0
     for _ in range(nsteps):
@@ -257,16 +270,13 @@ def rkmk_loop(D, C, S, A, b, c, dynamics, mode, gam_inv, t, dt, nsteps, diss, ex
             if any_sigma:
                 op_drift(D, Cst, 1.0, sigma, K)  # noqa: F821
             ti = t + c[st] * dt
-            nforce += _stage_velocity(D, Cst, Sst, ti, mode, gam_inv, N, W, K)
+            if not (st == 0 and known):
+                nforce += _stage_velocity(D, Cst, Sst, ti, mode, gam_inv, N, W, K)
             for i in range(n):
                 for k in range(R_):  # noqa: F821
                     xi[k] = -sigma[i, k]
-                g_dexp_inv(xi, J)  # noqa: F821
-                for k in range(R_):  # noqa: F821
-                    v = 0.0
-                    for j in range(R_):  # noqa: F821
-                        v += J[k, j] * N[i, j]
-                    ksig[st, i, k] = v
+                    row[k] = N[i, k]
+                g_dexp_inv_apply(xi, row, ksig[st, i], wk)  # noqa: F821
             if dynamics:
                 op_force(D, Cst, ti, N, W, K)  # noqa: F821
                 nforce += 1
@@ -287,12 +297,18 @@ def rkmk_loop(D, C, S, A, b, c, dynamics, mode, gam_inv, t, dt, nsteps, diss, ex
                     S[i, k] += v
             op_constrain(D, S)  # noqa: F821
         t = t + dt
+        known = False
         if mode == 0 or D.has_power:
             nforce += _stage_velocity(D, C, S, t, mode, gam_inv, N, W, K)
+            known = mode == 1
         done += 1
         p0d, p0e, diss, ext, blown = _book(D, C, S, N, t, dt, p0d, p0e, diss, ext, K, check, limit)
         if blown:
             break
+    if mode == 1:
+        have[0] = 1 if known else 0
+        if known:
+            N0[:, :] = N
     return done, nforce, t, diss, ext
 
 

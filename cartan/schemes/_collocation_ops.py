@@ -117,31 +117,31 @@ def _c_diff(D, a, i, F, out):
             out[k] += c * F[row, k]
 
 
-def _c_move_node(D, C, i, E, F, tau, xi, Ad, Em, Ei, dn, vec, tmp):
+def _c_move_node(D, C, i, E, F, tau, xi, dn, U, V, tmp, wk):
     """Node i moved by ``E = exp(τF_i)`` (paper §V): ``X_iα ← Ad_{E⁻¹} X_iα + 𝓔(τ, −F_i)(∂_αF)_i``
-    and ``Φ_i ← Φ_i E`` (the root frame only when the frames are not stepped)."""
+    and ``Φ_i ← Φ_i E`` (the root frame only when the frames are not stepped); ``dn``, ``U``,
+    ``V`` ``(d, r)`` scratch, ``tmp`` ``(m, m)``, ``wk`` the group's ``g_work()``."""
     X, Phi = C
-    g_inverse(E, Ei)  # noqa: F821
-    g_Ad(Ei, Ad)  # noqa: F821
     for k in range(R_):  # noqa: F821
         xi[k] = -F[i, k]
-    g_E(tau, xi, Em)  # noqa: F821
     for a in range(D_):  # noqa: F821
-        _c_diff(D, a, i, F, dn)
+        _c_diff(D, a, i, F, dn[a])
+    g_Ad_inv_apply(E, X[i], U, wk)  # noqa: F821
+    g_E_apply(tau, xi, dn, V, wk)  # noqa: F821
+    for a in range(D_):  # noqa: F821
         for k in range(R_):  # noqa: F821
-            s1 = 0.0
-            s2 = 0.0
-            for j in range(R_):  # noqa: F821
-                s1 += Ad[k, j] * X[i, a, j]
-                s2 += Em[k, j] * dn[j]
-            vec[k] = s1 + s2
-        for k in range(R_):  # noqa: F821
-            X[i, a, k] = vec[k]
+            X[i, a, k] = U[a, k] + V[a, k]
     if D.track or i == 0:
         g_compose(Phi[i], E, tmp)  # noqa: F821
         for p in range(M_):  # noqa: F821
             for q in range(M_):  # noqa: F821
                 Phi[i, p, q] = tmp[p, q]
+
+
+def _c_move_work():
+    """Scratch of :func:`_c_move_node`: ``(xi, dn, U, V, tmp, wk)``."""
+    return (np.empty(R_), np.empty((D_, R_)), np.empty((D_, R_)), np.empty((D_, R_)),  # noqa: F821
+            np.empty((M_, M_)), g_work())  # noqa: F821
 
 
 def op_force(D, C, t, N, W, K):
@@ -193,45 +193,36 @@ def op_force(D, C, t, N, W, K):
 
 
 def op_drift(D, C, tau, N, K):
-    xi = np.empty(R_)  # noqa: F821
-    dn = np.empty(R_)  # noqa: F821
-    vec = np.empty(R_)  # noqa: F821
-    Ad = np.empty((R_, R_))  # noqa: F821
-    Em = np.empty((R_, R_))  # noqa: F821
+    xi, dn, U, V, tmp, wk = _c_move_work()
+    row = np.empty(R_)  # noqa: F821
     E = np.empty((M_, M_))  # noqa: F821
-    Ei = np.empty((M_, M_))  # noqa: F821
-    tmp = np.empty((M_, M_))  # noqa: F821
     for i in range(N.shape[0]):
         for k in range(R_):  # noqa: F821
-            xi[k] = tau * N[i, k]
-        g_exp(xi, E)  # noqa: F821
-        _c_move_node(D, C, i, E, N, tau, xi, Ad, Em, Ei, dn, vec, tmp)
+            row[k] = tau * N[i, k]
+        g_exp(row, E)  # noqa: F821
+        _c_move_node(D, C, i, E, N, tau, xi, dn, U, V, tmp, wk)
 
 
 def op_move(D, C, Dn, K):
     """Move every node i by ``Dn[i]`` (see the module docstring)."""
     sig = K[1]
-    xi = np.empty(R_)  # noqa: F821
-    dn = np.empty(R_)  # noqa: F821
-    vec = np.empty(R_)  # noqa: F821
-    Ad = np.empty((R_, R_))  # noqa: F821
-    Em = np.empty((R_, R_))  # noqa: F821
-    Ei = np.empty((M_, M_))  # noqa: F821
-    tmp = np.empty((M_, M_))  # noqa: F821
+    xi, dn, U, V, tmp, wk = _c_move_work()
     for i in range(Dn.shape[0]):
         g_log(Dn[i], xi)  # noqa: F821
         for k in range(R_):  # noqa: F821
             sig[i, k] = xi[k]
     for i in range(Dn.shape[0]):
-        _c_move_node(D, C, i, Dn[i], sig, 1.0, xi, Ad, Em, Ei, dn, vec, tmp)
+        _c_move_node(D, C, i, Dn[i], sig, 1.0, xi, dn, U, V, tmp, wk)
 
 
 def op_free_flow(D, C, S, pieces, fracs, dt, Dn, K):
     """The free flow of ``lie-verlet`` as the reference takes it, piece by piece: for each
     piece p (``pieces`` ``[P, r, r]``, τ = ``fracs[p]``·Δt), ``N_p = P_p S`` (zero at clamped
-    nodes), ``S_i ← Ad*_{exp(τN_p,i)} S_i`` and the drift by N_p over τ; ``Dn`` is unused (the
-    signature of a loop that composes node motions).  Returns whether anything moved."""
+    nodes), ``S_i ← Ad*_{exp(τN_p,i)} S_i`` and the drift by N_p over τ, node by node with one
+    exponential (the drift reads N_p, never S); ``Dn`` is unused (the signature of a loop that
+    composes node motions).  Returns whether anything moved."""
     Np = K[1]
+    xi, dn, U, V, tmp, wk = _c_move_work()
     vec = np.empty(R_)  # noqa: F821
     row = np.empty(R_)  # noqa: F821
     E = np.empty((M_, M_))  # noqa: F821
@@ -260,7 +251,7 @@ def op_free_flow(D, C, S, pieces, fracs, dt, Dn, K):
             g_Ad_T(E, row, vec)  # noqa: F821
             for k in range(R_):  # noqa: F821
                 S[i, k] = vec[k]
-        op_drift(D, C, tau, Np, K)
+            _c_move_node(D, C, i, E, Np, tau, xi, dn, U, V, tmp, wk)
     return moved
 
 
@@ -354,9 +345,9 @@ def op_nodal_strains(D, C, X):
     X[...] = C[0]
 
 
-_OPERATORS = (op_work, op_velocity, op_constrain, _dead_to_body, _c_diff, _c_move_node, op_force, op_drift, op_move,
-              op_free_flow, op_drift_naive, op_powers, op_kinetic, op_potential, op_nodal_strains, op_finite_config,
-              op_copy_config, op_new_config)
+_OPERATORS = (op_work, op_velocity, op_constrain, _dead_to_body, _c_diff, _c_move_node, _c_move_work, op_force,
+              op_drift, op_move, op_free_flow, op_drift_naive, op_powers, op_kinetic, op_potential, op_nodal_strains,
+              op_finite_config, op_copy_config, op_new_config)
 
 
 # ---------------------------------------------------------------------------- building the set

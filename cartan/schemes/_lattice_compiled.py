@@ -59,8 +59,7 @@ Design
   step so that the caller can name it.
 
 The serial helpers ``_velocity``, ``_constrain``, ``_kick``, ``_powers``, ``_unstable``,
-``_end_load`` and ``_scratch`` (d = 1 layout) also serve the collocation loops
-(:mod:`cartan.schemes._collocation_compiled`).
+``_end_load`` and ``_scratch`` work on the d = 1 layout.
 """
 
 from __future__ import annotations
@@ -196,8 +195,8 @@ VEL_NONE = 0
 VEL_MOMENTUM = 1
 VEL_DRAG = 2
 
-# names kept importable from this module (the collocation loops and other callers use them;
-# the per-point kernels now live in ``_lattice_compiled_kernels``)
+# names kept importable from this module (other callers use them; the per-point kernels live
+# in ``_lattice_compiled_kernels``)
 _REEXPORTED = (I_AFFINE, I_H, I_TRACK, I_X0, g_exp, g_ad, g_compose, g_E, g_hat, g_inverse, g_log, _group_id,
                _same_methods, KIND_SE3_TRANSLATION, ATAN_SERIES, ATAN_SERIES5, ATAN_SERIES5_X2, ATAN_SERIES_X2,
                SERIES4_THETA2, _ad_T, _cinv, _exp3_coeffs, _jinv_T, _q_block, _q_coeffs, _rot_coeffs, _se3_dexp_inv_T,
@@ -1098,8 +1097,6 @@ def advance(scheme, plan: tuple, integrator, state, dt: float, nsteps: int, kine
     :meth:`cartan.schemes.lattice.Lattice.compiled_advance`); False, touching nothing, when
     the integrator is not supported."""
     from ..compiled.tableaux import TABLEAUX as _TABLEAUX
-    from . import _kinematic_compiled as kinematic
-
     supported = compiled_kind(scheme, integrator)
     if supported is None:
         return False
@@ -1124,12 +1121,6 @@ def advance(scheme, plan: tuple, integrator, state, dt: float, nsteps: int, kine
     Gs = tuple(Gs)
     Phi = state.arrays[frame_key] = _writable(state.arrays[frame_key])
     Phi3 = Phi.reshape(-1, m, m)
-    if kind == "kinematic":
-        return kinematic.advance(
-            scheme, "lattice", plan, (Gs, Phi3),
-            lambda inv: (np.empty((n, m, m)), *_work(plan, n, r, m), np.empty((n, r)),
-                         np.empty((max(g.shape[0] for g in Gs), r)), inv),
-            integrator, state, dt, nsteps, kinetic_limit)
     nstep0, stamp, t0, diss, ext, check, limit, cache, inv = advance_context(scheme, integrator, state,
                                                                              kinetic_limit)
     threads = loop_threads(n)
@@ -1181,17 +1172,13 @@ def advance(scheme, plan: tuple, integrator, state, dt: float, nsteps: int, kine
 
 def compiled_kind(scheme, integrator) -> tuple | None:
     """``(integrator name, drag Γ or None)`` when the compiled loops run ``integrator``, else
-    None: ``lie-verlet``, ``lie-euler``, ``forward-euler``, ``rkmk4``, ``kinematic`` with a
-    numba velocity, and ``overdamped`` of order 1 or 2 with a positive drag on every live
-    component (without, the reference path raises the error)."""
-    from ._kinematic_compiled import is_compiled_velocity
-
+    None: ``lie-verlet``, ``lie-euler``, ``forward-euler``, ``rkmk4``, and ``overdamped`` of
+    order 1 or 2 with a positive drag on every live component (without, the reference path
+    raises the error)."""
     # the built-in integrators (known by name; the loops below are their steps), not subclasses
     kind = integrator.name if type(integrator).__module__ == "cartan.integrators.explicit" else None
-    if kind not in ("lie-verlet", "lie-euler", "forward-euler", "overdamped", "rkmk4", "kinematic"):
-        return None
-    if kind == "kinematic" and not is_compiled_velocity(integrator.velocity_field):
-        return None
+    if kind not in ("lie-verlet", "lie-euler", "forward-euler", "overdamped", "rkmk4"):
+        return None  # (kinematic runs the generated RKMK loop with its compiled velocity)
     gam = None
     if kind == "overdamped":
         gam = np.asarray(scheme.drag(), dtype=float)
@@ -1234,13 +1221,14 @@ def rkmk_velocity(integrator, stamp: tuple, S: np.ndarray, dynamics: bool) -> tu
 def rkmk_books(integrator, state, dynamics: bool, order: int, done: int, hit: bool, t: float, nstep0: int,
                N: np.ndarray) -> int:
     """The force evaluations of ``done`` RKMK or overdamped steps as the reference path counts
-    them (``rkmk4`` 4 per step; ``overdamped`` its velocity before and after every step, plus
-    the 2 stages of order 2, the very first one from the integrator's cache when ``hit``, as
-    :func:`rkmk_velocity` reports it),
-    and the overdamped velocity ``N`` of the final state cached on the integrator."""
-    if not dynamics:
-        integrator._cache = ((id(state), t, nstep0 + done - 1), N.copy())
-    return (4 if (dynamics or order == 2) else 2) * done - (1 if hit else 0)
+    them (``rkmk4`` 4 per step; ``overdamped`` the velocity of the state after every step, which
+    is also the first stage of the next, plus the second stage of order 2, and the velocity of
+    the initial state unless the integrator's cache holds it (``hit``, as :func:`rkmk_velocity`
+    reports it)), and the overdamped velocity ``N`` of the final state cached on the integrator."""
+    if dynamics:
+        return 4 * done
+    integrator._cache = ((id(state), t, nstep0 + done), N.copy(), True)
+    return order * done + (0 if hit else 1)
 
 
 def advance_context(scheme, integrator, state, kinetic_limit: float) -> tuple:

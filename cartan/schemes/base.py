@@ -311,21 +311,20 @@ class Scheme(abc.ABC):
         -------
         callable
             ``probe(v)`` for v ``[*shape, r]`` → K v ``[*shape, r]`` (a new array).  When
-            :attr:`compiled_diagnostics` is set and the lattice or collocation scheme has a
-            hand-written compiled plan for the problem (``docs/performance.md``,
-            ``docs/schemes.md``), its compiled kernels; else, when the scheme's compiled operator
-            set (:meth:`compiled_operators`) covers the problem and the state, its compiled
-            operators (:func:`cartan.compiled.diagnostics.compiled_stiffness_probe`); otherwise
+            :attr:`compiled_diagnostics` is set and the lattice scheme has a hand-written
+            compiled plan for the problem (``docs/performance.md``), its compiled kernels; else,
+            when the scheme's compiled operator set (:meth:`compiled_operators`) covers the
+            problem and the state, its compiled operators
+            (:func:`cartan.compiled.diagnostics.compiled_stiffness_probe`); otherwise
             :meth:`drift` and :meth:`force`.  All evaluate the same formulas (round-off apart).
         """
         if self.compiled_diagnostics:
             from ..compiled.diagnostics import compiled_stiffness_probe as generated_probe
-            from ._collocation_diagnostics import compiled_stiffness_probe as collocation_probe
             from ._lattice_diagnostics import compiled_stiffness_probe as lattice_probe
 
-            # the hand-written plans first while they exist (their kernels are compiled with the
-            # loops that take the steps), then the operator set
-            probes = [lattice_probe, collocation_probe]
+            # a hand-written plan first where the scheme has one (its kernels are compiled with
+            # the loops that take the steps), then the operator set
+            probes = [lattice_probe]
             if not self.has_hand_written_loops():
                 probes.append(generated_probe)
             for compiled_probe in probes:
@@ -355,7 +354,7 @@ class Scheme(abc.ABC):
         quotients agree to 1e-3; typical rods stop after 17 or 18 products at any n, and the
         estimate lies within 1 % above the exact 1/ω_max (the Rayleigh quotient approaches
         λ_max from below).  Each product is one call of :meth:`stiffness_probe` (two force
-        evaluations), compiled for lattice and collocation problems with a compiled plan.
+        evaluations), compiled when the scheme has a compiled plan or operator set for the problem.
 
         Parameters
         ----------

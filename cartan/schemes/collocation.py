@@ -45,18 +45,15 @@ Initial strains
     O(hᵖ) accurate at every node and the integrability residual starts at round-off.
 
 Compiled loops
-    :meth:`Collocation.compiled_advance` runs whole blocks of steps in numba
-    (:mod:`cartan.schemes._collocation_compiled`; d = 2, 3 in
-    :mod:`cartan.schemes._collocation_compiled_nd`) for d = 1, 2, 3 on SO(2), SE(2), SO(3),
-    SE(3) with ``fd2``, ``fd4`` or ``fourier`` (up to 512 nodes per axis) when the medium's potential is quadratic
-    and the loads are data (damping, body-frame uniform force, constant-field potentials, end
-    loads, clamps); everything else stays on this module's numpy path, the reference the
-    compiled loops are tested against (``docs/schemes.md``).  The CFL estimate
-    (:meth:`~cartan.schemes.base.Scheme.dt_max`) of those problems takes its stiffness products
-    from the same kernels for d = 1 (:mod:`cartan.schemes._collocation_diagnostics`).
-    :meth:`Collocation.compiled_operators` gives the integrators' generated loops the
-    scheme's operators (:mod:`cartan.schemes._collocation_ops`) for any group and medium with
-    point kernels.
+    :meth:`Collocation.compiled_operators` gives the integrators' generated loops
+    (:meth:`cartan.integrators.base.Integrator.run_compiled_loop`) the scheme's operators
+    (:mod:`cartan.schemes._collocation_ops`) for any group and medium with point kernels: d = 1,
+    2, 3, ``fd2``, ``fd4`` and ``fourier``, open and periodic axes, the loads that are data
+    (damping, body-frame uniform force, constant-field potentials, end loads, clamps).  The
+    CFL estimate (:meth:`~cartan.schemes.base.Scheme.dt_max`) and the blow-up guard's energies
+    run on the same operators (:mod:`cartan.compiled.diagnostics`).  Everything else stays on
+    this module's numpy path, the reference the compiled loops are tested against
+    (``docs/schemes.md``).
 
 What is exact and what is not
     Unlike the ``lattice`` scheme, the stored strains are independent unknowns: temporal
@@ -271,7 +268,6 @@ class Collocation(Scheme):
     """
 
     name = "collocation"
-    plan_module = "_collocation_compiled"
     order = 2
 
     def __init__(self, problem, derivative: str = "fd2", track_frames: bool | None = None):
@@ -331,35 +327,6 @@ class Collocation(Scheme):
         return {"derivative": self.derivative, "track_frames": self.track}
 
     # ------------------------------------------------------------------ compiled loops
-    def compiled_advance(self, integrator, state: State, dt: float, nsteps: int, *,
-                         kinetic_limit: float = math.inf) -> bool:
-        """Advance ``state`` in place by up to ``nsteps`` steps of ``integrator`` in compiled code.
-
-        The contract of :meth:`cartan.schemes.lattice.Lattice.compiled_advance`: returns False,
-        leaving everything untouched, when the combination is not supported (the caller then
-        runs ``integrator.step`` in Python); the numpy backend always declines.  Supported
-        (:mod:`cartan.schemes._collocation_compiled` for d = 1,
-        :mod:`cartan.schemes._collocation_compiled_nd` for d = 2, 3;
-        :func:`~cartan.schemes._collocation_compiled.build_plan`, ``docs/schemes.md``):
-        d = 1, 2, 3, every axis open or periodic; SO(2), SE(2), SO(3), SE(3); ``fd2``,
-        ``fd4``, and ``fourier`` up to
-        :data:`~cartan.schemes._collocation_compiled.FOURIER_MAX_NODES` nodes per axis; a
-        quadratic potential (``quadratic_energy()``, or for d ≥ 2 a ``QuadraticMedium`` with
-        the base energy methods, e.g. the sigma model on S²); damping, body-frame uniform
-        forces, constant-field potentials, free (loaded or not) and clamped ends or end
-        faces; ``lie-euler``, ``lie-verlet``, ``rkmk4``, ``forward-euler``, ``overdamped``
-        (order 1 and 2).
-
-        When it returns True the steps were taken as ``integrator.step`` takes them (same
-        formulas, agreement to round-off): ``state.t``, ``state.scalars`` (energy
-        accumulators by the trapezoidal rule, ``"nstep"``) and the integrator's counters and
-        caches are updated as the Python loop would.  The loop stops early after the first
-        step whose momentum (or, for integrators without momentum, configuration) is not
-        finite, or whose kinetic energy ``½Σ w S²/m`` exceeds ``kinetic_limit``; the number of
-        steps done is the increase of ``state.scalars["nstep"]``.
-        """
-        return self._run_compiled(self.plan_module, integrator, state, dt, nsteps, kinetic_limit)
-
     def compiled_operators(self):
         """The collocation's compiled operators (:mod:`cartan.schemes._collocation_ops`), built
         once and kept on the scheme: any group with point kernels, any medium that declares

@@ -74,11 +74,14 @@ __all__ = ["SphereRod"]
 _Z = np.array([0.0, 0.0, 1.0])
 
 
-def _integer(name: str, value: Any, minimum: int = 1) -> int:
+def _integer(name: str, value: Any, minimum: int = 1, maximum: int | None = None) -> int:
+    """``value`` as an int in [minimum, maximum] (a ``ValueError`` naming ``name`` otherwise)."""
+    allowed = f"an integer ≥ {minimum}" if maximum is None else f"an integer in [{minimum}, {maximum}]"
     if isinstance(value, bool) or not isinstance(value, int | float | np.integer | np.floating):
-        raise ValueError(f"{name} must be an integer ≥ {minimum}, got {value!r}")
-    if not math.isfinite(float(value)) or int(value) != value or value < minimum:
-        raise ValueError(f"{name} must be an integer ≥ {minimum}, got {value!r}")
+        raise ValueError(f"{name} must be {allowed}, got {value!r}")
+    if (not math.isfinite(float(value)) or int(value) != value or value < minimum
+            or (maximum is not None and value > maximum)):
+        raise ValueError(f"{name} must be {allowed}, got {value!r}")
     return int(value)
 
 
@@ -383,10 +386,11 @@ class SphereRod(QuadraticMedium):
         a = float(check_finite("amplitude", amplitude, ()))
         if abs(a) >= math.pi / 2:
             raise ValueError(f"amplitude must be in (−π/2, π/2) (a latitude in radians), got {amplitude!r}")
-        m = _integer("mode", mode)
+        # more waves than nodes only aliases a lower mode (and sin(m φ) loses every digit)
+        m = _integer("mode", mode, maximum=grid.shape[0])
         ph = float(check_finite("phase", phase, ()))
         b = float(check_finite("director_amplitude", director_amplitude, ()))
-        md = m if director_mode is None else _integer("director_mode", director_mode)
+        md = m if director_mode is None else _integer("director_mode", director_mode, maximum=grid.shape[0])
         phd = float(check_finite("director_phase", director_phase, ()))
         A = _rotation_z_to(_Z if axis is None else _unit("axis", axis))
         phi = self._longitudes(grid, winding, 0.0)

@@ -147,12 +147,17 @@ def test_stress_is_gradient_of_potential(n, d):
         assert quad is None
 
 
-@pytest.mark.parametrize("params", [{"n": 2, "d": 1}, {"n": 3, "d": 1, "stiffness": 2.0, "speed": 0.5}])
+@pytest.mark.parametrize("params", [{"n": 2, "d": 1}, pytest.param({"n": 3, "d": 1, "stiffness": 2.0, "speed": 0.5},
+                                                                    marks=pytest.mark.slow)])
 def test_conformance_kit(params):
+    """Every scheme × integrator in d = 1 (S² in the fast suite; S³, whose SO(4) loops compile
+    for minutes on a fresh cache, among the long cases: SO(4) runs compiled in the fast suite
+    through tests/test_generated_loops.py and tests/test_generated_implicit.py)."""
     report = check_medium("sigma-model", params=params)
     assert not report.failed
 
 
+@pytest.mark.slow
 def test_conformance_kit_d2_d3():
     """Every scheme × integrator in d = 2 and 3."""
     for params in ({"n": 2, "d": 2}, {"n": 3, "d": 3}):

@@ -214,6 +214,11 @@ def test_initial_state_errors():
         rod.initial_state(ring, "great-circle", winding=1.5)
     with pytest.raises(ValueError, match="amplitude"):
         rod.initial_state(ring, "perturbed", amplitude=2.0)
+    for mode in (math.inf, math.nan, 1e308, 11, 0):  # 10 nodes resolve modes 1 … 10 (higher ones alias)
+        with pytest.raises(ValueError, match=r"mode must be an integer in \[1, 10\]"):
+            rod.initial_state(ring, "perturbed", mode=mode)
+        with pytest.raises(ValueError, match="director_mode"):
+            rod.initial_state(ring, "perturbed", director_mode=mode)
     with pytest.raises(ValueError, match="no initial state kind 'helix'"):
         rod.initial_state(open_grid, "helix")
     with pytest.raises(ValueError, match="takes no parameter"):
