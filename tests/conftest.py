@@ -31,3 +31,21 @@ def _temporary_files_stay_in_the_session(tmp_path_factory):
     tempfile.tempdir = str(tmp_path_factory.mktemp("tempfiles"))
     yield
     tempfile.tempdir = before
+
+
+@pytest.fixture
+def generated_runs(monkeypatch) -> list:
+    """What ``Integrator.run_compiled_loop`` returned, call by call (True: the generated loop
+    took the steps)."""
+    from cartan.integrators import Integrator
+
+    calls = []
+    real = Integrator.run_compiled_loop
+
+    def spy(self, *args, **kwargs):
+        ran = real(self, *args, **kwargs)
+        calls.append(ran)
+        return ran
+
+    monkeypatch.setattr(Integrator, "run_compiled_loop", spy)
+    return calls

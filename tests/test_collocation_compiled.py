@@ -36,7 +36,7 @@ from toys import QuadraticMedium
 import cartan
 from cartan.api import simulate
 from cartan.grid import Grid
-from cartan.integrators import RKMK4, ForwardEuler, Integrator, Kinematic, LieEuler, LieVerlet, Overdamped
+from cartan.integrators import RKMK4, ForwardEuler, Kinematic, LieEuler, LieVerlet, Overdamped
 from cartan.problem import Clamped, ConstantFieldPotential, Damping, Free, InitialState, Problem, UniformForce
 from cartan.schemes.collocation import Collocation
 
@@ -209,21 +209,6 @@ GRID_CASES = {
 }
 #: the sigma model on S², d = 2, shares its module with tests/test_generated_collocation.py
 FAST_GRID_CASES = ("sigma-cylinder-fd4",)
-
-
-@pytest.fixture
-def generated_runs(monkeypatch) -> list:
-    """What ``run_compiled_loop`` returned, call by call (True: the generated loop took the steps)."""
-    calls = []
-    real = Integrator.run_compiled_loop
-
-    def spy(self, *args, **kwargs):
-        ran = real(self, *args, **kwargs)
-        calls.append(ran)
-        return ran
-
-    monkeypatch.setattr(Integrator, "run_compiled_loop", spy)
-    return calls
 
 
 # ---------------------------------------------------------------------------- d = 1: agreement

@@ -39,7 +39,7 @@ from toys import QuadraticMedium, arc_problem, moving_rod, rel_error
 import cartan
 from cartan.api import InstabilityError, StabilityWarning, simulate
 from cartan.grid import Grid
-from cartan.integrators import RKMK4, ForwardEuler, Integrator, Kinematic, LieEuler, LieVerlet, Overdamped
+from cartan.integrators import RKMK4, ForwardEuler, Kinematic, LieEuler, LieVerlet, Overdamped
 from cartan.medium import MediumKernels
 from cartan.problem import Clamped, ConstantFieldPotential, Damping, Free, InitialState, Problem, UniformForce
 from cartan.schemes import Collocation, Lattice
@@ -72,21 +72,6 @@ def generated_path_only(monkeypatch):
     """The schemes' hand-written loops decline everything: ``simulate`` takes the generated loop."""
     for cls in SCHEMES.values():
         monkeypatch.setattr(cls, "compiled_advance", lambda self, *args, **kwargs: False, raising=False)
-
-
-@pytest.fixture
-def generated_runs(monkeypatch) -> list:
-    """What ``run_compiled_loop`` returned, call by call (True: the generated loop took the steps)."""
-    calls = []
-    real = Integrator.run_compiled_loop
-
-    def spy(self, *args, **kwargs):
-        ran = real(self, *args, **kwargs)
-        calls.append(ran)
-        return ran
-
-    monkeypatch.setattr(Integrator, "run_compiled_loop", spy)
-    return calls
 
 
 # ---------------------------------------------------------------------------- problems
