@@ -215,6 +215,17 @@ def test_declined_problems_say_why():
     assert "point kernels" in Collocation(chain_problem(n=9)).compiled_operators().reason
     untracked = Collocation(rod_problem("dead", n=11), track_frames=False).compiled_operators()
     assert not untracked.ok and "frames" in untracked.reason
+    # the Fourier derivative as a dense circulant is O(n²): beyond 512 nodes the FFT of the
+    # reference path is faster, so the set declines (and the same rod at 512 nodes qualifies)
+    from cartan.schemes._collocation_ops import FOURIER_MAX_NODES
+
+    for n, ok in ((FOURIER_MAX_NODES, True), (FOURIER_MAX_NODES + 1, False)):
+        medium = cartan.medium("sphere-rod")
+        grid = Grid(n, length=2 * np.pi, periodic=True)
+        ring = Problem(medium, grid, medium.initial_state(grid, "perturbed", amplitude=0.2))
+        ops = Collocation(ring, derivative="fourier").compiled_operators()
+        assert ops.ok is ok, ops.reason
+        assert ok or "Fourier" in ops.reason
 
     class Other(Collocation):
         def force(self, state, N, t):

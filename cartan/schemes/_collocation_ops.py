@@ -380,7 +380,17 @@ def _why_not(scheme, reference: type) -> str | None:
                 "(of the library's force), Free, Clamped")
     if scheme.problem.needs_structure_field and not scheme.track:
         return "a load needs the frames, which are not stepped (track_frames=False)"
+    for a, op in enumerate(scheme.D):
+        if op.kind == "fourier" and op.n > FOURIER_MAX_NODES:
+            return (f"the Fourier derivative along axis {a} has {op.n} nodes: applied as its dense circulant "
+                    f"(numba has no FFT) it costs O(n²), slower than the reference's FFT beyond "
+                    f"{FOURIER_MAX_NODES} nodes")
     return None
+
+
+#: the largest axis on which the ``fourier`` derivative runs compiled, as the dense circulant
+#: (O(n²) per derivative, against the reference path's O(n log n) FFT)
+FOURIER_MAX_NODES = 512
 
 
 def _axis_matrix(op) -> list[list[tuple[int, float]]]:
