@@ -16,6 +16,7 @@ stale one is never loaded again.  Modules live in ``<cache>/generated`` where ``
 
 from __future__ import annotations
 
+import functools
 import hashlib
 import importlib.util
 import inspect
@@ -58,11 +59,13 @@ class Fragment:
     source: str = ""
 
 
+@functools.lru_cache(maxsize=None)
 def njit_source(*functions: Callable) -> str:
     """The source of plain Python functions, to be compiled inside a generated module.
 
     The functions are written (and linted, and read) as ordinary module-level functions whose
-    free names (``g_exp``, ``op_force`` …) are the globals of the generated module.
+    free names (``g_exp``, ``op_force`` …) are the globals of the generated module.  Read once
+    per process (``inspect.getsource`` tokenises the whole file: milliseconds per run).
     """
     return "\n\n".join(textwrap.dedent(inspect.getsource(f)) for f in functions)
 
