@@ -59,7 +59,7 @@ class Fragment:
     source: str = ""
 
 
-@functools.lru_cache(maxsize=None)
+@functools.cache
 def njit_source(*functions: Callable) -> str:
     """The source of plain Python functions, to be compiled inside a generated module.
 
