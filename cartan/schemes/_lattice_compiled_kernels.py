@@ -225,8 +225,8 @@ def g_dexp_inv(gid, xi, out):
 
 @_inline
 def _dexp_slopes(gid, sigma, N, out, tr, M):
-    """``out_i = dexp⁻¹(−σ_i) N_i`` at every node (the RKMK stage slopes of the lattice and
-    collocation loops; ``tr`` r-vector and ``M`` r × r work space)."""
+    """``out_i = dexp⁻¹(−σ_i) N_i`` at every node (the RKMK stage slopes of the lattice
+    loops; ``tr`` r-vector and ``M`` r × r work space)."""
     n, r = N.shape
     for i in range(n):
         for k in range(r):

@@ -26,7 +26,7 @@ CHECK_CONFIGURATION = 2
 
 
 def _compiled_loads(problem, group, r: int) -> tuple | None:
-    """The loads and boundaries the compiled loops (lattice and collocation) can run, as data:
+    """The loads and boundaries the lattice's hand-written loops can run, as data:
     ``(damp, has_damp, ubody, has_ubody, field, has_field)`` — summed ``Damping`` coefficients
     ``(r,)``, body-frame ``UniformForce`` components ``(r,)``, ``ConstantFieldPotential``
     density × field ``(k,)`` — or None when a load or a boundary is of another kind."""
