@@ -45,7 +45,8 @@ ALL_LEVEL_RUNS = [pytest.param(*run, marks=pytest.mark.slow) if run[0] in SLOW_A
 
 # ---------------------------------------------------------------------------- registry and metadata
 def test_every_case_is_registered_and_described():
-    assert {c.name for c in all_cases()} == set(CASES)
+    # the verification package's cases, and those the media plugins register beside their media
+    assert {c.name for c in all_cases()} <= set(CASES)
     media = cartan.registry("media")
     for name, case in CASES.items():
         assert isinstance(case, Case) and case.name == name

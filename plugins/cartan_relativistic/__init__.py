@@ -1,0 +1,1 @@
+"""The ``relativistic-rod`` medium: rods and strings in Minkowski space on the Poincaré group (paper §VIII.C)."""
