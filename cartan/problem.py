@@ -295,6 +295,38 @@ class Damping(Load):
         return {"kind": "Damping", "coefficients": np.asarray(self.coefficients).tolist()}
 
 
+def _check_holonomy(name: str, H: Any, g, grid: Grid) -> Any:
+    """Validate a holonomy (see :class:`InitialState`): one ``(m, m)`` element of the group for
+    a periodic d = 1 grid, or ``{axis: H}`` over periodic axes; returned as given (float arrays)."""
+    if H is None:
+        return None
+    m = g.matrix_size
+    if isinstance(H, Mapping):
+        out = {}
+        for axis, value in H.items():
+            if isinstance(axis, bool) or not isinstance(axis, (int, np.integer)) or not 0 <= axis < grid.d:
+                raise ValueError(f"{name}: axis must be an integer in [0, {grid.d - 1}], got {axis!r}")
+            if not grid.periodic[axis]:
+                raise ValueError(f"{name}[{axis}]: axis {grid.axis_names[axis]!r} is not periodic")
+            out[int(axis)] = _check_holonomy(f"{name}[{axis}]", value, g, Grid(grid.shape[axis], grid.length[axis],
+                                                                                  periodic=True))
+        return out or None
+    if not (grid.d == 1 and grid.periodic[0]):
+        raise ValueError(f"{name} is only meaningful on a periodic grid with d = 1 (for d ≥ 2 give "
+                         "{axis: H} over the periodic axes)")
+    H = check_finite(name, _numeric(name, H), (m, m))
+    if float(g.defect(H)) > 1e-8:
+        raise ValueError(f"{name} is not in {g.name}")
+    return H
+
+
+def axis_holonomies(state: InitialState | None, d: int) -> dict[int, np.ndarray]:
+    """The holonomies of a (validated) initial or reference state as ``{axis: H}``."""
+    if state is None or state.holonomy is None:
+        return {}
+    return dict(state.holonomy) if isinstance(state.holonomy, Mapping) else {0: state.holonomy}
+
+
 def rotation_part(group, Phi: np.ndarray) -> np.ndarray:
     """Φ with its translation removed (affine groups), i.e. the frame at the material point."""
     if not getattr(group, "affine", False):
@@ -322,10 +354,13 @@ class InitialState:
         Structure field Φ₀ (q₀ = Φ₀·q_r).
     N : array, shape ``(*grid.shape, r)``, optional
         Initial velocity N₀ = Φ⁻¹Φ̇ (zero by default).
-    holonomy : array, shape ``(m, m)``, optional
-        For a periodic axis (d = 1): the group element H with Φ(u + L) = H Φ(u), so that the
-        closing edge is Φ₀[-1]⁻¹ H Φ₀[0].  Identity (a closed rod) by default; a translation
-        by L for a straight rod with periodic boundary conditions, a screw motion for a helix.
+    holonomy : array, shape ``(m, m)``, or dict of int → array, optional
+        For a periodic axis: the group element H with Φ(u + L) = H Φ(u), so that the closing
+        edge is Φ₀[-1]⁻¹ H Φ₀[0].  Identity (a closed rod, a closed shell) by default; a
+        translation by L for a straight rod with periodic boundary conditions, a screw motion
+        for a helix.  d = 1: one array; any d: ``{axis: H_α}`` for the periodic axes that have
+        one (a box of a solid periodic up to a translation along each axis: H_α the
+        translation by L_α).
     """
 
     Phi: Any
@@ -366,13 +401,7 @@ class Problem:
             raise ValueError(f"initial.Phi is not in {g.name}: defect {defect:.2e} > 1e-8")
         N = np.zeros((*shape, g.dim)) if self.initial.N is None else self.initial.N
         N = check_finite("initial.N", _numeric("initial.N", N), (*shape, g.dim))
-        H = self.initial.holonomy
-        if H is not None:
-            if not (self.grid.d == 1 and self.grid.periodic[0]):
-                raise ValueError("initial.holonomy is only meaningful on a periodic grid with d = 1")
-            H = check_finite("initial.holonomy", _numeric("initial.holonomy", H), (g.matrix_size, g.matrix_size))
-            if float(g.defect(H)) > 1e-8:
-                raise ValueError(f"initial.holonomy is not in {g.name}")
+        H = _check_holonomy("initial.holonomy", self.initial.holonomy, g, self.grid)
         self.initial = InitialState(Phi=Phi, N=N, holonomy=H)
         valid = self.boundary_names()
         for key, b in self.boundaries.items():
@@ -399,11 +428,7 @@ class Problem:
             Phi_ref = check_finite("reference", ref.Phi, (*shape, g.matrix_size, g.matrix_size))
             if float(np.max(g.defect(Phi_ref))) > 1e-8:
                 raise ValueError(f"reference is not in {g.name}")
-            H_ref = None
-            if ref.holonomy is not None:
-                if not (self.grid.d == 1 and self.grid.periodic[0]):
-                    raise ValueError("reference.holonomy is only meaningful on a periodic grid with d = 1")
-                H_ref = check_finite("reference.holonomy", ref.holonomy, (g.matrix_size, g.matrix_size))
+            H_ref = _check_holonomy("reference.holonomy", ref.holonomy, g, self.grid)
             self.reference = InitialState(Phi=Phi_ref, holonomy=H_ref)
 
     def _check_types(self) -> None:

@@ -113,23 +113,37 @@ def _colouring(shape: tuple[int, ...], periodic: tuple[bool, ...]) -> np.ndarray
     return colour.ravel()
 
 
-def _stencil_pairs(shape: tuple[int, ...], periodic: tuple[bool, ...]) -> tuple[np.ndarray, np.ndarray]:
-    """(source, target) flat node pairs: target in the stencil of source (self included)."""
+def _stencil_pairs(shape: tuple[int, ...], periodic: tuple[bool, ...],
+                   box: bool = False) -> tuple[np.ndarray, np.ndarray]:
+    """(source, target) flat node pairs: target in the stencil of source (self included).
+
+    The stencil is the node and its ±1 neighbours along every axis, or with ``box`` every
+    node within one step along each axis (the 3^d box: a lattice whose potential couples the
+    axes at the corners, where a node's force depends on its diagonal neighbours).  The
+    colouring of :func:`_colouring` separates both."""
+    import itertools
+
     idx = np.arange(int(np.prod(shape))).reshape(shape)
-    src, dst = [idx.ravel()], [idx.ravel()]
-    for axis, (n, p) in enumerate(zip(shape, periodic, strict=True)):
-        for step in (-1, 1):
-            if p:
-                nb = np.roll(idx, -step, axis=axis)
-                src.append(idx.ravel())
-                dst.append(nb.ravel())
-            else:
-                sl_src = [slice(None)] * len(shape)
-                sl_dst = [slice(None)] * len(shape)
-                sl_src[axis] = slice(max(0, -step), n - max(0, step))
-                sl_dst[axis] = slice(max(0, step), n - max(0, -step))
-                src.append(idx[tuple(sl_src)].ravel())
-                dst.append(idx[tuple(sl_dst)].ravel())
+    d = len(shape)
+    if box:
+        offsets = [o for o in itertools.product((-1, 0, 1), repeat=d)]
+    else:
+        offsets = [(0,) * d] + [tuple(step if k == axis else 0 for k in range(d))
+                                for axis in range(d) for step in (-1, 1)]
+    src, dst = [], []
+    for off in offsets:
+        nb = idx
+        keep = np.ones(shape, dtype=bool)
+        for axis, (n, p, step) in enumerate(zip(shape, periodic, off, strict=True)):
+            if step == 0:
+                continue
+            nb = np.roll(nb, -step, axis=axis)
+            if not p:
+                pos = np.arange(n) + step
+                ok = (pos >= 0) & (pos < n)
+                keep &= ok.reshape([-1 if k == axis else 1 for k in range(d)])
+        src.append(idx[keep])
+        dst.append(nb[keep])
     pairs = np.unique(np.stack([np.concatenate(src), np.concatenate(dst)], axis=1), axis=0)
     return pairs[:, 0], pairs[:, 1]
 
@@ -296,7 +310,7 @@ class _Equilibrium:
         self.w = sch.weights[..., None]
         self.zero = np.zeros((*shape, r_dim))
         self.colour = _colouring(shape, tuple(sch.grid.periodic))
-        self.src, self.dst = _stencil_pairs(shape, tuple(sch.grid.periodic))
+        self.src, self.dst = _stencil_pairs(shape, tuple(sch.grid.periodic), box=bool(getattr(sch, "coupled", False)))
         self.length = max(1.0, float(np.max(sch.grid.length)))
         # scaled norms: translations in units of the rod length, rotations in radians; strains
         # (X = Φ⁻¹∂Φ) carry one more 1/length than the increments

@@ -2,7 +2,8 @@
 against the groups' matrices.
 
 ``g_Ad_inv_apply`` (``Ad_{g⁻¹}`` applied to rows), ``g_E_apply`` (``𝓔(τ, ξ)`` applied to
-rows) and ``g_dexp_inv_apply`` (``dexp⁻¹(ξ)`` applied to a vector) are compiled in a generated module twice:
+rows), ``g_dexp_inv_apply`` (``dexp⁻¹(ξ)`` applied to a vector) and ``g_coad_exp`` (exp(ξ) and
+``Ad_{exp ξ}ᵀ`` applied to a momentum in place) are compiled in a generated module twice:
 with the group's closed forms (SO(3), SE(3)) and with the generic defaults built from the
 matrix kernels; SE(2) and SO(4) have no closed forms and take the defaults.  Both are compared
 with the numpy reference path of the group (``G.Ad``, ``G.inverse``, ``G.E``)
@@ -37,6 +38,10 @@ def call_E_apply(tau, xi, V, out):
 
 def call_dexp_inv_apply(xi, v, out):
     g_dexp_inv_apply(xi, v, out, g_work())
+
+
+def call_coad_exp(xi, s, E):
+    g_coad_exp(xi, s, E, g_work())
 """
 
 GROUPS = {"SO3": {}, "SE3": {}, "SE2": {}, "SO4": {"name": "SO", "n": 4}}
@@ -124,6 +129,20 @@ def test_dexp_inv_apply(compiled, scale):
         out = np.empty(G.dim)
         mod.call_dexp_inv_apply(xi, v, out)
         assert _rel(out, G.dexp_inv(xi) @ v) <= TOL
+
+
+@pytest.mark.parametrize("scale", SCALES)
+def test_coad_exp(compiled, scale):
+    G, mod = compiled
+    rng = np.random.default_rng(5)
+    for _ in range(5):
+        xi = _algebra(G, scale, rng)
+        s = rng.standard_normal(G.dim)
+        ref = G.Ad(G.exp(xi)).T @ s
+        E = np.empty((G.matrix_size, G.matrix_size))
+        mod.call_coad_exp(xi, s, E)
+        assert _rel(s, ref) <= TOL
+        assert _rel(E, G.exp(xi)) <= TOL
 
 
 def test_closed_forms_are_bound():

@@ -13,7 +13,7 @@ from __future__ import annotations
 import numba
 import numpy as np
 import pytest
-from toys import CoupledQuartic, assert_close_states, rod_problem
+from toys import CoupledQuartic, assert_close_states, rod_problem, wave
 
 from cartan.grid import Grid
 from cartan.integrators import Kinematic
@@ -24,18 +24,7 @@ TOL = 1e-12
 BLOCKS = (1, 9, 20)
 
 
-@numba.njit
-def wave(t, u, X):
-    """A travelling wave of body velocity plus a strain feedback: ``N_k = 0.3 sin(2u₀ + t + k) + 0.2 X₀ₖ``
-    (``u [*shape, d]``, ``X [*shape, d, r]`` → ``[*shape, r]``)."""
-    r = X.shape[-1]
-    uf = u.reshape(-1, u.shape[-1])
-    Xf = X.reshape(uf.shape[0], -1, r)
-    N = np.empty((uf.shape[0], r))
-    for i in range(uf.shape[0]):
-        for k in range(r):
-            N[i, k] = 0.3 * np.sin(2.0 * uf[i, 0] + t + k) + 0.2 * Xf[i, 0, k]
-    return N.reshape(u.shape[:-1] + (r,))
+
 
 
 def _sheet() -> Problem:
@@ -73,6 +62,7 @@ def test_rod_se3_d1_agrees_with_the_reference(order):
     assert not np.array_equal(fast.arrays["G_u"], scheme.initial_state().arrays["G_u"])  # it moved
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("order", [1, 2, 4])
 def test_sheet_d2_agrees_with_the_reference(order):
     scheme = Lattice(_sheet())

@@ -30,18 +30,7 @@ from cartan.schemes.lattice import Lattice
 TOL = 1e-12
 
 
-@numba.njit
-def wave(t, u, X):
-    """A travelling wave of body velocity plus a strain feedback: ``N_k = 0.3 sin(2u₀ + t + k) + 0.2 X₀ₖ``
-    (d = 1 or 2; ``u [*shape, d]``, ``X [*shape, d, r]``)."""
-    r = X.shape[-1]
-    uf = u.reshape(-1, u.shape[-1])
-    Xf = X.reshape(uf.shape[0], -1, r)
-    N = np.empty((uf.shape[0], r))
-    for i in range(uf.shape[0]):
-        for k in range(r):
-            N[i, k] = 0.3 * np.sin(2.0 * uf[i, 0] + t + k) + 0.2 * Xf[i, 0, k]
-    return N.reshape(u.shape[:-1] + (r,))
+wave = toys.wave
 
 
 XI = np.array([0.3, -0.2, 0.1, 0.4, 0.2, -0.5])

@@ -16,10 +16,9 @@ import tomllib
 import warnings
 
 import netCDF4
-import numba
 import numpy as np
 import pytest
-from toys import advance_compiled
+from toys import advance_compiled, wave
 
 import cartan
 from cartan import io
@@ -74,21 +73,6 @@ SAVE, PART, WHOLE = 6, 12, 24
 SCENE_DICT = tomllib.loads(SCENE)
 
 
-@numba.njit(cache=True)
-def swirl(t, u, X):  # pragma: no cover - compiled
-    """A prescribed body velocity depending on time, position and strain (``kinematic``), on a
-    grid of any dimension: ``u [*shape, d]``, ``X [*shape, d, r]`` → ``N [*shape, r]``."""
-    r = X.shape[-1]
-    uf = u.reshape(-1, u.shape[-1])
-    Xf = X.reshape(uf.shape[0], -1, r)
-    N = np.zeros((uf.shape[0], r))
-    for i in range(uf.shape[0]):
-        N[i, 0] = 0.2 + 0.1 * Xf[i, 0, 0]
-        N[i, r - 2] = 0.3 * uf[i, 0]
-        N[i, r - 1] = 0.5 * np.cos(t)
-    return N.reshape(u.shape[:-1] + (r,))
-
-
 #: id → (integrator, options, Δt); the explicit Euler methods have no stable Δt without
 #: damping (a StabilityWarning, ignored here: the runs are short)
 INTEGRATORS = {
@@ -99,7 +83,7 @@ INTEGRATORS = {
     "overdamped-1": ("overdamped", {"order": 1}, 1e-4),
     "overdamped-2": ("overdamped", {"order": 2}, 1e-4),
     "implicit-midpoint": ("implicit-midpoint", {}, 1e-3),
-    "kinematic": ("kinematic", {"velocity": swirl, "order": 2}, 1e-3),
+    "kinematic": ("kinematic", {"velocity": wave, "order": 2}, 1e-3),
 }
 SCHEMES = ["lattice", "collocation"]
 #: counters that legitimately differ between an uninterrupted and a restarted run
@@ -188,7 +172,7 @@ def test_restart_is_bit_for_bit(key, scheme, compiled, scene_file, tmp_path, pyt
         steps_before = python_steps["n"]
         # continued from the file, given the Problem (not the scene): integrator, scheme, Δt,
         # options and intervals come from the checkpoint; a callable option is given again
-        again = {"velocity": swirl} if integrator == "kinematic" else None
+        again = {"velocity": wave} if integrator == "kinematic" else None
         continued = simulate(load_scene(scene_file).problem, restart=tmp_path / "part.nc", t_end=WHOLE * dt,
                              integrator_options=again, compiled=compiled)
     assert whole.sizes["time"] == WHOLE // SAVE + 1 and int(whole.step[-1]) == WHOLE
@@ -306,7 +290,7 @@ BLOCK_INTEGRATORS = {
     "overdamped-1": lambda: Overdamped(order=1),
     "overdamped-2": lambda: Overdamped(order=2),
     "implicit-midpoint": ImplicitMidpoint,
-    "kinematic": lambda: Kinematic(velocity=swirl, order=2),
+    "kinematic": lambda: Kinematic(velocity=wave, order=2),
 }
 
 

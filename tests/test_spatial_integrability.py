@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from toys import QuadraticMedium
 
 import cartan
 from cartan.integrators import LieVerlet
@@ -44,3 +45,19 @@ def test_output_records_the_spatial_residual(scheme):
     ds = cartan.simulate(_problem(8), scheme=scheme, dt=1e-3, t_end=0.004, save_every=2)
     assert ds.spatial_residual.dims == ("time",) and np.all(np.isfinite(ds.spatial_residual))
     assert ds.spatial_residual.attrs["long_name"].startswith("spatial integrability")
+
+
+def test_holonomy_per_axis_is_validated():
+    """``InitialState.holonomy`` for d ≥ 2 is ``{axis: H}`` over periodic axes (paper §III.C: a
+    body periodic up to a motion); anything else is a ValueError naming it."""
+    med = QuadraticMedium("SE2")
+    med.material_dim = 2
+    grid = cartan.Grid((4, 3), 1.0, periodic=(True, False))
+    Phi = np.broadcast_to(np.eye(3), (4, 3, 3, 3)).copy()
+    H = np.eye(3)
+    H[1, 0] = 1.0
+    assert cartan.Problem(med, grid, cartan.InitialState(Phi=Phi, holonomy={0: H})).initial.holonomy[0] is not None
+    for bad, match in (({1: H}, "not periodic"), ({2: H}, "axis must be"), (H, "d = 1"),
+                       ({0: 2 * np.eye(3)}, "not in SE2")):
+        with pytest.raises(ValueError, match=match):
+            cartan.Problem(med, grid, cartan.InitialState(Phi=Phi, holonomy=bad))

@@ -139,6 +139,7 @@ def _run_threaded(which: str) -> dict:
     return json.loads(run.stdout.strip().splitlines()[-1])
 
 
+@pytest.mark.slow
 def test_threaded_loops_equal_the_serial_ones():
     """``CARTAN_THREADS=2`` in a new process: the threaded ``lie-verlet`` loops (the sigma model
     on a 2D grid, the vectorised SE(3) rod) run above the threshold and give the serial results

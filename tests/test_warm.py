@@ -65,6 +65,7 @@ def test_warm_rejects_unknown_names():
     assert result.exit_code == 2 and "unknown group 'SE4'" in result.output
 
 
+@pytest.mark.slow
 def test_warm_reports_every_workload():
     lines: list[str] = []
     steps = warm(groups=["SO2", "SE3"], cases=["rod-axial-wave-free"], integrators=["lie-verlet", "overdamped"],

@@ -292,3 +292,19 @@ class IndefiniteMetric(QuadraticMedium):
 
     def kinetic_metric(self):
         return self.M.copy()
+
+
+@njit
+def wave(t, u, X):  # pragma: no cover - compiled
+    """A prescribed body velocity for ``kinematic``, on a grid of any dimension: a travelling
+    wave plus a strain feedback, ``N_k = 0.3 sin(2u₀ + t + k) + 0.2 X₀ₖ`` (``u [*shape, d]``,
+    ``X [*shape, d, r]`` → ``N [*shape, r]``).  The tests share this one function: each
+    velocity function compiles its own generated loop."""
+    r = X.shape[-1]
+    uf = u.reshape(-1, u.shape[-1])
+    Xf = X.reshape(uf.shape[0], -1, r)
+    N = np.empty((uf.shape[0], r))
+    for i in range(uf.shape[0]):
+        for k in range(r):
+            N[i, k] = 0.3 * np.sin(2.0 * uf[i, 0] + t + k) + 0.2 * Xf[i, 0, k]
+    return N.reshape(u.shape[:-1] + (r,))

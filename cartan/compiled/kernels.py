@@ -17,7 +17,7 @@ import importlib
 
 from .codegen import Fragment
 
-__all__ = ["GROUP_OPS", "group_fragment", "medium_batch", "medium_fragment"]
+__all__ = ["GROUP_OPS", "group_fragment", "kernel_stem", "medium_batch", "medium_fragment"]
 
 #: the group operations a generated loop may call
 GROUP_OPS = ("exp", "log", "compose", "inverse", "hat", "Ad", "ad", "dexp_inv", "E")
@@ -87,6 +87,17 @@ def g_dexp_inv_apply(xi, v, out, work):
         out[k] = s
 """
 
+#: ``E ← exp(ξ)`` and ``s ← Ad_Eᵀ s`` in place: the free flow of a frozen velocity at a node
+#: (``S ← Ad*_{exp(τN)} S``, paper §V); ``s`` an ``(r,)`` row, E ``(m, m)``
+FUSED_OPS["coad_exp"] = """
+def g_coad_exp(xi, s, E, work):
+    g_exp(xi, E)
+    out = work[1][0]
+    g_Ad_T(E, s, out)
+    for k in range(R_):
+        s[k] = out[k]
+"""
+
 #: the scratch of the default fused operations, allocated once by their callers and passed as
 #: ``work`` (closed forms ignore it): ``(m × m, r × r, r × r)``
 _WORK = """
@@ -124,6 +135,7 @@ def group_fragment(module: str, prefix: str, ops=GROUP_OPS) -> Fragment | None:
     ``g_Ad_inv_apply(g, X, out, work)``        ``out[a] = Ad_{g⁻¹} X[a]``, X and out ``(k, r)``
     ``g_E_apply(tau, xi, V, out, work)``       ``out[a] = 𝓔(τ, ξ) V[a]``, V and out ``(k, r)``
     ``g_dexp_inv_apply(xi, v, out, work)``     ``out = dexp⁻¹(ξ) v``
+    ``g_coad_exp(xi, s, E, work)``             ``E = exp(ξ)``, ``s ← Ad_Eᵀs`` in place
 
     ``work`` is the scratch ``g_work()`` returns (allocated once by the caller; closed forms do
     not touch it); ``out`` must not alias the inputs."""
@@ -203,6 +215,13 @@ def stress_batch(X, X0, p, out):
 """
 
 
+def kernel_stem(kernels) -> str:
+    """A file-name stem naming a medium's point kernels (``energy-stress`` function names): the
+    generated modules are named by the kernels they compile, not by the medium, so that media
+    declaring the same kernels (every ``QuadraticMedium``) share them."""
+    return "-".join(getattr(getattr(f, "py_func", f), "__name__", "kernel") for f in (kernels.energy, kernels.stress))
+
+
 def medium_batch(kernels):
     """A generated module with ``energy_batch(X, X0, p, out)`` and ``stress_batch(X, X0, p, Q)``
     over ``[P, d, r]`` points: the kernels applied point by point (the reference path)."""
@@ -212,8 +231,7 @@ def medium_batch(kernels):
     if key in _BATCHES:  # the reference path asks on every potential and stress call
         return _BATCHES[key]
     frag = medium_fragment(kernels)
-    stem = "-".join(getattr(getattr(f, "py_func", f), "__name__", "kernel") for f in (kernels.energy, kernels.stress))
-    module = _BATCHES[key] = generate(f"batch-{stem}", [frag, Fragment(source=_BATCH)])
+    module = _BATCHES[key] = generate(f"batch-{kernel_stem(kernels)}", [frag, Fragment(source=_BATCH)])
     return module
 
 

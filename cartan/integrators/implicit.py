@@ -174,7 +174,8 @@ class _Plan:
         self.index[self.unknown_flat] = np.arange(self.nunk)
         if isinstance(scheme, Lattice):
             self.colour = _colouring(shape, tuple(scheme.grid.periodic))
-            self.src, self.dst = _stencil_pairs(shape, tuple(scheme.grid.periodic))
+            self.src, self.dst = _stencil_pairs(shape, tuple(scheme.grid.periodic),
+                                                box=bool(getattr(scheme, "coupled", False)))
         else:
             if self.nunk > MAX_DENSE_UNKNOWNS:
                 raise ValueError(

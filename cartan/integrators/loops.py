@@ -25,26 +25,15 @@ __all__ = ["kinematic_fragment", "loop_fragment"]
 # noqa comments below mark them for the linter.
 
 
-def _coad_node(S, i, xi, E, row, vec):
-    """E ← exp(ξ) and S_i ← Ad_Eᵀ S_i: the free flow of a frozen N at node i."""
-    g_exp(xi, E)  # noqa: F821
-    for k in range(R_):  # noqa: F821
-        row[k] = S[i, k]
-    g_Ad_T(E, row, vec)  # noqa: F821
-    for k in range(R_):  # noqa: F821
-        S[i, k] = vec[k]
-
-
 def _coad_exp(D, tau, N, S):
     """S_i ← Ad_{exp(τN_i)}ᵀ S_i at every node (the free flow of frozen N)."""
     xi = np.empty(R_)  # noqa: F821
-    vec = np.empty(R_)  # noqa: F821
-    row = np.empty(R_)  # noqa: F821
     E = np.empty((M_, M_))  # noqa: F821
+    wk = g_work()  # noqa: F821
     for i in range(S.shape[0]):
         for k in range(R_):  # noqa: F821
             xi[k] = tau * N[i, k]
-        _coad_node(S, i, xi, E, row, vec)
+        g_coad_exp(xi, S[i], E, wk)  # noqa: F821
 
 
 def _blown(D, C, S, check, limit):
@@ -319,7 +308,7 @@ def loop_fragment() -> Fragment:
     """The loops and their helpers as one fragment of a generated module (``KINEMATIC_`` False:
     :func:`kinematic_fragment` sets it in the modules that carry a prescribed velocity)."""
     return Fragment(constants={"KINEMATIC_": False},
-                    source=njit_source(_coad_node, _coad_exp, _blown, _book, lie_verlet_loop, _lie_poisson, euler_loop,
+                    source=njit_source(_coad_exp, _blown, _book, lie_verlet_loop, _lie_poisson, euler_loop,
                                        _kinematic_velocity, _stage_velocity, rkmk_loop))
 
 

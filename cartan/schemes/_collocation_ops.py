@@ -48,7 +48,9 @@ from ._lattice_ops import (
     op_constrain,
     op_copy_config,
     op_finite_config,
+    op_kinetic,
     op_new_config,
+    op_powers,
     op_velocity,
 )
 
@@ -91,6 +93,7 @@ class CollocationData(NamedTuple):
     end_follow: np.ndarray  # [e] bool, follower (else dead)
     end_face: np.ndarray  # [e] w/H_end: the face area share (powers)
     has_power: bool
+    diagonal: bool  # the kinetic metric is diagonal (M⁺ = diag)
 
 
 # ---------------------------------------------------------------------------- operators
@@ -223,7 +226,6 @@ def op_free_flow(D, C, S, pieces, fracs, dt, Dn, K):
     composes node motions).  Returns whether anything moved."""
     Np = K[1]
     xi, dn, U, V, tmp, wk = _c_move_work()
-    vec = np.empty(R_)  # noqa: F821
     row = np.empty(R_)  # noqa: F821
     E = np.empty((M_, M_))  # noqa: F821
     moved = False
@@ -245,12 +247,7 @@ def op_free_flow(D, C, S, pieces, fracs, dt, Dn, K):
         for i in range(S.shape[0]):
             for k in range(R_):  # noqa: F821
                 row[k] = tau * Np[i, k]
-            g_exp(row, E)  # noqa: F821
-            for k in range(R_):  # noqa: F821
-                row[k] = S[i, k]
-            g_Ad_T(E, row, vec)  # noqa: F821
-            for k in range(R_):  # noqa: F821
-                S[i, k] = vec[k]
+            g_coad_exp(row, S[i], E, wk)  # noqa: F821
             _c_move_node(D, C, i, E, Np, tau, xi, dn, U, V, tmp, wk)
     return moved
 
@@ -289,42 +286,6 @@ def op_drift_naive(D, C, tau, N, K):
             for p in range(M_):  # noqa: F821
                 for q in range(M_):  # noqa: F821
                     Phi[i, p, q] = tmp[p, q]
-
-
-def op_powers(D, C, N, t, K):
-    if not D.has_power:
-        return 0.0, 0.0
-    Phi = C[1]
-    vec = np.empty(R_)  # noqa: F821
-    diss = 0.0
-    ext = 0.0
-    for i in range(N.shape[0]):
-        for k in range(R_):  # noqa: F821
-            diss += D.w[i] * D.damp[k] * N[i, k] * N[i, k]
-            ext += D.w[i] * D.ubody[k] * N[i, k]
-    for p in range(D.end_idx.shape[0]):
-        if not D.end_loaded[p]:
-            continue
-        i = D.end_idx[p]
-        if D.end_follow[p]:
-            for k in range(R_):  # noqa: F821
-                vec[k] = D.end_load[p, k]
-        else:
-            _dead_to_body(D, Phi[i], D.end_load[p], vec)
-        for k in range(R_):  # noqa: F821
-            ext += D.end_face[p] * vec[k] * N[i, k]
-    return diss, ext
-
-
-def op_kinetic(D, S):
-    e = 0.0
-    for i in range(S.shape[0]):
-        if D.any_clamped and D.clamped[i]:
-            continue
-        for k in range(R_):  # noqa: F821
-            for j in range(R_):  # noqa: F821
-                e += 0.5 * D.w[i] * S[i, k] * D.inv_metric[k, j] * S[i, j]
-    return e
 
 
 def op_potential(D, C, K):
@@ -432,7 +393,7 @@ def collocation_operators(scheme, reference: type):
         When the medium's point kernels disagree with its stress
         (:func:`~cartan.schemes._lattice_ops.check_kernels`).
     """
-    from ..compiled.kernels import medium_fragment
+    from ..compiled.kernels import kernel_stem, medium_fragment
     from ..compiled.operators import OperatorSet
 
     reason = _why_not(scheme, reference)
@@ -483,6 +444,7 @@ def collocation_operators(scheme, reference: type):
         end_loaded=np.array([e[4].load is not None for e in ends], dtype=np.bool_),
         end_follow=np.array([bool(e[4].follower) for e in ends], dtype=np.bool_),
         end_face=np.array([e[5] for e in ends], dtype=float), has_power=bool(scheme.has_external_power()),
+        diagonal=bool(scheme.diagonal_metric),
     )
     frame_key = "Phi" if scheme.track else "Phi_root"
 
@@ -501,5 +463,6 @@ def collocation_operators(scheme, reference: type):
     fragments = [group.point_kernels(), medium_fragment(kernels),
                  Fragment(imports={"CollocationData": (__name__, "CollocationData")},
                           constants={"D_": d, "R_": r, "M_": m}, source=njit_source(*_OPERATORS))]
-    return OperatorSet(label=f"collocation × {group!r} × {medium.name}", key=f"collocation-{group!r}-{medium.name}",
+    return OperatorSet(label=f"collocation × {group!r} × {medium.name}",
+                       key=f"collocation-{group!r}-{kernel_stem(kernels)}",
                        fragments=fragments, data=data, pack=pack, unpack=unpack, accepts=accepts, nodes=n)

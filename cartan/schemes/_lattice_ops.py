@@ -90,6 +90,7 @@ class LatticeData(NamedTuple):
     ubody: np.ndarray  # [r] body-frame uniform force density
     end_idx: np.ndarray  # [k] int64 loaded end nodes
     end_load: np.ndarray  # [k, r] their loads P
+    end_loaded: np.ndarray  # [k] bool, all True (the collocation set keeps unloaded ends in its list)
     end_follow: np.ndarray  # [k] bool follower (else dead)
     end_div: np.ndarray  # [k] 1/(h_α/2): load per face area → force density
     end_face: np.ndarray  # [k] w/(h_α/2): face area share (powers)
@@ -276,10 +277,9 @@ def op_free_flow(D, C, S, pieces, fracs, dt, Dn, K):
                     col[p, k, cnt[p, k]] = j
                     cnt[p, k] += 1
     xi = np.empty(R_)  # noqa: F821
-    vec = np.empty(R_)  # noqa: F821
-    row = np.empty(R_)  # noqa: F821
     E = np.empty((M_, M_))  # noqa: F821
     tmp = np.empty((M_, M_))  # noqa: F821
+    wk = g_work()  # noqa: F821
     moved = False
     for i in range(S.shape[0]):
         first = True
@@ -298,12 +298,7 @@ def op_free_flow(D, C, S, pieces, fracs, dt, Dn, K):
             if not moving:
                 continue
             moved = True
-            g_exp(xi, E)  # noqa: F821
-            for k in range(R_):  # noqa: F821
-                row[k] = S[i, k]
-            g_Ad_T(E, row, vec)  # noqa: F821
-            for k in range(R_):  # noqa: F821
-                S[i, k] = vec[k]
+            g_coad_exp(xi, S[i], E, wk)  # noqa: F821
             if first:
                 for a in range(M_):  # noqa: F821
                     for b in range(M_):  # noqa: F821
@@ -378,6 +373,8 @@ def op_powers(D, C, N, t, K):
             diss += D.w[i] * D.damp[k] * N[i, k] * N[i, k]
             ext += D.w[i] * D.ubody[k] * N[i, k]
     for p in range(D.end_idx.shape[0]):
+        if not D.end_loaded[p]:
+            continue
         i = D.end_idx[p]
         if D.end_follow[p]:
             for k in range(R_):  # noqa: F821
@@ -606,7 +603,7 @@ def lattice_operators(scheme, reference: type):
     """The compiled operator set of a lattice scheme, or a declined set that says why
     (``OperatorSet.reason``); ``reference`` is :class:`~cartan.schemes.lattice.Lattice`, whose
     methods the operators implement (a subclass that overrides one is declined)."""
-    from ..compiled.kernels import medium_fragment
+    from ..compiled.kernels import kernel_stem, medium_fragment
     from ..compiled.operators import OperatorSet
 
     reason = _why_not(scheme, reference)
@@ -654,6 +651,7 @@ def lattice_operators(scheme, reference: type):
         damp=damp, ubody=ubody,
         end_idx=np.array([i for i, _, _ in entries], dtype=np.int64),
         end_load=np.array([np.asarray(b.load, dtype=float) for _, b, _ in entries], dtype=float).reshape(-1, r),
+        end_loaded=np.ones(len(entries), dtype=np.bool_),
         end_follow=np.array([bool(b.follower) for _, b, _ in entries], dtype=np.bool_),
         end_div=np.array([1.0 / (0.5 * h[a]) for _, _, a in entries], dtype=float),
         end_face=np.array([weights[i] / (0.5 * h[a]) for i, _, a in entries], dtype=float),
@@ -688,5 +686,5 @@ def lattice_operators(scheme, reference: type):
     fragments = [group.point_kernels(), medium_fragment(kernels),
                  Fragment(imports={"LatticeData": (__name__, "LatticeData")}, constants={"D_": d, "R_": r, "M_": m},
                           source=njit_source(*_OPERATORS))]
-    return OperatorSet(label=f"lattice × {group!r} × {medium.name}", key=f"lattice-{group!r}-{medium.name}",
+    return OperatorSet(label=f"lattice × {group!r} × {medium.name}", key=f"lattice-{group!r}-{kernel_stem(kernels)}",
                        fragments=fragments, data=data, pack=pack, unpack=unpack, accepts=accepts, nodes=n)

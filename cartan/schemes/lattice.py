@@ -53,7 +53,7 @@ from typing import Any
 
 import numpy as np
 
-from ..problem import Free, dead_to_body
+from ..problem import Free, axis_holonomies, dead_to_body
 from .base import Scheme, State, prefix_products
 
 __all__ = ["Lattice"]
@@ -155,13 +155,14 @@ class Lattice(Scheme):
         Phi = self.problem.initial.Phi
         arrays: dict[str, np.ndarray] = {}
         Phi_inv = g.inverse(Phi)
-        H = self.problem.initial.holonomy
+        holonomies = axis_holonomies(self.problem.initial, self.grid.d)
         for axis in range(self.grid.d):
             inv_tail, _ = self._ends(Phi_inv, axis)
             _, head = self._ends(Phi, axis)
-            if H is not None and self.grid.periodic[axis]:
-                head = head.copy()
-                head[-1] = g.compose(H, head[-1])
+            if axis in holonomies:
+                head = np.moveaxis(head.copy(), axis, 0)
+                head[-1] = g.compose(holonomies[axis], head[-1])
+                head = np.moveaxis(head, 0, axis)
             G = g.compose(inv_tail, head)
             arrays[self._key(axis)] = G
             xi = g.log(G)
@@ -208,9 +209,11 @@ class Lattice(Scheme):
             g = self.group
             inv_tail, _ = self._ends(g.inverse(ref.Phi), axis)
             _, head = self._ends(ref.Phi, axis)
-            if ref.holonomy is not None and self.grid.periodic[axis]:
-                head = head.copy()
-                head[-1] = g.compose(ref.holonomy, head[-1])
+            holonomies = axis_holonomies(ref, self.grid.d)
+            if axis in holonomies:
+                head = np.moveaxis(head.copy(), axis, 0)
+                head[-1] = g.compose(holonomies[axis], head[-1])
+                head = np.moveaxis(head, 0, axis)
             xi = g.log(g.compose(inv_tail, head)) / self.h[axis]
             X0 = np.broadcast_to(self.medium.rest_strain(), (*xi.shape[:-1], self.grid.d, g.dim)).copy()
             X0[..., axis, :] = xi
@@ -461,15 +464,13 @@ class Lattice(Scheme):
         return res
 
     def closure_residual(self, state: State) -> float:
-        """Ring closure ‖log(B⁻¹ ∏_e G_e)‖ around every periodic axis, with B = Φ₀⁻¹HΦ₀ the
-        body holonomy (identity for a closed rod); 0 when no axis is periodic."""
+        """Closure ‖log(B_α⁻¹ ∏_e G_e)‖ around every periodic axis α and every line along it,
+        with B_α = Φ₀⁻¹H_αΦ₀ the body holonomy at the line's first node (identity for a closed
+        rod or shell); 0 when no axis is periodic."""
         g = self.group
         res = 0.0
-        H = self.problem.initial.holonomy
-        B = None
-        if H is not None:
-            root = self.frames(state)[0] if "Phi" in state.arrays else state.arrays["Phi_root"]
-            B = g.compose(g.inverse(root), g.compose(H, root))
+        holonomies = axis_holonomies(self.problem.initial, self.grid.d)
+        Phi = self.frames(state) if holonomies else None
         for axis in range(self.grid.d):
             if not self.grid.periodic[axis]:
                 continue
@@ -477,7 +478,9 @@ class Lattice(Scheme):
             prod = G[0]
             for k in range(1, G.shape[0]):
                 prod = prod @ G[k]
-            if B is not None:
+            if axis in holonomies:
+                first = np.take(Phi, 0, axis=axis)
+                B = g.compose(g.inverse(first), g.compose(holonomies[axis], first))
                 prod = g.compose(g.inverse(B), prod)
             res = max(res, float(np.max(np.abs(g.log(prod)))))
         return res
