@@ -10,7 +10,9 @@ contract and then runs it through every registered scheme × integrator on a tin
 Checks
 ------
 contract
-    ``inertia()`` shape ``(r,)`` and ≥ 0; ``rest_strain()`` shape ``(d, r)``; ``potential`` and
+    ``inertia()`` shape ``(r,)`` and ≥ 0 (a medium that declares ``kinetic_metric()``: M
+    symmetric, its diagonal ``inertia()``, invertible off the gauge rows — it may be
+    indefinite); ``rest_strain()`` shape ``(d, r)``; ``potential`` and
     ``stress`` shapes and finiteness; ``parameters()`` JSON-serialisable and sufficient to
     rebuild the medium (``type(m)(**m.parameters())``).
 energy consistency
@@ -23,6 +25,8 @@ runs
     finite values, group membership of the frames (defect ≤ ``defect_tol`` for geometric
     integrators), and, for ``lie-verlet`` with no loads, energy conserved to the leapfrog bound
     (ωΔt)²/8 ≤ 5e-3 of every mode at 0.1 of the CFL estimate (checked at 1e-2 relative).
+    An integrator that refuses the medium with a ``ValueError`` at its first step (e.g.
+    ``implicit-midpoint`` needs a positive diagonal metric) is skipped, with its reason.
 point kernels
     for a medium that declares them (:meth:`~cartan.medium.Medium.point_kernels`): the energy
     and stress kernels agree with ``potential`` and ``stress`` to round-off (1e-12 relative) at
@@ -164,7 +168,15 @@ def check_medium(medium: Any, params: dict[str, Any] | None = None, *, schemes: 
 
     # ---------------------------------------------------------------- contract
     m = np.asarray(med.inertia(), dtype=float)
-    check("inertia shape (r,) and ≥ 0", m.shape == (r,) and bool(np.all(m >= 0)), f"got {m!r}")
+    if med._diagonal_metric():
+        check("inertia shape (r,) and ≥ 0", m.shape == (r,) and bool(np.all(m >= 0)), f"got {m!r}")
+    else:  # a declared metric may be non-diagonal and indefinite (a relativistic string)
+        M = np.asarray(med.kinetic_metric(), dtype=float)
+        live = ~np.asarray(med.gauge_mask(), dtype=bool)
+        ok = (M.shape == (r, r) and m.shape == (r,) and bool(np.allclose(M, M.T)) and bool(np.allclose(np.diag(M), m))
+              and int(np.linalg.matrix_rank(M[np.ix_(live, live)])) == int(live.sum()))
+        check("kinetic metric (r, r): symmetric, diagonal = inertia(), invertible off the gauge rows", ok,
+              f"got {M!r}")
     X0 = np.asarray(med.rest_strain(), dtype=float)
     check("rest_strain shape (d, r)", X0.shape == (d, r), f"got shape {X0.shape}")
     Xs = X0 + 0.1 * rng.standard_normal((7, d, r))
@@ -223,7 +235,7 @@ def check_medium(medium: Any, params: dict[str, Any] | None = None, *, schemes: 
     for sname in scheme_names:
         for iname in integ_names:
             label = f"{sname} × {iname}"
-            loads = [Damping(np.where(m > 0, 1.0, 0.0))] if iname == "overdamped" else []
+            loads = [Damping(np.where(med.gauge_mask(), 0.0, 1.0))] if iname == "overdamped" else []
             problem = Problem(med, base.grid, base.initial, loads=loads)
             try:
                 scheme = cartan.registry("schemes")[sname](problem, track_frames=True)
@@ -238,7 +250,12 @@ def check_medium(medium: Any, params: dict[str, Any] | None = None, *, schemes: 
                 lv = cartan.registry("integrators")["lie-verlet"]()
                 dt = 0.1 * (integ.dt_max(scheme, state) if np.isfinite(integ.dt_max(scheme, state))
                             and integ.dt_max(scheme, state) > 0 else lv.dt_max(scheme, state))
-                for _ in range(steps):
+                try:
+                    integ.step(scheme, state, dt)
+                except ValueError as exc:  # the integrator does not apply to this medium (it says why)
+                    rep.skipped.append(f"{label}: {exc}")
+                    continue
+                for _ in range(steps - 1):
                     integ.step(scheme, state, dt)
                 Phi = scheme.frames(state)
                 ok = (state.S.shape == (*base.grid.shape, r) and Phi.shape[-2:] == (g.matrix_size,) * 2
