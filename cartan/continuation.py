@@ -218,7 +218,7 @@ def continuation(
     init = _initial_phi(problem, initial)
     if init is not problem.initial:
         problem = Problem(problem.medium, problem.grid, InitialState(Phi=init.Phi, holonomy=problem.initial.holonomy),
-                          problem.boundaries, problem.loads, problem.name)
+                          problem.boundaries, problem.loads, problem.name, reference=problem.reference)
     if jacobian not in _JACOBIANS:
         raise ValueError(f"jacobian must be one of {', '.join(map(repr, _JACOBIANS))}, got {jacobian!r}")
     sysm = _Equilibrium(problem, jacobian=jacobian, fd_step=fd_step, t=t, pins=pins, probe_lam=0.0)

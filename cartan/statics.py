@@ -895,7 +895,7 @@ def solve_static(
     init = _initial_phi(problem, initial)
     if init is not problem.initial:
         problem = Problem(problem.medium, problem.grid, InitialState(Phi=init.Phi, holonomy=problem.initial.holonomy),
-                          problem.boundaries, problem.loads, problem.name)
+                          problem.boundaries, problem.loads, problem.name, reference=problem.reference)
     nsteps = int(load_steps)
     eq = _Equilibrium(problem, jacobian=jacobian, fd_step=fd_step, t=t, probe_lam=1.0 / nsteps)
     sch, g, nunk = eq.sch, eq.g, eq.nunk

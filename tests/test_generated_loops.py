@@ -87,12 +87,35 @@ def test_lorentz_group_toy_runs_compiled_and_agrees(integrators):
 
 
 @pytest.mark.parametrize("integrators", _sets(["rkmk4"]))
-def test_poincare_toy_runs_compiled_with_van_loan_kernels(integrators):
-    """The Poincaré group has no closed-form dexp⁻¹ or 𝓔 kernels: the generated module builds
-    them from ad by the Van Loan block exponential, and the loops agree with the reference."""
+def test_poincare_toy_runs_compiled(integrators):
+    """A quadratic rod on the Poincaré group: its dexp⁻¹ and 𝓔 kernels sum the series in ad_ξ
+    for a small Lorentz part and take the Van Loan block exponential beyond (this arc's edges
+    and velocities, 0.03–0.3), and the loops agree with the reference."""
     problem = arc_problem(n=9, group="Poincare", curvature=0.3, velocity=np.linspace(0.1, 0.3, 10))
-    assert "_vanloan_E" in cartan.group("Poincare").point_kernels().imports
+    imports = cartan.group("Poincare").point_kernels().imports
+    assert imports["g_dexp_inv"][1] == "poincare_dexp_inv_point" and imports["g_E"][1] == "poincare_E_point"
     _compare(problem, integrators, dt=1e-3, t_end=0.01)
+
+
+def test_a_group_without_dexp_inv_kernels_gets_van_loan():
+    """A group module with neither ``E`` nor ``dexp_inv`` point kernels (a plugin group) gets
+    both from ad by the Van Loan block exponential in the generated module."""
+    import sys
+    import types
+
+    from cartan.compiled.kernels import GROUP_OPS, group_fragment
+    from cartan.groups import poincare
+
+    fake = types.ModuleType("cartan_test_group_without_dexp")
+    for op in GROUP_OPS:
+        if op not in ("E", "dexp_inv"):
+            setattr(fake, f"poincare_{op}_point", getattr(poincare, f"poincare_{op}_point"))
+    sys.modules[fake.__name__] = fake
+    try:
+        frag = group_fragment(fake.__name__, "poincare")
+    finally:
+        del sys.modules[fake.__name__]
+    assert "_vanloan_E" in frag.imports and "def g_dexp_inv(" in frag.source and "def g_E(" in frag.source
 
 
 def test_van_loan_kernels_match_the_reference():

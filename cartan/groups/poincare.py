@@ -59,6 +59,7 @@ from numba import njit
 from numba.extending import register_jitable
 
 from ._batch import kernel_table
+from ._generic_kernels import vanloan_E_point
 from .base import SymmetryGroup
 from .so13 import (
     Ad_np,
@@ -89,11 +90,13 @@ from .so13 import (
 __all__ = [
     "Poincare",
     "poincare_Ad_point",
+    "poincare_E_point",
     "poincare_V_coeffs",
     "poincare_act_point",
     "poincare_ad_point",
     "poincare_bracket_point",
     "poincare_compose_point",
+    "poincare_dexp_inv_point",
     "poincare_exp_point",
     "poincare_hat_point",
     "poincare_inverse_point",
@@ -671,3 +674,83 @@ class Poincare(SymmetryGroup):
         out[..., 4:, 4:] = Ji
         return out
 
+
+#: Below this size of the Lorentz part, max |c_k|, |d_k| (times τ for 𝓔), dexp⁻¹ and 𝓔 are
+#: summed from their series in ad_ξ; above it, from the Van Loan block exponential.  ad_ξ is
+#: block triangular with eigenvalues those of the Lorentz part, so the series converge like
+#: the scalar ones in |Z| (the translation part enters linearly): truncated after ad⁴ (dexp⁻¹:
+#: next Bernoulli term B₆/6! ad⁶ = ad⁶/30240) and after ad⁵ (𝓔: next ad⁶/7!), the remainder is
+#: below |Z|⁵·|ξ|/5040 ≈ 2e-14 |ξ| at |Z| = 1e-2.
+POINCARE_SERIES_Z = 1e-2
+
+
+@njit(cache=True)
+def _poincare_ad_powers(xi, tau, A, A2, A3):
+    """``A = τ ad_ξ``, ``A2 = A²``, ``A3 = A³`` (10 × 10); returns max |τZ| over the Lorentz part."""
+    poincare_ad_point(xi, A)
+    for i in range(10):
+        for j in range(10):
+            A[i, j] *= tau
+    z = 0.0
+    for k in range(4, 10):
+        z = max(z, abs(tau * xi[k]))
+    for i in range(10):
+        for j in range(10):
+            s = 0.0
+            for k in range(10):
+                s += A[i, k] * A[k, j]
+            A2[i, j] = s
+    for i in range(10):
+        for j in range(10):
+            s = 0.0
+            for k in range(10):
+                s += A2[i, k] * A[k, j]
+            A3[i, j] = s
+    return z
+
+
+@njit(cache=True)
+def poincare_dexp_inv_point(xi, out):
+    """``out`` (10, 10) ← dexp⁻¹(ξ) = Σ B_k ad_ξ^k / k!: exactly I − ½ad_ξ for a pure
+    translation (ad_ξ² = 0), the series through ad⁴ below :data:`POINCARE_SERIES_Z`, else the
+    inverse of the Van Loan block exponential (the string's edges are pure translations)."""
+    A = np.empty((10, 10))
+    A2 = np.empty((10, 10))
+    A3 = np.empty((10, 10))
+    z = _poincare_ad_powers(xi, 1.0, A, A2, A3)
+    if z >= POINCARE_SERIES_Z:
+        vanloan_E_point(1.0, A, out)
+        out[:, :] = np.linalg.inv(out)
+        return
+    for i in range(10):
+        for j in range(10):
+            a4 = 0.0
+            if z > 0.0:
+                for k in range(10):
+                    a4 += A2[i, k] * A2[k, j]
+            out[i, j] = (1.0 if i == j else 0.0) - 0.5 * A[i, j] + A2[i, j] / 12.0 - a4 / 720.0
+
+
+@njit(cache=True)
+def poincare_E_point(dt, xi, out):
+    """``out`` (10, 10) ← 𝓔(Δt, ξ) = Δt·Σ (Δt ad_ξ)^k/(k + 1)!: exactly Δt(I + ½Δt ad_ξ) for a
+    pure translation, the series through (Δt ad)⁵ below :data:`POINCARE_SERIES_Z`, else the
+    Van Loan block exponential."""
+    A = np.empty((10, 10))
+    A2 = np.empty((10, 10))
+    A3 = np.empty((10, 10))
+    z = _poincare_ad_powers(xi, dt, A, A2, A3)
+    if z >= POINCARE_SERIES_Z:
+        poincare_ad_point(xi, A)
+        vanloan_E_point(dt, A, out)
+        return
+    for i in range(10):
+        for j in range(10):
+            a4 = 0.0
+            a5 = 0.0
+            if z > 0.0:
+                for k in range(10):
+                    a4 += A2[i, k] * A2[k, j]
+                    a5 += A2[i, k] * A3[k, j]
+            out[i, j] = dt * ((1.0 if i == j else 0.0) + 0.5 * A[i, j] + A2[i, j] / 6.0 + A3[i, j] / 24.0
+                              + a4 / 120.0 + a5 / 720.0)
