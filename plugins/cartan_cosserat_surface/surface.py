@@ -1,0 +1,530 @@
+"""The ``cosserat-surface`` medium: a geometrically exact first-order-shear shell on SE(3) (paper §VI.B).
+
+(M, X, G) = (a 2D chart (u, v), E³ × S², SE(3)), d = 2.  The structure field Φ = (r, R) carries
+the mid-surface point r and a frame R = (e₁ e₂ e₃) whose third vector is the director
+p = R e₃.  The strains X_α = Φ⁻¹∂_αΦ = {θ_α; π_α} (α = u, v) hold, in the frame,
+
+* θ_α = Rᵀ∂_α r — the tangent vectors of the mid-surface,
+* π_α — the rotation rates, [π_α]× = Rᵀ∂_α R, so that ∂_α p = R (π_α × e₃) = R d_α with
+  d_α = (π_α,2, −π_α,1, 0).
+
+Strain measures (all invariant under a rotation of the frame about p, the drill)
+    * metric a_αβ = θ_α·θ_β and membrane strain ε_αβ = ½(a_αβ − a⁰_αβ) (Green–Lagrange),
+    * transverse shear γ_α = θ_α·e₃ − θ⁰_α·e₃ = θ_α,3 − θ⁰_α,3,
+    * bending κ_αβ = sym(θ_α·d_β) − sym(θ⁰_α·d⁰_β) (the change of a_α·∂_β p, Naghdi's measure).
+
+The superscript 0 marks the rest strain X₀ at the point: the medium's constant
+:meth:`~CosseratSurface.rest_strain` (flat, or a cylinder of constant curvature), or the strain
+of a stress-free reference configuration given to ``Problem(reference=Φ_ref)`` (any shape).
+
+Energy per unit chart area (St Venant–Kirchhoff, plane stress, thickness h)
+    U = √a⁰ [ ½ h 𝒞(ε, ε) + ½ κ_s G h A^αβ γ_α γ_β + ½ (h³/12) 𝒞(κ, κ) ],
+
+with A = (a⁰)⁻¹ the inverse rest metric, 𝒞^{αβγδ} = E/(1−ν²) [ν A^αβ A^γδ +
+½(1−ν)(A^αγ A^βδ + A^αδ A^βγ)], G = E/(2(1+ν)) and κ_s the shear correction.  The stress
+Q^α = ∂U/∂X_α is, with the resultants n = h𝒞ε, q^α = κ_s G h A^αβ γ_β, m = (h³/12)𝒞κ,
+
+    ∂U/∂θ_α = √a⁰ [ n^αβ θ_β + q^α e₃ + m^αβ (π_β,2, −π_β,1, 0) ],
+    ∂U/∂π_β = √a⁰ m^αβ (−θ_α,2, θ_α,1, 0).
+
+Drill (gauge)
+    The energy does not depend on the drill components π_α,3 (their stress is identically 0)
+    nor on a rotation of the frame about p: the drill rotation Ω₃ is a gauge (paper §VI.B),
+    with zero inertia, so the core holds Ω₃ = 0 and the frame is transported without spin
+    about the director.  π_α,3 is carried by the lattice but enters neither the energy nor
+    any output.
+
+Kinetic energy per unit chart area (paper §VI.B: [K] = energy per unit material area)
+    K = ½ ρh |V|² + ½ (ρh³/12)(Ω₁² + Ω₂²), drill inertia 0.  The inertia is per unit chart
+    area, i.e. exact for charts with √a⁰ = 1 (flat plates, cylinders by arclength).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from typing import Any, ClassVar
+
+import numpy as np
+from numba import njit
+
+import cartan
+from cartan.medium import KernelMedium, MediumKernels, check_finite, check_positive
+from cartan.problem import ConstantFieldPotential, InitialState, PotentialLoad, UniformForce
+
+__all__ = ["CosseratSurface", "PenaltySupport", "SurfaceGravity", "surface_energy", "surface_stress"]
+
+
+# ====================================================================== point kernels
+@njit(cache=True)
+def _constitutive(xuu, xuv, xvv, Auu, Auv, Avv, nu, c):  # pragma: no cover - compiled
+    """Contravariant s = c [ν A tr_A(x) + (1 − ν) A x A] of a symmetric covariant tensor x."""
+    tr = Auu * xuu + 2.0 * Auv * xuv + Avv * xvv
+    suu = nu * Auu * tr + (1.0 - nu) * (Auu * Auu * xuu + 2.0 * Auu * Auv * xuv + Auv * Auv * xvv)
+    suv = nu * Auv * tr + (1.0 - nu) * (Auu * Auv * xuu + (Auu * Avv + Auv * Auv) * xuv + Auv * Avv * xvv)
+    svv = nu * Avv * tr + (1.0 - nu) * (Auv * Auv * xuu + 2.0 * Auv * Avv * xuv + Avv * Avv * xvv)
+    return c * suu, c * suv, c * svv
+
+
+@njit(cache=True)
+def _surface(X, X0, p, Q, want):  # pragma: no cover - compiled
+    """Energy density at one point; writes Q = ∂U/∂X when ``want`` (see the module docstring)."""
+    E, nu, h, ks = p[0], p[1], p[2], p[3]
+    cs = E / (1.0 - nu * nu)
+    G = 0.5 * E / (1.0 + nu)
+    # rest metric, its inverse and the area element
+    a0uu = X0[0, 0] * X0[0, 0] + X0[0, 1] * X0[0, 1] + X0[0, 2] * X0[0, 2]
+    a0uv = X0[0, 0] * X0[1, 0] + X0[0, 1] * X0[1, 1] + X0[0, 2] * X0[1, 2]
+    a0vv = X0[1, 0] * X0[1, 0] + X0[1, 1] * X0[1, 1] + X0[1, 2] * X0[1, 2]
+    det0 = a0uu * a0vv - a0uv * a0uv
+    J = np.sqrt(det0)
+    Auu, Auv, Avv = a0vv / det0, -a0uv / det0, a0uu / det0
+    # membrane strain
+    auu = X[0, 0] * X[0, 0] + X[0, 1] * X[0, 1] + X[0, 2] * X[0, 2]
+    auv = X[0, 0] * X[1, 0] + X[0, 1] * X[1, 1] + X[0, 2] * X[1, 2]
+    avv = X[1, 0] * X[1, 0] + X[1, 1] * X[1, 1] + X[1, 2] * X[1, 2]
+    euu, euv, evv = 0.5 * (auu - a0uu), 0.5 * (auv - a0uv), 0.5 * (avv - a0vv)
+    # bending: b_ab = θ_a · d_b with d_b = (π_b2, −π_b1, 0)
+    buu = X[0, 0] * X[0, 4] - X[0, 1] * X[0, 3]
+    buv = X[0, 0] * X[1, 4] - X[0, 1] * X[1, 3]
+    bvu = X[1, 0] * X[0, 4] - X[1, 1] * X[0, 3]
+    bvv = X[1, 0] * X[1, 4] - X[1, 1] * X[1, 3]
+    b0uu = X0[0, 0] * X0[0, 4] - X0[0, 1] * X0[0, 3]
+    b0uv = X0[0, 0] * X0[1, 4] - X0[0, 1] * X0[1, 3]
+    b0vu = X0[1, 0] * X0[0, 4] - X0[1, 1] * X0[0, 3]
+    b0vv = X0[1, 0] * X0[1, 4] - X0[1, 1] * X0[1, 3]
+    kuu, kuv, kvv = buu - b0uu, 0.5 * (buv + bvu - b0uv - b0vu), bvv - b0vv
+    # transverse shear
+    gu, gv = X[0, 2] - X0[0, 2], X[1, 2] - X0[1, 2]
+    nuu, nuv, nvv = _constitutive(euu, euv, evv, Auu, Auv, Avv, nu, cs * h)
+    muu, muv, mvv = _constitutive(kuu, kuv, kvv, Auu, Auv, Avv, nu, cs * h * h * h / 12.0)
+    kg = ks * G * h
+    qu, qv = kg * (Auu * gu + Auv * gv), kg * (Auv * gu + Avv * gv)
+    U = 0.5 * J * (nuu * euu + 2.0 * nuv * euv + nvv * evv + qu * gu + qv * gv
+                   + muu * kuu + 2.0 * muv * kuv + mvv * kvv)
+    if want:
+        for i in range(3):
+            Q[0, i] = J * (nuu * X[0, i] + nuv * X[1, i])
+            Q[1, i] = J * (nuv * X[0, i] + nvv * X[1, i])
+        Q[0, 2] += J * qu
+        Q[1, 2] += J * qv
+        # ∂/∂θ_a of Σ m^ab b_ab: m^ab (π_b2, −π_b1)
+        Q[0, 0] += J * (muu * X[0, 4] + muv * X[1, 4])
+        Q[0, 1] -= J * (muu * X[0, 3] + muv * X[1, 3])
+        Q[1, 0] += J * (muv * X[0, 4] + mvv * X[1, 4])
+        Q[1, 1] -= J * (muv * X[0, 3] + mvv * X[1, 3])
+        # ∂/∂π_b of Σ m^ab b_ab: m^ab (−θ_a2, θ_a1)
+        Q[0, 3] = -J * (muu * X[0, 1] + muv * X[1, 1])
+        Q[0, 4] = J * (muu * X[0, 0] + muv * X[1, 0])
+        Q[1, 3] = -J * (muv * X[0, 1] + mvv * X[1, 1])
+        Q[1, 4] = J * (muv * X[0, 0] + mvv * X[1, 0])
+        Q[0, 5] = 0.0
+        Q[1, 5] = 0.0
+    return U
+
+
+@njit(cache=True)
+def surface_energy(X, X0, p):  # pragma: no cover - compiled
+    """Energy density U(X; X₀) per unit chart area; ``p = (E, ν, h, κ_s)``; X, X₀ ``(2, 6)``."""
+    Q = np.empty((1, 1))
+    return _surface(X, X0, p, Q, False)
+
+
+@njit(cache=True)
+def surface_stress(X, X0, p, Q):  # pragma: no cover - compiled
+    """Writes Q = ∂U/∂X ``(2, 6)`` (see :func:`surface_energy`)."""
+    _surface(X, X0, p, Q, True)
+
+
+@njit(cache=True)
+def _resultants(X, X0, p, out):  # pragma: no cover - compiled
+    """(n^uu, n^uv, n^vv, q^u, q^v, m^uu, m^uv, m^vv, K, H) at one point into ``out`` (10,)."""
+    E, nu, h, ks = p[0], p[1], p[2], p[3]
+    cs = E / (1.0 - nu * nu)
+    G = 0.5 * E / (1.0 + nu)
+    a0 = np.zeros(3)
+    a = np.zeros(3)
+    for i in range(3):
+        a0[0] += X0[0, i] * X0[0, i]
+        a0[1] += X0[0, i] * X0[1, i]
+        a0[2] += X0[1, i] * X0[1, i]
+        a[0] += X[0, i] * X[0, i]
+        a[1] += X[0, i] * X[1, i]
+        a[2] += X[1, i] * X[1, i]
+    det0 = a0[0] * a0[2] - a0[1] * a0[1]
+    Auu, Auv, Avv = a0[2] / det0, -a0[1] / det0, a0[0] / det0
+    b = np.empty((2, 2))
+    b0 = np.empty((2, 2))
+    for i in range(2):
+        for j in range(2):
+            b[i, j] = X[i, 0] * X[j, 4] - X[i, 1] * X[j, 3]
+            b0[i, j] = X0[i, 0] * X0[j, 4] - X0[i, 1] * X0[j, 3]
+    n = _constitutive(0.5 * (a[0] - a0[0]), 0.5 * (a[1] - a0[1]), 0.5 * (a[2] - a0[2]), Auu, Auv, Avv, nu, cs * h)
+    m = _constitutive(b[0, 0] - b0[0, 0], 0.5 * (b[0, 1] + b[1, 0] - b0[0, 1] - b0[1, 0]), b[1, 1] - b0[1, 1],
+                      Auu, Auv, Avv, nu, cs * h ** 3 / 12.0)
+    gu, gv = X[0, 2] - X0[0, 2], X[1, 2] - X0[1, 2]
+    kg = ks * G * h
+    out[0], out[1], out[2] = n
+    out[3], out[4] = kg * (Auu * gu + Auv * gv), kg * (Auv * gu + Avv * gv)
+    out[5], out[6], out[7] = m
+    # curvature of the deformed surface from the director: K = det b / det a, H = ½ tr(a⁻¹ b)
+    det = a[0] * a[2] - a[1] * a[1]
+    bs = 0.5 * (b[0, 1] + b[1, 0])
+    out[8] = (b[0, 0] * b[1, 1] - bs * bs) / det
+    out[9] = 0.5 * (a[2] * b[0, 0] - 2.0 * a[1] * bs + a[0] * b[1, 1]) / det
+
+
+@njit(cache=True)
+def _resultants_batch(X, X0, p, out):  # pragma: no cover - compiled
+    for i in range(X.shape[0]):
+        _resultants(X[i], X0[i], p, out[i])
+
+
+# ====================================================================== loads
+class SurfaceGravity(ConstantFieldPotential):
+    """Gravity on the shell: ``U(q) = −ρh g·r`` per unit chart area (paper §IV.B, pulled back by the core).
+
+    Parameters
+    ----------
+    g : array_like, shape ``(3,)``
+        Gravitational acceleration in the spatial frame.
+    mass : float
+        Mass per unit chart area ρh (> 0).
+    """
+
+    def __init__(self, g: Any, mass: float):
+        super().__init__(check_finite("g", g, (3,)), float(check_positive("mass", mass)))
+
+    def to_dict(self) -> dict[str, Any]:
+        return {"kind": "gravity", "g": self.field.tolist(), "mass": self.density}
+
+
+class PenaltySupport(PotentialLoad):
+    """Elastic edge supports: ``U = ½ (x − x̄)ᵀ K (x − x̄) + ½ (p − p̄)ᵀ S (p − p̄)`` per unit chart area.
+
+    x is a node's position and p = R e₃ its director, both in the spatial frame; x̄ and p̄ the
+    held values (those of the first configuration the load sees, the initial state, or set
+    by :meth:`hold`).  On the nodes of the listed edges K = diag(``position_stiffness``) and
+    S = s Σ t tᵀ over the edges through the node, t the edge's reference tangent (R̄e₂ on u-edges,
+    R̄e₁ on v-edges): with ``director_stiffness`` s > 0 the director may turn about the edge but
+    not along it — the *hard* simple support (w = 0, β_s = 0, M_n = 0); s = 0 is the soft one.
+    Elsewhere U = 0.  A penalty: the held quantities move by O(reaction/stiffness).
+
+    Parameters
+    ----------
+    edges : sequence of str
+        Ends ``"u-start"``, ``"u-end"``, ``"v-start"``, ``"v-end"``.
+    position_stiffness : array_like, shape ``(3,)``
+        Stiffness per unit chart area of each spatial position component (≥ 0).
+    director_stiffness : float
+        s ≥ 0 (per unit chart area).
+    """
+
+    EDGES: ClassVar[tuple[str, ...]] = ("u-start", "u-end", "v-start", "v-end")
+
+    def __init__(self, edges: Any = EDGES, position_stiffness: Any = (0.0, 0.0, 1.0), director_stiffness: float = 0.0):
+        edges = (edges,) if isinstance(edges, str) else tuple(edges)
+        bad = [e for e in edges if e not in self.EDGES]
+        if bad or not edges:
+            raise ValueError(f"edges must be a non-empty list of {', '.join(self.EDGES)}; got {list(edges)}")
+        self.edges = edges
+        self.k = check_positive("position_stiffness", position_stiffness, allow_zero=True, shape=(3,))
+        self.s = float(check_positive("director_stiffness", director_stiffness, allow_zero=True, shape=()))
+        self._held: tuple[np.ndarray, ...] | None = None
+
+    def hold(self, Phi: np.ndarray) -> PenaltySupport:
+        """Hold the positions and directors of ``Phi`` ``(nu, nv, 4, 4)`` (returns self)."""
+        Phi = np.asarray(Phi, dtype=float)
+        shape = Phi.shape[:-2]
+        if len(shape) != 2:
+            raise ValueError(f"PenaltySupport needs a d = 2 grid, got node shape {shape}")
+        K = np.zeros((*shape, 3))
+        S = np.zeros((*shape, 3, 3))
+        for e in self.edges:
+            axis = 0 if e[0] == "u" else 1
+            idx = [slice(None), slice(None)]
+            idx[axis] = 0 if e.endswith("start") else -1
+            idx = tuple(idx)
+            K[idx] = self.k
+            t = Phi[idx][..., 1:, 2 if axis == 0 else 1]   # tangent of the edge: e₂ on u-edges, e₁ on v-edges
+            S[idx] += self.s * t[..., :, None] * t[..., None, :]
+        self._held = (K, S, Phi[..., 1:, 0].copy(), Phi[..., 1:, 3].copy())
+        return self
+
+    def _fields(self, q: np.ndarray) -> tuple[np.ndarray, ...]:
+        if self._held is None or self._held[0].shape[:-1] != q.shape[:-2]:
+            self.hold(q)
+        return self._held
+
+    def potential_energy(self, q: np.ndarray) -> np.ndarray:
+        K, S, x, p = self._fields(q)
+        dx = q[..., 1:, 0] - x
+        dp = q[..., 1:, 3] - p
+        return 0.5 * (np.sum(K * dx * dx, axis=-1) + np.einsum("...i,...ij,...j->...", dp, S, dp))
+
+    def potential_gradient(self, q: np.ndarray) -> np.ndarray:
+        K, S, x, p = self._fields(q)
+        grad = np.zeros(np.shape(q))
+        grad[..., 1:, 0] = K * (q[..., 1:, 0] - x)
+        grad[..., 1:, 3] = np.einsum("...ij,...j->...i", S, q[..., 1:, 3] - p)
+        return grad
+
+    def to_dict(self) -> dict[str, Any]:
+        return {"kind": "simple-support", "edges": list(self.edges), "position_stiffness": self.k.tolist(),
+                "director_stiffness": self.s}
+
+
+# ====================================================================== medium
+def _frames_from_tangents(ru: np.ndarray, rv: np.ndarray) -> np.ndarray:
+    """Frames ``[..., 3, 3]`` (columns e₁, e₂, e₃): e₁ ∥ r_u, e₃ ∥ r_u × r_v (the coordinate gauge)."""
+    n = np.cross(ru, rv)
+    nn = np.linalg.norm(n, axis=-1, keepdims=True)
+    nu = np.linalg.norm(ru, axis=-1, keepdims=True)
+    if np.any(nn <= 1e-12 * np.maximum(nu, 1.0) ** 2) or np.any(nu == 0):
+        raise ValueError("the surface is singular (r_u × r_v = 0) at some node; use a regular chart")
+    e3 = n / nn
+    e1 = ru / nu
+    e2 = np.cross(e3, e1)
+    return np.stack([e1, e2, e3], axis=-1)
+
+
+class CosseratSurface(KernelMedium):
+    """Geometrically exact Cosserat shell (Naghdi / Reissner–Mindlin) on SE(3), d = 2 (paper §VI.B).
+
+    Parameters
+    ----------
+    E : float
+        Young's modulus (> 0).
+    poisson : float
+        Poisson ratio ν, in (−1, 0.5).
+    thickness : float
+        Shell thickness h (> 0).
+    density : float
+        Mass density ρ (> 0); the inertia per unit chart area is ρh (translation) and ρh³/12
+        (rotation about e₁, e₂), 0 about the director (the drill gauge).
+    shear_correction : float
+        κ_s (> 0), default 5/6.
+    rest_curvature : sequence of 2 floats
+        Constant rest curvatures (k_u, k_v) of the chart axes (a cylinder of radius 1/k): at most
+        one may be non-zero, since a constant rest strain on a flat chart is integrable only
+        then.  Other stress-free shapes are given as ``Problem(reference=Φ_ref)``.
+
+    Notes
+    -----
+    Strains, energy and stress: see the module docstring.  Components of X_α: (θ_α; π_α) in
+    the SE(3) basis, translations first.
+    """
+
+    name: ClassVar[str] = "cosserat-surface"
+    material_dim: ClassVar[int] = 2
+    initial_kinds: ClassVar[tuple[str, ...]] = ("flat", "cylinder", "surface")
+    load_kinds: ClassVar[tuple[str, ...]] = ("gravity", "dead-load", "director-pressure", "simple-support")
+    output_fields: ClassVar[dict[str, tuple[str, str]]] = {
+        "director_x": ("director p = R e3, x component", "1"),
+        "director_y": ("director p = R e3, y component", "1"),
+        "director_z": ("director p = R e3, z component", "1"),
+        "membrane_force_uu": ("membrane force n^uu (thickness-integrated, contravariant)", "N m-1"),
+        "membrane_force_uv": ("membrane force n^uv (thickness-integrated, contravariant)", "N m-1"),
+        "membrane_force_vv": ("membrane force n^vv (thickness-integrated, contravariant)", "N m-1"),
+        "shear_force_u": ("transverse shear force q^u (thickness-integrated)", "N m-1"),
+        "shear_force_v": ("transverse shear force q^v (thickness-integrated)", "N m-1"),
+        "bending_moment_uu": ("bending moment m^uu (thickness-integrated, contravariant)", "N"),
+        "bending_moment_uv": ("bending moment m^uv (thickness-integrated, contravariant)", "N"),
+        "bending_moment_vv": ("bending moment m^vv (thickness-integrated, contravariant)", "N"),
+        "gauss_curvature": ("Gauss curvature of the director field, det b / det a", "m-2"),
+        "mean_curvature": ("mean curvature of the director field, tr(a^-1 b)/2", "m-1"),
+    }
+
+    def __init__(self, E: float = 1.0, poisson: float = 0.3, thickness: float = 0.1, density: float = 1.0,
+                 shear_correction: float = 5.0 / 6.0, rest_curvature: Any = (0.0, 0.0)):
+        self.group = cartan.group("SE3")
+        self.space = cartan.space("frame-E3")
+        self.E = float(check_positive("E", E, shape=()))
+        nu = float(check_finite("poisson", poisson, ()))
+        if not -1.0 < nu < 0.5:
+            raise ValueError(f"poisson must be in (-1, 0.5), got {poisson!r}")
+        self.nu = nu
+        self.h = float(check_positive("thickness", thickness, shape=()))
+        self.rho = float(check_positive("density", density, shape=()))
+        self.ks = float(check_positive("shear_correction", shear_correction, shape=()))
+        k = check_finite("rest_curvature", rest_curvature, (2,))
+        if k[0] != 0.0 and k[1] != 0.0:
+            raise ValueError("rest_curvature: at most one of (k_u, k_v) may be non-zero (a constant rest strain "
+                             f"on a flat chart is a cylinder); got {k.tolist()}; use Problem(reference=...)")
+        self.k0 = k
+
+    # ------------------------------------------------------------------ contract
+    def parameters(self) -> dict[str, Any]:
+        return {"E": self.E, "poisson": self.nu, "thickness": self.h, "density": self.rho,
+                "shear_correction": self.ks, "rest_curvature": self.k0.tolist()}
+
+    @property
+    def bending_stiffness(self) -> float:
+        """D = Eh³/(12(1 − ν²))."""
+        return self.E * self.h ** 3 / (12.0 * (1.0 - self.nu ** 2))
+
+    @property
+    def shear_modulus(self) -> float:
+        """G = E/(2(1 + ν))."""
+        return 0.5 * self.E / (1.0 + self.nu)
+
+    @property
+    def area_density(self) -> float:
+        """Mass per unit area ρh."""
+        return self.rho * self.h
+
+    def inertia(self) -> np.ndarray:
+        m, j = self.rho * self.h, self.rho * self.h ** 3 / 12.0
+        return np.array([m, m, m, j, j, 0.0])
+
+    def rest_strain(self) -> np.ndarray:
+        X0 = np.zeros((2, 6))
+        X0[0, 0] = X0[1, 1] = 1.0
+        X0[0, 4] = self.k0[0]     # ∂_u R = R[(0, k_u, 0)]×: bends e₁ towards −e₃ about e₂
+        X0[1, 3] = -self.k0[1]    # ∂_v R = R[(−k_v, 0, 0)]×
+        return X0
+
+    def point_kernels(self) -> MediumKernels:
+        return MediumKernels(surface_energy, surface_stress, np.array([self.E, self.nu, self.h, self.ks]))
+
+    # ------------------------------------------------------------------ loads
+    def make_load(self, kind: str, **params: Any):
+        """``"gravity"`` (``g``, 3 components; mass ρh), ``"director-pressure"`` (``pressure``:
+        a force ``pressure`` per unit chart area along the director, a follower load),
+        ``"dead-load"`` (``force``: a spatially fixed force (3,) per unit chart area) or
+        ``"simple-support"`` (:class:`PenaltySupport`: ``edges``, ``position_stiffness``,
+        ``director_stiffness``)."""
+        if kind == "gravity":
+            if set(params) != {"g"}:
+                raise ValueError(f"load 'gravity' takes exactly the parameter 'g', got {sorted(params)}")
+            return SurfaceGravity(params["g"], self.area_density)
+        if kind == "dead-load":
+            if set(params) != {"force"}:
+                raise ValueError(f"load 'dead-load' takes exactly the parameter 'force', got {sorted(params)}")
+            return ConstantFieldPotential(check_finite("force", params["force"], (3,)), 1.0)
+        if kind == "simple-support":
+            return PenaltySupport(**params)
+        if kind == "director-pressure":
+            if set(params) != {"pressure"}:
+                raise ValueError(
+                    f"load 'director-pressure' takes exactly the parameter 'pressure', got {sorted(params)}")
+            p = float(check_finite("pressure", params["pressure"], ()))
+            return UniformForce(np.array([0.0, 0.0, p, 0.0, 0.0, 0.0]), frame="body")
+        return super().make_load(kind, **params)
+
+    # ------------------------------------------------------------------ initial states
+    def initial_state(self, grid, kind: str, **params: Any) -> InitialState:
+        """Initial structure field on a d = 2 grid from a named shape.
+
+        Parameters
+        ----------
+        grid : cartan.grid.Grid
+            d = 2, axes (u, v).
+        kind : str
+            ``"flat"``: r = origin + (u, v, 0), frames = rotation (default identity).
+            ``"cylinder"``: r = (R sin(u/R), v, R cos(u/R) − R), axis along y, e₁ along the
+            circumference, e₃ the outward normal; ``radius`` R (default: L_u/(2π) on a periodic u).
+            ``"surface"``: r = ``position(u, v)`` (a callable on node arrays returning ``[..., 3]``),
+            frames from ``frames(u, v)`` (``[..., 3, 3]``, columns e₁ e₂ e₃) or, if not given, the
+            coordinate gauge e₁ ∥ r_u, e₃ ∥ r_u × r_v (tangents by central differences).
+        **params
+            The shape's parameters, plus ``twist`` (6,): a spatial twist (v, ω) whose rigid-body
+            velocity the shell starts with (its drill components dropped, the gauge).
+
+        Returns
+        -------
+        InitialState
+        """
+        if grid.d != 2:
+            raise ValueError(f"cosserat-surface needs a d = 2 grid, got d = {grid.d}")
+        twist = params.pop("twist", None)
+        builders: dict[str, Callable] = {"flat": self._flat, "cylinder": self._cylinder, "surface": self._surface}
+        if kind not in builders:
+            return super().initial_state(grid, kind)
+        from cartan.medium import check_keywords
+
+        check_keywords(kind, builders[kind], params, extra=("twist",))
+        pos, frames = builders[kind](grid, **params)
+        Phi = self._assemble(pos, frames)
+        N = None
+        if twist is not None:
+            xi = check_finite("twist", twist, (6,))
+            N = np.einsum("...ij,j->...i", self.group.Ad(self.group.inverse(Phi)), xi)
+            N[..., 5] = 0.0
+        return InitialState(Phi=Phi, N=N)
+
+    def _mesh(self, grid) -> tuple[np.ndarray, np.ndarray]:
+        return np.meshgrid(grid.coordinates(0), grid.coordinates(1), indexing="ij")
+
+    def _flat(self, grid, origin=None, rotation=None):
+        u, v = self._mesh(grid)
+        o = np.zeros(3) if origin is None else check_finite("origin", origin, (3,))
+        Rm = np.eye(3) if rotation is None else check_finite("rotation", rotation, (3, 3))
+        if np.linalg.norm(Rm.T @ Rm - np.eye(3)) > 1e-10 or np.linalg.det(Rm) < 0:
+            raise ValueError("rotation must be a proper rotation matrix")
+        local = np.stack([u, v, np.zeros_like(u)], axis=-1)
+        return o + local @ Rm.T, np.broadcast_to(Rm, (*u.shape, 3, 3)).copy()
+
+    def _cylinder(self, grid, radius=None):
+        if radius is None:
+            if not grid.periodic[0]:
+                raise ValueError("cylinder: give radius (or a periodic u axis of length 2πR)")
+            radius = grid.length[0] / (2.0 * np.pi)
+        R = float(check_positive("radius", radius, shape=()))
+        if grid.periodic[0] and abs(grid.length[0] - 2.0 * np.pi * R) > 1e-9 * R:
+            raise ValueError(f"radius: a periodic u axis closes only for length 2πR = {2 * np.pi * R}, "
+                             f"got length {grid.length[0]}")
+        u, v = self._mesh(grid)
+        phi = u / R
+        pos = np.stack([R * np.sin(phi), v, R * np.cos(phi) - R], axis=-1)
+        c, s, z = np.cos(phi), np.sin(phi), np.zeros_like(phi)
+        e1 = np.stack([c, z, -s], axis=-1)
+        e2 = np.stack([z, z + 1.0, z], axis=-1)
+        e3 = np.stack([s, z, c], axis=-1)
+        return pos, np.stack([e1, e2, e3], axis=-1)
+
+    def _surface(self, grid, position=None, frames=None):
+        if not callable(position):
+            raise ValueError("surface: position must be a callable r(u, v) -> [..., 3]")
+        u, v = self._mesh(grid)
+        pos = check_finite("position", position(u, v), (*u.shape, 3))
+        if frames is not None:
+            if not callable(frames):
+                raise ValueError("surface: frames must be a callable (u, v) -> [..., 3, 3]")
+            E = check_finite("frames", frames(u, v), (*u.shape, 3, 3))
+            defect = np.linalg.norm(np.swapaxes(E, -1, -2) @ E - np.eye(3), axis=(-2, -1))
+            if np.any(defect > 1e-8) or np.any(np.linalg.det(E) < 0):
+                raise ValueError("frames must be proper rotations (columns e1, e2, e3)")
+            return pos, E
+        eps = 1e-6 * max(grid.length)
+        ru = (np.asarray(position(u + eps, v)) - np.asarray(position(u - eps, v))) / (2 * eps)
+        rv = (np.asarray(position(u, v + eps)) - np.asarray(position(u, v - eps))) / (2 * eps)
+        return pos, _frames_from_tangents(ru, rv)
+
+    def _assemble(self, pos: np.ndarray, frames: np.ndarray) -> np.ndarray:
+        Phi = np.zeros((*pos.shape[:-1], 4, 4))
+        Phi[..., 0, 0] = 1.0
+        Phi[..., 1:, 0] = pos
+        Phi[..., 1:, 1:] = frames
+        return Phi
+
+    # ------------------------------------------------------------------ outputs
+    def resultants(self, X: np.ndarray, X0: np.ndarray | None = None) -> np.ndarray:
+        """Resultants and curvatures at strains X ``[..., 2, 6]`` (rest strain X0, default the
+        medium's): ``[..., 10]`` = (n^uu, n^uv, n^vv, q^u, q^v, m^uu, m^uv, m^vv, K, H)."""
+        X = np.asarray(X, dtype=float)
+        X0 = self.rest_strain() if X0 is None else np.asarray(X0, dtype=float)
+        lead = X.shape[:-2]
+        Xf = np.ascontiguousarray(X.reshape(-1, 2, 6))
+        X0f = np.ascontiguousarray(np.broadcast_to(X0, X.shape).reshape(-1, 2, 6))
+        out = np.empty((Xf.shape[0], 10))
+        _resultants_batch(Xf, X0f, np.array([self.E, self.nu, self.h, self.ks]), out)
+        return out.reshape(*lead, 10)
+
+    def outputs(self, q: np.ndarray, X: np.ndarray, N: np.ndarray, grid: Any) -> dict[str, np.ndarray]:
+        """Director, resultants (relative to the medium's rest strain) and curvatures at the nodes."""
+        res = self.resultants(X)
+        names = ["membrane_force_uu", "membrane_force_uv", "membrane_force_vv", "shear_force_u", "shear_force_v",
+                 "bending_moment_uu", "bending_moment_uv", "bending_moment_vv", "gauss_curvature", "mean_curvature"]
+        out = {name: res[..., i] for i, name in enumerate(names)}
+        out["director_x"], out["director_y"], out["director_z"] = q[..., 1, 3], q[..., 2, 3], q[..., 3, 3]
+        return out
