@@ -175,6 +175,29 @@ class Registry:
         return self.entries[kind]
 
 
+def register_scenes(register: Register, plugin_file: str) -> None:
+    """Register the ``scenes/*.toml`` files beside a plugin's module under their file stems: the
+    body of a plugin's ``cartan_register_scenes`` hook, ``register_scenes(register, __file__)``."""
+    import pathlib
+
+    for path in sorted((pathlib.Path(plugin_file).resolve().parent / "scenes").glob("*.toml")):
+        register(path.stem, path)
+
+
+def register_cases(register: Register, module: str, factory: str = "all_cases") -> None:
+    """Register the verification cases ``module.factory()`` returns (the body of a plugin's
+    ``cartan_register_cases`` hook).  Cases derive from the verification package's ``Case``:
+    without that package installed, a medium's plugin registers none and works otherwise."""
+    import importlib
+
+    try:
+        import cartan_verification  # noqa: F401 - the cases' base classes
+    except ImportError:  # pragma: no cover - the verification package is optional
+        return
+    for case in getattr(importlib.import_module(module), factory)():
+        register(case.name, case)
+
+
 def _entry_point_plugins() -> list[tuple[str, object, str, str]]:
     found = []
     for ep in sorted(md.entry_points(group=ENTRY_POINT_GROUP), key=lambda e: (e.dist.name if e.dist else "", e.name)):

@@ -41,8 +41,8 @@ if TYPE_CHECKING:  # pragma: no cover
 
     from cartan.problem import Problem
 
-__all__ = ["LongitudinalWave", "OpticalCutoff", "RotationWave", "ShearWave", "optical_potential", "shear_wave_branches",
-           "uniform_rotation_exact"]
+__all__ = ["LongitudinalWave", "OpticalCutoff", "RotationWave", "ShearWave", "all_cases", "optical_potential",
+           "shear_wave_branches", "uniform_rotation_exact"]
 
 
 class _PeriodicBoxCase(Case):
@@ -104,7 +104,6 @@ class LongitudinalWave(_PeriodicBoxCase):
         steps = math.ceil(t_end / (self.cfl * h / c))
         problem = cartan.Problem(solid, grid, cartan.InitialState(Phi=Phi, holonomy=base.holonomy), name=self.name)
         return problem, {"dt": t_end / steps, "t_end": t_end, "save_every": steps}
-
 
     def error(self, ds: xr.Dataset, problem: Problem) -> float:
         _, c, k = self._wave()
@@ -177,7 +176,6 @@ class OpticalCutoff(_PeriodicBoxCase):
         problem = cartan.Problem(solid, grid, cartan.InitialState(Phi=Phi, holonomy=base.holonomy), name=self.name)
         return problem, {"dt": t_end / (1.25 * steps), "t_end": t_end, "save_every": round(1.25 * steps)}
 
-
     def error(self, ds: xr.Dataset, problem: Problem) -> float:
         solid = problem.medium
         c = solid.constants
@@ -239,7 +237,6 @@ class RotationWave(_PeriodicBoxCase):
         steps = math.ceil(t_end / (self.cfl * h / solid.wave_speed()))
         problem = cartan.Problem(solid, grid, cartan.InitialState(Phi=Phi, holonomy=base.holonomy), name=self.name)
         return problem, {"dt": t_end / steps, "t_end": t_end, "save_every": steps}
-
 
     def error(self, ds: xr.Dataset, problem: Problem) -> float:
         _, omega, k = self._wave()
@@ -324,7 +321,6 @@ class ShearWave(_PeriodicBoxCase):
         problem = cartan.Problem(solid, grid, cartan.InitialState(Phi=Phi, holonomy=base.holonomy), name=self.name)
         return problem, {"dt": t_end / steps, "t_end": t_end, "save_every": steps}
 
-
     def error(self, ds: xr.Dataset, problem: Problem) -> float:
         _, omega, k, P = self._wave()
         x = problem.grid.coordinates(0)[:, None, None]
@@ -332,3 +328,8 @@ class ShearWave(_PeriodicBoxCase):
         eu = np.max(np.abs(ds.displacement_y.values[-1] - self.amplitude * np.sin(k * x) * c)) / self.amplitude
         ep = np.max(np.abs(ds.microrotation_z.values[-1] - P * np.cos(k * x) * c)) / abs(P)
         return float(max(eu, ep))
+
+
+def all_cases() -> list:
+    """The cases this plugin registers."""
+    return [LongitudinalWave(), RotationWave(), ShearWave(), OpticalCutoff()]

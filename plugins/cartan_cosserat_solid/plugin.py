@@ -2,11 +2,8 @@
 
 from __future__ import annotations
 
-import pathlib
-
 import cartan
-
-SCENE_DIR = pathlib.Path(__file__).resolve().parent / "scenes"
+from cartan.plugins import register_cases, register_scenes
 
 
 @cartan.hookimpl
@@ -18,17 +15,9 @@ def cartan_register_media(register):
 
 @cartan.hookimpl
 def cartan_register_scenes(register):
-    for path in sorted(SCENE_DIR.glob("*.toml")):
-        register(path.stem, path)
+    register_scenes(register, __file__)
 
 
 @cartan.hookimpl
 def cartan_register_cases(register):
-    try:
-        import cartan_verification  # noqa: F401 - the cases derive from its Case
-    except ImportError:  # pragma: no cover - the medium works without the verification package
-        return
-    from .cases import LongitudinalWave, OpticalCutoff, RotationWave, ShearWave
-
-    for case in (LongitudinalWave(), RotationWave(), ShearWave(), OpticalCutoff()):
-        register(case.name, case)
+    register_cases(register, f"{__package__}.cases")

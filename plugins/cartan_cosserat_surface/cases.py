@@ -31,7 +31,7 @@ from cartan.problem import ConstantFieldPotential, Problem
 
 from .surface import PenaltySupport
 
-__all__ = ["NavierPlate", "navier_plate_problem", "navier_reference"]
+__all__ = ["NavierPlate", "all_cases", "navier_plate_problem", "navier_reference"]
 
 #: Navier coefficients of the simply supported square Mindlin plate (centre deflection)
 KIRCHHOFF_COEFFICIENT = 0.00406235
@@ -121,3 +121,8 @@ class NavierPlate(StaticCase):
 
 #: the registered cases
 CASES = [NavierPlate(0.1, "plate-navier-thick"), NavierPlate(0.001, "plate-navier-thin")]
+
+
+def all_cases() -> list:
+    """The cases this plugin registers."""
+    return list(CASES)

@@ -2,11 +2,8 @@
 
 from __future__ import annotations
 
-import pathlib
-
 import cartan
-
-SCENE_DIR = pathlib.Path(__file__).resolve().parent / "scenes"
+from cartan.plugins import register_cases, register_scenes
 
 
 @cartan.hookimpl
@@ -18,13 +15,9 @@ def cartan_register_media(register):
 
 @cartan.hookimpl
 def cartan_register_scenes(register):
-    for path in sorted(SCENE_DIR.glob("*.toml")):
-        register(path.stem, path)
+    register_scenes(register, __file__)
 
 
 @cartan.hookimpl
 def cartan_register_cases(register):
-    from .cases import CASES
-
-    for case in CASES:
-        register(case.name, case)
+    register_cases(register, f"{__package__}.cases")

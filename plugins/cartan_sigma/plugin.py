@@ -2,11 +2,8 @@
 
 from __future__ import annotations
 
-import pathlib
-
 import cartan
-
-SCENE_DIR = pathlib.Path(__file__).resolve().parent / "scenes"
+from cartan.plugins import register_scenes
 
 
 @cartan.hookimpl
@@ -18,5 +15,4 @@ def cartan_register_media(register):
 
 @cartan.hookimpl
 def cartan_register_scenes(register):
-    for path in sorted(SCENE_DIR.glob("*.toml")):
-        register(path.stem, path)
+    register_scenes(register, __file__)
