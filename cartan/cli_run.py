@@ -321,7 +321,10 @@ def _summary(ds: Any, mode: str) -> str:
     help="Image to write (default: RUN_FILE with suffix .png).",
 )
 @click.option("--snapshots", type=int, default=8, show_default=True, help="Configurations drawn.")
-def plot_cmd(run_file: pathlib.Path, output: pathlib.Path | None, snapshots: int) -> None:
+@click.option("--field", default=None,
+              help="A surface (d = 2 in space) is drawn in 3D coloured by this node variable "
+                   "(default: the displacement's norm).")
+def plot_cmd(run_file: pathlib.Path, output: pathlib.Path | None, snapshots: int, field: str | None) -> None:
     """Plot a run file: snapshots and energies (dynamic), the equilibrium (static) or the
     load–displacement chart (continuation)."""
     from .io import open_dataset
@@ -343,7 +346,7 @@ def plot_cmd(run_file: pathlib.Path, output: pathlib.Path | None, snapshots: int
             raise CommandError(f"{run_file}: not a cartan run file (missing {', '.join(missing) or 'time'})")
     output = output if output is not None else run_file.with_suffix(".png")
     try:
-        plot_run(ds, output, snapshots=snapshots)
+        plot_run(ds, output, snapshots=snapshots, field=field)
     except (OSError, ValueError) as exc:
         raise CommandError(f"{output}: {' '.join(str(exc).split())}", RUN_ERROR) from None
     click.echo(f"wrote {output}")

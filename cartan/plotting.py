@@ -82,6 +82,72 @@ def _draw_configuration(fig: Figure, ax_slot: int, ds: xr.Dataset, pts: np.ndarr
     fig.colorbar(sm, ax=ax, shrink=0.7, pad=0.1, label="time")
 
 
+def _surface_values(ds: xr.Dataset, pts: np.ndarray, field: str | None, index: int) -> tuple[np.ndarray, str]:
+    """The nodal values ``[n_u, n_v]`` a surface is coloured by at snapshot ``index``: the
+    variable ``field`` of the Dataset (a scalar per node), else the displacement from the first
+    snapshot (its norm)."""
+    if field is not None:
+        if field not in ds:
+            choices = sorted(v for v in ds.data_vars if ds[v].dims[-2:] == ds["position"].dims[-3:-1])
+            raise ValueError(f"field {field!r} is not in the file; node fields: {', '.join(choices) or 'none'}")
+        values = np.asarray(ds[field].values, dtype=float)
+        if values.shape[-2:] != pts.shape[-3:-1]:
+            raise ValueError(f"field {field!r} is not one value per node of the surface (shape {values.shape})")
+        values = values[index] if values.ndim == 3 else values
+        label = _axis_label(ds[field], field)
+        return values, (label if len(label) <= 40 else field)
+    return np.linalg.norm(pts[index] - pts[0], axis=-1), "|displacement|"
+
+
+def _draw_surface(ax: Axes, surface: np.ndarray, values: np.ndarray, norm, cmap, alpha: float = 1.0) -> None:
+    """A deformed surface ``[n_u, n_v, 3]`` as faces coloured by nodal ``values`` ``[n_u, n_v]``
+    (each face takes the mean of its four corners)."""
+    corners = 0.25 * (values[:-1, :-1] + values[1:, :-1] + values[:-1, 1:] + values[1:, 1:])
+    ax.plot_surface(surface[..., 0], surface[..., 1], surface[..., 2], facecolors=cmap(norm(corners)),
+                    rstride=1, cstride=1, linewidth=0.2, edgecolor="0.3", antialiased=True, shade=False, alpha=alpha)
+
+
+def _cube(ax: Axes, flat: np.ndarray) -> None:
+    """Equal scales on a 3D axes: a cube around the points ``[N, 3]``."""
+    lo, hi = np.nanmin(flat, axis=0), np.nanmax(flat, axis=0)
+    centre = 0.5 * (lo + hi)
+    half = 0.55 * max(float(np.max(hi - lo)), 1e-12)
+    ax.set_xlim(centre[0] - half, centre[0] + half)
+    ax.set_ylim(centre[1] - half, centre[1] + half)
+    ax.set_zlim(centre[2] - half, centre[2] + half)
+    ax.set_box_aspect((1.0, 1.0, 1.0))
+    ax.set_xlabel("x")
+    ax.set_ylabel("y")
+    ax.set_zlabel("z")
+
+
+def _draw_surface_panel(fig: Figure, slot: tuple[int, int, int], ds: xr.Dataset, pts: np.ndarray, field: str | None,
+                        title: str) -> None:
+    """The last configuration of a surface (d = 2 in space, ``pts [time, n_u, n_v, 3]``) in 3D,
+    coloured by ``field``, the first one as a grey wireframe."""
+    from matplotlib import cm, colors
+
+    ax = fig.add_subplot(*slot, projection="3d")
+    values, label = _surface_values(ds, pts, field, -1)
+    lo, hi = float(np.nanmin(values)), float(np.nanmax(values))
+    norm = colors.Normalize(vmin=lo, vmax=hi if hi > lo else lo + 1.0)
+    cmap = cm.viridis
+    if pts.shape[0] > 1:
+        first = pts[0]
+        ax.plot_wireframe(first[..., 0], first[..., 1], first[..., 2], color="0.6", linewidth=0.4)
+    _draw_surface(ax, pts[-1], values, norm, cmap)
+    _cube(ax, pts.reshape(-1, 3))
+    ax.set_title(title)
+    sm = cm.ScalarMappable(norm=norm, cmap=cmap)
+    sm.set_array([])
+    fig.colorbar(sm, ax=ax, shrink=0.7, pad=0.1, label=label)
+
+
+def _is_surface(pts: np.ndarray | None) -> bool:
+    """Points ``[time, n_u, n_v, 3]`` of a surface in space (d = 2), with at least 2 × 2 nodes."""
+    return pts is not None and pts.ndim == 4 and pts.shape[-1] == 3 and min(pts.shape[1:3]) >= 2
+
+
 def _draw_energies(fig: Figure, ax_slot: int, ncols: int, ds: xr.Dataset) -> None:
     ax = fig.add_subplot(1, ncols, ax_slot)
     t = np.asarray(ds["time"].values, dtype=float)
@@ -103,7 +169,8 @@ def _draw_energies(fig: Figure, ax_slot: int, ncols: int, ds: xr.Dataset) -> Non
 
 
 def plot_run(
-    ds: xr.Dataset, path: str | os.PathLike | None = None, snapshots: int = 8, title: str | None = None
+    ds: xr.Dataset, path: str | os.PathLike | None = None, snapshots: int = 8, title: str | None = None,
+    field: str | None = None,
 ) -> Figure:
     """Quick-look figure of a run: configuration snapshots and energies against time.
 
@@ -121,6 +188,10 @@ def plot_run(
         continuation result).
     title : str, optional
         Figure title (default: the Dataset's ``title`` attribute).
+    field : str, optional
+        For a surface (a d = 2 medium in space: shells, plates, membranes), the node variable
+        its deformed configuration is coloured by (default: the displacement's norm); the
+        surface is drawn in 3D, the initial one as a wireframe.
 
     Returns
     -------
@@ -132,12 +203,14 @@ def plot_run(
     if kind == "continuation":
         return plot_continuation(ds, path, snapshots=snapshots, title=title)
     if kind == "static":
-        return plot_static(ds, path, title=title)
+        return plot_static(ds, path, title=title, field=field)
 
     pts = _points(ds)
     ncols = 2 if pts is not None and ds.sizes.get("time", 0) > 0 else 1
     fig = Figure(figsize=(6.0 * ncols, 4.8), layout="constrained")
-    if ncols == 2:
+    if ncols == 2 and _is_surface(pts):
+        _draw_surface_panel(fig, (1, 2, 1), ds, pts, field, f"t = {float(ds['time'].values[-1]):.4g}")
+    elif ncols == 2:
         _draw_configuration(fig, 1, ds, pts, snapshots)
     _draw_energies(fig, ncols, ncols, ds)
     fig.suptitle(title if title is not None else str(ds.attrs.get("title", "")))
@@ -350,7 +423,8 @@ def plot_continuation(
     return fig
 
 
-def plot_static(ds: xr.Dataset, path: str | os.PathLike | None = None, title: str | None = None) -> Figure:
+def plot_static(ds: xr.Dataset, path: str | os.PathLike | None = None, title: str | None = None,
+                field: str | None = None) -> Figure:
     """Quick-look figure of a static equilibrium (:func:`cartan.statics.solve_static`).
 
     Panels: the equilibrium shape (the initial configuration dashed, when the result holds
@@ -365,6 +439,8 @@ def plot_static(ds: xr.Dataset, path: str | os.PathLike | None = None, title: st
         Where to save the figure.
     title : str, optional
         Figure title (default: the Dataset's ``title`` attribute).
+    field : str, optional
+        For a surface, the node variable the equilibrium is coloured by (see :func:`plot_run`).
 
     Returns
     -------
@@ -378,7 +454,11 @@ def plot_static(ds: xr.Dataset, path: str | os.PathLike | None = None, title: st
     panels = (pts is not None) + (curve and ref is not None) + 1
     fig = Figure(figsize=(5.2 * panels, 4.6), layout="constrained")
     slot = 1
-    if pts is not None:
+    if _is_surface(pts):
+        both = pts if ref is None or ref.shape != pts.shape[1:] else np.stack([ref, pts[-1]])
+        _draw_surface_panel(fig, (1, panels, slot), ds, both, field, "equilibrium")
+        slot += 1
+    elif pts is not None:
         _draw_shapes(fig, (1, panels, slot), [pts[-1]], None, "", ref, title="equilibrium")
         slot += 1
     if curve and ref is not None:
