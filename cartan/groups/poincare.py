@@ -89,6 +89,7 @@ from .so13 import (
 
 __all__ = [
     "Poincare",
+    "poincare_Ad_T_point",
     "poincare_Ad_point",
     "poincare_E_point",
     "poincare_V_coeffs",
@@ -96,6 +97,7 @@ __all__ = [
     "poincare_ad_point",
     "poincare_bracket_point",
     "poincare_compose_point",
+    "poincare_dexp_inv_T_pair_point",
     "poincare_dexp_inv_point",
     "poincare_exp_point",
     "poincare_hat_point",
@@ -351,7 +353,19 @@ def _solve4(V, t, out):
 
 @njit(cache=True)
 def poincare_log_point(g, out):
-    """``out`` (10,) ← principal ``{V⁻¹t; log Λ}`` of ``g`` (5, 5)."""
+    """``out`` (10,) ← principal ``{V⁻¹t; log Λ}`` of ``g`` (5, 5); a pure translation
+    (Λ = I exactly: V = I) directly."""
+    pure = True
+    for i in range(4):
+        for j in range(4):
+            if g[i + 1, j + 1] != (1.0 if i == j else 0.0):
+                pure = False
+    if pure:
+        for k in range(4):
+            out[k] = g[k + 1, 0]
+        for k in range(4, 10):
+            out[k] = 0.0
+        return
     so13_log_point(g[1:, 1:], out[4:])
     V = _V_point(out[4], out[5], out[6], out[7], out[8], out[9])
     _solve4(V, g[1:, 0], out[:4])
@@ -685,8 +699,8 @@ POINCARE_SERIES_Z = 1e-2
 
 
 @njit(cache=True)
-def _poincare_ad_powers(xi, tau, A, A2, A3):
-    """``A = τ ad_ξ``, ``A2 = A²``, ``A3 = A³`` (10 × 10); returns max |τZ| over the Lorentz part."""
+def _poincare_scaled_ad(xi, tau, A):
+    """``A = τ ad_ξ`` (10 × 10); returns max |τZ| over the Lorentz part Z of ξ."""
     poincare_ad_point(xi, A)
     for i in range(10):
         for j in range(10):
@@ -694,19 +708,17 @@ def _poincare_ad_powers(xi, tau, A, A2, A3):
     z = 0.0
     for k in range(4, 10):
         z = max(z, abs(tau * xi[k]))
-    for i in range(10):
-        for j in range(10):
-            s = 0.0
-            for k in range(10):
-                s += A[i, k] * A[k, j]
-            A2[i, j] = s
-    for i in range(10):
-        for j in range(10):
-            s = 0.0
-            for k in range(10):
-                s += A2[i, k] * A[k, j]
-            A3[i, j] = s
     return z
+
+
+@njit(cache=True)
+def _matmul10(A, B, out):
+    for i in range(10):
+        for j in range(10):
+            s = 0.0
+            for k in range(10):
+                s += A[i, k] * B[k, j]
+            out[i, j] = s
 
 
 @njit(cache=True)
@@ -715,20 +727,23 @@ def poincare_dexp_inv_point(xi, out):
     translation (ad_ξ² = 0), the series through ad⁴ below :data:`POINCARE_SERIES_Z`, else the
     inverse of the Van Loan block exponential (the string's edges are pure translations)."""
     A = np.empty((10, 10))
-    A2 = np.empty((10, 10))
-    A3 = np.empty((10, 10))
-    z = _poincare_ad_powers(xi, 1.0, A, A2, A3)
+    z = _poincare_scaled_ad(xi, 1.0, A)
     if z >= POINCARE_SERIES_Z:
         vanloan_E_point(1.0, A, out)
         out[:, :] = np.linalg.inv(out)
         return
     for i in range(10):
         for j in range(10):
-            a4 = 0.0
-            if z > 0.0:
-                for k in range(10):
-                    a4 += A2[i, k] * A2[k, j]
-            out[i, j] = (1.0 if i == j else 0.0) - 0.5 * A[i, j] + A2[i, j] / 12.0 - a4 / 720.0
+            out[i, j] = (1.0 if i == j else 0.0) - 0.5 * A[i, j]
+    if z == 0.0:
+        return
+    A2 = np.empty((10, 10))
+    A4 = np.empty((10, 10))
+    _matmul10(A, A, A2)
+    _matmul10(A2, A2, A4)
+    for i in range(10):
+        for j in range(10):
+            out[i, j] += A2[i, j] / 12.0 - A4[i, j] / 720.0
 
 
 @njit(cache=True)
@@ -737,20 +752,87 @@ def poincare_E_point(dt, xi, out):
     pure translation, the series through (Δt ad)⁵ below :data:`POINCARE_SERIES_Z`, else the
     Van Loan block exponential."""
     A = np.empty((10, 10))
-    A2 = np.empty((10, 10))
-    A3 = np.empty((10, 10))
-    z = _poincare_ad_powers(xi, dt, A, A2, A3)
+    z = _poincare_scaled_ad(xi, dt, A)
     if z >= POINCARE_SERIES_Z:
         poincare_ad_point(xi, A)
         vanloan_E_point(dt, A, out)
         return
     for i in range(10):
         for j in range(10):
-            a4 = 0.0
-            a5 = 0.0
-            if z > 0.0:
-                for k in range(10):
-                    a4 += A2[i, k] * A2[k, j]
-                    a5 += A2[i, k] * A3[k, j]
-            out[i, j] = dt * ((1.0 if i == j else 0.0) + 0.5 * A[i, j] + A2[i, j] / 6.0 + A3[i, j] / 24.0
-                              + a4 / 120.0 + a5 / 720.0)
+            out[i, j] = dt * ((1.0 if i == j else 0.0) + 0.5 * A[i, j])
+    if z == 0.0:
+        return
+    A2 = np.empty((10, 10))
+    A3 = np.empty((10, 10))
+    A4 = np.empty((10, 10))
+    A5 = np.empty((10, 10))
+    _matmul10(A, A, A2)
+    _matmul10(A2, A, A3)
+    _matmul10(A2, A2, A4)
+    _matmul10(A4, A, A5)
+    for i in range(10):
+        for j in range(10):
+            out[i, j] += dt * (A2[i, j] / 6.0 + A3[i, j] / 24.0 + A4[i, j] / 120.0 + A5[i, j] / 720.0)
+
+
+@njit(cache=True)
+def poincare_dexp_inv_T_pair_point(xi, v, out, out_neg):
+    """``out`` ← dexp⁻¹(ξ)ᵀv and ``out_neg`` ← dexp⁻¹(−ξ)ᵀv (10,): for a pure translation
+    (ad_ξ² = 0) ``v ∓ ½ad_ξᵀv`` without a matrix; otherwise from the matrices
+    (:func:`poincare_dexp_inv_point`, dexp⁻¹(−ξ) = dexp⁻¹(ξ) + ad_ξ)."""
+    A = np.empty((10, 10))
+    poincare_ad_point(xi, A)
+    pure = True
+    for k in range(4, 10):
+        if xi[k] != 0.0:
+            pure = False
+    if pure:
+        for k in range(10):
+            s = 0.0
+            for j in range(10):
+                s += A[j, k] * v[j]
+            out[k] = v[k] - 0.5 * s
+            out_neg[k] = v[k] + 0.5 * s
+        return
+    Dm = np.empty((10, 10))
+    poincare_dexp_inv_point(xi, Dm)
+    for k in range(10):
+        s = 0.0
+        t = 0.0
+        for j in range(10):
+            s += Dm[j, k] * v[j]
+            t += A[j, k] * v[j]
+        out[k] = s
+        out_neg[k] = s + t
+
+
+@njit(cache=True)
+def poincare_Ad_T_point(g, v, out):
+    """``out`` (10,) ← Ad_gᵀv: for a pure translation g = (t; I), Ad_g = [[I, −N(t)], [0, I]]
+    and Ad_gᵀv = {v_y; v_Z − N(t)ᵀv_y} without a matrix; otherwise from :func:`poincare_Ad_point`."""
+    pure = True
+    for i in range(4):
+        for j in range(4):
+            if g[i + 1, j + 1] != (1.0 if i == j else 0.0):
+                pure = False
+    if pure:
+        y0, y1, y2, y3 = g[1, 0], g[2, 0], g[3, 0], g[4, 0]
+        ny = (y1, y2, y3, 0.0, 0.0, 0.0,
+              y0, 0.0, 0.0, 0.0, y3, -y2,
+              0.0, y0, 0.0, -y3, 0.0, y1,
+              0.0, 0.0, y0, y2, -y1, 0.0)
+        for k in range(4):
+            out[k] = v[k]
+        for j in range(6):
+            s = 0.0
+            for i in range(4):
+                s += ny[6 * i + j] * v[i]
+            out[4 + j] = v[4 + j] - s
+        return
+    A = np.empty((10, 10))
+    poincare_Ad_point(g, A)
+    for k in range(10):
+        s = 0.0
+        for j in range(10):
+            s += A[j, k] * v[j]
+        out[k] = s

@@ -478,10 +478,17 @@ def test_generic_expm_matches_scipy_on_poincare():
 
 @pytest.mark.parametrize("z", [0.0, 1e-7, 5e-3, 0.05, 1.5])
 def test_poincare_dexp_inv_and_E_point_kernels(z):
-    """The compiled dexp⁻¹ and 𝓔 of the Poincaré group against the numpy reference, with a
+    """The compiled dexp⁻¹, 𝓔, dexp⁻¹ᵀ pair, Ad_gᵀ and log of the Poincaré group against the numpy
+    reference, with a
     Lorentz part of size z: exact (z = 0, a pure translation: ad² = 0), series in ad (below
     1e-2) and Van Loan (above); 1e-12 relative (the series' remainder is ≤ 2e-14 |ξ|)."""
-    from cartan.groups.poincare import poincare_dexp_inv_point, poincare_E_point
+    from cartan.groups.poincare import (
+        poincare_Ad_T_point,
+        poincare_dexp_inv_point,
+        poincare_dexp_inv_T_pair_point,
+        poincare_E_point,
+        poincare_log_point,
+    )
 
     P = Poincare()
     rng = np.random.default_rng(7)
@@ -495,3 +502,14 @@ def test_poincare_dexp_inv_and_E_point_kernels(z):
             poincare_E_point(tau, xi, out)
             ref = P.E(tau, xi)
             assert np.max(np.abs(out - ref)) <= 1e-12 * np.max(np.abs(ref))
+        v = rng.standard_normal(10)
+        pos, neg = np.empty(10), np.empty(10)
+        poincare_dexp_inv_T_pair_point(xi, v, pos, neg)
+        for got, ref in ((pos, P.dexp_inv(xi).T @ v), (neg, P.dexp_inv(-xi).T @ v)):
+            assert np.max(np.abs(got - ref)) <= 1e-12 * np.max(np.abs(ref))
+        g = P.exp(xi)
+        poincare_Ad_T_point(g, v, pos)
+        assert np.max(np.abs(pos - P.Ad(g).T @ v)) <= 1e-12 * np.max(np.abs(P.Ad(g).T @ v))
+        log = np.empty(10)
+        poincare_log_point(g, log)  # Λ = I exactly for z = 0: the translation read off
+        assert np.max(np.abs(log - P.log(P.exp(xi)))) <= 1e-12 * np.max(np.abs(xi))
