@@ -57,7 +57,50 @@ class _PeriodicBoxCase(Case):
                                **dict(settings))
 
 
-class LongitudinalWave(_PeriodicBoxCase):
+class _PlaneWave(_PeriodicBoxCase):
+    """A standing plane wave along x₁ in a periodic n × 3 × 3 box (fields independent of x₂,
+    x₃: a plane wave of the unbounded solid), run for 5/4 of its period at Δt = ``cfl``·h/c.
+
+    Subclasses give :meth:`_wave` → ``(solid, ω, k, c, P)`` (c the speed that sets Δt, P a
+    coupled amplitude or None), :meth:`_displace` (the initial frames) and :meth:`_fields`
+    (the observed fields, their exact values and scales at the final time)."""
+
+    space_order = 2.0
+    time_order_of = None
+    default_integrators = ("lie-verlet",)
+    default_schemes = ("lattice",)
+    length, mode, amplitude, cfl, n0 = 2.0, 1, 1e-4, 0.25, 16
+
+    def _wave(self):  # pragma: no cover - every subclass defines it
+        raise NotImplementedError
+
+    def _displace(self, Phi: np.ndarray, x: np.ndarray, k: float, P: float | None) -> None:  # pragma: no cover
+        raise NotImplementedError
+
+    def _fields(self, ds: xr.Dataset, x: np.ndarray, k: float, P: float | None, c: float) -> list:  # pragma: no cover
+        raise NotImplementedError
+
+    def problem(self, level: int, scheme: str = "lattice") -> tuple[Problem, dict[str, Any]]:
+        solid, omega, k, speed, P = self._wave()
+        n = self.n0 * 2**level
+        h = self.length / n
+        grid = cartan.Grid((n, 3, 3), length=(self.length, 3 * h, 3 * h), periodic=True)
+        base = solid.initial_state(grid, "undeformed")
+        Phi = base.Phi.copy()
+        self._displace(Phi, grid.coordinates(0), k, P)
+        t_end = 1.25 * 2 * math.pi / omega
+        steps = math.ceil(t_end / (self.cfl * h / speed))
+        problem = cartan.Problem(solid, grid, cartan.InitialState(Phi=Phi, holonomy=base.holonomy), name=self.name)
+        return problem, {"dt": t_end / steps, "t_end": t_end, "save_every": steps}
+
+    def error(self, ds: xr.Dataset, problem: Problem) -> float:
+        _, omega, k, _, P = self._wave()
+        x = problem.grid.coordinates(0)[:, None, None]
+        c = math.cos(omega * float(ds.time[-1]))
+        return float(max(np.max(np.abs(got - exact)) / scale for got, exact, scale in self._fields(ds, x, k, P, c)))
+
+
+class LongitudinalWave(_PlaneWave):
     """Longitudinal standing wave u₁ = ε sin(kx₁) cos(ωt) in a periodic micropolar box,
     ρω² = (λ + 2μ + κ)k² (default solid, L = 2, mode 1, ε = 1e-4).
 
@@ -75,10 +118,6 @@ class LongitudinalWave(_PeriodicBoxCase):
                  "u₁ = ε sin(kx₁) cos(ωt), ρω² = (λ + 2μ + κ)k², no dispersion")
     quantity = "longitudinal displacement u₁ at the nodes after 5/4 periods (cos ωt = 0)"
     norm = "max abs over nodes at t_end = (5/4)·2π/ω, relative to the amplitude ε"
-    space_order = 2.0
-    time_order_of = None
-    default_integrators = ("lie-verlet",)
-    default_schemes = ("lattice",)
     levels = (0, 1, 2, 3)
     quick_levels = (0, 1)
     tolerance = 2.5e-2
@@ -86,30 +125,16 @@ class LongitudinalWave(_PeriodicBoxCase):
                         "(5π/2)[(kh)²/24 + (ωΔt)²/24] = 5.4e-2 and 1.3e-2 (O(h²) lattice dispersion + O(Δt²) "
                         "Lie–Verlet); 2× margin at the finest quick level")
 
-    length, mode, amplitude, cfl = 2.0, 1, 1e-4, 0.25
-
     def _wave(self):
         solid = cartan.medium("cosserat-solid")
-        return solid, solid.longitudinal_speed(), 2 * math.pi * self.mode / self.length
+        c, k = solid.longitudinal_speed(), 2 * math.pi * self.mode / self.length
+        return solid, c * k, k, c, None
 
-    def problem(self, level: int, scheme: str = "lattice") -> tuple[Problem, dict[str, Any]]:
-        solid, c, k = self._wave()
-        n = 16 * 2**level
-        h = self.length / n
-        grid = cartan.Grid((n, 3, 3), length=(self.length, 3 * h, 3 * h), periodic=True)
-        base = solid.initial_state(grid, "undeformed")
-        Phi = base.Phi.copy()
-        Phi[..., 1, 0] += self.amplitude * np.sin(k * grid.coordinates(0))[:, None, None]
-        t_end = 1.25 * 2 * math.pi / (c * k)
-        steps = math.ceil(t_end / (self.cfl * h / c))
-        problem = cartan.Problem(solid, grid, cartan.InitialState(Phi=Phi, holonomy=base.holonomy), name=self.name)
-        return problem, {"dt": t_end / steps, "t_end": t_end, "save_every": steps}
+    def _displace(self, Phi, x, k, P):
+        Phi[..., 1, 0] += self.amplitude * np.sin(k * x)[:, None, None]
 
-    def error(self, ds: xr.Dataset, problem: Problem) -> float:
-        _, c, k = self._wave()
-        u = problem.grid.coordinates(0)[:, None, None]
-        exact = self.amplitude * np.sin(k * u) * math.cos(c * k * float(ds.time[-1]))
-        return float(np.max(np.abs(ds.displacement_x.values[-1] - exact)) / self.amplitude)
+    def _fields(self, ds, x, k, P, c):
+        return [(ds.displacement_x.values[-1], self.amplitude * np.sin(k * x) * c, self.amplitude)]
 
 
 def optical_potential(phi: Any, lam: float, mu: float, kappa: float) -> np.ndarray:
@@ -185,7 +210,7 @@ class OpticalCutoff(_PeriodicBoxCase):
         return abs(phi - exact) / self.phi0
 
 
-class RotationWave(_PeriodicBoxCase):
+class RotationWave(_PlaneWave):
     """Longitudinal micro-rotation standing wave φ₁ = ε sin(kx₁) cos(ωt) in a periodic box:
     the dispersive optical branch ρjω² = (α + β + γ)k² + 2κ (default solid, L = 2, mode 1, ε = 1e-4).
 
@@ -204,10 +229,6 @@ class RotationWave(_PeriodicBoxCase):
                  "φ₁ = ε sin(kx₁) cos(ωt), ρjω² = (α + β + γ)k² + 2κ")
     quantity = "longitudinal micro-rotation φ₁ at the nodes after 5/4 periods (cos ωt = 0)"
     norm = "max abs over nodes at t_end = (5/4)·2π/ω, relative to the amplitude ε"
-    space_order = 2.0
-    time_order_of = None
-    default_integrators = ("lie-verlet",)
-    default_schemes = ("lattice",)
     levels = (0, 1, 2, 3)
     quick_levels = (0, 1)
     tolerance = 2e-2
@@ -215,34 +236,19 @@ class RotationWave(_PeriodicBoxCase):
                         "(observed order 2.00: O(h²) lattice dispersion + O(Δt²) Lie–Verlet); 2.4× margin at the "
                         "finest quick level")
 
-    length, mode, amplitude, cfl = 2.0, 1, 1e-4, 0.25
-
     def _wave(self):
         solid = cartan.medium("cosserat-solid")
         c = solid.constants
         k = 2 * math.pi * self.mode / self.length
         omega = math.sqrt(((c["alpha"] + c["beta"] + c["gamma"]) * k**2 + 2 * c["kappa"]) / (solid.rho * solid.j))
-        return solid, omega, k
+        return solid, omega, k, solid.wave_speed(), None
 
-    def problem(self, level: int, scheme: str = "lattice") -> tuple[Problem, dict[str, Any]]:
-        solid, omega, k = self._wave()
-        n = 16 * 2**level
-        h = self.length / n
-        grid = cartan.Grid((n, 3, 3), length=(self.length, 3 * h, 3 * h), periodic=True)
-        base = solid.initial_state(grid, "undeformed")
-        Phi = base.Phi.copy()
-        phi = self.amplitude * np.sin(k * grid.coordinates(0))
+    def _displace(self, Phi, x, k, P):
+        phi = self.amplitude * np.sin(k * x)
         Phi[..., 1:, 1:] = cartan.group("SO3").exp(phi[:, None] * np.array([1.0, 0.0, 0.0]))[:, None, None]
-        t_end = 1.25 * 2 * math.pi / omega
-        steps = math.ceil(t_end / (self.cfl * h / solid.wave_speed()))
-        problem = cartan.Problem(solid, grid, cartan.InitialState(Phi=Phi, holonomy=base.holonomy), name=self.name)
-        return problem, {"dt": t_end / steps, "t_end": t_end, "save_every": steps}
 
-    def error(self, ds: xr.Dataset, problem: Problem) -> float:
-        _, omega, k = self._wave()
-        u = problem.grid.coordinates(0)[:, None, None]
-        exact = self.amplitude * np.sin(k * u) * math.cos(omega * float(ds.time[-1]))
-        return float(np.max(np.abs(ds.microrotation_x.values[-1] - exact)) / self.amplitude)
+    def _fields(self, ds, x, k, P, c):
+        return [(ds.microrotation_x.values[-1], self.amplitude * np.sin(k * x) * c, self.amplitude)]
 
 
 def shear_wave_branches(k: float, lam: float, mu: float, kappa: float, alpha: float, beta: float, gamma: float,
@@ -264,7 +270,7 @@ def shear_wave_branches(k: float, lam: float, mu: float, kappa: float, alpha: fl
     return math.sqrt((-b - disc) / (2 * a)), math.sqrt((-b + disc) / (2 * a))
 
 
-class ShearWave(_PeriodicBoxCase):
+class ShearWave(_PlaneWave):
     """Transverse standing wave on the acoustic branch, u₂ = ε sin(kx₁) cos(ωt) with the micro-rotation
     φ₃ = P cos(kx₁) cos(ωt) it drags along, P = ((μ+κ)k² − ρω²)ε/(κk) (default solid, L = 2,
     mode 1, ε = 1e-4): the coupled micropolar dispersion [(μ+κ)k² − ρω²][γk² + 2κ − ρjω²] = κ²k².
@@ -281,10 +287,6 @@ class ShearWave(_PeriodicBoxCase):
                  "root of [(μ+κ)k² − ρω²][γk² + 2κ − ρjω²] = κ²k², eigenvector (u₂, φ₃) = (ε sin kx₁, P cos kx₁)")
     quantity = "transverse displacement u₂ and micro-rotation φ₃ at the nodes after 5/4 periods"
     norm = "max over nodes of |u₂ − exact|/ε and |φ₃ − exact|/|P| at t_end = (5/4)·2π/ω"
-    space_order = 2.0
-    time_order_of = None
-    default_integrators = ("lie-verlet",)
-    default_schemes = ("lattice",)
     levels = (0, 1, 2)
     quick_levels = (0, 1)
     # Δt ∝ h at a fixed CFL number: at a fixed Δt the lattice's (slow) and leapfrog's (fast)
@@ -295,7 +297,7 @@ class ShearWave(_PeriodicBoxCase):
                         "2.80e-3, 4.47e-4, 9.58e-5, 2.29e-5 at n = 16 … 128, observed orders 2.65, 2.22, 2.06, "
                         "O(h²) once the wave is resolved); 2× margin at n = 64")
 
-    length, mode, amplitude, cfl = 2.0, 1, 1e-4, 0.25
+    n0 = 32
 
     def _wave(self):
         solid = cartan.medium("cosserat-solid")
@@ -303,31 +305,16 @@ class ShearWave(_PeriodicBoxCase):
         k = 2 * math.pi * self.mode / self.length
         omega, _ = shear_wave_branches(k, **c, rho=solid.rho, rho_j=solid.rho * solid.j)
         P = -(solid.rho * omega**2 - (c["mu"] + c["kappa"]) * k**2) * self.amplitude / (c["kappa"] * k)
-        return solid, omega, k, P
+        return solid, omega, k, solid.wave_speed(), P
 
-    def problem(self, level: int, scheme: str = "lattice") -> tuple[Problem, dict[str, Any]]:
-        solid, omega, k, P = self._wave()
-        n = 32 * 2**level
-        h = self.length / n
-        grid = cartan.Grid((n, 3, 3), length=(self.length, 3 * h, 3 * h), periodic=True)
-        x = grid.coordinates(0)
-        base = solid.initial_state(grid, "undeformed")
-        Phi = base.Phi.copy()
+    def _displace(self, Phi, x, k, P):
         Phi[..., 2, 0] += (self.amplitude * np.sin(k * x))[:, None, None]
         R = cartan.group("SO3").exp((P * np.cos(k * x))[:, None] * np.array([0.0, 0.0, 1.0]))
         Phi[..., 1:, 1:] = R[:, None, None]
-        t_end = 1.25 * 2 * math.pi / omega
-        steps = math.ceil(t_end / (self.cfl * h / solid.wave_speed()))
-        problem = cartan.Problem(solid, grid, cartan.InitialState(Phi=Phi, holonomy=base.holonomy), name=self.name)
-        return problem, {"dt": t_end / steps, "t_end": t_end, "save_every": steps}
 
-    def error(self, ds: xr.Dataset, problem: Problem) -> float:
-        _, omega, k, P = self._wave()
-        x = problem.grid.coordinates(0)[:, None, None]
-        c = math.cos(omega * float(ds.time[-1]))
-        eu = np.max(np.abs(ds.displacement_y.values[-1] - self.amplitude * np.sin(k * x) * c)) / self.amplitude
-        ep = np.max(np.abs(ds.microrotation_z.values[-1] - P * np.cos(k * x) * c)) / abs(P)
-        return float(max(eu, ep))
+    def _fields(self, ds, x, k, P, c):
+        return [(ds.displacement_y.values[-1], self.amplitude * np.sin(k * x) * c, self.amplitude),
+                (ds.microrotation_z.values[-1], P * np.cos(k * x) * c, abs(P))]
 
 
 def all_cases() -> list:
