@@ -5,6 +5,7 @@ PYTHON ?= python3
 VENV   ?= .venv
 PY     := $(VENV)/bin/python
 STAMP  := $(VENV)/.cartan-installed
+BASE   := $(VENV)/.cartan-base
 OUT    ?= out
 PYTEST_ARGS ?= -n auto --durations=20
 
@@ -19,10 +20,16 @@ help:
 	@echo "make bench      run the asv benchmarks once on this machine (offline)"
 	@echo "make lint       ruff"
 
-$(STAMP): pyproject.toml Makefile
+# the package and its run-time dependencies (what `make demo` needs) ...
+$(BASE): pyproject.toml Makefile
 	@$(PYTHON) -c 'import sys; sys.exit(0 if sys.version_info >= (3, 11) else "cartan needs Python >= 3.11; found " + sys.version.split()[0] + " (set PYTHON=python3.11)")'
 	@test -x $(PY) || $(PYTHON) -m venv $(VENV)
 	$(PY) -m pip install --quiet --upgrade pip
+	$(PY) -m pip install --quiet -e .
+	@touch $(BASE)
+
+# ... and the extras of the tests, benchmarks, linting and distributed studies
+$(STAMP): $(BASE)
 	$(PY) -m pip install --quiet -e ".[test,bench,dev,dist]"
 	@touch $(STAMP)
 
@@ -40,12 +47,12 @@ test-all: $(STAMP)
 DEMO_SCENE ?= rod-cantilever-gravity
 
 # compiled code is built on first use and cached (the first run on a machine says what it compiles)
-demo: $(STAMP)
+demo: $(BASE)
 	@mkdir -p $(OUT)
 	CARTAN_SHOW_COMPILE=1 $(VENV)/bin/cartan run --scene $(DEMO_SCENE) -o $(OUT)/$(DEMO_SCENE).nc
 	$(VENV)/bin/cartan plot $(OUT)/$(DEMO_SCENE).nc -o $(OUT)/$(DEMO_SCENE).png
 
-demo-rigid-body: $(STAMP)
+demo-rigid-body: $(BASE)
 	$(PY) examples/rigid_body_demo.py --outdir $(OUT)
 
 verify: $(STAMP)
