@@ -186,15 +186,18 @@ def register_scenes(register: Register, plugin_file: str) -> None:
 
 def register_cases(register: Register, module: str, factory: str = "all_cases") -> None:
     """Register the verification cases ``module.factory()`` returns (the body of a plugin's
-    ``cartan_register_cases`` hook).  Cases derive from the verification package's ``Case``:
-    without that package installed, a medium's plugin registers none and works otherwise."""
+    ``cartan_register_cases`` hook).  Cases derive from an optional package (the verification
+    package's ``Case``): when ``module`` cannot import one of its dependencies, the plugin
+    registers no case and works otherwise; a missing ``module`` itself is an error."""
     import importlib
 
     try:
-        import cartan_verification  # noqa: F401 - the cases' base classes
-    except ImportError:  # pragma: no cover - the verification package is optional
+        cases = importlib.import_module(module)
+    except ModuleNotFoundError as exc:
+        if exc.name is not None and (module == exc.name or module.startswith(exc.name + ".")):
+            raise
         return
-    for case in getattr(importlib.import_module(module), factory)():
+    for case in getattr(cases, factory)():
         register(case.name, case)
 
 

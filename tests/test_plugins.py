@@ -117,3 +117,25 @@ def test_no_warnings_from_builtin_plugins():
     with warnings.catch_warnings():
         warnings.simplefilter("error")
         plugins.reset_registry()
+
+
+def test_register_cases_skips_cases_whose_optional_dependency_is_missing(tmp_path, monkeypatch):
+    """A plugin's cases derive from an optional package: without it the plugin registers no
+    case (and works otherwise); a missing cases module is an error."""
+    from cartan.plugins import register_cases, register_scenes
+
+    (tmp_path / "cases_without_dep.py").write_text("import no_such_package_for_cases\n")
+    (tmp_path / "cases_ok.py").write_text(
+        "class C:\n    name = 'c-one'\n\ndef all_cases():\n    return [C()]\n")
+    (tmp_path / "scenes").mkdir()
+    (tmp_path / "scenes" / "s-one.toml").write_text("")
+    monkeypatch.syspath_prepend(str(tmp_path))
+    got = {}
+    register_cases(got.__setitem__, "cases_without_dep")
+    assert got == {}
+    register_cases(got.__setitem__, "cases_ok")
+    assert list(got) == ["c-one"]
+    with pytest.raises(ModuleNotFoundError):
+        register_cases(got.__setitem__, "no_such_cases_module")
+    register_scenes(got.__setitem__, str(tmp_path / "plugin.py"))
+    assert got["s-one"] == tmp_path / "scenes" / "s-one.toml"
