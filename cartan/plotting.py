@@ -60,18 +60,8 @@ def _draw_configuration(fig: Figure, ax_slot: int, ds: xr.Dataset, pts: np.ndarr
             ax.plot(*p.T, color=c, lw=1.5)
         else:
             ax.scatter(*p.T, color=c, s=4)
-    flat = pts.reshape(-1, k)
-    lo, hi = np.nanmin(flat, axis=0), np.nanmax(flat, axis=0)
     if k == 3:  # equal scales: a cube around the data
-        centre = 0.5 * (lo + hi)
-        half = 0.55 * max(float(np.max(hi - lo)), 1e-12)
-        ax.set_xlim(centre[0] - half, centre[0] + half)
-        ax.set_ylim(centre[1] - half, centre[1] + half)
-        ax.set_zlim(centre[2] - half, centre[2] + half)
-        ax.set_box_aspect((1.0, 1.0, 1.0))
-        ax.set_xlabel("x")
-        ax.set_ylabel("y")
-        ax.set_zlabel("z")
+        _cube(ax, pts.reshape(-1, k))
     else:
         ax.set_aspect("equal", adjustable="datalim")
         ax.set_xlabel("x")
@@ -273,15 +263,8 @@ def _draw_shapes(fig: Figure, slot: tuple[int, int, int], curves: list[np.ndarra
             ax.plot(*pts.T, color=colour, lw=1.5)
         else:
             ax.scatter(*pts.T, color=colour, s=4)
-    flat = np.concatenate([c.reshape(-1, c.shape[-1])[:, axes] for c in every])
-    lo_p, hi_p = np.nanmin(flat, axis=0), np.nanmax(flat, axis=0)
     if three_d:
-        centre = 0.5 * (lo_p + hi_p)
-        half = 0.55 * max(float(np.max(hi_p - lo_p)), 1e-12)
-        ax.set_xlim(centre[0] - half, centre[0] + half)
-        ax.set_ylim(centre[1] - half, centre[1] + half)
-        ax.set_zlim(centre[2] - half, centre[2] + half)
-        ax.set_box_aspect((1.0, 1.0, 1.0))
+        _cube(ax, np.concatenate([c.reshape(-1, c.shape[-1])[:, axes] for c in every]))
         ax.set_zlabel(names[2])
     else:
         ax.set_aspect("equal", adjustable="datalim")

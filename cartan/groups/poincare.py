@@ -352,15 +352,20 @@ def _solve4(V, t, out):
 
 
 @njit(cache=True)
-def poincare_log_point(g, out):
-    """``out`` (10,) ← principal ``{V⁻¹t; log Λ}`` of ``g`` (5, 5); a pure translation
-    (Λ = I exactly: V = I) directly."""
-    pure = True
+def _pure_translation(g):
+    """Whether the Lorentz block of ``g`` (5, 5) is exactly the identity."""
     for i in range(4):
         for j in range(4):
             if g[i + 1, j + 1] != (1.0 if i == j else 0.0):
-                pure = False
-    if pure:
+                return False
+    return True
+
+
+@njit(cache=True)
+def poincare_log_point(g, out):
+    """``out`` (10,) ← principal ``{V⁻¹t; log Λ}`` of ``g`` (5, 5); a pure translation
+    (Λ = I exactly: V = I) directly."""
+    if _pure_translation(g):
         for k in range(4):
             out[k] = g[k + 1, 0]
         for k in range(4, 10):
@@ -810,12 +815,7 @@ def poincare_dexp_inv_T_pair_point(xi, v, out, out_neg):
 def poincare_Ad_T_point(g, v, out):
     """``out`` (10,) ← Ad_gᵀv: for a pure translation g = (t; I), Ad_g = [[I, −N(t)], [0, I]]
     and Ad_gᵀv = {v_y; v_Z − N(t)ᵀv_y} without a matrix; otherwise from :func:`poincare_Ad_point`."""
-    pure = True
-    for i in range(4):
-        for j in range(4):
-            if g[i + 1, j + 1] != (1.0 if i == j else 0.0):
-                pure = False
-    if pure:
+    if _pure_translation(g):
         y0, y1, y2, y3 = g[1, 0], g[2, 0], g[3, 0], g[4, 0]
         ny = (y1, y2, y3, 0.0, 0.0, 0.0,
               y0, 0.0, 0.0, 0.0, y3, -y2,
