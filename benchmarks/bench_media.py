@@ -1,0 +1,138 @@
+"""Speed of one compiled ``lie-verlet`` step loop of the plugin media.
+
+Cost per node-step on the ``lattice`` scheme, ``STEPS`` steps per sample (no saves), each
+medium run by the first compiled path :func:`cartan.simulate` would take (the integrator's
+own blocks, the scheme's hand-written loops, the integrator's generated loop):
+
+====================  ==============================================================  ==============
+case                  problem                                                         nodes
+====================  ==============================================================  ==============
+``surface-plate``     ``cosserat-surface`` flat plate 1 × 1, h = 0.05, clamped along  32 × 32
+                      u = 0, under gravity
+``solid-block``       ``cosserat-solid`` block 1 × 1 × 1 (default constants), clamped  12 × 12 × 12
+                      at u = 0, released from a 0.1 % stretch along u
+``relativistic-loop`` ``relativistic-rod`` circular Nambu–Goto loop (c = μ = 1),      256
+                      periodic, released from rest
+====================  ==============================================================  ==============
+
+``setup`` builds the scheme and runs two steps, so that numba compilation (or loading its
+on-disk cache) never lands inside a timing; Δt is a tenth of the integrator's CFL estimate
+(``dt_max``), so that the state stays smooth over every repeat.  ``MediaStep.time_steps`` times
+``STEPS`` steps; ``MediaStep.track_node_step`` reports the median cost per node-step in
+nanoseconds over ``SAMPLES`` samples (a number comparable across media and sizes: the
+performance goals are stated per node, PERFORMANCE.md).
+"""
+
+from __future__ import annotations
+
+import math
+import time
+
+import numpy as np
+
+import cartan
+
+STEPS = 20
+SAMPLES = 5
+CASES = ["surface-plate", "solid-block", "relativistic-loop"]
+
+
+def _problem(case: str) -> cartan.Problem:
+    """The case's problem."""
+    from cartan.problem import Clamped
+
+    if case == "surface-plate":
+        medium = cartan.medium("cosserat-surface", E=1.0, poisson=0.3, thickness=0.05, density=1.0)
+        grid = cartan.Grid((32, 32), length=(1.0, 1.0))
+        loads = [medium.make_load("gravity", g=[0.0, 0.0, -1e-3])]
+        return cartan.Problem(medium, grid, medium.initial_state(grid, "flat"), {"u-start": Clamped()}, loads)
+    if case == "solid-block":
+        medium = cartan.medium("cosserat-solid")
+        grid = cartan.Grid((12, 12, 12), length=(1.0, 1.0, 1.0))
+        return cartan.Problem(medium, grid, medium.initial_state(grid, "stretch", stretch=(1.001, 1.0, 1.0)),
+                              {"u-start": Clamped()})
+    if case == "relativistic-loop":
+        medium = cartan.medium("relativistic-rod")
+        grid = cartan.Grid(256, length=2 * math.pi, periodic=True)
+        return cartan.Problem(medium, grid, medium.initial_state(grid, "loop"))
+    raise ValueError(f"unknown case {case!r}; allowed: {', '.join(CASES)}")
+
+
+class _Run:
+    """``STEPS`` compiled ``lie-verlet`` steps of a case, by the first compiled path that runs it."""
+
+    def __init__(self, case: str):
+        problem = _problem(case)
+        self.nodes = int(np.prod(problem.grid.shape))
+        self.scheme = cartan.registry("schemes")["lattice"](problem)
+        self.integrator = cartan.registry("integrators")["lie-verlet"]()
+        self.state = self.scheme.initial_state()
+        self.dt = 0.1 * float(self.integrator.dt_max(self.scheme, self.state))
+        if not 0 < self.dt < math.inf:
+            raise NotImplementedError(f"{case}: no finite CFL estimate ({self.dt / 0.1!r})")
+        paths = []
+        own = getattr(self.integrator, "compiled_advance", None)
+        if own is not None:
+            paths.append(("integrator", lambda n: own(self.scheme, self.state, self.dt, n, math.inf)))
+        fast = getattr(self.scheme, "compiled_advance", None)
+        if fast is not None:
+            paths.append(("hand-written", lambda n: fast(self.integrator, self.state, self.dt, n)))
+        generic = getattr(self.integrator, "run_compiled_loop", None)
+        if generic is not None:
+            paths.append(("generated", lambda n: generic(self.scheme, self.state, self.dt, n, math.inf)))
+        for name, advance in paths:
+            if advance(2):  # compile or load the loop
+                self.path, self.advance = name, advance
+                break
+        else:
+            raise NotImplementedError(f"{case}: no compiled loop runs this problem")
+
+    def __call__(self, steps: int = STEPS) -> None:
+        before = self.state.scalars.get("nstep", 0)
+        self.advance(steps)
+        done = self.state.scalars.get("nstep", 0) - before
+        if done != steps:
+            raise RuntimeError(f"the compiled loop stopped after {done} of {steps} steps (a blow-up)")
+
+
+def _median_node_step(run: _Run, samples: int = SAMPLES) -> float:
+    """Median over ``samples`` of the wall time of ``STEPS`` steps, per node-step (seconds)."""
+    times = []
+    for _ in range(samples):
+        t0 = time.perf_counter()
+        run(STEPS)
+        times.append(time.perf_counter() - t0)
+    return float(np.median(times)) / (STEPS * run.nodes)
+
+
+class MediaStep:
+    """One compiled step loop per medium: ``STEPS`` steps, and the cost per node-step."""
+
+    params = [CASES]
+    param_names = ["case"]
+    number = 1
+    repeat = (3, 10, 20.0)
+    warmup_time = 0.0
+    timeout = 900.0
+
+    def setup(self, case):
+        self.run = _Run(case)
+
+    def time_steps(self, case):
+        self.run(STEPS)
+
+    def track_node_step(self, case):
+        return _median_node_step(self.run) * 1e9
+
+    track_node_step.unit = "ns"
+
+
+def main() -> None:  # pragma: no cover - a report for the terminal
+    """Print the compiled path and the cost per node-step of every case."""
+    for case in CASES:
+        run = _Run(case)
+        print(f"{case:20s} {run.nodes:6d} nodes  {run.path:12s} {_median_node_step(run) * 1e9:8.1f} ns per node-step")
+
+
+if __name__ == "__main__":
+    main()
