@@ -4,14 +4,18 @@
     run a scene file (or ``--scene NAME`` for a registered scene; ``--restart out.nc`` to
     continue a run from its last checkpoint), overriding its ``[run]`` settings with
     ``--integrator``, ``--scheme``, ``--dt``, ``--t-end``, ``--save-every`` and
-    ``--checkpoint-every``.  Scenes with ``mode = "static"`` or ``mode = "continuation"``
+    ``--checkpoint-every``; ``--no-reduce`` runs it without an exact reduction
+    (:mod:`cartan.reduction`).  Scenes with ``mode = "static"`` or ``mode = "continuation"``
     are solved by :func:`cartan.statics.solve_static` or followed by
     :func:`cartan.continuation.continuation` with their ``[static]`` / ``[continuation]``
     settings (the dynamic options do not apply to them);
 ``cartan plot out.nc [-o out.png]``
     dynamic runs: configuration snapshots coloured by time and the energies against time;
     static results: the equilibrium shape, its displacement and the Newton residuals;
-    continuation results: the load–displacement chart and shapes along the path.
+    continuation results: the load–displacement chart and shapes along the path; surfaces and
+    solids (d = 3) in 3D coloured by ``--field``, a solid's slice with ``--slice AXIS[=INDEX]``;
+    a medium that draws its own picture (:meth:`cartan.medium.Medium.draw`) draws it, unless
+    ``--generic``.
 
 Bad input — malformed TOML, unknown names, bad parameters or options, a run too long or too
 large for the limits (``--max-steps``, ``CARTAN_MAX_STEPS``, ``CARTAN_MAX_MEMORY``), an output
@@ -180,6 +184,12 @@ def default_output(scene_name: str, scene_file: pathlib.Path | None) -> pathlib.
     help="Most time steps the run may take (default: $CARTAN_MAX_STEPS, else 1000000000).",
 )
 @click.option("--progress/--no-progress", default=None, help="Progress bar (default: only on a terminal).")
+@click.option(
+    "--no-reduce",
+    "no_reduce",
+    is_flag=True,
+    help="Run the scene as written, without an exact reduction (e.g. a planar SE(3) scene on SE(2)).",
+)
 @click.pass_context
 def run_cmd(
     ctx: click.Context,
@@ -195,11 +205,12 @@ def run_cmd(
     checkpoint_every,
     max_steps,
     progress,
+    no_reduce,
 ) -> None:
     """Run a scene file, a registered scene (--scene NAME), or continue a run (--restart)."""
     with _stop_cleanly(), _warnings_as_lines():
         _run(ctx, scene_file, scene_name, output, integrator, scheme, dt, t_end, save_every, restart,
-             checkpoint_every, max_steps, progress)
+             checkpoint_every, max_steps, progress, reduce=not no_reduce)
 
 
 def _run(
@@ -216,6 +227,7 @@ def _run(
     checkpoint_every: int | None,
     max_steps: int | None,
     progress: bool | None,
+    reduce: bool = True,
 ) -> None:
     """``cartan run``: the settings are checked by the library (:func:`cartan.load_scene`,
     :func:`cartan.simulate`, :meth:`cartan.scene.Scene.run`), whose errors become one line."""
@@ -273,6 +285,7 @@ def _run(
             progress=progress,
             command=_command_line(ctx),
             max_steps=max_steps,
+            reduce=reduce,
         )
     except CommandError:
         raise
@@ -322,11 +335,17 @@ def _summary(ds: Any, mode: str) -> str:
 )
 @click.option("--snapshots", type=int, default=8, show_default=True, help="Configurations drawn.")
 @click.option("--field", default=None,
-              help="A surface (d = 2 in space) is drawn in 3D coloured by this node variable "
+              help="A surface (d = 2 in space) or a solid (d = 3) is drawn in 3D coloured by this node variable "
                    "(default: the displacement's norm).")
-def plot_cmd(run_file: pathlib.Path, output: pathlib.Path | None, snapshots: int, field: str | None) -> None:
-    """Plot a run file: snapshots and energies (dynamic), the equilibrium (static) or the
-    load–displacement chart (continuation)."""
+@click.option("--slice", "slice_", metavar="AXIS[=INDEX]", default=None,
+              help="For a solid (d = 3), also draw the material slice AXIS = u, v or w through the middle node "
+                   "(or node INDEX), deformed and coloured by --field.")
+@click.option("--generic", is_flag=True, default=False,
+              help="Draw the generic picture even when the medium draws its own (--field and --slice imply it).")
+def plot_cmd(run_file: pathlib.Path, output: pathlib.Path | None, snapshots: int, field: str | None,
+             slice_: str | None, generic: bool) -> None:
+    """Plot a run file: the medium's own picture when it has one, else snapshots and energies
+    (dynamic), the equilibrium (static) or the load–displacement chart (continuation)."""
     from .io import open_dataset
     from .plotting import plot_run, result_kind
 
@@ -346,8 +365,10 @@ def plot_cmd(run_file: pathlib.Path, output: pathlib.Path | None, snapshots: int
             raise CommandError(f"{run_file}: not a cartan run file (missing {', '.join(missing) or 'time'})")
     output = output if output is not None else run_file.with_suffix(".png")
     try:
-        plot_run(ds, output, snapshots=snapshots, field=field)
-    except (OSError, ValueError) as exc:
+        plot_run(ds, output, snapshots=snapshots, field=field, slice=slice_, generic=generic)
+    except ValueError as exc:  # a --field or --slice the result does not have: names the option's value
+        raise CommandError(f"{run_file}: {' '.join(str(exc).split())}") from None
+    except OSError as exc:
         raise CommandError(f"{output}: {' '.join(str(exc).split())}", RUN_ERROR) from None
     click.echo(f"wrote {output}")
 

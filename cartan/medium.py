@@ -329,6 +329,26 @@ class Medium(abc.ABC):
         """
         return None
 
+    def planar_reduction(self) -> Medium | None:
+        """The planar twin of this medium on SE(2), or None (default: none).
+
+        A medium on SE(3) whose motions in the x–y plane (director e₃ along +z) are exactly
+        those of a medium on SE(2) returns that medium, its parameters mapped: SE(3)
+        components ``(0, 1, 5)`` — ``(V₁, V₂, Ω₃)``, ``(θ₁, θ₂, π₃)``, ``(F₁, F₂, M₃)`` — are
+        the SE(2) components ``(0, 1, 2)`` (paper §VI.A).  :func:`cartan.simulate` then runs
+        problems whose data are all planar on the twin and lifts the results back
+        (:mod:`cartan.reduction`, which also checks that the twin's kinetic metric, rest strain
+        and stiffness are the restriction of this medium's, with no in-plane/out-of-plane
+        coupling).  The twin must declare this medium's :attr:`output_fields`.
+
+        Returns
+        -------
+        Medium or None
+            A medium whose ``group`` is SE(2), or None when there is no exact planar twin
+            (e.g. an out-of-plane rest curvature).
+        """
+        return None
+
     def static_jacobian(self, scheme: Any, state: Any, lam: float) -> Any:
         """Analytic Jacobian of the static residual, or None (default: none).
 
@@ -413,6 +433,34 @@ class Medium(abc.ABC):
             (a time series in the output) or an array of shape ``grid.shape`` (a node field).
         """
         return {}
+
+    @classmethod
+    def draw(cls, ds: Any, fig: Any) -> bool:
+        """Draw a picture of a result of this medium into ``fig`` (default: none).
+
+        ``cartan plot`` and :func:`cartan.plotting.plot_run` call this classmethod of the
+        medium named in the file (:func:`cartan.plotting.medium_name`) before drawing their
+        generic picture; a medium whose results read best in their own terms (a string's
+        worldlines in the lab frame, say) overrides it.  No instance is made: the parameters
+        of the run are in ``ds.attrs["cartan_config"]`` (JSON, ``problem.parameters``).
+
+        Parameters
+        ----------
+        ds : xarray.Dataset
+            A result of the medium: a run (frames along ``time``), a static equilibrium or
+            a continuation path (:func:`cartan.plotting.result_kind`), as read from a file.
+        fig : matplotlib.figure.Figure
+            An empty figure (Agg canvas, constrained layout, 12 × 4.8 in; resize it with
+            ``fig.set_size_inches``) to add axes to.  The caller saves it and, unless the
+            method sets one, gives it the Dataset's ``title`` as ``suptitle``.
+
+        Returns
+        -------
+        bool
+            True when the picture is drawn; False (the default) leaves the result to the
+            generic picture, in a new figure.
+        """
+        return False
 
     def kinetic_metric(self) -> np.ndarray:
         """The kinetic metric M, ``K(N) = ½ NᵀMN`` per unit reference volume, shape ``(r, r)``.

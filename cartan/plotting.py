@@ -9,6 +9,11 @@ path it hands over to :func:`plot_static` (the equilibrium shape, its displaceme
 Newton residuals) or :func:`plot_continuation` (the load–displacement chart of
 :func:`plot_load_displacement`, bifurcations and folds marked, branches coloured, beside
 shapes along the path).  3-D curves lying in a coordinate plane are drawn in that plane.
+A surface (d = 2 in space) is drawn in 3D coloured by a node field; a solid (d = 3) as the
+outer faces of its deformed lattice, optionally with a coordinate slice through it.  A medium
+may draw its own picture instead: :func:`plot_run` first calls the ``draw(ds, fig)``
+classmethod of the medium that wrote the file (:meth:`cartan.medium.Medium.draw`), found by
+the name the file records (:func:`medium_name`).
 matplotlib is used through its object API with the Agg canvas, so no display is needed.
 """
 
@@ -25,7 +30,7 @@ if TYPE_CHECKING:  # pragma: no cover
     from matplotlib.axes import Axes
     from matplotlib.figure import Figure
 
-__all__ = ["plot_continuation", "plot_load_displacement", "plot_run", "plot_static", "result_kind"]
+__all__ = ["medium_name", "plot_continuation", "plot_load_displacement", "plot_run", "plot_static", "result_kind"]
 
 
 def _points(ds: xr.Dataset) -> np.ndarray | None:
@@ -72,21 +77,35 @@ def _draw_configuration(fig: Figure, ax_slot: int, ds: xr.Dataset, pts: np.ndarr
     fig.colorbar(sm, ax=ax, shrink=0.7, pad=0.1, label="time")
 
 
-def _surface_values(ds: xr.Dataset, pts: np.ndarray, field: str | None, index: int) -> tuple[np.ndarray, str]:
-    """The nodal values ``[n_u, n_v]`` a surface is coloured by at snapshot ``index``: the
+def _node_dims(ds: xr.Dataset) -> tuple[str, ...]:
+    """Names of the node dimensions of the configuration variable (``("u", "v")`` for a surface)."""
+    for name in ("position", "field"):
+        if name in ds and ds[name].ndim >= 3 and ds[name].shape[-1] in (2, 3):
+            return tuple(ds[name].dims[1:-1])
+    return ()
+
+
+def _node_values(ds: xr.Dataset, pts: np.ndarray, field: str | None, index: int) -> tuple[np.ndarray, str]:
+    """The nodal values ``[*nodes]`` (``[n_u, n_v]`` for a surface, ``[n_u, n_v, n_w]`` for a
+    solid) a configuration ``pts [time, *nodes, 3]`` is coloured by at snapshot ``index``: the
     variable ``field`` of the Dataset (a scalar per node), else the displacement from the first
-    snapshot (its norm)."""
+    snapshot (its norm); and the colour bar's label (long name and units)."""
+    nodes = pts.shape[1:-1]
     if field is not None:
+        dims = _node_dims(ds)
         if field not in ds:
-            choices = sorted(v for v in ds.data_vars if ds[v].dims[-2:] == ds["position"].dims[-3:-1])
+            choices = sorted(v for v in ds.data_vars if dims and ds[v].dims[-len(dims):] == dims)
             raise ValueError(f"field {field!r} is not in the file; node fields: {', '.join(choices) or 'none'}")
         values = np.asarray(ds[field].values, dtype=float)
-        if values.shape[-2:] != pts.shape[-3:-1]:
-            raise ValueError(f"field {field!r} is not one value per node of the surface (shape {values.shape})")
-        values = values[index] if values.ndim == 3 else values
+        if values.shape[-len(nodes):] != nodes or values.ndim not in (len(nodes), len(nodes) + 1):
+            raise ValueError(f"field {field!r} is not one value per node (shape {values.shape}, nodes {nodes})")
+        values = values[index] if values.ndim == len(nodes) + 1 else values
         label = _axis_label(ds[field], field)
-        return values, (label if len(label) <= 40 else field)
-    return np.linalg.norm(pts[index] - pts[0], axis=-1), "|displacement|"
+        if len(label) > 40:  # a long name: the variable's name and its units
+            label = _axis_label(ds[field].copy(deep=False).assign_attrs(long_name=field), field)
+        return values, label
+    units = str(ds["position"].attrs.get("units", "")) if "position" in ds else ""
+    return np.linalg.norm(pts[index] - pts[0], axis=-1), "|displacement|" + (f" [{units}]" if units else "")
 
 
 def _draw_surface(ax: Axes, surface: np.ndarray, values: np.ndarray, norm, cmap, alpha: float = 1.0) -> None:
@@ -118,7 +137,7 @@ def _draw_surface_panel(fig: Figure, slot: tuple[int, int, int], ds: xr.Dataset,
     from matplotlib import cm, colors
 
     ax = fig.add_subplot(*slot, projection="3d")
-    values, label = _surface_values(ds, pts, field, -1)
+    values, label = _node_values(ds, pts, field, -1)
     lo, hi = float(np.nanmin(values)), float(np.nanmax(values))
     norm = colors.Normalize(vmin=lo, vmax=hi if hi > lo else lo + 1.0)
     cmap = cm.viridis
@@ -136,6 +155,113 @@ def _draw_surface_panel(fig: Figure, slot: tuple[int, int, int], ds: xr.Dataset,
 def _is_surface(pts: np.ndarray | None) -> bool:
     """Points ``[time, n_u, n_v, 3]`` of a surface in space (d = 2), with at least 2 × 2 nodes."""
     return pts is not None and pts.ndim == 4 and pts.shape[-1] == 3 and min(pts.shape[1:3]) >= 2
+
+
+def _is_solid(pts: np.ndarray | None) -> bool:
+    """Points ``[time, n_u, n_v, n_w, 3]`` of a solid (d = 3), with at least 2 × 2 × 2 nodes."""
+    return pts is not None and pts.ndim == 5 and pts.shape[-1] == 3 and min(pts.shape[1:4]) >= 2
+
+
+def _parse_slice(spec: str, ds: xr.Dataset, pts: np.ndarray | None) -> tuple[int, int]:
+    """``(axis, node index)`` of a slice ``"u"``, ``"v"``, ``"w"`` (the middle node) or
+    ``"AXIS=INDEX"`` through a solid ``pts [time, n_u, n_v, n_w, 3]``.
+
+    Raises
+    ------
+    ValueError
+        If the result is not a solid, the axis is not one of its node dimensions, or the index
+        is not in ``0 ≤ INDEX < n``.
+    """
+    if not _is_solid(pts):
+        d = ds["position"].ndim - 2 if "position" in ds else (0 if pts is None else pts.ndim - 2)
+        raise ValueError(f"slice {spec!r}: only a solid (a d = 3 medium) can be sliced; this result has d = {d}")
+    dims = _node_dims(ds) or ("u", "v", "w")
+    name, sep, index_text = str(spec).partition("=")
+    name = name.strip()
+    if name not in dims:
+        raise ValueError(f"slice {spec!r}: choose an axis {', '.join(dims)}, optionally with a node index "
+                         f"({dims[0]}=INDEX)")
+    axis = dims.index(name)
+    n = pts.shape[1 + axis]
+    if not sep:
+        return axis, n // 2
+    try:
+        index = int(index_text)
+    except ValueError:
+        raise ValueError(f"slice {spec!r}: the node index must be an integer, 0 ≤ INDEX ≤ {n - 1}") from None
+    if not 0 <= index < n:
+        raise ValueError(f"slice {spec!r}: node index out of range, 0 ≤ INDEX ≤ {n - 1}")
+    return axis, index
+
+
+def _faces(block: np.ndarray) -> list[np.ndarray]:
+    """The six outer faces of a node array ``[n_u, n_v, n_w, ...]`` (u = 0, u = end, v = 0, ...),
+    each ``[n_a, n_b, ...]``."""
+    return [block[0], block[-1], block[:, 0], block[:, -1], block[:, :, 0], block[:, :, -1]]
+
+
+def _edges(block: np.ndarray) -> list[np.ndarray]:
+    """The twelve edges ``[n, 3]`` of a block of points ``[n_u, n_v, n_w, 3]``."""
+    out = []
+    for i in (0, -1):
+        for j in (0, -1):
+            out += [block[:, i, j], block[i, :, j], block[i, j, :]]
+    return out
+
+
+def _draw_block(ax: Axes, block: np.ndarray, values: np.ndarray, norm, cmap) -> None:
+    """The outer faces of a deformed solid ``[n_u, n_v, n_w, 3]`` as quadrilaterals coloured by
+    the nodal ``values`` ``[n_u, n_v, n_w]`` (the mean of each face's four corners), in one
+    collection so that the faces of all six sides are depth-sorted together."""
+    from mpl_toolkits.mplot3d.art3d import Poly3DCollection
+
+    quads, colours = [], []
+    for surface, vals in zip(_faces(block), _faces(values)):
+        corners = np.stack([surface[:-1, :-1], surface[1:, :-1], surface[1:, 1:], surface[:-1, 1:]], axis=-2)
+        quads.append(corners.reshape(-1, 4, 3))
+        colours.append((0.25 * (vals[:-1, :-1] + vals[1:, :-1] + vals[:-1, 1:] + vals[1:, 1:])).ravel())
+    poly = Poly3DCollection(np.concatenate(quads), facecolors=cmap(norm(np.concatenate(colours))),
+                            edgecolors="0.3", linewidths=0.2)
+    ax.add_collection3d(poly)
+
+
+def _draw_solid_panels(fig: Figure, slots: list[tuple[int, int, int]], ds: xr.Dataset, pts: np.ndarray,
+                       field: str | None, title: str, cut: tuple[int, int] | None) -> None:
+    """The last configuration of a solid (d = 3, ``pts [time, n_u, n_v, n_w, 3]``) in 3D: its
+    outer faces coloured by ``field``, the edges of the first one dashed grey; and, given
+    ``cut = (axis, index)``, the material slice at that node index in a second panel, drawn
+    deformed and coloured on the same scale inside the edges of the deformed block."""
+    from matplotlib import cm, colors
+
+    values, label = _node_values(ds, pts, field, -1)
+    lo, hi = float(np.nanmin(values)), float(np.nanmax(values))
+    norm = colors.Normalize(vmin=lo, vmax=hi if hi > lo else lo + 1.0)
+    cmap = cm.viridis
+    last = pts[-1]
+    ax = fig.add_subplot(*slots[0], projection="3d")
+    if pts.shape[0] > 1:
+        for e in _edges(pts[0]):
+            ax.plot(*e.T, "--", color="0.55", lw=0.8)
+    _draw_block(ax, last, values, norm, cmap)
+    _cube(ax, pts.reshape(-1, 3))
+    ax.set_title(title)
+    sm = cm.ScalarMappable(norm=norm, cmap=cmap)
+    sm.set_array([])
+    fig.colorbar(sm, ax=ax, shrink=0.7, pad=0.1, label=label)
+    if cut is None:
+        return
+    axis, index = cut
+    dims = _node_dims(ds) or ("u", "v", "w")
+    ax = fig.add_subplot(*slots[1], projection="3d")
+    for e in _edges(last):
+        ax.plot(*e.T, color="0.45", lw=0.8)
+    _draw_surface(ax, np.take(last, index, axis=axis), np.take(values, index, axis=axis), norm, cmap)
+    _cube(ax, last.reshape(-1, 3))
+    where = f"{dims[axis]} node {index}"
+    if dims[axis] in ds.coords and ds[dims[axis]].size == last.shape[axis]:
+        where = f"{dims[axis]} = {float(ds[dims[axis]].values[index]):.4g} (node {index})"
+    ax.set_title(f"slice {where}")
+    fig.colorbar(sm, ax=ax, shrink=0.7, pad=0.1, label=label)
 
 
 def _draw_energies(fig: Figure, ax_slot: int, ncols: int, ds: xr.Dataset) -> None:
@@ -158,14 +284,67 @@ def _draw_energies(fig: Figure, ax_slot: int, ncols: int, ds: xr.Dataset) -> Non
     ax.grid(True, alpha=0.3)
 
 
+def medium_name(ds: xr.Dataset) -> str | None:
+    """The registry name of the medium that wrote ``ds``.
+
+    Read from ``problem.medium`` of the JSON ``cartan_config`` attribute, else from the
+    ``medium 'NAME'`` part of the ``source`` attribute (both written by the core).
+
+    Parameters
+    ----------
+    ds : xarray.Dataset
+        A result of :func:`cartan.simulate`, :func:`cartan.solve_static` or a run file.
+
+    Returns
+    -------
+    str or None
+        The name (e.g. ``"cosserat-rod"``), or None when the Dataset names no medium.
+    """
+    import json
+    import re
+
+    try:
+        config = json.loads(str(ds.attrs.get("cartan_config", "")))
+    except ValueError:
+        config = None
+    name = config.get("problem", {}).get("medium") if isinstance(config, dict) else None
+    if isinstance(name, str) and name:
+        return name
+    match = re.search(r"medium '([^']+)'", str(ds.attrs.get("source", "")))
+    return match.group(1) if match else None
+
+
+def _medium_picture(ds: xr.Dataset, fig: Figure) -> bool:
+    """Let the medium that wrote ``ds`` draw into ``fig`` (:meth:`cartan.medium.Medium.draw`);
+    False when the medium is not named, not registered, or draws nothing."""
+    from .plugins import RegistryError, get_registry
+
+    name = medium_name(ds)
+    if name is None:
+        return False
+    try:
+        medium = get_registry().get("media", name)
+    except RegistryError:  # a file of a medium whose plugin is not installed here
+        return False
+    draw = getattr(medium, "draw", None)
+    return bool(draw(ds, fig)) if callable(draw) else False
+
+
+def _save(fig: Figure, path: str | os.PathLike | None) -> None:
+    if path is not None:
+        fig.savefig(pathlib.Path(path), dpi=120)
+
+
 def plot_run(
     ds: xr.Dataset, path: str | os.PathLike | None = None, snapshots: int = 8, title: str | None = None,
-    field: str | None = None,
+    field: str | None = None, slice: str | None = None, generic: bool = False,
 ) -> Figure:
     """Quick-look figure of a run: configuration snapshots and energies against time.
 
-    Static equilibria go to :func:`plot_static`, continuation paths to
-    :func:`plot_continuation` (see :func:`result_kind`).
+    The medium that wrote the Dataset (:func:`medium_name`) is asked first: when its class
+    draws a picture of its own (:meth:`cartan.medium.Medium.draw` returns True) that picture
+    is the figure.  Otherwise static equilibria go to :func:`plot_static`, continuation paths
+    to :func:`plot_continuation` (see :func:`result_kind`), and a dynamic run is drawn here.
 
     Parameters
     ----------
@@ -179,33 +358,59 @@ def plot_run(
     title : str, optional
         Figure title (default: the Dataset's ``title`` attribute).
     field : str, optional
-        For a surface (a d = 2 medium in space: shells, plates, membranes), the node variable
-        its deformed configuration is coloured by (default: the displacement's norm); the
-        surface is drawn in 3D, the initial one as a wireframe.
+        For a surface (a d = 2 medium in space: shells, plates, membranes) or a solid (d = 3),
+        the node variable its deformed configuration is coloured by (default: the
+        displacement's norm).  A surface is drawn in 3D, the initial one as a wireframe; a
+        solid as the outer faces of its deformed lattice, the edges of the initial block dashed.
+    slice : str, optional
+        For a solid, also draw the material slice ``"u"``, ``"v"`` or ``"w"`` through the
+        middle node (``"u=INDEX"`` for another node index), deformed and coloured by ``field``.
+    generic : bool
+        Draw the generic picture even when the medium has its own.  Giving ``field`` or
+        ``slice`` asks for the generic picture too.
 
     Returns
     -------
     matplotlib.figure.Figure
+
+    Raises
+    ------
+    ValueError
+        If ``field`` is not a node variable of the file, or ``slice`` names no node plane of a
+        solid (or the result is not a solid).
     """
     from matplotlib.figure import Figure
 
+    if not generic and field is None and slice is None:
+        fig = Figure(figsize=(12.0, 4.8), layout="constrained")
+        if _medium_picture(ds, fig):
+            if not fig.get_suptitle():
+                fig.suptitle(title if title is not None else str(ds.attrs.get("title", "")))
+            _save(fig, path)
+            return fig
     kind = result_kind(ds)
     if kind == "continuation":
+        if slice is not None:
+            raise ValueError(f"slice {slice!r}: a continuation result has no solid to slice")
         return plot_continuation(ds, path, snapshots=snapshots, title=title)
     if kind == "static":
-        return plot_static(ds, path, title=title, field=field)
+        return plot_static(ds, path, title=title, field=field, slice=slice)
 
     pts = _points(ds)
+    cut = _parse_slice(slice, ds, pts) if slice is not None else None
     ncols = 2 if pts is not None and ds.sizes.get("time", 0) > 0 else 1
+    ncols += cut is not None
     fig = Figure(figsize=(6.0 * ncols, 4.8), layout="constrained")
-    if ncols == 2 and _is_surface(pts):
-        _draw_surface_panel(fig, (1, 2, 1), ds, pts, field, f"t = {float(ds['time'].values[-1]):.4g}")
+    when = f"t = {float(ds['time'].values[-1]):.4g}" if ds.sizes.get("time", 0) else ""
+    if ncols >= 2 and _is_solid(pts):
+        _draw_solid_panels(fig, [(1, ncols, 1), (1, ncols, 2)], ds, pts, field, when, cut)
+    elif ncols == 2 and _is_surface(pts):
+        _draw_surface_panel(fig, (1, 2, 1), ds, pts, field, when)
     elif ncols == 2:
         _draw_configuration(fig, 1, ds, pts, snapshots)
     _draw_energies(fig, ncols, ncols, ds)
     fig.suptitle(title if title is not None else str(ds.attrs.get("title", "")))
-    if path is not None:
-        fig.savefig(pathlib.Path(path), dpi=120)
+    _save(fig, path)
     return fig
 
 
@@ -407,7 +612,7 @@ def plot_continuation(
 
 
 def plot_static(ds: xr.Dataset, path: str | os.PathLike | None = None, title: str | None = None,
-                field: str | None = None) -> Figure:
+                field: str | None = None, slice: str | None = None) -> Figure:
     """Quick-look figure of a static equilibrium (:func:`cartan.statics.solve_static`).
 
     Panels: the equilibrium shape (the initial configuration dashed, when the result holds
@@ -423,7 +628,11 @@ def plot_static(ds: xr.Dataset, path: str | os.PathLike | None = None, title: st
     title : str, optional
         Figure title (default: the Dataset's ``title`` attribute).
     field : str, optional
-        For a surface, the node variable the equilibrium is coloured by (see :func:`plot_run`).
+        For a surface or a solid, the node variable the equilibrium is coloured by (see
+        :func:`plot_run`).
+    slice : str, optional
+        For a solid, the material slice ``"u"``, ``"v"``, ``"w"`` or ``"AXIS=INDEX"`` also
+        drawn (see :func:`plot_run`).
 
     Returns
     -------
@@ -433,11 +642,16 @@ def plot_static(ds: xr.Dataset, path: str | os.PathLike | None = None, title: st
 
     pts = _points(ds)
     ref = np.asarray(ds["initial_position"].values, dtype=float) if "initial_position" in ds else None
+    cut = _parse_slice(slice, ds, pts) if slice is not None else None
     curve = pts is not None and pts.ndim == 3
-    panels = (pts is not None) + (curve and ref is not None) + 1
+    panels = (pts is not None) + (curve and ref is not None) + (cut is not None) + 1
     fig = Figure(figsize=(5.2 * panels, 4.6), layout="constrained")
     slot = 1
-    if _is_surface(pts):
+    if _is_solid(pts):
+        both = pts if ref is None or ref.shape != pts.shape[1:] else np.stack([ref, pts[-1]])
+        _draw_solid_panels(fig, [(1, panels, 1), (1, panels, 2)], ds, both, field, "equilibrium", cut)
+        slot += 1 + (cut is not None)
+    elif _is_surface(pts):
         both = pts if ref is None or ref.shape != pts.shape[1:] else np.stack([ref, pts[-1]])
         _draw_surface_panel(fig, (1, panels, slot), ds, both, field, "equilibrium")
         slot += 1
