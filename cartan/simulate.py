@@ -627,6 +627,7 @@ def simulate(
     compiled: bool = True,
     command: str | None = None,
     max_steps: int | None = None,
+    reduce: bool = True,
 ) -> xr.Dataset:
     """Run a problem and return its frames and diagnostics as an :class:`xarray.Dataset`.
 
@@ -690,6 +691,11 @@ def simulate(
         The most time steps the run may take (default: the environment variable
         ``CARTAN_MAX_STEPS``, else 10⁹; :func:`cartan.limits.step_limit`).  The frames kept in
         memory are bounded too (:func:`cartan.limits.check_memory`, ``CARTAN_MAX_MEMORY``).
+    reduce : bool, default True
+        Run the problem on an exact reduction when it admits one and it pays
+        (:mod:`cartan.reduction`: an SE(3) problem whose data all lie in the x–y plane runs on
+        the medium's SE(2) twin) and lift the frames back: the same Dataset, with the attribute
+        ``cartan_reduction``.  False runs the problem as given.
 
     Returns
     -------
@@ -705,11 +711,19 @@ def simulate(
         Bad settings (naming them and the allowed range), a damaged restart file, an output
         that cannot be written; :class:`~cartan.scene.SceneError` for bad scenes.
     """
+    if not isinstance(reduce, bool | np.bool_):
+        raise ValueError(f"reduce must be True or False, got {reduce!r}")
     run = _resolve_run(
         problem_or_scene, integrator, scheme, dt, t_end, save_every, output, restart, checkpoint_every,
         integrator_options, scheme_options, progress, max_energy_growth,
         compiled=compiled, command=command, max_steps=max_steps,
     )
+    if reduce:
+        from .reduction import run_reduced
+
+        ds = run_reduced(run, restart=restart)
+        if ds is not None:
+            return ds
     return _execute_run(run)
 
 

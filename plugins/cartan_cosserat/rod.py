@@ -46,7 +46,9 @@ Planar rods
 bending about e₃, on SE(2) with components ``X = (θ₁, θ₂, π)``, ``N = (V₁, V₂, Ω)``: the
 in-plane subset ``𝕊 = diag(EA, α_c GA)``, ``𝔹 = EI``, inertia ``(ρA, ρA, ρI)``.  An SE(3)
 rod with planar data moves exactly like it: SE(3) components ``(0, 1, 5)`` are the SE(2)
-components ``(0, 1, 2)`` (:data:`PLANAR_COMPONENTS`).
+components ``(0, 1, 2)`` (:data:`PLANAR_COMPONENTS`).  :meth:`CosseratRod.planar_reduction`
+declares it as the rod's planar twin, so that ``cartan.simulate`` runs SE(3) problems whose
+data all lie in the x–y plane on SE(2) (:mod:`cartan.reduction`).
 
 Loads
 -----
@@ -585,6 +587,14 @@ class CosseratRod(_Rod):
                 stretch_shear=S[:2], bending=B[2], mass=p["mass"], rotational_inertia=Ir[2], **extra
             )
         return PlanarCosseratRod(**p, **extra)
+
+    def planar_reduction(self) -> PlanarCosseratRod | None:
+        """The planar twin for :mod:`cartan.reduction`: :meth:`planar`, or None when the rest
+        curvature has out-of-plane components (see :meth:`cartan.medium.Medium.planar_reduction`)."""
+        try:
+            return self.planar()
+        except ValueError:
+            return None
 
 
 # ====================================================================== SE(2) rod
