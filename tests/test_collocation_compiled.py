@@ -258,7 +258,7 @@ def test_blocks_and_caches_match_the_step_loop(name):
     assert fi.nforce == ri.nforce
 
 
-@pytest.mark.parametrize("name", ["lie-euler", "overdamped-1", "overdamped-2"])
+@pytest.mark.parametrize("name", ["lie-euler", "overdamped-1", pytest.param("overdamped-2", marks=pytest.mark.slow)])
 def test_fast_spin_agrees(name):
     """Turns of 0.3 rad per step and nodes at rest (the clamp) in the same run, for the
     integrators ``tests/test_compiled_paths.py`` does not spin (for the overdamped flows, a

@@ -18,7 +18,13 @@ PARAMS = {
 }
 
 
-@pytest.mark.parametrize("name", sorted(cartan.registry("media")))
+#: media whose every scheme × integrator compiles for a minute or more on a fresh cache: in
+#: ``make test-slow``; their compiled loops run in the fast suite through their own test files
+SLOW_MEDIA = {"cosserat-rod", "planar-cosserat-rod", "cosserat-solid", "relativistic-rod"}
+
+
+@pytest.mark.parametrize("name", [pytest.param(name, marks=[pytest.mark.slow] if name in SLOW_MEDIA else [])
+                                  for name in sorted(cartan.registry("media"))])
 def test_registered_media_conform(name):
     report = check_medium(name, PARAMS.get(name, {}))
     assert report.passed and not report.failed

@@ -313,6 +313,7 @@ def test_registered_medium_scenes_and_cases():
     assert sc.problem.medium.name == "cosserat-surface" and sc.problem.grid.shape == (17, 9)
 
 
+@pytest.mark.slow
 def test_conformance_kit():
     from cartan.testing import check_medium
 

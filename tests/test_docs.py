@@ -15,7 +15,12 @@ FILES = [ROOT / "README.md", *sorted((ROOT / "docs").rglob("*.md"))]
 BLOCK = re.compile(r"^```python\n(.*?)^```", re.S | re.M)
 
 
-@pytest.mark.parametrize("path", FILES, ids=[p.name for p in FILES])
+#: pages whose examples compile several loops of their own (a minute or more on a fresh cache)
+SLOW_PAGES = {"integrators.md", "plugins.md", "relativistic-rod.md", "verification.md"}
+
+
+@pytest.mark.parametrize("path", [pytest.param(p, marks=[pytest.mark.slow] if p.name in SLOW_PAGES else [])
+                                  for p in FILES], ids=[p.name for p in FILES])
 def test_snippets_run(path, tmp_path, monkeypatch):
     monkeypatch.chdir(tmp_path)
     namespace: dict = {"__name__": "__docs__"}

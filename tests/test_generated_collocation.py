@@ -149,6 +149,7 @@ def test_sigma_model_s2_d2_fourier_agrees():
     _operators_agree(scheme, ref)
 
 
+@pytest.mark.slow
 def test_coupled_quartic_sheet_with_reference_agrees():
     """Non-quadratic, axis-coupled energy on SE(3), d = 2, with a rest strain that varies over
     the body: fd2 and fd4 on an open × periodic sheet."""
@@ -158,6 +159,7 @@ def test_coupled_quartic_sheet_with_reference_agrees():
         _operators_agree(scheme, ref)
 
 
+@pytest.mark.slow
 def test_indefinite_nondiagonal_metric_agrees():
     problem = _indefinite()
     for derivative in ("fd2", "fourier"):

@@ -103,10 +103,13 @@ def indefinite() -> Problem:
 CASES = {
     "rod-SE3-d1": lambda: rod("dead"),
     "coupled-SE3-d2": coupled_sheet,
+}
+#: in ``make test-slow``: each further group or medium compiles its own generated module (30-50 s on a
+#: fresh cache); SO(4) runs compiled in the fast suite through tests/test_generated_implicit.py and the
+#: indefinite Poincaré metric through the relativistic string (tests/test_relativistic_rod.py)
+SLOW_CASES = {
     "sigma-SO4-d2": sigma_s3,
     "indefinite-SO13-d1": indefinite,
-}
-SLOW_CASES = {
     "rod-SE2-d1": lambda: rod("dead", planar=True),
     "quadratic-SO3-d1": lambda: arc_problem(n=9, group="SO3", curvature=1.0, velocity=np.linspace(0.1, 0.3, 3)),
 }

@@ -29,10 +29,12 @@ TOL = 1e-12
 INTEGRATORS = ["lie-verlet", "rkmk4", "lie-euler", "forward-euler"]
 
 
-def _sets(fast):
+def _sets(fast, slow: bool = False):
     """``fast`` in ``make test``; every explicit integrator under ``slow`` (each further loop of
-    a generated module compiles for about 10 s)."""
-    return [pytest.param(fast, id="fast"), pytest.param(INTEGRATORS, id="all", marks=pytest.mark.slow)]
+    a generated module compiles for about 10 s).  ``slow=True`` moves both to ``make test-slow``
+    (a group whose first generated module compiles for a minute or more on a fresh cache)."""
+    marks = [pytest.mark.slow] if slow else []
+    return [pytest.param(fast, id="fast", marks=marks), pytest.param(INTEGRATORS, id="all", marks=pytest.mark.slow)]
 
 
 def _compare(problem, integrators, names=("S", "X", "kinetic_energy", "potential_energy", "dissipated_energy",
@@ -66,7 +68,7 @@ def _sheet(reference: bool, boundaries=None, loads=(), velocity=True):
                    boundaries=boundaries or {}, loads=list(loads))
 
 
-@pytest.mark.parametrize("integrators", _sets(["lie-verlet"]))
+@pytest.mark.parametrize("integrators", _sets(["lie-verlet"], slow=True))
 def test_sigma_model_on_s3_d2_runs_compiled_and_agrees(integrators):
     """SO(4) (the sigma model on S³) in d = 2: no hand-written loop covers it."""
     medium = cartan.medium("sigma-model", n=3, d=2)
@@ -78,7 +80,7 @@ def test_sigma_model_on_s3_d2_runs_compiled_and_agrees(integrators):
     _compare(problem, integrators)
 
 
-@pytest.mark.parametrize("integrators", _sets(["lie-verlet"]))
+@pytest.mark.parametrize("integrators", _sets(["lie-verlet"], slow=True))
 def test_lorentz_group_toy_runs_compiled_and_agrees(integrators):
     """A quadratic rod on SO(1,3) (a non-compact group)."""
     problem = arc_problem(n=15, group="SO13", curvature=0.5, velocity=np.linspace(0.1, 0.3, 6))
@@ -86,7 +88,7 @@ def test_lorentz_group_toy_runs_compiled_and_agrees(integrators):
     _compare(problem, integrators, dt=1e-3, t_end=0.01)
 
 
-@pytest.mark.parametrize("integrators", _sets(["rkmk4"]))
+@pytest.mark.parametrize("integrators", _sets(["rkmk4"], slow=True))
 def test_poincare_toy_runs_compiled(integrators):
     """A quadratic rod on the Poincaré group: its dexp⁻¹ and 𝓔 kernels sum the series in ad_ξ
     for a small Lorentz part and take the Van Loan block exponential beyond (this arc's edges

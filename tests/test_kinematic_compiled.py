@@ -70,7 +70,7 @@ def test_lattice_rod_agrees_with_python(kind, order):
     assert (fi.nstep, fi.nforce) == (ri.nstep, ri.nforce) == (30, 0)
 
 
-@pytest.mark.parametrize("planar", [False, True], ids=["SE3", "SE2"])
+@pytest.mark.parametrize("planar", [False, pytest.param(True, marks=pytest.mark.slow)], ids=["SE3", "SE2"])
 def test_lattice_root_frame_only(planar):
     """Without loads the lattice steps the root frame only; the velocity depends on the strains."""
     rod = toys.moving_rod(planar)
@@ -81,6 +81,7 @@ def test_lattice_root_frame_only(planar):
     toys.assert_close_states(fast, ref, TOL)
 
 
+@pytest.mark.slow
 def test_lattice_sigma_model_d2_agrees_with_python():
     medium = cartan.medium("sigma-model", n=2, d=2)
     for periodic in [(True, True), (False, True)]:
@@ -91,6 +92,7 @@ def test_lattice_sigma_model_d2_agrees_with_python():
         toys.assert_close_states(fast, ref, TOL)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("order", [1, 2, 4])
 @pytest.mark.parametrize("kind", ["dead", "follower"])
 def test_collocation_rod_agrees_with_python(kind, order):
@@ -122,6 +124,7 @@ def test_python_velocity_declines():
     assert integ.nstep == 0
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("scheme_type", [Lattice, Collocation])
 def test_stops_after_the_first_non_finite_step(scheme_type):
     """The velocity turns NaN at t ≥ 0.035: the first stage of step 4 (t = 0.03) is finite, the
@@ -135,6 +138,7 @@ def test_stops_after_the_first_non_finite_step(scheme_type):
     assert not np.all(np.isfinite(frames))
 
 
+@pytest.mark.slow
 def test_wrong_shape_is_an_error():
     scheme = Lattice(rod_problem("dead"), track_frames=True)
     with pytest.raises(ValueError, match=r"must return N of shape"):
@@ -151,6 +155,7 @@ def test_simulate_compiled_agrees_with_reference():
             assert toys.rel_error(fast[name].values, ref[name].values) <= TOL
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("periodic", [(True, True), (False, True)], ids=["torus", "cylinder"])
 def test_collocation_sigma_model_d2_agrees_with_python(periodic):
     medium = cartan.medium("sigma-model", n=2, d=2)

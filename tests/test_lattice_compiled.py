@@ -362,6 +362,7 @@ def test_blocked_steps_stop_at_the_failing_step(n, blocks, fail_at, monkeypatch)
     assert np.array_equal(a.S, b.S) and a.scalars == b.scalars
 
 
+@pytest.mark.slow
 @pytest.mark.skipif(_threads.max_threads() < 2, reason="numba has a single thread here (NUMBA_NUM_THREADS = 1)")
 def test_overdamped_se3_threaded_build_equals_the_serial_one(monkeypatch):
     """The threaded build of the vectorised overdamped loop (two blocks of edge chunks) gives
@@ -659,6 +660,7 @@ def test_d2_clamped_and_loaded_faces(name, track):
     assert fi.nforce == ri.nforce
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("periodic", [(True, True, True), (False, True, False)], ids=["periodic", "mixed"])
 @pytest.mark.parametrize("name", ["lie-verlet", "overdamped-1"])
 def test_sigma_model_d3_agrees_with_python(name, periodic):

@@ -118,6 +118,7 @@ def cases():
     return cartan.registry("cases")
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("name", ["relativistic-boost-composition", "relativistic-boosted-rod"])
 def test_kinematic_cases_round_off(cases, name):
     from cartan_verification.case import run_case

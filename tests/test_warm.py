@@ -86,6 +86,7 @@ def test_warm_reports_every_workload():
     assert ("cartan.schemes.base", "_prefix_products_kernel") in names
 
 
+@pytest.mark.slow
 def test_a_process_after_warm_compiles_nothing():
     """``cartan warm`` on an SE(3) rod case with ``lie-verlet`` on the lattice, then a first rod
     simulation in a new process: every kernel it uses comes from the cache."""

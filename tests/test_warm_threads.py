@@ -119,6 +119,7 @@ def test_inventory_lists_the_threaded_twins():
 
 
 @two_threads
+@pytest.mark.slow
 def test_warm_runs_the_threaded_builds():
     """The ``threads`` part runs the case again through the threaded loop (it gains a compiled
     signature), and reports its own steps."""
@@ -178,6 +179,7 @@ def test_single_thread_numba_skips_the_threads_part(monkeypatch):
 
 
 @two_threads
+@pytest.mark.slow
 def test_a_threaded_process_after_warm_compiles_nothing():
     """``cartan warm`` (threaded builds included, the default) on the SE(3) rod case, then a
     new process with ``CARTAN_THREADS=2`` on a rod of ``MIN_NODES`` nodes: the threaded loop

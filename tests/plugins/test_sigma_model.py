@@ -147,12 +147,13 @@ def test_stress_is_gradient_of_potential(n, d):
         assert quad is None
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("params", [{"n": 2, "d": 1}, pytest.param({"n": 3, "d": 1, "stiffness": 2.0, "speed": 0.5},
                                                                     marks=pytest.mark.slow)])
 def test_conformance_kit(params):
-    """Every scheme × integrator in d = 1 (S² in the fast suite; S³, whose SO(4) loops compile
-    for minutes on a fresh cache, among the long cases: SO(4) runs compiled in the fast suite
-    through tests/test_generated_loops.py and tests/test_generated_implicit.py)."""
+    """Every scheme × integrator in d = 1 (S², and S³ whose SO(4) loops compile for minutes on a
+    fresh cache), in ``make test-slow``: the sigma model runs compiled in the fast suite through
+    tests/test_lattice_compiled.py, SO(4) through tests/test_generated_implicit.py."""
     report = check_medium("sigma-model", params=params)
     assert not report.failed
 
@@ -495,6 +496,7 @@ def test_topological_charge_integer_for_any_configuration():
 
 
 # ---------------------------------------------------------------------------- outputs
+@pytest.mark.slow
 def test_energy_density_from_datasets():
     """Σ_i w_i e_i equals the scheme's K + V: exactly for d = 1 (edge energies shared between
     the end nodes on the lattice; periodic and open) and for collocation in d = 2."""
