@@ -39,7 +39,8 @@ CASES = cartan.registry("cases")
 RUNS = [(name, integ, scheme) for name, case in sorted(CASES.items()) if case.kind == "convergence"
         for integ in case.default_integrators for scheme in case.default_schemes]
 #: every level of these takes several seconds (continuation paths at four resolutions)
-SLOW_ALL_LEVELS = {"rod-euler-buckling", "rod-cantilever-elastica"}
+SLOW_ALL_LEVELS = {"rod-euler-buckling", "rod-cantilever-elastica", "plate-buckling-column",
+                   "plate-buckling-wide-column"}
 
 
 def _slow_poincare(run: tuple) -> bool:
