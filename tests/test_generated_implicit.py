@@ -66,7 +66,8 @@ def _counters(integ) -> tuple:
     return integ.nstep, integ.nforce, integ.newton_iterations, integ.jacobians
 
 
-@pytest.mark.parametrize("name", sorted(CASES))
+@pytest.mark.parametrize("name", [pytest.param(name, marks=[pytest.mark.slow] if name == "coupled-SE3-d2" else [])
+                                  for name in sorted(CASES)])
 def test_blocks_agree_with_the_numpy_reference_and_the_python_driver(name):
     make, dt = CASES[name]
     ref_scheme, drv_scheme, scheme = make(), make(), make()

@@ -50,6 +50,7 @@ def _both(scheme, integ, dt=0.01, blocks=BLOCKS):
     return (ref, ref_integ), (fast, fast_integ)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("order", [1, 2, 4])
 def test_rod_se3_d1_agrees_with_the_reference(order):
     """A clamped SE(3) rod with a dead end load, damping and gravity (frames stepped)."""

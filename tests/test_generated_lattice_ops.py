@@ -102,12 +102,14 @@ def indefinite() -> Problem:
 
 CASES = {
     "rod-SE3-d1": lambda: rod("dead"),
-    "coupled-SE3-d2": coupled_sheet,
 }
 #: in ``make test-slow``: each further group or medium compiles its own generated module (30-50 s on a
-#: fresh cache); SO(4) runs compiled in the fast suite through tests/test_generated_implicit.py and the
-#: indefinite Poincaré metric through the relativistic string (tests/test_relativistic_rod.py)
+#: fresh cache); the coupled SE(3) energies run compiled in the fast suite through the shell and the
+#: solid (tests/test_cosserat_surface.py, tests/test_cosserat_solid.py), SO(4) through
+#: tests/test_generated_implicit.py and the indefinite Poincaré metric through the relativistic string
+#: (tests/test_relativistic_rod.py)
 SLOW_CASES = {
+    "coupled-SE3-d2": coupled_sheet,
     "sigma-SO4-d2": sigma_s3,
     "indefinite-SO13-d1": indefinite,
     "rod-SE2-d1": lambda: rod("dead", planar=True),
@@ -343,6 +345,7 @@ def test_overridden_energy_methods_are_declined():
     assert diagnostics.guard_energies(scheme, scheme.initial_state()) is None
 
 
+@pytest.mark.slow
 def test_simulate_guard_uses_the_generated_energies(monkeypatch):
     """``cartan.simulate``'s blow-up guard takes its energies from ``guard_energies`` when the
     operator set's loops take the steps (no hand-written plan: an axis-coupled medium)."""

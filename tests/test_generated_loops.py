@@ -140,7 +140,7 @@ def test_van_loan_kernels_match_the_reference():
     assert np.max(np.abs(out - ref)) <= 1e-12 * np.max(np.abs(ref))
 
 
-@pytest.mark.parametrize("integrators", _sets(["lie-verlet", "lie-euler"]))
+@pytest.mark.parametrize("integrators", _sets(["lie-verlet", "lie-euler"], slow=True))
 def test_coupled_nonquadratic_sheet_with_reference_runs_compiled_and_agrees(integrators):
     """Non-quadratic, axis-coupled energy on SE(3), d = 2, with a rest strain that varies over
     the body, clamped and follower-loaded faces and damping: every explicit integrator."""

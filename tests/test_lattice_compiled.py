@@ -632,10 +632,13 @@ SIGMA_INTEGRATORS = {
     "overdamped-1": (lambda: Overdamped(order=1), 2e-5, 30, True),
     "overdamped-2": (lambda: Overdamped(order=2), 2e-5, 15, True),
 }
+#: the first-order integrators' loops (each a further compile of a minute under load) in ``make test-slow``
+SLOW_SIGMA = {"forward-euler", "overdamped-2"}
 
 
 @pytest.mark.parametrize("periodic", [(True, True), (False, False), (True, False)], ids=["torus", "open", "cylinder"])
-@pytest.mark.parametrize("name", sorted(SIGMA_INTEGRATORS))
+@pytest.mark.parametrize("name", [pytest.param(name, marks=[pytest.mark.slow] if name in SLOW_SIGMA else [])
+                                  for name in sorted(SIGMA_INTEGRATORS)])
 def test_sigma_model_d2_agrees_with_python(name, periodic):
     make, dt, nsteps, damping = SIGMA_INTEGRATORS[name]
     _, (ref, ri), (fast, fi) = run_both(sigma_problem((12, 9), periodic, damping), make, dt, nsteps)
