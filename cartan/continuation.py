@@ -150,7 +150,9 @@ def continuation(
     pins : dict, optional
         ``{end: components}`` spatial position components held at their initial values, end
         ``"start"``/``"end"`` (d = 1) or a node index; e.g. a pinned–pinned column along x:
-        ``{"start": (0, 1), "end": (1,)}`` (the end slides along x).
+        ``{"start": (0, 1), "end": (1,)}`` (the end slides along x).  Components from m − 1 on
+        (m the matrix size: 3, 4, 5 on SE(3)) hold the node's rotation about a spatial axis, e.g.
+        the spin of a three-dimensional column about its axis: ``{"start": (0, 1, 2, 3), ...}``.
     lam_scale : float, optional
         Load scale of the arclength norm (default ``lam_max``).
     ds_min, ds_max : float, optional
@@ -228,7 +230,7 @@ def continuation(
     ds_min = ds0 / 1000.0 if ds_min is None else float(ds_min)
     ds_max = 10.0 * ds0 if ds_max is None else float(ds_max)
     m = sysm.m
-    wv = np.concatenate([np.full(sysm.nunk, 1.0 / sysm.nnode), np.zeros(sysm.npin)])
+    wv = np.concatenate([np.full(sysm.nunk, 1.0 / sysm.nnode), np.zeros(sysm.nmult)])
     wl = 1.0 / lam_scale**2
     ext0 = sysm.dlam(sysm.state0)
     fref = float(np.max(np.abs(ext0[: sysm.nunk]), initial=0.0)) * lam_scale
@@ -239,15 +241,20 @@ def continuation(
     msize = g.matrix_size
     # scaled norm of a corrector step (δ, μ, λ): the increments as in solve_static, λ in units
     # of lam_scale, the reactions left out
-    scale = np.concatenate([sysm.delta_scale, np.zeros(sysm.npin)])
+    scale = np.concatenate([sysm.delta_scale, np.zeros(sysm.nmult)])
     scale_l = np.concatenate([scale, [1.0 / lam_scale]])
 
     def wnorm(u: np.ndarray, lam: float) -> float:
         return math.sqrt(float(np.sum(wv * u * u)) + wl * lam * lam)
 
+    npos = sysm.nunk + sysm.npin
+
     def small(r: np.ndarray) -> bool:
+        # forces to atol, pins to tol·L, strain constraints (dimensionless) to 1e-3·tol: one more
+        # quadratic step puts them at round-off
         return (float(np.max(np.abs(r[: sysm.nunk]), initial=0.0)) <= atol
-                and float(np.max(np.abs(r[sysm.nunk: m]), initial=0.0)) <= ctol)
+                and float(np.max(np.abs(r[sysm.nunk: npos]), initial=0.0)) <= ctol
+                and float(np.max(np.abs(r[npos: m]), initial=0.0)) <= 1e-3 * tol)
 
     def bordered(K, f, tu, tl):
         B = sp.bmat([[K, sp.csc_matrix(f[:, None])], [sp.csr_matrix((wv * tu)[None, :]), np.array([[wl * tl]])]])
@@ -329,7 +336,7 @@ def continuation(
         return float(np.max(np.abs(g.log(sysm.sch.frames(state)))))
 
     # ---------------------------------------------------------------- the first point (λ = 0)
-    state, mu, lam = sysm.state0, np.zeros(sysm.npin), 0.0
+    state, mu, lam = sysm.state0, np.zeros(sysm.nmult), 0.0
 
     def settle_move(pt: _Point, alpha: float, d: np.ndarray) -> _Point:
         s, u = sysm.update(pt.state, pt.mu, d, alpha)
@@ -361,7 +368,10 @@ def continuation(
             "step": ds,
             "branch": branch,
             "position": sysm.positions(state).copy() if affine else None,
-            "reaction": mu.copy(),
+            "reaction": mu[: sysm.npin].copy(),
+            "constraint": mu[sysm.npin:].copy(),
+            "constraint_residual": (float(np.max(np.abs(sysm.constraint_values(state)), initial=0.0))
+                                    if sysm.ncon else 0.0),
         })
 
     record(state, mu, lam, K, iters0, 0.0, 0)
@@ -432,6 +442,10 @@ def continuation(
         data["position"] = (("path", "node", "row"), np.array([p["position"] for p in points]))
     if sysm.npin:
         data["reaction"] = (("path", "pin"), np.array([p["reaction"] for p in points]))
+    if sysm.ncon:  # strain constraints: the multipliers per edge and component, and the residual
+        data["constraint_force"] = (("path", "constrained_edge", "constrained_component"),
+                                    np.array([sysm.edge_multipliers(p["constraint"]) for p in points]))
+        data["constraint_residual"] = ("path", np.array([p["constraint_residual"] for p in points]))
     data["critical_load"] = ("critical", np.array([c["load"] for c in critical], dtype=float))
     data["critical_monitor"] = ("critical", np.array([c["monitor"] for c in critical], dtype=float))
     data["critical_eig"] = ("critical", np.array([c["eig"] for c in critical], dtype=float))

@@ -387,6 +387,25 @@ class Medium(abc.ABC):
         """
         return None
 
+    def constrained_strains(self) -> tuple[np.ndarray, np.ndarray] | None:
+        """Strain components held at fixed values by Lagrange multipliers, or None (default).
+
+        A medium whose strain X (paper §III.E: the adapted structure fields) has components
+        fixed by the kinematics — an inextensible, unshearable Kirchhoff filament has
+        ``θ = (1, 0, 0)``, components ``(0, 1, 2)`` of SE(3) — returns ``(components, values)``:
+        integer indices ``k < r`` into the group's basis and their values.  On every edge of
+        the lattice the statics (:func:`cartan.solve_static`, :func:`cartan.continuation`)
+        then impose ``X_e[k] = value`` by one multiplier per edge and component; the multiplier
+        is the edge stress ``Q_e[k]`` conjugate to the constrained strain, a reaction (the
+        fictitious stress of §IV.E), not a constitutive stress.  The potential and the stress
+        must therefore not depend on the constrained components (the statics check it).
+
+        Returns
+        -------
+        None, or (components, values) : int array ``(c,)`` and float array ``(c,)``
+        """
+        return None
+
     #: names accepted by :meth:`make_load` and :meth:`initial_state` (for error messages and docs)
     load_kinds: ClassVar[tuple[str, ...]] = ()
     initial_kinds: ClassVar[tuple[str, ...]] = ()

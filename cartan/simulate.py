@@ -787,6 +787,11 @@ def _resolve_run(
             )
         problem_or_scene = ck_info["scene"]
     problem, sc = _as_scene(problem_or_scene)
+    if problem.medium.constrained_strains() is not None:
+        raise ValueError(
+            f"medium {problem.medium.name!r} holds strain components fixed (constrained_strains); the time "
+            "integrators do not honour such constraints yet: use cartan.solve_static or cartan.continuation"
+        )
     run_defaults = sc.run_settings() if sc is not None else {}
     ck_run = ck_info["run"] if ck_info else {}
 

@@ -27,6 +27,15 @@ Mixed Newton iteration
     stiffnesses the displacement-only iteration builds huge spurious stresses from the
     chord error of a rotation step and its next Jacobian is useless; the mixed one is not
     affected.  At an equilibrium ε = X and ``J_ε = J``: the convergence is quadratic.
+Constrained strains
+    A medium may hold strain components at fixed values
+    (:meth:`~cartan.medium.Medium.constrained_strains`; paper §III.E: the inextensible,
+    unshearable filament has θ = (1, 0, 0)).  Each edge and constrained component adds a
+    multiplier, the edge stress conjugate to that component (the fictitious stress of §IV.E),
+    and a row ``X_e[k] − value_k = 0``; its reaction is the lattice's internal force of that
+    edge stress, the constraint rows are the exact strain rate ``B_c`` of the drift, and the
+    Newton matrix is the saddle-point matrix ``[[K, B_cᵀ], [B_c, 0]]`` (multipliers scaled by
+    −cell).  The constraints are converged to 1e-3·tol, i.e. to round-off in practice.
 Globalisation
     Deuflhard's error-oriented damped Newton method (NLEQ-ERR): the step length α is
     predicted from the previous contraction, and a trial point is accepted when the
@@ -274,14 +283,19 @@ class _Equilibrium:
         Time at which time-dependent loads are evaluated.
     pins : dict, optional
         ``{end: components}`` spatial position components held by Lagrange multipliers (see
-        :func:`cartan.continuation.continuation`); their multipliers follow the unknowns.
+        :func:`cartan.continuation.continuation`); their multipliers follow the unknowns.  A
+        component ``k ≥ m − 1`` (m the matrix size: 3, 4, 5 on SE(3), 2 on SE(2)) holds the
+        rotation of the node's frame about the spatial axis ``k − (m − 1)``: the axial component
+        of the skew part of ``R R₀ᵀ`` stays 0, its multiplier a spatial reaction moment.
     probe_lam : float
         Load factor at which the medium's analytic Jacobian is probed (and first used).
 
     Attributes
     ----------
     nunk : int
-        Number of unknown increments; ``m = nunk + npin`` with the pin multipliers.
+        Number of unknown increments; ``m = nunk + nmult`` with the multipliers,
+        ``nmult = npin + ncon``: the pins' first, then the strain constraints' (``ncon``, one
+        per constrained edge and component, scaled by −cell: see :meth:`constraint_stress`).
     kind : str
         ``"analytic"`` or ``"fd"``: the Jacobian used.
     """
@@ -329,13 +343,23 @@ class _Equilibrium:
                 self.pins.append((node, int(k)))
         if self.pins and not getattr(g, "affine", False):
             raise ValueError("pins need a medium on an affine group (positions)")
+        for _, k in self.pins:
+            if not 0 <= k < r_dim:
+                raise ValueError(f"pins: components must be in [0, {r_dim}) (positions, then rotations), got {k}")
         self.npin = len(self.pins)
-        self.m = self.nunk + self.npin
         state = sch.initial_state()
         state.S[...] = 0.0
         state.t = float(t)
         self.state0 = state
-        self.x0 = np.array([self.positions(state)[n, k] for n, k in self.pins])
+        self._setup_constraints(problem.medium, state)
+        self.nmult = self.npin + self.ncon
+        self.m = self.nunk + self.nmult
+        if self.pins:
+            msize = g.matrix_size
+            self._R0 = self.sch.frames(state).reshape(self.nnode, msize, msize)[:, 1:, 1:].copy()
+        self.x0 = np.array([self._pin_value(self.sch.frames(state).reshape(self.nnode, g.matrix_size,
+                                                                         g.matrix_size)[n], n, k)
+                            for n, k in self.pins])
         self.kind = "fd"
         self._probe: tuple[Any, float, Any] | None = None
         if jacobian != "fd":
@@ -349,6 +373,131 @@ class _Equilibrium:
                 self.kind = "analytic"
                 self._probe = (state, float(probe_lam), K)
 
+    # ------------------------------------------------------------------ constrained strains
+    def _setup_constraints(self, medium: Any, state: Any) -> None:
+        """The constrained strain components of the medium (:meth:`~cartan.medium.Medium.
+        constrained_strains`): one multiplier per edge (with an unknown at either end) and
+        component, after the pin multipliers."""
+        spec = medium.constrained_strains() if hasattr(medium, "constrained_strains") else None
+        self.con_comp = np.zeros(0, dtype=np.int64)
+        self.con_val = np.zeros(0)
+        self.con_active: list[np.ndarray] = []
+        self.ncon = 0
+        if spec is None:
+            return
+        comp, val = spec
+        comp = np.atleast_1d(np.asarray(comp)).astype(np.int64)
+        val = np.atleast_1d(np.asarray(val, dtype=float))
+        r_dim, sch = self.r_dim, self.sch
+        if comp.shape != val.shape or comp.ndim != 1 or len(set(comp.tolist())) != comp.size:
+            raise ValueError(f"constrained_strains: {type(medium).__name__} must return distinct components and "
+                             f"as many values, got components {comp.tolist()} and values {val.tolist()}")
+        if np.any(comp < 0) or np.any(comp >= r_dim) or not np.all(np.isfinite(val)):
+            raise ValueError(f"constrained_strains: components must be in [0, {r_dim}) and values finite, got "
+                             f"components {comp.tolist()} and values {val.tolist()}")
+        if sch.coupled:
+            raise ValueError("constrained_strains: supported on lattices whose axes are not coupled at the corners "
+                             "(d = 1, or a medium with separable_axes)")
+        # the energy must not depend on the constrained components: their stress is the multiplier
+        X = self.strains(state)
+        for axis, x in enumerate(X):
+            q0 = sch._axis_stress(x, axis)[0]
+            for k in comp:
+                moved = x.copy()
+                moved[..., k] += 1e-3 * max(1.0, float(np.max(np.abs(x[..., k]), initial=0.0)))
+                dq = float(np.max(np.abs(sch._axis_stress(moved, axis)[0] - q0), initial=0.0))
+                if dq > 1e-9 * max(1.0, float(np.max(np.abs(q0), initial=0.0))):
+                    raise ValueError(f"constrained_strains: the stress of medium {medium.name!r} depends on the "
+                                     f"constrained strain component {int(k)} (change {dq:.3e}); a constrained "
+                                     "component's stress is a reaction and must not be constitutive")
+        tails, heads = sch.edge_nodes()
+        live_node = self.unknown_flat.any(axis=1)
+        self.con_tails, self.con_heads = tails, heads
+        self.con_active = [live_node[t] | live_node[h] for t, h in zip(tails, heads, strict=True)]
+        self.con_comp, self.con_val = comp, val
+        self.con_unit = -1.0 / float(np.prod(sch.h))
+        self.ncon = int(sum(int(a.sum()) for a in self.con_active)) * comp.size
+
+    def constraint_stress(self, mu_c: np.ndarray) -> list[np.ndarray]:
+        """Per axis, the edge stresses ``[*edge_shape, r]`` whose constrained components are
+        the multipliers ``mu_c`` ``(ncon,)`` times ``con_unit = −1/cell`` (zero elsewhere).
+
+        The unknowns are ``ν = −cell·μ``: the reaction ``−cell·B_cᵀ μ`` of the edge stresses μ
+        is then ``B_cᵀ ν`` and the Jacobian ``[[K, B_cᵀ], [B_c, 0]]`` is symmetric."""
+        out, start = [], 0
+        edge_shapes = [x.shape for x in self.strains(self.state0)]
+        for shape_e, active in zip(edge_shapes, self.con_active, strict=True):
+            Q = np.zeros((int(np.prod(shape_e[:-1])), self.r_dim))
+            n = int(active.sum()) * self.con_comp.size
+            Q[np.ix_(np.flatnonzero(active), self.con_comp)] = (mu_c[start:start + n].reshape(-1, self.con_comp.size)
+                                                                 * self.con_unit)
+            start += n
+            out.append(Q.reshape(shape_e))
+        return out
+
+    def constraint_values(self, state: Any, active_only: bool = True) -> np.ndarray:
+        """``X_e[k] − value_k`` on the constrained edges (flat, multiplier order), or with
+        ``active_only=False`` on every edge ``[E, c]`` (all axes concatenated)."""
+        if not self.ncon:
+            return np.zeros(0) if active_only else np.zeros((0, 0))
+        vals = []
+        for x, active in zip(self.strains(state), self.con_active, strict=True):
+            xe = x.reshape(-1, self.r_dim)[:, self.con_comp] - self.con_val
+            vals.append(xe[active].ravel() if active_only else xe)
+        if not vals:
+            return np.zeros(0)
+        return np.concatenate(vals) if active_only else np.concatenate(vals, axis=0)
+
+    def edge_multipliers(self, mu_c: np.ndarray) -> np.ndarray:
+        """The multipliers on every edge ``[E, c]`` (NaN on edges between fixed nodes)."""
+        rows = []
+        for Q, active in zip(self.constraint_stress(mu_c), self.con_active, strict=True):
+            q = Q.reshape(-1, self.r_dim)[:, self.con_comp].copy()
+            q[~active] = np.nan
+            rows.append(q)
+        return np.concatenate(rows, axis=0)
+
+    def _constraint_matrix(self, state: Any):
+        """``B_c = ∂(X_e[k])/∂δ`` ``(ncon, nunk)``: the constrained rows of the strain rate
+        :meth:`strain_rate`, exact (the reaction of edge stresses μ is ``−cell·B_cᵀ μ``)."""
+        import scipy.sparse as sp
+
+        g, sch = self.g, self.sch
+        c = self.con_comp.size
+        rows, cols, vals = [], [], []
+        start = 0
+        for axis, active in enumerate(self.con_active):
+            xi = g.log(state.arrays[sch._key(axis)]).reshape(-1, self.r_dim)[active]
+            h = sch.h[axis]
+            ne = xi.shape[0]
+            row = start + np.arange(ne * c).reshape(ne, c)
+            for node, M in ((self.con_tails[axis][active], -g.dexp_inv(xi) / h),
+                            (self.con_heads[axis][active], g.dexp_inv(-xi) / h)):
+                Mk = M[:, self.con_comp, :]  # [ne, c, r]
+                col = self.index[node]  # [ne, r]
+                cc = np.broadcast_to(col[:, None, :], Mk.shape)
+                rr = np.broadcast_to(row[:, :, None], Mk.shape)
+                ok = cc >= 0
+                rows.append(rr[ok])
+                cols.append(cc[ok])
+                vals.append(Mk[ok])
+            start += ne * c
+        return sp.csr_matrix((np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols))),
+                             shape=(self.ncon, self.nunk))
+
+    def _constraint_jacobian(self, state: Any):
+        """The constraints' part of the Jacobian ``(m, m)``: the reaction columns ``B_cᵀ``
+        (multipliers ν = −cell·μ, see :meth:`constraint_stress`) and the constraint rows
+        ``B_c`` (the reaction's dependence on the configuration enters the stiffness block
+        through the stress offset)."""
+        import scipy.sparse as sp
+
+        Bc = self._constraint_matrix(state).tocoo()
+        o = self.nunk + self.npin
+        return sp.csc_matrix((np.concatenate([Bc.data, Bc.data]),
+                              (np.concatenate([Bc.row + o, Bc.col]), np.concatenate([Bc.col, Bc.row + o]))),
+                             shape=(self.m, self.m))
+
     # ------------------------------------------------------------------ layout
     def _node(self, where: Any) -> int:
         if isinstance(where, str):
@@ -357,6 +506,17 @@ class _Equilibrium:
             return 0 if where == "start" else self.nnode - 1
         idx = np.ravel_multi_index(np.atleast_1d(where), self.shape) if np.ndim(where) else int(where) % self.nnode
         return int(idx)
+
+    def _pin_value(self, Phi: np.ndarray, n: int, k: int) -> np.ndarray:
+        """The pinned quantity of node ``n``, component ``k``, at the frames ``Phi`` ``[..., m, m]``:
+        the spatial position component ``k``, or (``k ≥ m − 1``) the axial component
+        ``k − (m − 1)`` of the skew part of ``R R₀ᵀ`` (R the rotation block, R₀ the initial one)."""
+        msize = self.g.matrix_size
+        if k < msize - 1:
+            return Phi[..., 1 + k, 0]
+        A = np.einsum("...ij,kj->...ik", Phi[..., 1:, 1:], self._R0[n])
+        i, j = (1, 0) if msize == 3 else ((2, 1), (0, 2), (1, 0))[k - (msize - 1)]
+        return 0.5 * (A[..., i, j] - A[..., j, i])
 
     def positions(self, state: Any) -> np.ndarray:
         """Node positions ``[nnode, m − 1]`` (affine groups)."""
@@ -407,21 +567,28 @@ class _Equilibrium:
         full = np.zeros((self.nnode, self.r_dim))
         for (n, _), b, m_ in zip(self.pins, self._reaction_basis(state), mu, strict=True):
             full[n] += m_ * b
-        pos = self.positions(state)
-        c = np.array([pos[n, k] for n, k in self.pins]) - self.x0
+        msize = self.g.matrix_size
+        Phi = self.sch.frames(state).reshape(self.nnode, msize, msize)
+        c = np.array([self._pin_value(Phi[n], n, k) for n, k in self.pins]) - self.x0
         return full[self.unknown_flat], c
 
     def residual(self, state: Any, mu: np.ndarray, lam: float) -> np.ndarray:
-        """``r = F_int + λ F_ext`` (+ pin reactions) on the unknowns, then the pin constraints."""
+        """``r = F_int + λ F_ext`` (+ pin and constraint reactions) on the unknowns, then the
+        pin constraints, then the strain constraints ``X_e[k] − value_k``."""
         r = self._nodal(state, float(lam))[self.unknown]
+        parts = [r]
         if self.npin:
-            react, c = self._pin_terms(state, mu)
-            r = np.concatenate([r + react, c])
-        return r
+            react, c = self._pin_terms(state, mu[: self.npin])
+            parts[0] = r = r + react
+            parts.append(c)
+        if self.ncon:
+            parts[0] = r + self.assemble(state, self.constraint_stress(mu[self.npin: self.nmult]))
+            parts.append(self.constraint_values(state))
+        return np.concatenate(parts) if len(parts) > 1 else r
 
     def dlam(self, state: Any) -> np.ndarray:
-        """``∂r/∂λ``: the external forces (zero on the pin constraints)."""
-        return np.concatenate([self.parts(state)[1], np.zeros(self.npin)])
+        """``∂r/∂λ``: the external forces (zero on the pin and strain constraints)."""
+        return np.concatenate([self.parts(state)[1], np.zeros(self.nmult)])
 
     # ------------------------------------------------------------------ strains and stresses
     def strains(self, state: Any) -> list[np.ndarray]:
@@ -522,6 +689,9 @@ class _Equilibrium:
         """
         import scipy.sparse as sp
 
+        if self.ncon:  # the multipliers' edge stresses: their geometric stiffness, like a stress offset
+            q_c = self.constraint_stress(mu[self.npin: self.nmult])
+            offset = q_c if offset is None else [a + b for a, b in zip(offset, q_c, strict=True)]
         if offset is not None and not any(np.any(o) for o in offset):
             offset = None
         lam = float(lam)
@@ -538,10 +708,14 @@ class _Equilibrium:
                 return out
 
             K = self._fd(state, nodal)
-        if not self.npin:
+        if not self.nmult:
             return sp.csc_matrix(K)
-        return (sp.block_diag([K, sp.csc_matrix((self.npin, self.npin))], format="csc")
-                + self._pin_jacobian(state, mu)).tocsc()
+        J = sp.block_diag([K, sp.csc_matrix((self.nmult, self.nmult))], format="csc")
+        if self.npin:
+            J = J + self._pin_jacobian(state, mu[: self.npin])
+        if self.ncon:
+            J = J + self._constraint_jacobian(state)
+        return J.tocsc()
 
     def _pin_jacobian(self, state: Any, mu: np.ndarray):
         """The pins' part of the Jacobian, ``(m, m)``: reactions and constraints along the
@@ -560,7 +734,8 @@ class _Equilibrium:
             P[k] = 1.0
             b = dead_to_body(g, moved, P)  # [2r, r]
             db = (b[:r_dim] - b[r_dim:]) / (2 * h)  # [a, component]
-            dc = (moved[:r_dim, 1 + k, 0] - moved[r_dim:, 1 + k, 0]) / (2 * h)  # [a]
+            value = self._pin_value(moved, n, k)  # [2r]
+            dc = (value[:r_dim] - value[r_dim:]) / (2 * h)  # [a]
             col = self.index[n]
             ok = col >= 0
             row = self.index[n]
@@ -867,7 +1042,11 @@ def solve_static(
         ``load_step_iterations`` and ``load_step_converged``.  Attributes
         ``newton_iterations``, ``newton_load_steps`` (converged load steps),
         ``newton_load_step_failures``, ``newton_wall_time`` and ``newton_jacobian``
-        (``"analytic"`` or ``"fd"``, the Jacobian used).
+        (``"analytic"`` or ``"fd"``, the Jacobian used).  For a medium with constrained strains
+        also ``constraint_force`` ``[time, constrained_edge, constrained_component]`` (the
+        multipliers: edge stresses conjugate to the constrained components; NaN on edges between
+        fixed nodes), ``constraint_residual`` ``[time]`` and the attributes
+        ``constraint_components``, ``constraint_values`` and ``constraint_residual_max``.
 
     Raises
     ------
@@ -899,8 +1078,9 @@ def solve_static(
     nsteps = int(load_steps)
     eq = _Equilibrium(problem, jacobian=jacobian, fd_step=fd_step, t=t, probe_lam=1.0 / nsteps)
     sch, g, nunk = eq.sch, eq.g, eq.nunk
-    no_mu = np.zeros(0)
+    mu0 = np.zeros(eq.nmult)  # the strain-constraint multipliers (no pins here)
     x_tol = xtol * eq.length
+    delta_scale = np.concatenate([eq.delta_scale, np.zeros(eq.nmult)])  # multipliers: not in the norm
 
     history: list[float] = []
     factors: list[float] = []
@@ -921,15 +1101,15 @@ def solve_static(
         )
 
     def factorise(pt: _Point, offset: list[np.ndarray] | None) -> Callable[[np.ndarray], np.ndarray]:
-        return _lu_solve(eq.jacobian(pt.state, no_mu, pt.lam, offset))
+        return _lu_solve(eq.jacobian(pt.state, pt.mu, pt.lam, offset))
 
     def residual(pt: _Point) -> np.ndarray:
-        return eq.residual(pt.state, no_mu, pt.lam)
+        return eq.residual(pt.state, pt.mu, pt.lam)
 
     def move(pt: _Point, alpha: float, d: np.ndarray) -> _Point:
-        return _Point(eq.update(pt.state, no_mu, d, alpha)[0], no_mu, pt.lam)
+        return _Point(*eq.update(pt.state, pt.mu, d, alpha), pt.lam)
 
-    state = eq.state0
+    state, mu = eq.state0, mu0
     lam = 0.0
     dlam = 1.0 / nsteps
     fast = min(4, max_iter - 1)  # a load step converged in this many iterations doubles the increment
@@ -945,10 +1125,13 @@ def solve_static(
         atol = tol * scale if scale > 0 else tol
 
         def converged(pt: _Point, r: np.ndarray, atol: float = atol) -> bool:
-            return nunk == 0 or float(np.max(np.abs(r), initial=0.0)) <= atol
+            # the strain constraints (dimensionless) to 1e-3·tol: one more quadratic step puts them at
+            # round-off (the increments' round-off floor, xtol, ends the iteration in any case)
+            return nunk == 0 or (float(np.max(np.abs(r[:nunk]), initial=0.0)) <= atol
+                                 and float(np.max(np.abs(r[nunk:]), initial=0.0)) <= 1e-3 * tol)
 
-        out = _newton(eq, _Point(state, no_mu, lam_try), residual=residual, factorise=factorise, move=move,
-                      converged=converged, scale=eq.delta_scale, max_iter=max_iter, max_halvings=max_halvings,
+        out = _newton(eq, _Point(state, mu, lam_try), residual=residual, factorise=factorise, move=move,
+                      converged=converged, scale=delta_scale, max_iter=max_iter, max_halvings=max_halvings,
                       xtol=x_tol, mixed=mixed)
         index = len(attempts)
         history.extend(out.residuals)
@@ -958,7 +1141,7 @@ def solve_static(
         alphas.extend(out.alphas)
         attempts.append((lam_try, out.iterations, int(out.converged)))
         if out.converged:
-            state, lam = out.point.state, lam_try
+            state, mu, lam = out.point.state, out.point.mu, lam_try
             if adaptive_load and not cut and out.iterations <= fast:
                 dlam = min(1.0, 2.0 * dlam)
             cut = False
@@ -1055,4 +1238,26 @@ def solve_static(
     ds.attrs["newton_jacobian"] = eq.kind
     ds.attrs["newton_residual_final"] = float(history[-1]) if history else 0.0
     ds.attrs["newton_converged"] = 1
+    if eq.ncon:
+        _constraint_outputs(ds, eq, state, mu)
     return ds
+
+
+def _constraint_outputs(ds: Any, eq: _Equilibrium, state: Any, mu: np.ndarray) -> None:
+    """Record the strain constraints of a converged solve in ``ds``: ``constraint_force``
+    ``[time, constrained_edge, constrained_component]`` (the multipliers, the reaction edge
+    stresses; NaN on edges between fixed nodes), ``constraint_residual`` ``[time]``
+    (max |X_e[k] − value_k|) and the attributes ``constraint_components``,
+    ``constraint_values`` and ``constraint_residual_max``."""
+    force = eq.edge_multipliers(mu[eq.npin: eq.nmult])
+    res = float(np.max(np.abs(eq.constraint_values(state)), initial=0.0))
+    ds["constraint_force"] = (
+        ("time", "constrained_edge", "constrained_component"), force[None],
+        {"long_name": "multiplier of the strain constraint: the edge stress conjugate to the constrained "
+                      "strain component (a reaction)", "units": "force"})
+    ds["constraint_residual"] = ("time", np.array([res]),
+                                 {"long_name": "max |X_e[k] − value_k| over the constrained edges", "units": "1"})
+    ds.coords["constrained_component"] = ("constrained_component", eq.con_comp)
+    ds.attrs["constraint_components"] = [int(k) for k in eq.con_comp]
+    ds.attrs["constraint_values"] = [float(v) for v in eq.con_val]
+    ds.attrs["constraint_residual_max"] = res

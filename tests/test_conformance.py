@@ -28,7 +28,9 @@ SLOW_MEDIA = {"cosserat-rod", "planar-cosserat-rod", "cosserat-solid", "relativi
 def test_registered_media_conform(name):
     report = check_medium(name, PARAMS.get(name, {}))
     assert report.passed and not report.failed
-    assert any("lattice × lie-verlet" in p for p in report.passed)
+    # a medium holding strain components fixed runs in statics only (its time integration is skipped, with why)
+    statics_only = any("constrained_strains" in s for s in report.skipped)
+    assert statics_only or any("lattice × lie-verlet" in p for p in report.passed)
 
 
 def test_kit_catches_a_stress_that_is_not_the_gradient():

@@ -253,3 +253,16 @@ def test_conformance():
     from cartan.testing import check_medium
 
     check_medium("filament", {})
+
+
+def test_natural_curvature_and_twist_free_filament():
+    """A free filament with π⁰ = (τ, κ₂, κ₃) relaxes from straight to its rest helix: every edge
+    strain is (1, 0, 0; π⁰) and the multipliers (no load) vanish."""
+    pi0 = np.array([0.5, 1.0, 2.0])
+    rod = cartan.medium("filament", bending=[1.0, 1.5], twist=0.8, rest_twist=pi0[0], rest_curvature=pi0[1:])
+    grid = cartan.Grid(21, length=1.0)
+    prob = cartan.Problem(rod, grid, rod.initial_state(grid, "straight"), {"start": cartan.Clamped()})
+    ds = cartan.solve_static(prob, max_iter=50)
+    X = ds["X"].isel(time=0).values.reshape(-1, 6)
+    np.testing.assert_allclose(X, np.broadcast_to(np.concatenate([[1.0, 0.0, 0.0], pi0]), X.shape), atol=1e-10)
+    assert np.max(np.abs(ds["constraint_force"].isel(time=0).values)) <= 1e-9

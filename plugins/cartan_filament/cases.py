@@ -1,0 +1,232 @@
+"""Verification cases of the Kirchhoff filament (paper §VII.A): static equilibria with the
+strain constraint θ = (1, 0, 0) held by Lagrange multipliers (:func:`cartan.solve_static`,
+:func:`cartan.continuation`), refined in space on the lattice; and the cross-medium limit of
+the Cosserat rod (:func:`cosserat_limit`).
+
+The references are those of the ``cosserat-rod`` cases
+(:mod:`cartan_verification.references`); the elastica and Euler cases reuse their classes with
+the filament in place of the stiff planar rod.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+from cartan_verification.case import StaticCase
+from cartan_verification.cases_static import CantileverElastica, EulerBuckling
+from cartan_verification.references import euler_critical_load
+
+import cartan
+
+if TYPE_CHECKING:  # pragma: no cover
+    import xarray as xr
+
+    from cartan.problem import Problem
+
+__all__ = ["FilamentCantileverElastica", "FilamentEulerBuckling", "KirchhoffAnalogy", "all_cases",
+           "cosserat_limit", "kirchhoff_drifts"]
+
+
+def _filament(**params: Any):
+    return cartan.medium("filament", **params)
+
+
+def _constraint_residual(ds: xr.Dataset) -> float:
+    """The largest strain-constraint residual max|θ − (1, 0, 0)| recorded in ``ds``."""
+    return float(np.max(np.asarray(ds["constraint_residual"].values)))
+
+
+# ---------------------------------------------------------------------------- cantilever elastica
+class FilamentCantileverElastica(CantileverElastica):
+    """The inextensible cantilever elastica with the filament (B = C = 1, L = 1): clamped at
+    s = 0, dead tip force α·B/L² along −y, continuation from 0 to α = 10 through α = 1 and 2.
+
+    The constraint θ = (1, 0, 0) holds to round-off at every path point (an inextensible rod,
+    not the stiff limit of ``rod-cantilever-elastica``): the error is the discretisation's
+    alone, O(h²); n = 10·2^level + 1.
+    """
+
+    name = "filament-cantilever-elastica"
+    medium = "filament"
+    description = "inextensible filament: cantilever elastica under a tip dead load, PL²/B = 1, 2, 10"
+    tolerance = 2e-4
+    tolerance_reason = ("n = 10·2^level + 1; the O(h²) error is 2.6e-5 at n = 81 (α = 10, tip vertical; "
+                        "measured) and 1.05e-4 at n = 41: 2e-4 holds from n = 41 on")
+
+    def problem(self, level: int, scheme: str = "lattice") -> tuple[Problem, dict[str, Any]]:
+        rod = _filament()
+        grid = cartan.Grid(10 * 2**level + 1, length=1.0)
+        prob = cartan.Problem(rod, grid, rod.initial_state(grid, "straight"),
+                              {"start": cartan.Clamped(), "end": cartan.Free(load=[0.0, -1.0, 0.0, 0.0, 0.0, 0.0])},
+                              name=self.name)
+        return prob, {"lam_max": max(self.loads), "ds0": self.ds0, "stops": list(self.loads[:-1]), "detect": False}
+
+    def parts(self, ds: xr.Dataset) -> dict[str, float]:
+        out = super().parts(ds)
+        out["constraint residual"] = _constraint_residual(ds)
+        return out
+
+
+# ---------------------------------------------------------------------------- Euler buckling
+class FilamentEulerBuckling(EulerBuckling):
+    """Euler buckling of a pinned–pinned inextensible filament (B₃ = 1 for bending in x–y,
+    B₂ = 2 so that the first mode is simple, C = 1, L = 1) under an axial dead load λ at the
+    end, followed by continuation to 1.5 π²B₃/L² with branch switching at the located
+    bifurcation.  The pins are the continuation's multipliers: start x, y, z and the rotation
+    about the axis x (a three-dimensional column held by position pins alone keeps its rigid
+    spin about the axis), end y and z (it slides along x).
+
+    References and error as for ``rod-euler-buckling``: P_cr = π²B/L² (Euler) and the
+    pinned–pinned elastica at P/P_cr = 1.5 (Love §263: w/L = 0.394288, Δ/L = 0.636412), the
+    largest of the three relative errors, O(h²); n = 10·2^level + 1.
+    """
+
+    name = "filament-euler-buckling"
+    medium = "filament"
+    description = ("inextensible filament, pinned–pinned Euler buckling: P_cr = π²B/L² and the post-buckled "
+                   "elastica at P = 1.5 P_cr")
+    tolerance = 1e-3
+    tolerance_reason = ("n = 10·2^level + 1; O(h²) errors, the largest 2.6e-4 at n = 81 and 1.0e-3 at n = 41 "
+                        "(measured); asked within 1e-3 at n = 81")
+
+    def problem(self, level: int, scheme: str = "lattice") -> tuple[Problem, dict[str, Any]]:
+        rod = _filament(bending=[2.0, 1.0])
+        n = 10 * 2**level + 1
+        grid = cartan.Grid(n, length=1.0)
+        prob = cartan.Problem(rod, grid, rod.initial_state(grid, "straight"),
+                              {"start": cartan.Free(), "end": cartan.Free(load=[-1.0, 0.0, 0.0, 0.0, 0.0, 0.0])},
+                              name=self.name)
+        return prob, {"lam_max": self.load_ratio * euler_critical_load(1.0, 1.0), "ds0": self.ds0,
+                      "pins": {"start": (0, 1, 2, 3), "end": (1, 2)}}
+
+    def parts(self, ds: xr.Dataset) -> dict[str, float]:
+        out = super().parts(ds)
+        out["constraint residual"] = _constraint_residual(ds)
+        return out
+
+
+# ---------------------------------------------------------------------------- Kirchhoff analogy
+def kirchhoff_drifts(ds: xr.Dataset, medium: Any, scales: Mapping[str, float] | None = None) -> dict[str, float]:
+    """Drift (max − min over the edges) of the Kirchhoff invariants of a static solution.
+
+    Parameters
+    ----------
+    ds : xarray.Dataset
+        A :func:`cartan.solve_static` result of a filament (``X``, ``constraint_force``).
+    medium : Filament
+        The filament solved (𝔹, π⁰).
+    scales : mapping, optional
+        Divide each drift by ``scales[name]`` (default 1).
+
+    Returns
+    -------
+    dict ``{"n_norm", "m_dot_n", "twist_moment", "hamiltonian"}`` of floats.
+    """
+    X = np.asarray(ds["X"].isel(time=0).values).reshape(-1, 6)
+    n = np.asarray(ds["constraint_force"].isel(time=0).values)
+    inv = medium.kirchhoff_invariants(X, n)
+    scales = scales or {}
+    return {k: float(np.ptp(v)) / float(scales.get(k, 1.0)) for k, v in inv.items()}
+
+
+class KirchhoffAnalogy(StaticCase):
+    """Kirchhoff's kinetic analogy along a three-dimensional static solution (paper §VII.A):
+    a filament (B₂ = B₃ = 1, C = 0.7, no natural curvature, L = 1) clamped at s = 0 under a dead
+    tip wrench F = (0.5, −1.5, 1.0), M = (0.4, 0.3, −0.5).  With no distributed load the
+    spatial force is constant, so |n|, m·n, the twist moment m₁ (isotropic bending) and
+    H = ½ m·𝔹⁻¹m + n·d₁ are first integrals in s.
+
+    On the lattice the edge quantities m_e = 𝔹(π_e − π⁰), n_e (the constraint multipliers)
+    conserve them to O(h²): the error is the largest drift (max − min over the edges), each
+    divided by its scale (|F|, |F|·|M|, |M|, ½|M|²/B + |F|).  n = 10·2^level + 1.
+    """
+
+    name = "filament-kirchhoff-analogy"
+    medium = "filament"
+    description = "Kirchhoff analogy: |n|, m·n, m₃ and H constant along a 3-D static filament"
+    reference = "first integrals of the Kirchhoff equilibrium (Kirchhoff 1859; paper §VII.A): zero drift in s"
+    quantity = "drift (max − min over the edges) of |n|, m·n, the twist moment and H"
+    norm = "max of the four drifts, each relative to its scale"
+    space_order = 2.0
+    levels = (0, 1, 2, 3)
+    tolerance = 1e-3
+    tolerance_reason = ("n = 10·2^level + 1; O(h²) drift, 1.3e-5 at n = 81 and 1.9e-4 at n = 21 (measured: "
+                        "|n|); 1e-3 is the bound asked")
+
+    force = (0.5, -1.5, 1.0)
+    moment = (0.4, 0.3, -0.5)
+    twist = 0.7
+
+    def medium_obj(self):
+        return _filament(bending=1.0, twist=self.twist)
+
+    def problem(self, level: int, scheme: str = "lattice") -> tuple[Problem, dict[str, Any]]:
+        rod = self.medium_obj()
+        grid = cartan.Grid(10 * 2**level + 1, length=1.0)
+        prob = cartan.Problem(rod, grid, rod.initial_state(grid, "straight"),
+                              {"start": cartan.Clamped(),
+                               "end": cartan.Free(load=[*self.force, *self.moment])}, name=self.name)
+        return prob, {"load_steps": 4, "max_iter": 30}
+
+    def solve(self, problem: Problem, settings: Mapping[str, Any]) -> xr.Dataset:
+        return cartan.solve_static(problem, **dict(settings))
+
+    def scales(self) -> dict[str, float]:
+        f, m = float(np.linalg.norm(self.force)), float(np.linalg.norm(self.moment))
+        return {"n_norm": f, "m_dot_n": f * m, "twist_moment": m, "hamiltonian": 0.5 * m * m + f}
+
+    def parts(self, ds: xr.Dataset, problem: Problem) -> dict[str, float]:
+        out = kirchhoff_drifts(ds, problem.medium, self.scales())
+        out["constraint residual"] = _constraint_residual(ds)
+        return out
+
+    def error(self, ds: xr.Dataset, problem: Problem) -> float:
+        return float(max(self.parts(ds, problem).values()))
+
+
+# ---------------------------------------------------------------------------- cross-medium limit
+def cosserat_limit(ratios=(1e2, 1e3, 1e4, 1e5, 1e6), n: int = 21, alpha: float = 2.0) -> dict[str, Any]:
+    """The cosserat-rod with stretch and shear stiffness EA = GA = ratio·B/L² against the
+    filament on the same lattice: the cantilever under the tip force α·B/L² along −y.
+
+    Both are solved by :func:`cartan.solve_static` (the filament with its constraints); the
+    difference of the tip positions is O(1/ratio) (the axial and shear strains are P/EA).
+
+    Parameters
+    ----------
+    ratios : sequence of float
+        EA·L²/B = GA·L²/B.
+    n : int
+        Nodes of the common grid.
+    alpha : float
+        PL²/B.
+
+    Returns
+    -------
+    dict with ``"ratios"``, ``"errors"`` (|x_tip,rod − x_tip,filament| / L) and ``"slope"``
+    (least-squares slope of log error against log ratio).
+    """
+    grid = cartan.Grid(n, length=1.0)
+    load = [0.0, -alpha, 0.0, 0.0, 0.0, 0.0]
+
+    def tip(rod) -> np.ndarray:
+        prob = cartan.Problem(rod, grid, rod.initial_state(grid, "straight"),
+                              {"start": cartan.Clamped(), "end": cartan.Free(load=load)})
+        ds = cartan.solve_static(prob, load_steps=2, max_iter=40)
+        return np.asarray(ds["position"].isel(time=0, node=-1).values)
+
+    ref = tip(_filament())
+    errors = []
+    for s in ratios:
+        rod = cartan.medium("cosserat-rod", stretch_shear=[s, s, s], bend_twist=[1.0, 1.0, 1.0], mass=1.0,
+                            rotational_inertia=[0.01, 0.01, 0.01])
+        errors.append(float(np.linalg.norm(tip(rod) - ref)))
+    slope = float(np.polyfit(np.log(ratios), np.log(errors), 1)[0])
+    return {"ratios": list(map(float, ratios)), "errors": errors, "slope": slope}
+
+
+def all_cases() -> list[StaticCase]:
+    return [FilamentCantileverElastica(), FilamentEulerBuckling(), KirchhoffAnalogy()]
+
