@@ -4,8 +4,7 @@
     run a scene file (or ``--scene NAME`` for a registered scene; ``--restart out.nc`` to
     continue a run from its last checkpoint), overriding its ``[run]`` settings with
     ``--integrator``, ``--scheme``, ``--dt``, ``--t-end``, ``--save-every`` and
-    ``--checkpoint-every``; ``--no-reduce`` runs it without an exact reduction
-    (:mod:`cartan.reduction`).  Scenes with ``mode = "static"`` or ``mode = "continuation"``
+    ``--checkpoint-every``.  Scenes with ``mode = "static"`` or ``mode = "continuation"``
     are solved by :func:`cartan.statics.solve_static` or followed by
     :func:`cartan.continuation.continuation` with their ``[static]`` / ``[continuation]``
     settings (the dynamic options do not apply to them);
@@ -184,12 +183,6 @@ def default_output(scene_name: str, scene_file: pathlib.Path | None) -> pathlib.
     help="Most time steps the run may take (default: $CARTAN_MAX_STEPS, else 1000000000).",
 )
 @click.option("--progress/--no-progress", default=None, help="Progress bar (default: only on a terminal).")
-@click.option(
-    "--no-reduce",
-    "no_reduce",
-    is_flag=True,
-    help="Run the scene as written, without an exact reduction (e.g. a planar SE(3) scene on SE(2)).",
-)
 @click.pass_context
 def run_cmd(
     ctx: click.Context,
@@ -205,12 +198,11 @@ def run_cmd(
     checkpoint_every,
     max_steps,
     progress,
-    no_reduce,
 ) -> None:
     """Run a scene file, a registered scene (--scene NAME), or continue a run (--restart)."""
     with _stop_cleanly(), _warnings_as_lines():
         _run(ctx, scene_file, scene_name, output, integrator, scheme, dt, t_end, save_every, restart,
-             checkpoint_every, max_steps, progress, reduce=not no_reduce)
+             checkpoint_every, max_steps, progress)
 
 
 def _run(
@@ -227,7 +219,6 @@ def _run(
     checkpoint_every: int | None,
     max_steps: int | None,
     progress: bool | None,
-    reduce: bool = True,
 ) -> None:
     """``cartan run``: the settings are checked by the library (:func:`cartan.load_scene`,
     :func:`cartan.simulate`, :meth:`cartan.scene.Scene.run`), whose errors become one line."""
@@ -285,7 +276,6 @@ def _run(
             progress=progress,
             command=_command_line(ctx),
             max_steps=max_steps,
-            reduce=reduce,
         )
     except CommandError:
         raise

@@ -115,12 +115,17 @@ class Load(abc.ABC):
     Each load reports its power contribution so that the energy balance closes:
     :attr:`conservative` loads contribute :meth:`energy` to the potential energy, dissipative
     loads (:attr:`dissipative`) to the dissipated energy, the others to the external work.
+
+    In statics and continuation the loads are multiplied by the load parameter λ, except a
+    load with :attr:`scaled` False: a support (an elastic spring holding the body) acts at every
+    λ, so that a body held only by it is supported from λ = 0 on.
     """
 
     needs_structure_field: bool = False
     conservative: bool = False
     dissipative: bool = False
     velocity_dependent: bool = False
+    scaled: bool = True
 
     def bind(self, medium: Medium) -> None:  # noqa: B027 - optional hook
         """Called once with the medium before a run (validate shapes against its group)."""

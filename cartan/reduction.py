@@ -16,7 +16,7 @@ frames back (:func:`run_reduced`), so that the Dataset is the one the full run r
 same variables, dimensions, shapes, coordinates and attributes, frames, positions, strains,
 velocities, momenta and total momentum as SE(3) quantities with zero out-of-plane components,
 plus the attribute ``cartan_reduction = "SE3->SE2 (planar)"``.  ``simulate(..., reduce=False)``
-(``cartan run --no-reduce``) runs the full problem.
+runs the full problem.
 
 The plane
 ---------
@@ -44,9 +44,9 @@ and vectorised SE(3) kernels but only generic SE(2) ones, so that there the SE(2
 slower one.  A reduced run that blows up is run again in full, so that the error
 and the last good state on disk are those of the full problem.
 
-The output file of a reduced run holds the lifted final state as its checkpoint: a restart
-continues it on SE(3) (restarts are never reduced), and agrees with the uninterrupted full run
-to round-off.
+A run that writes a file is not reduced: a restart continues a run on the group its file
+holds, and a restart is exact (bit for bit against the uninterrupted run) only when both halves
+step on the same group.  The reduction serves runs kept in memory: studies, sweeps, notebooks.
 """
 
 from __future__ import annotations
@@ -430,15 +430,17 @@ def run_reduced(run: _ResolvedRun, *, restart: Any = None) -> xr.Dataset | None:
     Returns
     -------
     xarray.Dataset or None
-        The Dataset of the full run (also written to ``run.output`` with the lifted final state
-        as its checkpoint), with the attribute ``cartan_reduction``; None when the run admits
-        no exact reduction, when the reduction would not pay (:func:`reduction_pays`), or when
-        the reduced run blew up: the caller runs it in full.
+        The Dataset of the full run, with the attribute ``cartan_reduction``; None when the run
+        admits no exact reduction, when the reduction would not pay (:func:`reduction_pays`),
+        when the run writes a file (a restart of it continues on the full group, and a restart
+        is exact only when both halves step on the same group: bit for bit against the run it
+        continues), or when the reduced run blew up: the caller runs it in full.
     """
     from . import io
     from .simulate import InstabilityError, StabilityWarning, _execute_run, _resolve_run
 
-    if restart is not None or run.checkpoint_every is not None or run.step != 0 or not reduction_pays(run):
+    if (restart is not None or run.output is not None or run.checkpoint_every is not None or run.step != 0
+            or not reduction_pays(run)):
         return None
     red = planar_reduction(run.problem)
     if red is None:
@@ -473,17 +475,4 @@ def run_reduced(run: _ResolvedRun, *, restart: Any = None) -> xr.Dataset | None:
     }
     ds = io.build_dataset(run.scheme, records, config=config, history=run.history)
     ds.attrs["cartan_reduction"] = red.kind
-    if run.output is not None:
-        state = lift_state(small.state, run.state)
-        nframes = len(records["time"])
-        info = {
-            **config,
-            "step": int(records["step"][-1]),
-            "nsaves": nframes - 1,
-            "nframes": nframes,
-            "e0": run.e0,
-            "scale": small.scale[0],
-            "scale_set": small.scale[1],
-        }
-        io.write_dataset(ds, run.output, io.checkpoint_dataset(state, info))
     return ds

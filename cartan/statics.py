@@ -362,7 +362,11 @@ class _Equilibrium:
                             for n, k in self.pins])
         self.kind = "fd"
         self._probe: tuple[Any, float, Any] | None = None
-        if jacobian != "fd":
+        supports = [type(load).__name__ for load in problem.loads if not load.scaled]
+        if supports and jacobian == "analytic":
+            raise ValueError(f"jacobian='analytic': the medium's analytic Jacobian scales every load by λ, but "
+                             f"{', '.join(supports)} act at every λ (scaled = False); use jacobian='auto' or 'fd'")
+        if jacobian != "fd" and not supports:
             K = _analytic_jacobian(problem.medium, sch, state, float(probe_lam), self.cols, nnode * r_dim)
             if K is None and jacobian == "analytic":
                 raise ValueError(
@@ -531,9 +535,15 @@ class _Equilibrium:
 
     # ------------------------------------------------------------------ residual
     def _parts_full(self, state: Any) -> tuple[np.ndarray, np.ndarray]:
-        """(internal, total) nodal forces ``[*shape, r]``, zero off the unknowns."""
+        """(internal, total) nodal forces ``[*shape, r]``, zero off the unknowns; the forces of
+        supports (loads with ``scaled`` False, not multiplied by λ) count as internal."""
         total = self.sch.force(state, self.zero, state.t) * self.w
         internal = self.sch.internal_force(state)
+        held = [load for load in self.problem.loads if not load.scaled]
+        if held:
+            Phi = self.sch.frames(state) if any(load.needs_structure_field for load in held) else None
+            for load in held:
+                internal = internal + load.force(Phi, self.zero, state.t) * self.w
         internal[~self.unknown] = 0.0
         total[~self.unknown] = 0.0
         return internal, total

@@ -258,22 +258,16 @@ def test_not_planar_run_has_no_attribute(forced):
 
 
 # ---------------------------------------------------------------------------- files, restarts, checkpoints
-def test_output_file_checkpoint_and_restart(tmp_path, cantilever_runs, forced):
-    """The file of a reduced run holds the lifted state: a restart (never reduced) continues it on SE(3)."""
-    reduced, full = cantilever_runs
+def test_runs_written_to_a_file_are_not_reduced_and_restart_bit_for_bit(tmp_path, forced):
+    """A run that writes a file steps on the group it was given: its restart (on that group)
+    continues it bit for bit, which a reduced first half would not give."""
     p = cantilever()
-    path = tmp_path / "half.nc"
-    half = cartan.simulate(p, **{**CANTILEVER_RUN, "t_end": 0.15}, output=path)
-    assert half.attrs["cartan_reduction"] == PLANAR
-    on_disk = cartan.open(path)
-    assert on_disk.attrs["cartan_reduction"] == PLANAR
-    np.testing.assert_array_equal(on_disk.S.values, half.S.values)
-    cont = cartan.simulate(p, **CANTILEVER_RUN, restart=path, output=tmp_path / "cont.nc")
-    assert "cartan_reduction" not in cont.attrs
-    assert cont.sizes == full.sizes
+    whole = cartan.simulate(p, **CANTILEVER_RUN, output=tmp_path / "whole.nc")
+    half = cartan.simulate(p, **{**CANTILEVER_RUN, "t_end": 0.15}, output=tmp_path / "half.nc")
+    assert "cartan_reduction" not in whole.attrs and "cartan_reduction" not in half.attrs
+    cont = cartan.simulate(p, **CANTILEVER_RUN, restart=tmp_path / "half.nc", output=tmp_path / "cont.nc")
     for name in ("position", "frame", "X", "N", "S", "kinetic_energy", "potential_energy"):
-        scale = float(np.max(np.abs(full[name].values)))
-        assert float(np.max(np.abs(cont[name].values - full[name].values))) <= TOL * scale, name
+        assert np.array_equal(cont[name].values, whole[name].values), name
 
 
 def test_checkpoints_are_not_reduced(tmp_path, forced):
@@ -303,7 +297,7 @@ def test_blow_up_is_reported_by_the_full_problem(tmp_path, monkeypatch, forced):
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", StabilityWarning)
         with pytest.raises(InstabilityError) as info:
-            cartan.simulate(p, dt=5e-2, t_end=5.0, save_every=5, progress=False, output=tmp_path / "bad.nc")
+            cartan.simulate(p, dt=5e-2, t_end=5.0, save_every=5, progress=False)
     assert unstable == ["SE2", "SE3"] and not lifted  # the reduced run blew up, then the full one
     last = cartan.open(info.value.path)
     assert last.sizes["row"] == 3 and last.sizes["component"] == 6
@@ -353,13 +347,15 @@ save_every = 10
 """
 
 
-def test_cli_no_reduce(tmp_path):
+def test_cli_runs_write_a_file_and_are_not_reduced(tmp_path):
+    """``cartan run`` writes its result, so it steps on the scene's own group (restarts exact)."""
     scene = tmp_path / "planar.toml"
     scene.write_text(SCENE)
-    runs = {}
-    for flag in ((), ("--no-reduce",)):
-        out = tmp_path / f"out{len(flag)}.nc"
-        res = CliRunner().invoke(main, ["run", str(scene), "-o", str(out), "--no-progress", *flag])
-        assert res.exit_code == 0, res.output
-        runs[flag] = cartan.open(out)
-    assert_same_run(runs[()], runs[("--no-reduce",)])
+    out = tmp_path / "out.nc"
+    res = CliRunner().invoke(main, ["run", str(scene), "-o", str(out), "--no-progress"])
+    assert res.exit_code == 0, res.output
+    ds = cartan.open(out)
+    assert "cartan_reduction" not in ds.attrs
+    in_memory = cartan.simulate(cartan.load_scene(scene), progress=False)
+    assert in_memory.attrs["cartan_reduction"] == PLANAR
+    assert_same_run(in_memory, ds)

@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import math
-import time
 
 import numpy as np
 import pytest
@@ -126,10 +125,10 @@ def test_free_rod_under_unbalanced_load_raises(follower):
         rod.initial_state(grid, "straight"),
         {"end": cartan.Free(load=[0, 0, -F, 0, 0, 0], follower=follower)},
     )
-    t0 = time.perf_counter()
     with pytest.raises(ConvergenceError, match=r"Newton iteration.*residual.*(singular|stagnates)") as info:
         solve_static(prob)
-    assert time.perf_counter() - t0 < 5.0
+    # the singular Jacobian is recognised at once, not after the default budget of load steps and iterations
+    assert info.value.iterations <= 10, info.value.iterations
     assert isinstance(info.value, RuntimeError)
     assert info.value.residual > 1.0
 
@@ -286,3 +285,57 @@ def test_analytic_jacobian_of_the_wrong_shape_is_rejected(monkeypatch):
     prob = chain_problem(n=21, boundaries={"start": cartan.Clamped(), "end": cartan.Free(load=[1.0])})
     with pytest.raises(ValueError, match=r"jacobian: TorsionChain.static_jacobian must return a \(21, 21\)"):
         solve_static(prob, jacobian="auto")
+
+
+class _Foundation(cartan.problem.Load):
+    """An elastic foundation: a force −k(x − x̄) and a moment −k·axial(R) on every node (the
+    initial frames are the identity), a support (``scaled`` False)."""
+
+    needs_structure_field = True
+    scaled = False
+
+    def __init__(self, group, k: float, x0: np.ndarray):
+        self.group, self.k, self.x0 = group, float(k), np.asarray(x0, dtype=float)
+
+    def force(self, Phi, N, t):
+        R = Phi[..., 1:, 1:]  # the initial frames are the identity: the rotation vector of R, to first order
+        turn = 0.5 * np.stack([R[..., 2, 1] - R[..., 1, 2], R[..., 0, 2] - R[..., 2, 0],
+                               R[..., 1, 0] - R[..., 0, 1]], -1)
+        P = np.concatenate([-self.k * (Phi[..., 1:, 0] - self.x0), -self.k * turn], axis=-1)
+        return np.stack([cartan.problem.dead_to_body(self.group, F, p) for F, p in zip(Phi, P, strict=True)])
+
+
+def _rod_on_foundation(n: int = 11, k: float = 50.0):
+    rod = cartan.medium("cosserat-rod", stretch_shear=[1e3] * 3, bend_twist=[1.0] * 3, mass=1.0,
+                        rotational_inertia=[1.0] * 3)
+    grid = cartan.Grid(n, length=1.0)
+    init = rod.initial_state(grid, "straight")
+    x0 = init.Phi[:, 1:, 0].copy()
+    return cartan.Problem(rod, grid, init, {"end": cartan.Free(load=[0.0, 0.0, -1.0, 0.0, 0.0, 0.0])},
+                          loads=[_Foundation(rod.group, k, x0)])
+
+
+def test_a_support_acts_at_every_load_level():
+    """A free rod held only by an elastic foundation (a load with ``scaled`` False): at λ = 0
+    the residual of a displaced state holds the foundation's restoring force (the λ-scaled
+    part is the end load only), so continuation starts from λ = 0 on a regular Jacobian and
+    reaches the solve_static equilibrium at λ = 1."""
+    from cartan.statics import _Equilibrium
+
+    problem = _rod_on_foundation()
+    eq = _Equilibrium(problem)
+    state = eq.state0.copy()
+    d = np.zeros(eq.m)
+    d[:eq.nunk] = 1e-3
+    moved = eq.update(state, np.zeros(eq.nmult), d, 1.0)[0]
+    internal, total = eq._parts_full(moved)
+    held = problem.loads[0].force(eq.sch.frames(moved), eq.zero, 0.0) * eq.w
+    np.testing.assert_allclose(internal - eq.sch.internal_force(moved), held, atol=1e-12)
+    assert np.max(np.abs(held)) > 1e-3  # the foundation's force is there at λ = 0
+    np.testing.assert_allclose(eq.dlam(moved)[: eq.nunk][: 6], (total - internal)[eq.unknown][: 6], atol=1e-12)
+    path = cartan.continuation(problem, 1.0, 0.25, detect=False)
+    static = solve_static(problem)
+    assert float(path["load_factor"][-1]) == pytest.approx(1.0, abs=1e-12)
+    np.testing.assert_allclose(path["position"].values[-1], static["position"].isel(time=0).values, atol=1e-7)
+    with pytest.raises(ValueError, match="scaled = False"):
+        solve_static(problem, jacobian="analytic")

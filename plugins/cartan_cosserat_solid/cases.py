@@ -377,7 +377,8 @@ def uniaxial_stress(p: float, lam: float, mu: float, kappa: float) -> tuple[floa
 class CentreSupport(PotentialLoad):
     """Springs holding the position and the frame of one node, removing the rigid motions of a
     free body: ``U = ½k|x − x̄|² + ½k_R|R − R̄|²_F`` per unit reference volume at the node,
-    zero elsewhere (x̄, R̄ the held values).
+    zero elsewhere (x̄, R̄ the held values).  A support: not multiplied by the load parameter λ
+    (:attr:`cartan.problem.Load.scaled` False).
 
     Parameters
     ----------
@@ -390,6 +391,8 @@ class CentreSupport(PotentialLoad):
     rotation_stiffness : float
         k_R > 0 (per unit volume); |R − R̄|²_F = 4(1 − cos φ) + … for a rotation by φ.
     """
+
+    scaled = False  # a support: acts at every load level
 
     def __init__(self, Phi: np.ndarray, node: tuple[int, ...], stiffness: float, rotation_stiffness: float):
         Phi = np.asarray(Phi, dtype=float)

@@ -201,6 +201,9 @@ class SurfaceGravity(ConstantFieldPotential):
 class PenaltySupport(PotentialLoad):
     """Elastic edge supports: ``U = ½ (x − x̄)ᵀ K (x − x̄) + ½ (p − p̄)ᵀ S (p − p̄)`` per unit chart area.
 
+    A support: not multiplied by the load parameter λ in statics and continuation
+    (:attr:`cartan.problem.Load.scaled` False).
+
     x is a node's position and p = R e₃ its director, both in the spatial frame; x̄ and p̄ the
     held values (those of the first configuration the load sees, the initial state, or set
     by :meth:`hold`).  On the nodes of the listed edges K = diag(``position_stiffness``) and
@@ -220,6 +223,8 @@ class PenaltySupport(PotentialLoad):
     """
 
     EDGES: ClassVar[tuple[str, ...]] = ("u-start", "u-end", "v-start", "v-end")
+
+    scaled = False  # a support: acts at every load level
 
     def __init__(self, edges: Any = EDGES, position_stiffness: Any = (0.0, 0.0, 1.0), director_stiffness: float = 0.0):
         edges = (edges,) if isinstance(edges, str) else tuple(edges)
