@@ -456,6 +456,7 @@ def continuation(
     ds_out["monitor"].attrs.update(long_name="monitored displacement")
     ds_out["eig_min"].attrs.update(long_name="eigenvalue of smallest magnitude of the symmetric Jacobian part")
     ds_out["det_sign"].attrs.update(long_name="sign of det of the Jacobian (0: singular)")
+    ds_out.attrs.update(grid_shape=[int(k) for k in sysm.shape])  # the node axis is the grid's, flattened
     ds_out.attrs.update(wall_time=float(wall), newton_iterations=int(total_iters), jacobian=sysm.kind,
                         title=f"{problem.name or problem.medium.name}: load continuation")
     return ds_out

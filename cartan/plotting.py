@@ -442,8 +442,8 @@ def _in_plane(curves: list[np.ndarray]) -> tuple[list[int], list[str]]:
 
 def _draw_shapes(fig: Figure, slot: tuple[int, int, int], curves: list[np.ndarray], values: np.ndarray | None,
                  label: str, reference: np.ndarray | None = None, title: str = "shape") -> None:
-    """Curves ``[nodes, k]`` (a scatter for d ≥ 2 arrays ``[..., k]``) coloured by ``values``, the
-    reference configuration dashed."""
+    """Curves ``[nodes, k]`` (for a surface ``[nu, nv, k]``, its lines along u and v; a scatter
+    for d ≥ 3 arrays) coloured by ``values``, the reference configuration dashed."""
     from matplotlib import cm, colors
 
     every = curves + ([reference] if reference is not None else [])
@@ -459,6 +459,9 @@ def _draw_shapes(fig: Figure, slot: tuple[int, int, int], curves: list[np.ndarra
         ref = reference.reshape(-1, reference.shape[-1])[:, axes]
         if reference.ndim == 2:
             ax.plot(*ref.T, "--", color="0.6", lw=1.0, label="initial")
+        elif reference.ndim == 3:  # a surface: its lines along u and v
+            for k, line in enumerate([*np.moveaxis(reference, 1, 0), *reference]):
+                ax.plot(*line[:, axes].T, "--", color="0.6", lw=0.8, label="initial" if k == 0 else None)
         else:
             ax.scatter(*ref.T, color="0.6", s=2, label="initial")
     for i, c in enumerate(curves):
@@ -466,6 +469,9 @@ def _draw_shapes(fig: Figure, slot: tuple[int, int, int], curves: list[np.ndarra
         pts = c.reshape(-1, c.shape[-1])[:, axes]
         if c.ndim == 2:
             ax.plot(*pts.T, color=colour, lw=1.5)
+        elif c.ndim == 3:
+            for line in [*np.moveaxis(c, 1, 0), *c]:  # the u-lines, then the v-lines
+                ax.plot(*line[:, axes].T, color=colour, lw=1.0)
         else:
             ax.scatter(*pts.T, color=colour, s=4)
     if three_d:
@@ -600,9 +606,14 @@ def plot_continuation(
     plot_load_displacement(ds, ax=fig.add_subplot(1, ncols, 1))
     if shapes:
         pos = np.asarray(ds["position"].values, dtype=float)
+        grid = tuple(int(k) for k in np.atleast_1d(ds.attrs.get("grid_shape", [pos.shape[1]])))
+        if len(grid) > 1 and int(np.prod(grid)) == pos.shape[1]:  # a surface or a block: its node lines
+            pos = pos.reshape(pos.shape[0], *grid, pos.shape[-1])
         idx = _snapshot_indices(pos.shape[0], snapshots)
         lam = np.asarray(ds["load_factor"].values, dtype=float)
         ref = np.asarray(ds["initial_position"].values, dtype=float) if "initial_position" in ds else None
+        if ref is not None and ref.ndim == 2 and pos.ndim == 4:
+            ref = ref.reshape(pos.shape[1:])
         _draw_shapes(fig, (1, ncols, 2), [pos[i] for i in idx], lam[idx], "load factor λ", ref,
                      title="shapes along the path")
     fig.suptitle(title if title is not None else str(ds.attrs.get("title", "")))

@@ -1119,6 +1119,7 @@ def _follow_path(sc: Scene, command: str | None) -> Any:
         "cartan_config": "",
         "wall_time": wall,
         "newton_iterations": iters,
+        **({"grid_shape": ds.attrs["grid_shape"]} if "grid_shape" in ds.attrs else {}),
     }
     _finish(ds, sc, config, command)
     return ds

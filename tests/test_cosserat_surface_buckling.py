@@ -163,3 +163,16 @@ def test_scene_buckles_and_follows_the_elastica(scene_run):
     # cylindrical bending: both nodes across the loaded edge deflect alike
     pos = d["position"].isel(path=-1).values.reshape(17, 2, 3)
     assert np.max(np.abs(pos[:, 0, [0, 2]] - pos[:, 1, [0, 2]])) < 1e-8
+
+
+def test_the_path_picture_draws_the_strip_as_node_lines(scene_run):
+    """`cartan plot` of the path: each snapshot of the 17 × 2 strip is its 2 lines along u and
+    its 17 lines along v (not one polyline through the flattened nodes)."""
+    from cartan.plotting import plot_continuation
+
+    assert list(scene_run.attrs["grid_shape"]) == [17, 2]
+    fig = plot_continuation(scene_run, snapshots=3)
+    ax = fig.axes[1]
+    solid = [line for line in ax.get_lines() if line.get_linestyle() == "-"]
+    assert len(solid) == 3 * (2 + 17)
+    assert {len(line.get_xdata()) for line in solid} == {17, 2}
