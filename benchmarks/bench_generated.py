@@ -85,12 +85,16 @@ def _problem(case: str):
 class _Run:
     """``STEPS`` compiled ``lie-verlet`` steps of a case, by the loop the case names."""
 
-    def __init__(self, case: str):
-        problem = _problem(case)
+    def __init__(self, case: str, problem: cartan.Problem | None = None):
+        problem = _problem(case) if problem is None else problem
         self.nodes = int(np.prod(problem.grid.shape))
         self.scheme = cartan.registry("schemes")["lattice"](problem)
         self.integrator = cartan.registry("integrators")["lie-verlet"]()
         self.state = self.scheme.initial_state()
+        self.start(case)
+
+    def start(self, case: str) -> None:
+        """Choose the case's loop and run two steps (compiling it, or loading it from the cache)."""
         self.dt = 1e-5
         self.generated = case.endswith("-gen") or case in ("so3-quartic", "se3-coupled", "so4-quadratic", "s3-sigma")
         if not self():

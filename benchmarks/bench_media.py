@@ -26,13 +26,15 @@ performance goals are stated per node, PERFORMANCE.md).
 from __future__ import annotations
 
 import math
-import time
-
-import numpy as np
 
 import cartan
 
-STEPS = 20
+try:  # a module of the benchmarks package (asv)
+    from . import bench_generated as _generated
+except ImportError:  # run as a script
+    import bench_generated as _generated
+
+STEPS = _generated.STEPS
 SAMPLES = 5
 CASES = ["surface-plate", "solid-block", "relativistic-loop"]
 
@@ -58,15 +60,14 @@ def _problem(case: str) -> cartan.Problem:
     raise ValueError(f"unknown case {case!r}; allowed: {', '.join(CASES)}")
 
 
-class _Run:
+class _Run(_generated._Run):
     """``STEPS`` compiled ``lie-verlet`` steps of a case, by the first compiled path that runs it."""
 
     def __init__(self, case: str):
-        problem = _problem(case)
-        self.nodes = int(np.prod(problem.grid.shape))
-        self.scheme = cartan.registry("schemes")["lattice"](problem)
-        self.integrator = cartan.registry("integrators")["lie-verlet"]()
-        self.state = self.scheme.initial_state()
+        super().__init__(case, _problem(case))
+
+    def start(self, case: str) -> None:
+        """Δt = 0.1 of the CFL estimate; the first compiled path that runs two steps."""
         self.dt = 0.1 * float(self.integrator.dt_max(self.scheme, self.state))
         if not 0 < self.dt < math.inf:
             raise NotImplementedError(f"{case}: no finite CFL estimate ({self.dt / 0.1!r})")
@@ -95,34 +96,17 @@ class _Run:
             raise RuntimeError(f"the compiled loop stopped after {done} of {steps} steps (a blow-up)")
 
 
-def _median_node_step(run: _Run, samples: int = SAMPLES) -> float:
-    """Median over ``samples`` of the wall time of ``STEPS`` steps, per node-step (seconds)."""
-    times = []
-    for _ in range(samples):
-        t0 = time.perf_counter()
-        run(STEPS)
-        times.append(time.perf_counter() - t0)
-    return float(np.median(times)) / (STEPS * run.nodes)
-
-
-class MediaStep:
-    """One compiled step loop per medium: ``STEPS`` steps, and the cost per node-step."""
+class MediaStep(_generated.GeneratedLoops):
+    """One compiled step loop per medium: ``STEPS`` steps (the asv settings and ``time_steps`` of
+    the generated-loop benchmarks), and the cost per node-step."""
 
     params = [CASES]
-    param_names = ["case"]
-    number = 1
-    repeat = (3, 10, 20.0)
-    warmup_time = 0.0
-    timeout = 900.0
 
     def setup(self, case):
         self.run = _Run(case)
 
-    def time_steps(self, case):
-        self.run(STEPS)
-
     def track_node_step(self, case):
-        return _median_node_step(self.run) * 1e9
+        return _generated._median_time(self.run, SAMPLES) * 1e9
 
     track_node_step.unit = "ns"
 
@@ -131,7 +115,8 @@ def main() -> None:  # pragma: no cover - a report for the terminal
     """Print the compiled path and the cost per node-step of every case."""
     for case in CASES:
         run = _Run(case)
-        print(f"{case:20s} {run.nodes:6d} nodes  {run.path:12s} {_median_node_step(run) * 1e9:8.1f} ns per node-step")
+        cost = _generated._median_time(run, SAMPLES) * 1e9
+        print(f"{case:20s} {run.nodes:6d} nodes  {run.path:12s} {cost:8.1f} ns per node-step")
 
 
 if __name__ == "__main__":
