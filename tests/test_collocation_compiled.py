@@ -214,7 +214,8 @@ FAST_GRID_CASES = ("sigma-cylinder-fd4",)
 # ---------------------------------------------------------------------------- d = 1: agreement
 @pytest.mark.parametrize("group", GROUPS)
 @pytest.mark.parametrize(("kind", "derivative"), CASES, ids=CASE_IDS)
-@pytest.mark.parametrize("name", sorted(INTEGRATORS))
+@pytest.mark.parametrize("name", [pytest.param(n, marks=SLOW) if n == "forward-euler" else n
+                                  for n in sorted(INTEGRATORS)])
 def test_toy_rods_agree_with_python(name, kind, derivative, group):
     make, dt, nsteps = INTEGRATORS[name]
     scheme, (ref, ri), (fast, fi) = run_both(toy_problem(group, kind), make, dt, nsteps, derivative=derivative)
@@ -283,6 +284,7 @@ def test_fast_spin_agrees(name):
     assert_close_states(fast, ref)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("name", ["lie-euler", "overdamped-1", "overdamped-2"])
 def test_se3_with_a_gauge_component(name):
     """A zero inertia, for the integrators ``tests/test_compiled_paths.py`` leaves out: the gauge
@@ -323,7 +325,8 @@ def test_coupled_stiffness():
 
 # ---------------------------------------------------------------------------- d = 2, 3: agreement
 @pytest.mark.parametrize("case", [c if c in FAST_GRID_CASES else pytest.param(c, marks=SLOW) for c in GRID_CASES])
-@pytest.mark.parametrize("name", sorted(GRID_INTEGRATORS))
+@pytest.mark.parametrize("name", [pytest.param(n, marks=SLOW) if n == "forward-euler" else n
+                                  for n in sorted(GRID_INTEGRATORS)])
 def test_grids_agree_with_python(name, case):
     make, dt, nsteps = GRID_INTEGRATORS[name]
     build, derivative = GRID_CASES[case]

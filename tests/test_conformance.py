@@ -20,7 +20,8 @@ PARAMS = {
 
 #: media whose every scheme × integrator compiles for a minute or more on a fresh cache: in
 #: ``make test-slow``; their compiled loops run in the fast suite through their own test files
-SLOW_MEDIA = {"cosserat-rod", "planar-cosserat-rod", "cosserat-solid", "relativistic-rod"}
+SLOW_MEDIA = {"cosserat-rod", "planar-cosserat-rod", "cosserat-solid", "cosserat-surface", "relativistic-rod",
+              "sigma-model", "sphere-rod"}
 
 
 @pytest.mark.parametrize("name", [pytest.param(name, marks=[pytest.mark.slow] if name in SLOW_MEDIA else [])
@@ -58,6 +59,7 @@ def test_kit_catches_negative_inertia_and_reports_without_raising():
     assert "1 failed" in str(report) or "failed" in str(report)
 
 
+@pytest.mark.slow
 def test_kit_runs_every_combination_for_a_toy_medium():
     report = check_medium(QuadraticMedium("SE2", mass=np.ones(3), stiffness=np.full(3, 3.0)))
     schemes, integrators = cartan.registry("schemes"), cartan.registry("integrators")

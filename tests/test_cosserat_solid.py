@@ -38,6 +38,7 @@ def _perturbed(solid, grid, amplitude=0.05, seed=1):
 
 
 # ---------------------------------------------------------------------------- medium contract
+@pytest.mark.slow
 def test_registered_and_conformant(solid):
     assert isinstance(solid, CosseratSolid) and solid.material_dim == 3 and solid.group.name == "SE3"
     # the full kit over every scheme × integrator runs in tests/test_conformance.py

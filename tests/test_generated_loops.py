@@ -328,7 +328,7 @@ def test_indefinite_nondiagonal_metric_legendre_map():
     assert np.any(np.linalg.eigvalsh(med.kinetic_metric()) < 0)  # really indefinite
 
 
-@pytest.mark.parametrize("integrators", _sets(["lie-verlet"]))
+@pytest.mark.parametrize("integrators", _sets(["lie-verlet"], slow=True))
 def test_indefinite_metric_runs_compiled_and_agrees(integrators):
     """SO(1,3) with a non-diagonal indefinite kinetic metric: lie-verlet splits the free flow
     along the metric's eigenvectors; compiled and reference agree."""
@@ -403,6 +403,7 @@ def test_kernels_defined_in_exec_code_run_compiled(tmp_path, monkeypatch):
     assert np.all(out == 3.0)
 
 
+@pytest.mark.slow
 def test_s3_sigma_scene_runs_in_the_generated_loop():
     """The registered scene of the O(4) sigma model runs compiled and conserves its energy
     (lie-verlet at Courant 0.12 on 48²: the energy error is O(Δt²), far below 1e-3)."""

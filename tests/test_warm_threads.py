@@ -137,6 +137,7 @@ def test_warm_runs_the_threaded_builds():
     assert _threads.MIN_NODES == threshold and cartan.get_threads() == 1  # restored
 
 
+@pytest.mark.slow
 @two_threads
 def test_threads_part_reruns_only_the_runs_that_reach_a_threaded_loop():
     """After the ``cases`` part, only the runs during which a compiled loop asked for its thread
@@ -151,6 +152,7 @@ def test_threads_part_reruns_only_the_runs_that_reach_a_threaded_loop():
     assert status[("threads", "rod-axial-wave-free / lie-verlet / lattice")] == "ok"
 
 
+@pytest.mark.slow
 def test_warm_without_threads_part(monkeypatch):
     """``--no-threads`` leaves the threaded builds out; alone with ``--part threads`` it leaves
     nothing to do (a usage error)."""
