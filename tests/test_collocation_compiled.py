@@ -230,7 +230,8 @@ def test_toy_rods_agree_with_python(name, kind, derivative, group):
 
 
 @pytest.mark.parametrize("planar", [False, pytest.param(True, marks=SLOW)], ids=["SE3", "SE2"])
-@pytest.mark.parametrize("name", sorted(INTEGRATORS))
+@pytest.mark.parametrize("name", [pytest.param(n, marks=SLOW) if n == "forward-euler" else n
+                                  for n in sorted(INTEGRATORS)])
 def test_rods_under_gravity_with_fd4(name, planar):
     """The Cosserat rod with a dead end load, gravity and damping, ``fd4`` (its ``fd2`` runs are
     in ``tests/test_compiled_paths.py``)."""

@@ -156,6 +156,7 @@ def test_coupled_nonquadratic_sheet_with_reference_runs_compiled_and_agrees(inte
                  names=("X", "potential_energy", "dissipated_energy"), dt=1e-3, t_end=0.01)
 
 
+@pytest.mark.slow
 def test_dead_face_load_runs_compiled_and_agrees():
     problem = _sheet(False, boundaries={"u-start": Clamped(), "u-end": Free(load=[0.1, 0, 0.2, 0, 0.05, 0])})
     assert Lattice(problem).track

@@ -60,6 +60,7 @@ def _run(scheme_type, problem, order, velocity=wave, blocks=(10, 20), **opts):
                          blocks=blocks, **opts)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("order", [1, 2, 4])
 @pytest.mark.parametrize("kind", ["dead", "follower", "ring"])
 def test_lattice_rod_agrees_with_python(kind, order):

@@ -38,7 +38,7 @@ ROOT = pathlib.Path(__file__).resolve().parents[1]
 TOL = 1e-12
 
 #: first-order loops beyond the fast suite's (each hand-written loop compiles for a minute under load)
-SLOW_SE3 = {"forward-euler", "overdamped-2"}
+SLOW_SE3 = {"forward-euler", "lie-euler", "overdamped-2"}
 #: (integrator factory, Δt, steps): Δt within each method's stable range for the test rods
 #: (forward-euler is unstable at every Δt, so it runs a few small steps only)
 INTEGRATORS = {

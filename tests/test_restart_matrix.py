@@ -151,9 +151,14 @@ def python_steps(monkeypatch):
     return calls
 
 
-@pytest.mark.parametrize("compiled", [True, False], ids=["compiled", "python"])
-@pytest.mark.parametrize("scheme", SCHEMES)
-@pytest.mark.parametrize("key", list(INTEGRATORS))
+#: the kinematic loop on collocation compiles a generated module of its own (30-100 s on a fresh cache)
+SLOW_RUNS = {("kinematic", "collocation", True)}
+MATRIX = [pytest.param(key, scheme, compiled, id=f"{key}-{scheme}-{'compiled' if compiled else 'python'}",
+                       marks=[pytest.mark.slow] if (key, scheme, compiled) in SLOW_RUNS else [])
+          for key in INTEGRATORS for scheme in SCHEMES for compiled in (True, False)]
+
+
+@pytest.mark.parametrize(("key", "scheme", "compiled"), MATRIX)
 def test_restart_is_bit_for_bit(key, scheme, compiled, scene_file, tmp_path, python_steps):
     """A run of the scene file to t₁ (PART steps), continued to t₂ (WHOLE steps) from its
     checkpoint given the Problem, is the uninterrupted run to t₂: frames, series, coordinates,
