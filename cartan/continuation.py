@@ -250,11 +250,10 @@ def continuation(
     npos = sysm.nunk + sysm.npin
 
     def small(r: np.ndarray) -> bool:
-        # forces to atol, pins to tol·L, strain constraints (dimensionless) to 1e-3·tol: one more
-        # quadratic step puts them at round-off
+        # forces to atol, pins to tol·L, strain constraints as in solve_static
         return (float(np.max(np.abs(r[: sysm.nunk]), initial=0.0)) <= atol
                 and float(np.max(np.abs(r[sysm.nunk: npos]), initial=0.0)) <= ctol
-                and float(np.max(np.abs(r[npos: m]), initial=0.0)) <= 1e-3 * tol)
+                and sysm.constraints_met(r, tol))
 
     def bordered(K, f, tu, tl):
         B = sp.bmat([[K, sp.csc_matrix(f[:, None])], [sp.csr_matrix((wv * tu)[None, :]), np.array([[wl * tl]])]])

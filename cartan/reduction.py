@@ -71,7 +71,6 @@ from .problem import (
     Problem,
     UniformForce,
 )
-from .state import State
 
 if TYPE_CHECKING:  # pragma: no cover
     import xarray as xr
@@ -84,9 +83,7 @@ __all__ = [
     "PLANAR",
     "Reduction",
     "lift_components",
-    "lift_elements",
     "lift_records",
-    "lift_state",
     "planar_reduction",
     "reduction_pays",
     "run_reduced",
@@ -128,15 +125,6 @@ def lift_components(v: np.ndarray) -> np.ndarray:
     v = np.asarray(v, dtype=float)
     out = np.zeros((*v.shape[:-1], 6))
     out[..., _IN] = v
-    return out
-
-
-def lift_elements(g: np.ndarray) -> np.ndarray:
-    """SE(2) elements ``[..., 3, 3]`` as SE(3) elements ``[..., 4, 4]`` (rotation about z, z = 0)."""
-    g = np.asarray(g, dtype=float)
-    out = np.zeros((*g.shape[:-2], 4, 4))
-    out[..., :3, :3] = g
-    out[..., 3, 3] = 1.0
     return out
 
 
@@ -329,30 +317,6 @@ def planar_reduction(problem: Problem) -> Reduction | None:
 
 
 # ---------------------------------------------------------------------------- lifting a run
-def _liftable_arrays(small: State, full: State) -> bool:
-    """Whether every configuration array of the SE(2) state lifts to the SE(3) one's layout:
-    group elements ``[..., 3, 3] → [..., 4, 4]`` or components ``[..., 3] → [..., 6]``."""
-    if set(small.arrays) != set(full.arrays) or small.S.shape[:-1] != full.S.shape[:-1]:
-        return False
-    for name, a in small.arrays.items():
-        b = full.arrays[name]
-        if b.shape[-2:] == (4, 4) and a.shape == (*b.shape[:-2], 3, 3):
-            if not (np.all(a[..., 0, :] == (1.0, 0.0, 0.0)) and _planar_elements(b)):
-                return False
-        elif not (b.shape[-1:] == (6,) and a.shape == (*b.shape[:-1], 3)):
-            return False
-    return True
-
-
-def lift_state(small: State, full: State) -> State:
-    """The SE(3) state of a planar SE(2) state, with the arrays laid out as in ``full``."""
-    arrays = {}
-    for name, a in small.arrays.items():
-        b = full.arrays[name]
-        arrays[name] = lift_elements(a) if b.shape[-2:] == (4, 4) and a.shape[-2:] == (3, 3) else lift_components(a)
-    return State(float(small.t), lift_components(small.S), arrays, dict(small.scalars))
-
-
 def lift_records(records: Mapping[str, list], full_group: Any) -> dict[str, list]:
     """The frames of the SE(2) run as the frames of the SE(3) run (:func:`cartan.io.frame_record`).
 
@@ -411,8 +375,7 @@ def reduction_pays(run: _ResolvedRun) -> bool:
     """
     if not run.compiled or getattr(run.integrator, "compiled_advance", None) is not None:
         return True
-    hand_written = getattr(run.scheme, "has_hand_written_loops", None)
-    return not (callable(hand_written) and hand_written())
+    return not run.scheme.has_hand_written_loops()
 
 
 def run_reduced(run: _ResolvedRun, *, restart: Any = None) -> xr.Dataset | None:
@@ -456,7 +419,7 @@ def run_reduced(run: _ResolvedRun, *, restart: Any = None) -> xr.Dataset | None:
             )
     except (ValueError, TypeError):
         return None
-    if small.nsteps != run.nsteps or not _liftable_arrays(small.state, run.state):
+    if small.nsteps != run.nsteps:
         return None
     try:
         _execute_run(small)

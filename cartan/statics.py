@@ -422,6 +422,11 @@ class _Equilibrium:
         self.con_unit = -1.0 / float(np.prod(sch.h))
         self.ncon = int(sum(int(a.sum()) for a in self.con_active)) * comp.size
 
+    def constraints_met(self, r: np.ndarray, tol: float) -> bool:
+        """Whether the strain-constraint rows of a residual ``r`` ``(m,)`` are within 1e-3·tol
+        (dimensionless: one more quadratic step puts them at round-off)."""
+        return float(np.max(np.abs(r[self.nunk + self.npin: self.m]), initial=0.0)) <= 1e-3 * tol
+
     def constraint_stress(self, mu_c: np.ndarray) -> list[np.ndarray]:
         """Per axis, the edge stresses ``[*edge_shape, r]`` whose constrained components are
         the multipliers ``mu_c`` ``(ncon,)`` times ``con_unit = −1/cell`` (zero elsewhere).
@@ -1135,10 +1140,8 @@ def solve_static(
         atol = tol * scale if scale > 0 else tol
 
         def converged(pt: _Point, r: np.ndarray, atol: float = atol) -> bool:
-            # the strain constraints (dimensionless) to 1e-3·tol: one more quadratic step puts them at
-            # round-off (the increments' round-off floor, xtol, ends the iteration in any case)
-            return nunk == 0 or (float(np.max(np.abs(r[:nunk]), initial=0.0)) <= atol
-                                 and float(np.max(np.abs(r[nunk:]), initial=0.0)) <= 1e-3 * tol)
+            # the increments' round-off floor, xtol, ends the iteration in any case
+            return nunk == 0 or (float(np.max(np.abs(r[:nunk]), initial=0.0)) <= atol and eq.constraints_met(r, tol))
 
         out = _newton(eq, _Point(state, mu, lam_try), residual=residual, factorise=factorise, move=move,
                       converged=converged, scale=delta_scale, max_iter=max_iter, max_halvings=max_halvings,
