@@ -440,6 +440,11 @@ def _in_plane(curves: list[np.ndarray]) -> tuple[list[int], list[str]]:
     return [0, 1, 2], labels
 
 
+def _node_lines(surface: np.ndarray) -> list[np.ndarray]:
+    """The node lines ``[n, k]`` of a surface ``[n_u, n_v, k]``: along u (one per v), then along v."""
+    return [*np.moveaxis(surface, 1, 0), *surface]
+
+
 def _draw_shapes(fig: Figure, slot: tuple[int, int, int], curves: list[np.ndarray], values: np.ndarray | None,
                  label: str, reference: np.ndarray | None = None, title: str = "shape") -> None:
     """Curves ``[nodes, k]`` (for a surface ``[nu, nv, k]``, its lines along u and v; a scatter
@@ -460,7 +465,7 @@ def _draw_shapes(fig: Figure, slot: tuple[int, int, int], curves: list[np.ndarra
         if reference.ndim == 2:
             ax.plot(*ref.T, "--", color="0.6", lw=1.0, label="initial")
         elif reference.ndim == 3:  # a surface: its lines along u and v
-            for k, line in enumerate([*np.moveaxis(reference, 1, 0), *reference]):
+            for k, line in enumerate(_node_lines(reference)):
                 ax.plot(*line[:, axes].T, "--", color="0.6", lw=0.8, label="initial" if k == 0 else None)
         else:
             ax.scatter(*ref.T, color="0.6", s=2, label="initial")
@@ -470,7 +475,7 @@ def _draw_shapes(fig: Figure, slot: tuple[int, int, int], curves: list[np.ndarra
         if c.ndim == 2:
             ax.plot(*pts.T, color=colour, lw=1.5)
         elif c.ndim == 3:
-            for line in [*np.moveaxis(c, 1, 0), *c]:  # the u-lines, then the v-lines
+            for line in _node_lines(c):
                 ax.plot(*line[:, axes].T, color=colour, lw=1.0)
         else:
             ax.scatter(*pts.T, color=colour, s=4)
