@@ -22,6 +22,7 @@ import sys
 
 import click
 
+from .cli_advise import register as _register_advise_commands
 from .cli_cache import register as _register_cache_commands
 from .cli_run import register as _register_run_commands
 from .cli_verify import register as _register_verify_commands
@@ -118,6 +119,7 @@ def list_cmd(kind: str | None) -> None:
 _register_run_commands(main)
 _register_verify_commands(main)
 _register_cache_commands(main)
+_register_advise_commands(main)
 
 
 if __name__ == "__main__":  # pragma: no cover

@@ -397,7 +397,8 @@ def run_reduced(run: _ResolvedRun, *, restart: Any = None) -> xr.Dataset | None:
         admits no exact reduction, when the reduction would not pay (:func:`reduction_pays`),
         when the run writes a file (a restart of it continues on the full group, and a restart
         is exact only when both halves step on the same group: bit for bit against the run it
-        continues), or when the reduced run blew up: the caller runs it in full.
+        continues), when the integrator prescribes the velocity (``kinematic``: data the planar
+        test cannot see), or when the reduced run blew up: the caller runs it in full.
     """
     from . import io
     from .simulate import InstabilityError, StabilityWarning, _execute_run, _resolve_run
@@ -405,6 +406,8 @@ def run_reduced(run: _ResolvedRun, *, restart: Any = None) -> xr.Dataset | None:
     if (restart is not None or run.output is not None or run.checkpoint_every is not None or run.step != 0
             or not reduction_pays(run)):
         return None
+    if getattr(run.integrator, "velocity_field", None) is not None:
+        return None  # a prescribed velocity is data the reduction cannot see: it may leave the plane
     red = planar_reduction(run.problem)
     if red is None:
         return None

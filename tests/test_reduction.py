@@ -257,6 +257,21 @@ def test_not_planar_run_has_no_attribute(forced):
     assert float(np.max(np.abs(ds.position.values[-1, :, 2]))) > 0.0  # it does leave the plane
 
 
+def test_prescribed_velocity_is_not_reduced(forced):
+    """``kinematic`` prescribes the velocity: data the planar test cannot see (this one turns
+    the rod out of its plane), so the run steps on SE(3) as given."""
+    def out_of_plane(t, u, X):
+        N = np.zeros((*u.shape[:-1], 6))
+        N[..., :] = [0.3, 0.2, 0.1, 0.0, 0.0, 0.5]
+        return N
+
+    p = cantilever(g=(0.0, 0.0, 0.0))
+    ds = cartan.simulate(p, integrator=cartan.registry("integrators")["kinematic"](velocity=out_of_plane, order=2),
+                         dt=1e-2, t_end=0.1, save_every=10, progress=False, compiled=False)
+    assert "cartan_reduction" not in ds.attrs
+    assert float(np.max(np.abs(ds.position.values[-1, :, 2]))) > 1e-3
+
+
 # ---------------------------------------------------------------------------- files, restarts, checkpoints
 def test_runs_written_to_a_file_are_not_reduced_and_restart_bit_for_bit(tmp_path, forced):
     """A run that writes a file steps on the group it was given: its restart (on that group)

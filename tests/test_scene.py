@@ -521,3 +521,35 @@ def test_api_medium_with_an_overflowing_parameter_is_a_value_error():
         cartan.medium("cosserat-rod", E=1e6, G=1e6 / 3, radius=1e100, density=1000.0)
     with pytest.raises(ValueError, match="E must be a real number"):
         cartan.medium("cosserat-rod", E="1e5", G=1e6 / 3, radius=0.02, density=1000.0)
+
+
+@pytest.mark.parametrize(
+    ("velocity", "expected"),
+    [
+        ('"no_colon_here"', "name a function as 'module:name'"),
+        ('"cartan_nowhere.module:f"', "cannot be imported"),
+        ('"math:not_there"', "cannot be imported"),
+        ('"math:pi"', "is not callable"),
+    ],
+)
+def test_kinematic_velocity_named_in_a_scene_is_checked(toy, velocity, expected):
+    """A scene names a ``kinematic`` velocity as ``"module:name"``; a bad name is one line."""
+    text = SCENE.replace('integrator = "lie-verlet"', 'integrator = "kinematic"') + (
+        f"\n[run.integrator_options]\nvelocity = {velocity}\n")
+    out = toy / "out.nc"
+    res = CliRunner().invoke(cli(), ["run", str(write(toy, text)), "-o", str(out)])
+    assert res.exit_code == 2, res.output
+    lines = res.output.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith("cartan: error: ") and expected in lines[0], res.output
+    assert not out.exists()
+
+
+def test_kinematic_velocity_options_need_a_named_factory():
+    kin = cartan.registry("integrators")["kinematic"]
+    with pytest.raises(ValueError, match="named velocity factory"):
+        kin(velocity=lambda t, u, X: 0.0 * X[..., 0, :], velocity_options={})
+    named = kin(velocity="cartan_filament.binormal:binormal_velocity", velocity_options={"coefficient": 2.0})
+    assert named.options() == {"order": 4, "velocity": "cartan_filament.binormal:binormal_velocity",
+                               "velocity_options": {"coefficient": 2.0}}
+    with pytest.raises(ValueError, match="velocity_options of"):
+        kin(velocity="cartan_filament.binormal:binormal_velocity", velocity_options={"speed": 2.0})

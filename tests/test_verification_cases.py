@@ -40,7 +40,8 @@ RUNS = [(name, integ, scheme) for name, case in sorted(CASES.items()) if case.ki
         for integ in case.default_integrators for scheme in case.default_schemes]
 #: every level of these takes several seconds (continuation paths at four resolutions)
 SLOW_ALL_LEVELS = {"rod-euler-buckling", "rod-cantilever-elastica", "plate-buckling-column",
-                   "plate-buckling-wide-column", "plate-navier-thick", "plate-navier-thin", "solid-uniaxial-stress"}
+                   "plate-buckling-wide-column", "plate-navier-thick", "plate-navier-thin", "solid-uniaxial-stress",
+                   "plate-buckling-column-kl"}
 
 
 def _slow_poincare(run: tuple) -> bool:

@@ -342,25 +342,66 @@ class Overdamped(Integrator):
                            True)
 
 
+def _named_velocity(name: str, options: dict[str, Any] | None) -> Callable:
+    """The velocity function named ``"module:name"`` (a factory, called with ``options``, when
+    ``options`` is given, even empty); a clear ``ValueError`` when it cannot be found."""
+    import importlib
+
+    module, sep, attr = name.partition(":")
+    if not sep or not module or not attr:
+        raise ValueError(f"velocity {name!r}: name a function as 'module:name' "
+                         "(e.g. 'cartan_filament.binormal:binormal_velocity')")
+    try:
+        target = importlib.import_module(module)
+        for part in attr.split("."):
+            target = getattr(target, part)
+    except (ImportError, AttributeError) as exc:
+        raise ValueError(f"velocity {name!r} cannot be imported: {exc}") from None
+    if not callable(target):
+        raise ValueError(f"velocity {name!r} is not callable")
+    if options is not None:
+        try:
+            target = target(**options)
+        except TypeError as exc:
+            raise ValueError(f"velocity_options of {name!r}: {exc}") from None
+    return target
+
+
 class Kinematic(Integrator):
     """Prescribed velocity N(t, u, X) (paper §III.B): the configuration follows
     Φ̇ = ΦN by RKMK of the requested order (1, 2 or 4).
 
     Parameters
     ----------
-    velocity : callable ``(t, u, X) -> N``
+    velocity : callable ``(t, u, X) -> N``, or str ``"module:name"``
         ``t`` float, ``u`` node coordinates ``[*shape, d]``, ``X`` nodal strains
-        ``[*shape, d, r]``; returns ``[*shape, r]``.
+        ``[*shape, d, r]``; returns ``[*shape, r]``.  A string names an importable velocity
+        function (or, with ``velocity_options``, even empty, a factory called with them that
+        returns one):
+        the form a scene file uses, e.g. ``velocity = "cartan_filament.binormal:binormal_velocity"``;
+        the named form is recorded in :meth:`options`, so a restart rebuilds the same velocity.
     order : int
+    velocity_options : dict, optional
+        Keyword arguments of the factory named by ``velocity`` (only with a named velocity).
     """
 
     name = "kinematic"
     stability = np.inf
     uses_momentum = False
 
-    def __init__(self, velocity: Callable | None = None, order: int = 4):
+    def __init__(self, velocity: Callable | str | None = None, order: int = 4,
+                 velocity_options: dict[str, Any] | None = None):
+        self.velocity_name = velocity if isinstance(velocity, str) else None
+        if velocity_options is not None and not isinstance(velocity_options, dict):
+            raise ValueError(f"velocity_options must be a table of keyword arguments, got {velocity_options!r}")
+        if velocity_options is not None and self.velocity_name is None:
+            raise ValueError("velocity_options apply to a named velocity factory (velocity = 'module:name')")
+        self.velocity_options = None if velocity_options is None else dict(velocity_options)
+        if self.velocity_name is not None:
+            velocity = _named_velocity(self.velocity_name, self.velocity_options)
         if velocity is None or not callable(velocity):
-            raise ValueError("kinematic integrator needs velocity=callable(t, u, X) -> N")
+            raise ValueError("kinematic integrator needs velocity=callable(t, u, X) -> N, or the name "
+                             "'module:function' of one")
         if order not in _TABLEAUX:
             raise ValueError(f"order must be one of {sorted(_TABLEAUX)}, got {order!r}")
         self.velocity_field = velocity
@@ -368,6 +409,11 @@ class Kinematic(Integrator):
         super().__init__()
 
     def options(self):
+        if self.velocity_name is not None:
+            out = {"order": self.order, "velocity": self.velocity_name}
+            if self.velocity_options is not None:
+                out["velocity_options"] = dict(self.velocity_options)
+            return out
         return {"order": self.order, "velocity": getattr(self.velocity_field, "__name__", "callable")}
 
     def _N(self, scheme: Scheme, state: State, t: float) -> np.ndarray:

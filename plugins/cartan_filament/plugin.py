@@ -21,3 +21,4 @@ def cartan_register_scenes(register):
 @cartan.hookimpl
 def cartan_register_cases(register):
     register_cases(register, "cartan_filament.cases")
+    register_cases(register, "cartan_filament.cases_kinematic")

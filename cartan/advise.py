@@ -1,0 +1,959 @@
+"""Model no more than a scene needs: which reductions a scene admits (``cartan advise``).
+
+:func:`advise` runs a scene — the full solve of a static scene and the whole path of a
+continuation scene (both cheap), a short pilot of a dynamic one — and reports, for each
+reduction cartan knows, whether the scene admits it, the measured indicator, an estimate of the
+error it would introduce, an estimate of the speed-up, and whether it is recommended.  With
+``check=True`` it also runs the full and the reduced model side by side (the static solve or the
+path again with the reduced model, or the whole dynamic run with both) and reports the actual
+difference and time ratio beside the prediction.
+
+An approximate reduction is recommended when the simpler model answers the scene within
+``rtol`` (relative to the scene's displacement, or to the change of the strains) and can run
+it; the speed-up is reported beside it, not required.  An exact reduction is recommended when it
+is faster (measured, or :func:`cartan.reduction.reduction_pays` for dynamic runs).
+
+The reductions
+--------------
+``held stretch and shear (filament)`` (approximate; paper §III.E, §VII.A)
+    A rod (d = 1, quadratic energy, on SE(3) or SE(2)) whose stretch and shear θ hardly move
+    is its inextensible, unshearable twin, :class:`HeldStrainMedium`: θ = θ₀ held by
+    constraint, the rest of the energy unchanged — for the Cosserat rod on SE(3) the Kirchhoff
+    filament with the rod's 𝔹 and π₀, for the planar rod the planar elastica.
+    *Indicator*: ``max |θ − θ₀|`` over the edges (and the saved frames of a pilot, or the
+    points of a path), the stretch and shear strains relative to the unit rest stretch.
+    *Error estimate*: the centreline of the rod is ``r(s) = r(0) + ∫₀ˢ R θ dσ``, that of the
+    constrained twin ``r_f(s) = r(0) + ∫₀ˢ R_f θ₀ dσ``, so
+
+        r(s) − r_f(s) = ∫₀ˢ R (θ − θ₀) dσ + ∫₀ˢ (R − R_f) θ₀ dσ.
+
+    The first term is the displacement the constraint removes, computed from the measured
+    strains and frames (edge frames: the mean of the two node frames); the second comes from
+    the moments the first one changes (the load's lever arms move by it) and is smaller by a
+    factor of order |F|L²/B·(anisotropy of 𝕊) — it vanishes for a dead end force with
+    𝕊 ∝ I, where the first term is parallel to the force.  The estimate is the largest
+    ``|∫ R(θ − θ₀) dσ|`` over the nodes, integrated from a held end (clamped, or its position
+    pinned by a continuation: from s = 0 when the start is, from s = L when only the end is),
+    or relative to the centroid of the nodes when no end is held; ``∫|θ − θ₀| dσ`` bounds it.
+    The relative error is this displacement divided by the largest displacement of the scene
+    (or the length L when nothing moves); the twin is recommended when it is at most
+    ``rtol``.  On a continuation path the indicator is the largest over the path points, the
+    estimate that of the path's end.  *Speed-up*: the ratio of the explicit integrator's CFL
+    estimates of the twin and of the rod (axial and shear waves against bending waves): what a
+    dynamic run would gain.  Held strains run in statics only
+    (:func:`cartan.statics.solve_static` and :func:`cartan.continuation` honour
+    :meth:`~cartan.medium.Medium.constrained_strains`, :func:`cartan.simulate` does not), so a
+    dynamic scene gets the indicator and the estimate, never the recommendation.
+``SE(3) planar → SE(2)`` (exact; :mod:`cartan.reduction`)
+    Detected by :func:`cartan.reduction.planar_reduction` (planar data, planar loads, a medium
+    with an exact planar twin): the reduced run changes nothing but the cost, so the error
+    estimate is 0 (round-off).  The speed-up is measured on the pilot (the static solve of
+    both, or a pilot run of both, the SE(2) problem run as such); for dynamic runs
+    :func:`cartan.reduction.reduction_pays` says whether :func:`cartan.simulate` performs it (it
+    does so automatically, ``reduce=True``), and it is recommended when it does.
+``large radius -> plane`` (approximate; paper §VIII.A)
+    A rod on the sphere of radius r (a medium with ``radius``, ``planar_parameters()`` and the
+    maps between physical strains and velocities and its group components, such as
+    ``sphere-rod``) tends to the planar rod with the same data as r → ∞ (the registered SE(2)
+    medium that takes ``planar_parameters()``, :func:`plane_limit_problem`),
+    the difference of the strains falling as (L/r)² (the ``sphere-rod-large-radius``
+    verification case).  *Indicator*: L/r.  *Error estimate*: the pilot is run at r and at 2r
+    with the same physical strains and velocities; with the difference O(r⁻²),
+    ``e(r) ≈ (4/3)·max |X(r) − X(2r)|`` (Richardson), in the physical strains (θ₁, θ₂, π_n)
+    at the pilot's end.  Open rods only (a closed rod around the sphere has no planar limit),
+    with clamped or unloaded free ends and drag loads (mapped at equal dissipated power).
+    *Speed-up*: the time of the planar pilot against the sphere's.
+
+Timings are wall-clock times of the runs after a warm-up run of each model (the numba
+compilation is not counted; a static solve's time is the fastest of :data:`STATIC_REPEATS`);
+they depend on the machine and its load.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import dataclasses
+import math
+import os
+import pathlib
+import time
+import warnings
+from collections.abc import Mapping
+from typing import TYPE_CHECKING, Any, ClassVar
+
+import numpy as np
+
+from .medium import Medium, QuadraticMedium
+
+if TYPE_CHECKING:  # pragma: no cover
+    import xarray as xr
+from .problem import Clamped, Damping, Free, InitialState, Problem
+
+__all__ = ["HELD_STRAINS", "LARGE_RADIUS", "PILOT_STEPS", "PLANAR", "Advice", "HeldStrainMedium", "ReductionAdvice",
+           "advise", "held_strain_problem", "plane_limit_problem"]
+
+#: time steps of the pilot run of a dynamic scene (fewer when the scene's run is shorter)
+PILOT_STEPS = 200
+#: timed static solves of each model (the fastest is reported)
+STATIC_REPEATS = 2
+#: default relative error accepted for an approximate reduction
+DEFAULT_RTOL = 1e-3
+
+#: the approximate reduction that holds stretch and shear by constraint (the Kirchhoff filament)
+HELD_STRAINS = "held stretch and shear (filament)"
+#: the exact reduction of planar SE(3) problems (:mod:`cartan.reduction`)
+PLANAR = "SE(3) planar -> SE(2)"
+#: the approximate reduction of a rod on a sphere of large radius to the plane
+LARGE_RADIUS = "large radius -> plane"
+#: continuation pins: SE(3) components (x, y, rotation about z) → SE(2) (x, y, rotation)
+_PLANAR_PIN = {0: 0, 1: 1, 5: 2}
+
+
+# ---------------------------------------------------------------------------- the report
+@dataclasses.dataclass
+class ReductionAdvice:
+    """One reduction and what the scene says about it.
+
+    Attributes
+    ----------
+    name : str
+        :data:`HELD_STRAINS`, :data:`PLANAR` or :data:`LARGE_RADIUS`.
+    kind : str
+        ``"exact"`` or ``"approximate"``.
+    admitted : bool
+        The scene's data allow the reduction (the reduced model can be built).
+    recommended : bool
+        Admitted, within ``rtol`` (approximate ones) and runnable for this scene's mode.
+    indicator_name : str
+    indicator : float
+        The measured indicator (NaN when not admitted).
+    error_estimate : float
+        Estimated difference of the reduced model (absolute; length units for the filament,
+        strain units for the sphere rod; 0 for exact reductions).
+    error_scale : float
+        The scale ``error_estimate`` is compared with (``rtol·error_scale``).
+    speedup_estimate : float
+        Estimated time ratio full / reduced (NaN when unknown).
+    note : str
+        Why (not) admitted or recommended, and what the numbers are.
+    measured_difference, time_ratio : float
+        With ``check=True``: the actual difference (same measure as ``error_estimate``) and the
+        measured time ratio full / reduced; NaN otherwise.
+    check_note : str
+        What the check ran.
+    """
+
+    name: str
+    kind: str
+    admitted: bool = False
+    recommended: bool = False
+    indicator_name: str = ""
+    indicator: float = math.nan
+    error_estimate: float = math.nan
+    error_scale: float = math.nan
+    speedup_estimate: float = math.nan
+    note: str = ""
+    measured_difference: float = math.nan
+    time_ratio: float = math.nan
+    check_note: str = ""
+
+    @property
+    def relative_error(self) -> float:
+        """``error_estimate / error_scale``."""
+        if not (math.isfinite(self.error_estimate) and math.isfinite(self.error_scale)) or self.error_scale <= 0:
+            return math.nan
+        return self.error_estimate / self.error_scale
+
+
+@dataclasses.dataclass
+class Advice:
+    """What :func:`advise` returns.
+
+    Attributes
+    ----------
+    scene : str
+        The scene's name.
+    mode : str
+        ``"static"``, ``"continuation"`` or ``"dynamic"``.
+    medium : str
+    pilot : str
+        What was run to measure the indicators.
+    rtol : float
+        Relative error accepted for approximate reductions.
+    checked : bool
+        Whether the full and reduced models were run side by side.
+    reductions : list of ReductionAdvice
+    wall_time : float
+        Seconds spent in :func:`advise`.
+    """
+
+    scene: str
+    mode: str
+    medium: str
+    pilot: str
+    rtol: float
+    checked: bool
+    reductions: list[ReductionAdvice]
+    wall_time: float = 0.0
+
+    def __getitem__(self, name: str) -> ReductionAdvice:
+        for r in self.reductions:
+            if r.name == name:
+                return r
+        raise KeyError(name)
+
+    @property
+    def recommended(self) -> list[str]:
+        """Names of the recommended reductions."""
+        return [r.name for r in self.reductions if r.recommended]
+
+    def to_dict(self) -> dict[str, Any]:
+        """The report as plain Python (JSON-serialisable, NaN as ``None``)."""
+
+        def clean(v: Any) -> Any:
+            return None if isinstance(v, float) and not math.isfinite(v) else v
+
+        out = {k: clean(v) for k, v in dataclasses.asdict(self).items() if k != "reductions"}
+        out["reductions"] = [{k: clean(v) for k, v in dataclasses.asdict(r).items()} | {
+            "relative_error": clean(r.relative_error)} for r in self.reductions]
+        return out
+
+    def to_dataset(self) -> xr.Dataset:
+        """The report as an :class:`xarray.Dataset` along ``reduction`` (CF attributes).
+
+        Returns
+        -------
+        xarray.Dataset
+            Variables ``admitted``, ``recommended`` (int 0/1), ``indicator``,
+            ``error_estimate``, ``error_scale``, ``relative_error``, ``speedup_estimate``,
+            ``measured_difference``, ``time_ratio`` (float), ``kind``, ``indicator_name``,
+            ``note``, ``check_note`` (str), each ``[reduction]``.
+        """
+        import xarray as xr
+
+        from . import __version__, io
+
+        rs = self.reductions
+        floats = {
+            "indicator": "measured indicator of the reduction",
+            "error_estimate": "estimated difference the reduced model introduces",
+            "error_scale": "scale the estimated difference is compared with",
+            "relative_error": "error_estimate / error_scale",
+            "speedup_estimate": "estimated time ratio full / reduced",
+            "measured_difference": "difference measured by running both models (check)",
+            "time_ratio": "measured time ratio full / reduced (check)",
+        }
+        data = {k: ("reduction", np.array([float(getattr(r, k)) for r in rs]), {"long_name": v})
+                for k, v in floats.items()}
+        for k in ("admitted", "recommended"):
+            data[k] = ("reduction", np.array([int(getattr(r, k)) for r in rs], dtype=np.int64),
+                       {"long_name": f"1 if the reduction is {k}"})
+        for k in ("kind", "indicator_name", "note", "check_note"):
+            data[k] = ("reduction", np.array([str(getattr(r, k)) for r in rs], dtype=object))
+        ds = xr.Dataset(data, coords={"reduction": np.array([r.name for r in rs], dtype=object)})
+        ds.attrs = {"Conventions": "CF-1.11", "title": f"{self.scene}: reductions the scene admits",
+                    "source": f"cartan {__version__}", "history": io.history_line(
+                        f"cartan.advise({self.scene!r}, check={self.checked})"),
+                    "scene": self.scene, "mode": self.mode, "medium": self.medium, "pilot": self.pilot,
+                    "rtol": self.rtol, "checked": int(self.checked), "wall_time": self.wall_time}
+        return ds
+
+    def __str__(self) -> str:
+        def f(x: float, spec: str = ".3g") -> str:
+            return "—" if not math.isfinite(x) else format(x, spec)
+
+        lines = [f"scene {self.scene!r} ({self.mode}, {self.medium}); measured on: {self.pilot}", ""]
+        for r in self.reductions:
+            verdict = "RECOMMENDED" if r.recommended else ("admitted" if r.admitted else "not admitted")
+            lines.append(f"{r.name} [{r.kind}]: {verdict}")
+            if r.admitted:
+                lines.append(f"  {r.indicator_name} = {f(r.indicator, '.5g')}; "
+                             f"estimated error {f(r.error_estimate, '.5g')} "
+                             f"(relative {f(r.relative_error)}, accepted {f(self.rtol)}); estimated speed-up "
+                             f"{f(r.speedup_estimate, '.2f')}")
+                if self.checked:
+                    lines.append(f"  check: measured difference {f(r.measured_difference, '.5g')}, time ratio "
+                                 f"{f(r.time_ratio, '.2f')}" + (f" ({r.check_note})" if r.check_note else ""))
+            if r.note:
+                lines.append(f"  {r.note}")
+        rec = self.recommended
+        lines += ["", "recommended: " + (", ".join(rec) if rec else "none")]
+        return "\n".join(lines)
+
+
+# ---------------------------------------------------------------------------- running
+@dataclasses.dataclass
+class _Subject:
+    """What is advised: the problem and how it runs."""
+
+    problem: Problem
+    name: str
+    mode: str
+    solver_options: dict[str, Any]
+    run_settings: dict[str, Any]
+    measure: Any = None
+
+
+def _subject(obj: Any) -> _Subject:
+    from .scene import Scene, load_scene
+    from .scene import scene as registered
+
+    if isinstance(obj, Problem):
+        return _Subject(obj, obj.name or obj.medium.name, "static", {}, {})
+    if isinstance(obj, str | os.PathLike):
+        path = pathlib.Path(obj)
+        obj = load_scene(path) if path.suffix == ".toml" or path.exists() else registered(str(obj))
+    elif isinstance(obj, Mapping):
+        obj = load_scene(obj)
+    if not isinstance(obj, Scene):
+        raise TypeError(f"advise takes a Problem, a Scene, a scene file or a registered scene name, got {obj!r}")
+    if obj.mode == "static" and obj.initial_guess is not None:
+        raise ValueError(f"scene {obj.name!r}: advise does not take a static scene with an initial_guess file")
+    settings = obj.run_settings() if obj.mode == "dynamic" else {}
+    return _Subject(obj.problem, obj.name or obj.problem.medium.name, obj.mode, dict(obj.solver_options), settings,
+                    obj.measure)
+
+
+def _timed(fn: Any, *args: Any, **kwargs: Any) -> tuple[Any, float]:
+    t0 = time.perf_counter()
+    out = fn(*args, **kwargs)
+    return out, time.perf_counter() - t0
+
+
+def _solve(problem: Problem, options: Mapping[str, Any]) -> xr.Dataset:
+    from .statics import solve_static
+
+    return solve_static(problem, **dict(options))
+
+
+def _simulate(problem: Problem, settings: Mapping[str, Any], t_end: float) -> xr.Dataset:
+    from .simulate import InstabilityError, StabilityWarning, simulate
+
+    s = dict(settings)
+    s.pop("checkpoint_every", None)
+    dt = s.get("dt")
+    steps = max(1, round(t_end / dt)) if dt else None
+    s["save_every"] = max(1, (steps or PILOT_STEPS) // 20)
+    s["t_end"] = t_end
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", StabilityWarning)
+        try:
+            return simulate(problem, progress=False, reduce=False, **s)
+        except InstabilityError as exc:  # a pilot writes nothing: its last good state is not kept
+            if exc.path is None or s.get("output"):
+                raise
+            with contextlib.suppress(OSError):
+                exc.path.unlink()
+            message = str(exc).split("; last good state", 1)[0]
+            raise InstabilityError(f"pilot run {message}", step=exc.step, time=exc.time, dt=exc.dt,
+                                   dt_max=exc.dt_max) from None
+
+
+def _initial_positions(problem: Problem) -> np.ndarray:
+    """Node positions of the initial state ``[nodes, k]`` (media on affine groups)."""
+    Phi = np.asarray(problem.initial.Phi, dtype=float)
+    return Phi[..., 1:, 0].reshape(-1, Phi.shape[-1] - 1)
+
+
+def _follow(problem: Problem, options: Mapping[str, Any], measure: Any) -> xr.Dataset:
+    """The continuation path of ``problem`` as a Dataset along ``time`` (one entry per path point)
+    with ``position``, ``frame`` and the edge strains ``X`` (from the frames the path's monitor
+    receives), plus ``load_factor``; the attribute ``newton_iterations``."""
+    import xarray as xr
+
+    from .continuation import continuation
+
+    g = problem.medium.group
+    pos0 = _initial_positions(problem)
+    seen: list[tuple[np.ndarray, np.ndarray]] = []
+
+    def monitor(snap: Any) -> float:
+        p = np.asarray(snap["position"].values[0], dtype=float).reshape(pos0.shape)
+        seen.append((p.copy(), np.asarray(snap["frame"].values[0], dtype=float).copy()))
+        if measure is not None:
+            return float(measure(p, pos0))
+        return float(np.max(np.linalg.norm(p - pos0, axis=-1)))
+
+    path = continuation(problem, monitor=monitor, **dict(options))
+    pts = np.asarray(path["position"].values, dtype=float).reshape(path.sizes["path"], *pos0.shape)
+    frames = []
+    for p in pts:  # the path points among the states the monitor saw (probes of a branch switch too)
+        match = [E for q, E in seen if np.array_equal(q, p)]
+        frames.append(match[-1] if match else np.full((pos0.shape[0], pos0.shape[1], pos0.shape[1]), np.nan))
+    E = np.stack(frames)
+    m = pos0.shape[1] + 1
+    Phi = np.zeros((*E.shape[:2], m, m))
+    Phi[..., 0, 0] = 1.0
+    Phi[..., 1:, 0] = pts
+    Phi[..., 1:, 1:] = E
+    G = g.compose(g.inverse(Phi[:, :-1]), Phi[:, 1:])
+    X = g.log(G) / float(problem.grid.spacing[0])
+    ds = xr.Dataset({"position": (("time", "node", "row"), pts), "frame": (("time", "node", "row", "col"), E),
+                     "X": (("time", "edge", "component"), X),
+                     "load_factor": ("time", np.asarray(path["load_factor"].values, dtype=float))})
+    ds.attrs["newton_iterations"] = int(path.attrs.get("newton_iterations", 0))
+    return ds
+
+
+def _run(subject: _Subject, problem: Problem, t_end: float | None, *, warm: bool = True,
+         options: Mapping[str, Any] | None = None) -> tuple[Any, float]:
+    """Solve (static) or run to ``t_end`` (dynamic, as given: ``reduce=False``) ``problem`` with the
+    subject's settings: ``(Dataset, seconds)``, after a warm-up run (two steps, or one solve) when
+    ``warm``; a static solve's time is the fastest of :data:`STATIC_REPEATS`."""
+    if subject.mode == "continuation":  # one timed path after a warm-up static solve (λ = 1)
+        if warm:
+            from .statics import ConvergenceError
+
+            with contextlib.suppress(ConvergenceError, ValueError, ArithmeticError):
+                _solve(problem, {"load_steps": 4, "max_iter": 20})
+        return _timed(_follow, problem, subject.solver_options if options is None else options, subject.measure)
+    if subject.mode == "static":  # cheap: the best of STATIC_REPEATS timed solves after the warm-up
+        opts = subject.solver_options if options is None else options
+        if warm:
+            _solve(problem, opts)
+        runs = [_timed(_solve, problem, opts) for _ in range(STATIC_REPEATS)]
+        return runs[-1][0], min(t for _, t in runs)
+    if warm:
+        _simulate(problem, subject.run_settings, 2 * subject.run_settings["dt"])
+    return _timed(_simulate, problem, subject.run_settings, t_end)
+
+
+def _dynamic_settings(subject: _Subject, pilot_steps: int) -> tuple[float, float, Any]:
+    """(Δt, the pilot's end time, the resolved full run) of a dynamic subject."""
+    from .simulate import StabilityWarning, _resolve_run
+
+    s = subject.run_settings
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", StabilityWarning)
+        run = _resolve_run(subject.problem, s.get("integrator"), s.get("scheme"), s.get("dt"), s.get("t_end"),
+                           s.get("save_every"), None, None, None, s.get("integrator_options"),
+                           s.get("scheme_options"), False, 1e3, compiled=True, command="", max_steps=None)
+    t_end = float(run.info["run"]["t_end"])
+    subject.run_settings["dt"] = float(run.dt)
+    return float(run.dt), min(t_end, pilot_steps * float(run.dt)), run
+
+
+# ---------------------------------------------------------------------------- held stretch and shear
+class HeldStrainMedium(QuadraticMedium):
+    """A quadratic medium with its translation strains θ held at their rest values by constraint.
+
+    The adapted medium of paper §III.E: the strain components of the translations (the first
+    k = m − 1 components of SE(k), k = 2, 3) are fixed at θ₀ by Lagrange multipliers in the
+    statics (:meth:`constrained_strains`), and the energy keeps only the other components —
+    the base medium's stiffness with the rows and columns of θ set to zero.  For a Cosserat rod
+    on SE(3) (U = ½(θ − θ₀)ᵀ𝕊(θ − θ₀) + ½(π − π₀)ᵀ𝔹(π − π₀)) this is the Kirchhoff filament
+    with the rod's 𝔹 and π₀ (paper §VII.A): inextensible and unshearable.  Kinetic metric,
+    space, loads and initial states are the base medium's.
+
+    Parameters
+    ----------
+    base : QuadraticMedium
+        d = 1, on SE(2) or SE(3), with :meth:`~cartan.medium.Medium.quadratic_energy` and no
+        constrained strains of its own.
+
+    Raises
+    ------
+    ValueError
+        When ``base`` is not such a medium.
+    """
+
+    name: ClassVar[str] = "held-strains"
+    material_dim: ClassVar[int] = 1
+
+    def __init__(self, base: Medium):
+        group = getattr(base, "group", None)
+        if getattr(group, "name", "") not in ("SE2", "SE3") or getattr(base, "material_dim", None) != 1:
+            raise ValueError("base must be a medium with material dimension 1 on SE(2) or SE(3)")
+        if base.constrained_strains() is not None:
+            raise ValueError("base already holds strain components by constraint")
+        energy = base.quadratic_energy()
+        if energy is None:
+            raise ValueError("base must have a quadratic energy (Medium.quadratic_energy)")
+        X0, C = (np.asarray(a, dtype=float) for a in energy)
+        k = group.matrix_size - 1
+        C = C.copy()
+        C[:k, :] = 0.0
+        C[:, :k] = 0.0
+        self.base, self.group, self.space = base, group, base.space
+        self.load_kinds, self.initial_kinds = base.load_kinds, base.initial_kinds
+        self._held = (np.arange(k), X0.reshape(-1)[:k].copy())
+        self._inertia = np.asarray(base.inertia(), dtype=float).copy()
+        self._set_energy(X0, C)
+
+    def inertia(self) -> np.ndarray:
+        """The base medium's kinetic metric, shape ``(r,)``."""
+        return self._inertia.copy()
+
+    def constrained_strains(self) -> tuple[np.ndarray, np.ndarray]:
+        """The translation components ``(0, …, k − 1)`` held at θ₀."""
+        return self._held[0].copy(), self._held[1].copy()
+
+    def planar_reduction(self) -> None:
+        """None: a planar twin would lose the constraints."""
+        return None
+
+    def parameters(self) -> dict[str, Any]:
+        """The base medium's name and parameters, and the held components."""
+        return {"base": self.base.name, "base_parameters": self.base.parameters(),
+                "held_components": self._held[0].tolist()}
+
+    def make_load(self, kind: str, **params: Any):
+        """The base medium's loads."""
+        return self.base.make_load(kind, **params)
+
+    def initial_state(self, grid: Any, kind: str, **params: Any) -> InitialState:
+        """The base medium's initial states."""
+        return self.base.initial_state(grid, kind, **params)
+
+
+def held_strain_problem(problem: Problem) -> Problem:
+    """``problem`` with its medium's translation strains held (:class:`HeldStrainMedium`).
+
+    Parameters
+    ----------
+    problem : Problem
+        d = 1 on SE(2) or SE(3), a quadratic medium, no reference state.
+
+    Returns
+    -------
+    Problem
+        Same grid, initial state, boundaries, loads and name.
+
+    Raises
+    ------
+    ValueError
+        When the medium does not qualify (see :class:`HeldStrainMedium`) or the problem has a
+        reference state.
+    """
+    if problem.reference is not None:
+        raise ValueError("the problem has a reference state (a varying rest strain)")
+    twin = HeldStrainMedium(problem.medium)
+    return Problem(twin, problem.grid, problem.initial, dict(problem.boundaries), list(problem.loads),
+                   name=problem.name)
+
+
+def _strain_frames(ds: Any, k: int, theta0: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Per saved frame: stretch/shear deviations θ − θ₀ ``[T, E, k]`` on the edges, edge frames
+    ``[T, E, k, k]`` and node positions ``[T, n, k]``."""
+    X = np.asarray(ds["X"].values, dtype=float)
+    T = X.shape[0]
+    pos = np.asarray(ds["position"].values, dtype=float).reshape(T, -1, k)
+    E = np.asarray(ds["frame"].values, dtype=float).reshape(T, -1, k, k)
+    X = X.reshape(T, -1, X.shape[-1])
+    n = pos.shape[1]
+    th = X[..., :k] - theta0
+    if th.shape[1] == n - 1:
+        R = 0.5 * (E[:, :-1] + E[:, 1:])
+    elif th.shape[1] == n:  # nodal strains (collocation): to the edges
+        th = 0.5 * (th[:, :-1] + th[:, 1:])
+        R = 0.5 * (E[:, :-1] + E[:, 1:])
+    else:  # a closed rod: the closing edge too
+        R = 0.5 * (E + np.roll(E, -1, axis=1))
+    return th, R, pos
+
+
+def _anchor(subject: _Subject) -> str | None:
+    """The end the displacements are measured from: a clamped end, or an end whose position a
+    continuation pins (``"start"`` first), else None (about the centroid)."""
+    b = subject.problem.boundaries
+    pins = subject.solver_options.get("pins") or {} if subject.mode == "continuation" else {}
+    n = subject.problem.grid.shape[0]
+    k = subject.problem.medium.group.matrix_size - 1
+    for end, index in (("start", 0), ("end", n - 1)):
+        pinned = [c for key, comps in pins.items() if key in (end, index) for c in comps if int(c) < k]
+        if type(b.get(end)) is Clamped or pinned:
+            return end
+    return None
+
+
+def _filament_estimate(ds: Any, problem: Problem, k: int, theta0: np.ndarray, anchor: str | None,
+                       last: bool = False) -> tuple[float, float, float, int]:
+    """(indicator max|θ − θ₀| over the frames, estimated position difference, the bound
+    ∫|θ − θ₀|, its frame) from a run, static solve or path ``ds`` of a rod: the frame of the
+    largest estimate, or the last frame (a path's end) with ``last``."""
+    th, R, _ = _strain_frames(ds, k, theta0)
+    h = float(problem.grid.spacing[0])
+    d = np.einsum("teij,tej->tei", R, th) * h  # R(θ − θ₀) dσ per edge
+    start, end = anchor == "start", anchor == "end"
+    if start:
+        cum = np.concatenate([np.zeros((d.shape[0], 1, k)), np.cumsum(d, axis=1)], axis=1)
+    elif end:
+        cum = -np.concatenate([np.cumsum(d[:, ::-1], axis=1)[:, ::-1], np.zeros((d.shape[0], 1, k))], axis=1)
+    else:
+        cum = np.concatenate([np.zeros((d.shape[0], 1, k)), np.cumsum(d, axis=1)], axis=1)
+        cum = cum - cum.mean(axis=1, keepdims=True)
+    per_frame = np.max(np.linalg.norm(cum, axis=-1), axis=1)
+    i = len(per_frame) - 1 if last else int(np.nanargmax(per_frame))
+    bound = float(np.sum(np.linalg.norm(th[i], axis=-1)) * h)
+    return float(np.nanmax(np.abs(th))), float(per_frame[i]), bound, i
+
+
+def _displacement_scale(ds: Any, problem: Problem, k: int, anchor: str | None) -> float:
+    """The largest node displacement from the initial state over the frames of ``ds``
+    (relative to the centroid when no end is held), or the length when nothing moves."""
+    pos = np.asarray(ds["position"].values, dtype=float).reshape(ds.sizes["time"], -1, k)
+    pos0 = np.asarray(problem.initial.Phi, dtype=float)[..., 1:, 0].reshape(1, -1, k)
+    disp = pos - pos0
+    if anchor is None:
+        disp = disp - disp.mean(axis=1, keepdims=True)
+    scale = float(np.max(np.linalg.norm(disp, axis=-1)))
+    return scale if scale > 0 else float(problem.grid.length[0])
+
+
+def _cfl_ratio(full: Problem, reduced: Problem, settings: Mapping[str, Any]) -> float:
+    """CFL estimate of ``reduced`` over that of ``full`` with the explicit integrator of the
+    settings (``lie-verlet`` when the scene's has no stability limit or for static scenes)."""
+    from .plugins import get_registry
+    from .schemes.lattice import Lattice
+
+    name = settings.get("integrator") or "lie-verlet"
+    integ = get_registry().get("integrators", name)() if isinstance(name, str) else None
+    if integ is None or not math.isfinite(getattr(integ, "stability", math.inf)):
+        integ = get_registry().get("integrators", "lie-verlet")()
+    values = []
+    for p in (full, reduced):
+        sch = Lattice(p)
+        values.append(float(integ.dt_max(sch, sch.initial_state())))
+    return values[1] / values[0] if values[0] > 0 else math.nan
+
+
+def _advise_filament(subject: _Subject, full_ds: Any, rtol: float, check: bool, full_time: float,
+                     pilot_t: float | None) -> ReductionAdvice:
+    out = ReductionAdvice(HELD_STRAINS, "approximate", indicator_name="max |θ − θ₀| (stretch and shear)")
+    problem = subject.problem
+    if problem.grid.d != 1 or problem.grid.periodic[0]:
+        out.note = "compared on open rods (d = 1, not periodic) only"
+        return out
+    try:
+        held = held_strain_problem(problem)
+    except ValueError as exc:
+        out.note = f"no held-strain twin: {exc}"
+        return out
+    out.admitted = True
+    k = problem.medium.group.matrix_size - 1
+    theta0 = held.medium.constrained_strains()[1]
+    path = subject.mode == "continuation"
+    anchor = _anchor(subject)
+    ind, est, bound, _ = _filament_estimate(full_ds, problem, k, theta0, anchor, last=path)
+    out.indicator, out.error_estimate = ind, est
+    out.error_scale = _displacement_scale(full_ds, problem, k, anchor)
+    try:
+        out.speedup_estimate = _cfl_ratio(problem, held, subject.run_settings)
+    except (ValueError, TypeError, KeyError):
+        out.speedup_estimate = math.nan
+    within = math.isfinite(out.relative_error) and out.relative_error <= rtol
+    what = (("at the path's end (λ = {:.4g}): ".format(float(full_ds["load_factor"].values[-1])) if path else "")
+            + f"end-position difference |∫R(θ − θ₀)ds| = {est:.5g} (bound ∫|θ − θ₀|ds = {bound:.5g}) against the "
+            f"largest displacement {out.error_scale:.3g}; speed-up = ratio of the explicit CFL estimates (what a "
+            "dynamic run would gain)")
+    if subject.mode == "dynamic":
+        out.note = (f"{what}. Held strains run in statics only (simulate does not hold constraints): "
+                    "not recommended for this dynamic scene" + (" although its strains allow it" if within else ""))
+        if check:
+            out.check_note = "not run: held strains run in statics only"
+        return out
+    out.recommended = within
+    out.note = what + ("" if within else f"; relative error {out.relative_error:.3g} > rtol = {rtol:g}")
+    if check:
+        from .statics import ConvergenceError
+
+        try:
+            fds, ftime = _run(subject, held, None)
+        except ConvergenceError as exc:
+            out.check_note = f"the held-strain {subject.mode} solve failed: {' '.join(str(exc).split())[:200]}"
+            return out
+        p_full = np.asarray(full_ds["position"].values[-1], dtype=float).reshape(-1, k)
+        p_held = np.asarray(fds["position"].values[-1], dtype=float).reshape(-1, k)
+        out.measured_difference = float(np.max(np.linalg.norm(p_full - p_held, axis=-1)))
+        out.time_ratio = full_time / ftime if ftime > 0 else math.nan
+        what = "static solves" if subject.mode == "static" else "continuation paths"
+        out.check_note = (f"{what}: full {full_time:.3g} s ({full_ds.attrs.get('newton_iterations')} Newton "
+                          f"iterations), held {ftime:.3g} s ({fds.attrs.get('newton_iterations')}); difference "
+                          "= largest |x_full − x_held| over the nodes" + (" at the path's end" if path else ""))
+    return out
+
+
+# ---------------------------------------------------------------------------- SE(3) planar -> SE(2)
+def _advise_planar(subject: _Subject, full_ds: Any, full_time: float, run: Any, pilot_t: float | None,
+                   check: bool) -> ReductionAdvice:
+    from .reduction import planar_reduction, reduction_pays
+
+    out = ReductionAdvice(PLANAR, "exact", indicator_name="planar data and loads (1 = yes)")
+    problem = subject.problem
+    if getattr(problem.medium.group, "name", "") != "SE3":
+        out.note = f"the medium {problem.medium.name!r} is not on SE(3)"
+        return out
+    red = planar_reduction(problem)
+    out.indicator = 1.0 if red is not None else 0.0
+    if red is None:
+        out.note = ("no exact planar reduction: some datum is out of the x–y plane, or the medium has no exact "
+                    "planar twin, or a load or boundary is not one the reduction understands (cartan.reduction)")
+        return out
+    out.admitted = True
+    out.error_estimate, out.error_scale = 0.0, 1.0
+
+    def diff(a: Any, b: Any) -> float:  # every saved frame of a run; the end of a solve or path
+        pa = np.asarray(a["position"].values, dtype=float)
+        pb = np.asarray(b["position"].values, dtype=float)
+        if subject.mode != "dynamic":
+            pa, pb = pa[-1], pb[-1]
+        pb = pb if pb.shape[-1] == pa.shape[-1] else np.concatenate([pb, np.zeros((*pb.shape[:-1], 1))], -1)
+        return float(np.max(np.abs(pa - pb)))
+
+    if subject.mode != "dynamic":
+        options = dict(subject.solver_options)
+        if options.get("pins"):  # SE(3) pins (x, y, z, rotations about x, y, z) → SE(2) (x, y, rotation)
+            options["pins"] = {end: tuple(_PLANAR_PIN[c] for c in comps if c in _PLANAR_PIN)
+                               for end, comps in options["pins"].items()}
+        what = "static solve" if subject.mode == "static" else "continuation path"
+        rds, rtime = _run(subject, red.reduced, None, options=options)
+        out.speedup_estimate = full_time / rtime if rtime > 0 else math.nan
+        out.recommended = out.speedup_estimate > 1.0
+        out.note = (f"exact (round-off): the SE(2) {what} takes {rtime:.3g} s against {full_time:.3g} s; "
+                    f"difference at its end {diff(full_ds, rds):.2g}")
+        if check:
+            out.measured_difference, out.time_ratio = diff(full_ds, rds), out.speedup_estimate
+            out.check_note = f"the same {what}s (the analysis runs the full one)"
+        return out
+    pays = reduction_pays(run)
+    rds, rtime = _run(subject, red.reduced, pilot_t)
+    out.speedup_estimate = full_time / rtime if rtime > 0 else math.nan
+    out.recommended = pays
+    out.note = (f"exact (round-off); pilot: {rtime:.3g} s on SE(2) against {full_time:.3g} s on SE(3), difference "
+                f"{diff(full_ds, rds):.2g}. "
+                + ("cartan.simulate performs it automatically (reduce=True)" if pays else
+                   "reduction_pays is False for this integrator and scheme (the hand-written SE(3) loops are "
+                   "faster than the generic SE(2) ones): simulate runs the full problem"))
+    if check:
+        t_end = float(subject.run_settings["t_end"])
+        fds, ftime = _run(subject, problem, t_end, warm=False)
+        cds, ctime = _run(subject, red.reduced, t_end, warm=False)
+        out.measured_difference = diff(fds, cds)
+        out.time_ratio = ftime / ctime if ctime > 0 else math.nan
+        out.check_note = f"full runs to t = {t_end:g}: SE(3) {ftime:.3g} s, SE(2) {ctime:.3g} s"
+    return out
+
+
+# ---------------------------------------------------------------------------- large radius -> plane
+_SPHERE_API = ("radius", "planar_parameters", "physical_strains", "strain_components", "physical_velocities",
+               "velocity_components", "parameters")
+
+
+def _on_sphere(medium: Medium) -> bool:
+    """A rod on a sphere of radius r with a planar r → ∞ limit: the methods of :data:`_SPHERE_API`
+    (physical strains and velocities ↔ group components, the limit's parameters)."""
+    return all(hasattr(medium, name) for name in _SPHERE_API) and getattr(medium, "material_dim", 0) == 1
+
+
+def _plane_medium(params: Mapping[str, Any]) -> Medium:
+    """The registered medium on SE(2), d = 1, that takes the keywords ``params`` (the limit)."""
+    from .plugins import get_registry
+
+    for _, entry in sorted(get_registry().table("media").items()):
+        cls = entry.obj
+        try:
+            med = cls(**params)
+        except (TypeError, ValueError):
+            continue
+        if getattr(med.group, "name", "") == "SE2" and med.material_dim == 1:
+            return med
+    raise ValueError("no registered medium on SE(2) takes the planar limit's parameters")
+
+
+def _sphere_variant(problem: Problem, radius: float | None) -> Problem:
+    """The problem of a rod on a sphere with the same physical strains, velocities, loads and
+    boundaries on the sphere of ``radius``, or in the plane (``radius=None``)."""
+    from .schemes.lattice import Lattice
+
+    rod = problem.medium
+    sch = Lattice(problem)
+    X = rod.physical_strains(sch.strains(sch.initial_state())[:, 0])  # (θ₁, θ₂, π_n) [E, 3]
+    V = rod.physical_velocities(problem.initial.N)  # (V₁, V₂, Ω_n) [n, 3]
+    h = float(problem.grid.spacing[0])
+    if radius is None:
+        med = _plane_medium(rod.planar_parameters())
+        Xc, N = X, V
+    else:
+        med = type(rod)(**(rod.parameters() | {"radius": float(radius)}))
+        Xc, N = med.strain_components(X[:, 0], X[:, 1], X[:, 2]), med.velocity_components(V[:, 0], V[:, 1], V[:, 2])
+    g = med.group
+    Phi0 = np.eye(3) if radius is None else np.asarray(problem.initial.Phi[0], dtype=float)
+    Phi = [Phi0]
+    for x in Xc:
+        Phi.append(Phi[-1] @ g.exp(h * x))
+    Phi = np.stack(Phi)
+    boundaries = {}
+    for key, b in problem.boundaries.items():
+        if type(b) is Clamped:
+            boundaries[key] = Clamped()
+        elif type(b) is Free and b.load is None:
+            boundaries[key] = Free(follower=b.follower)
+        else:
+            raise ValueError(f"boundary {key!r} ({type(b).__name__}, or with an end load) is not mapped to the plane")
+
+    def squares(m: Any) -> np.ndarray:
+        """``[j, k]``: the square of group component k of the unit physical velocity j."""
+        if not _on_sphere(m):
+            return np.eye(3)
+        return np.stack([np.asarray(m.velocity_components(*row), dtype=float) for row in np.eye(3)]) ** 2
+
+    loads = []
+    for load in problem.loads:  # the same drag power Σ c_k N_k² = γ·(V₁², V₂², Ω²)
+        if type(load) is not Damping:
+            raise ValueError(f"load {type(load).__name__} is not mapped to the plane (drag only)")
+        gamma = squares(rod) @ np.asarray(load.coefficients, dtype=float)
+        loads.append(Damping(np.linalg.solve(squares(med), gamma)))
+    return Problem(med, problem.grid, InitialState(Phi=Phi, N=N), boundaries, loads, name=problem.name)
+
+
+def plane_limit_problem(problem: Problem) -> Problem:
+    """The r → ∞ limit of a rod on a sphere of radius r: the same physical strains (θ₁, θ₂, π_n),
+    physical velocities, drag and boundaries on the registered SE(2) medium that takes the
+    rod's ``planar_parameters()`` (paper §VIII.A).
+
+    Parameters
+    ----------
+    problem : Problem
+        An open rod (d = 1, not periodic) on a sphere (see :func:`_on_sphere`) with drag
+        (:class:`~cartan.problem.Damping`, mapped at equal dissipated power) loads only and
+        ``Clamped`` / unloaded ``Free`` ends.
+
+    Returns
+    -------
+    Problem
+        The planar problem; node 0 at the origin with e₁ along x.
+
+    Raises
+    ------
+    ValueError
+        When the problem does not qualify.
+    """
+    if not _on_sphere(problem.medium) or problem.grid.d != 1 or problem.grid.periodic[0]:
+        raise ValueError("the problem is not an open rod on a sphere")
+    return _sphere_variant(problem, None)
+
+
+def _advise_sphere(subject: _Subject, full_ds: Any, full_time: float, rtol: float, pilot_t: float | None,
+                   check: bool) -> ReductionAdvice:
+    out = ReductionAdvice(LARGE_RADIUS, "approximate", indicator_name="L/r")
+    problem = subject.problem
+    if not _on_sphere(problem.medium):
+        out.note = f"not a rod on a sphere (medium {problem.medium.name!r})"
+        return out
+    rod = problem.medium
+    L = float(problem.grid.length[0])
+    out.indicator = L / rod.radius
+    if problem.grid.periodic[0]:
+        out.note = "a closed rod around the sphere has no planar limit"
+        return out
+    if subject.mode != "dynamic":
+        out.note = f"{subject.mode} scenes of rods on a sphere are not compared with the plane"
+        return out
+    try:
+        double = _sphere_variant(problem, 2.0 * rod.radius)
+        plane = plane_limit_problem(problem)
+    except ValueError as exc:
+        out.note = str(exc)
+        return out
+    out.admitted = True
+
+    def strains(ds: Any, med: Any) -> np.ndarray:
+        X = np.asarray(ds["X"].values[-1], dtype=float).reshape(-1, 3)
+        return med.physical_strains(X) if _on_sphere(med) else X
+
+    ds1, t1 = full_ds, full_time
+    ds2, _ = _run(subject, double, pilot_t)
+    dsp, tp = _run(subject, plane, pilot_t)
+    s1 = strains(ds1, rod)
+    out.error_estimate = 4.0 / 3.0 * float(np.max(np.abs(s1 - strains(ds2, double.medium))))
+    moved = strains(ds1, rod) - rod.physical_strains(
+        np.asarray(ds1["X"].values[0], dtype=float).reshape(-1, 3))
+    out.error_scale = max(float(np.max(np.abs(moved))), float(np.max(np.abs(s1))) * 1e-3)
+    out.speedup_estimate = t1 / tp if tp > 0 else math.nan
+    out.recommended = bool(out.relative_error <= rtol)
+    out.note = (f"difference of the physical strains (θ₁, θ₂, π_n) at the pilot's end, Richardson from r and 2r "
+                f"(O(r⁻²)), against their change over the pilot {out.error_scale:.3g}; speed-up: pilot times "
+                f"{t1:.3g} s (sphere) and {tp:.3g} s (plane)")
+    if check:
+        t_end = float(subject.run_settings["t_end"])
+        fds, ft = _run(subject, problem, t_end, warm=False)
+        pds, pt = _run(subject, plane, t_end, warm=False)
+        out.measured_difference = float(np.max(np.abs(strains(fds, rod) - strains(pds, plane.medium))))
+        out.time_ratio = ft / pt if pt > 0 else math.nan
+        out.check_note = f"full runs to t = {t_end:g}: sphere {ft:.3g} s, plane {pt:.3g} s"
+    if not out.recommended:
+        out.note += f"; relative error {out.relative_error:.3g} > rtol = {rtol:g}"
+    elif out.speedup_estimate < 1.0:
+        out.note += (f"; recommended as the simpler model within rtol, but its pilot was not faster "
+                     f"({out.speedup_estimate:.2f}×)")
+    return out
+
+
+# ---------------------------------------------------------------------------- the entry point
+def advise(problem_or_scene: Any, check: bool = False, *, rtol: float = DEFAULT_RTOL,
+           pilot_steps: int = PILOT_STEPS) -> Advice:
+    """Which reductions a scene admits, measured on the scene (see the module docstring).
+
+    Parameters
+    ----------
+    problem_or_scene : Problem, Scene, path, str or dict
+        A :class:`~cartan.Problem` (advised as a static problem, default Newton settings), a
+        :class:`~cartan.scene.Scene`, a scene file, a registered scene name or a scene dict.
+        Static, continuation and dynamic scenes.
+    check : bool, default False
+        Also run the full and the reduced model side by side (the static solve or the
+        continuation path with the reduced model, or the whole dynamic run with both) and report
+        the measured difference and time ratio.
+    rtol : float, default 1e-3
+        Relative error accepted for an approximate reduction, in (0, 1].
+    pilot_steps : int, default 200
+        Time steps of the pilot of a dynamic scene (fewer when its run is shorter), ≥ 2.
+
+    Returns
+    -------
+    Advice
+        One :class:`ReductionAdvice` per reduction (``Advice.to_dataset()`` for an xarray table,
+        ``Advice.to_dict()``, ``str(advice)`` for the text report).
+
+    Raises
+    ------
+    ValueError
+        Bad ``rtol``, ``check`` or ``pilot_steps``; a static scene with an ``initial_guess``; a
+        scene that does not load
+        (:class:`~cartan.scene.SceneError`) or whose run settings are invalid.
+    TypeError
+        ``problem_or_scene`` of another type.
+    cartan.statics.ConvergenceError, cartan.simulate.InstabilityError
+        The scene's own solve or pilot failed.
+    """
+    start = time.perf_counter()
+    if not isinstance(check, bool | np.bool_):
+        raise ValueError(f"check must be True or False, got {check!r}")
+    if isinstance(rtol, bool) or not isinstance(rtol, int | float) or not 0.0 < float(rtol) <= 1.0:
+        raise ValueError(f"rtol must be a number in (0, 1], got {rtol!r}")
+    if isinstance(pilot_steps, bool) or not isinstance(pilot_steps, int | np.integer) or pilot_steps < 2:
+        raise ValueError(f"pilot_steps must be an integer ≥ 2, got {pilot_steps!r}")
+    subject = _subject(problem_or_scene)
+    run = None
+    pilot_t = None
+    if subject.mode == "static":
+        full_ds, full_time = _run(subject, subject.problem, None)
+        pilot = f"the static solve ({full_time:.3g} s, {full_ds.attrs.get('newton_iterations')} Newton iterations)"
+    elif subject.mode == "continuation":
+        full_ds, full_time = _run(subject, subject.problem, None)
+        pilot = (f"the continuation path ({full_time:.3g} s, {full_ds.sizes['time']} path points to λ = "
+                 f"{float(full_ds['load_factor'].values[-1]):.4g}, {full_ds.attrs.get('newton_iterations')} Newton "
+                 "iterations)")
+    else:
+        dt, pilot_t, run = _dynamic_settings(subject, int(pilot_steps))
+        full_ds, full_time = _run(subject, subject.problem, pilot_t)
+        pilot = (f"a pilot run to t = {pilot_t:g} ({round(pilot_t / dt)} steps of Δt = {dt:.3g}, {full_time:.3g} s; "
+                 f"the scene runs to t = {float(run.info['run']['t_end']):g})")
+    reductions = [
+        _advise_filament(subject, full_ds, float(rtol), bool(check), full_time, pilot_t),
+        _advise_planar(subject, full_ds, full_time, run, pilot_t, bool(check)),
+        _advise_sphere(subject, full_ds, full_time, float(rtol), pilot_t, bool(check)),
+    ]
+    return Advice(subject.name, subject.mode, subject.problem.medium.name, pilot, float(rtol), bool(check),
+                  reductions, time.perf_counter() - start)
+

@@ -1,0 +1,82 @@
+"""The ``cartan advise`` command.
+
+``cartan advise SCENE.toml [--check] [--rtol 1e-3] [--pilot-steps 200] [-o advice.nc] [--json]``
+    runs the scene (the static solve, the continuation path, or a pilot of a dynamic scene)
+    and prints which reductions it admits, each with the measured indicator, the estimated
+    error and speed-up and whether it is recommended (:func:`cartan.advise.advise`);
+    ``--check`` runs the full and the reduced model side by side and prints the measured
+    difference and time ratio beside the prediction; ``-o`` writes the table as netCDF;
+    ``--json`` prints the report as JSON; ``--scene NAME`` advises a registered scene.
+
+Bad input prints one line ``cartan: error: ...`` on stderr and exits with status 2 without
+writing anything; a solve or pilot that fails exits with status 1.
+"""
+
+from __future__ import annotations
+
+import json
+import pathlib
+
+import click
+
+from .cli_run import RUN_ERROR, CommandError, _OneLineCommand, _stop_cleanly, _warnings_as_lines
+
+__all__ = ["advise_cmd", "register"]
+
+
+@click.command("advise", cls=_OneLineCommand)
+@click.argument("scene_file", required=False, type=click.Path(dir_okay=False, path_type=pathlib.Path))
+@click.option("--scene", "scene_name", metavar="NAME", help="Advise the registered scene NAME.")
+@click.option("--check", is_flag=True, help="Also run the full and the reduced models side by side.")
+@click.option("--rtol", type=float, default=1e-3, show_default=True,
+              help="Relative error accepted for an approximate reduction, in (0, 1].")
+@click.option("--pilot-steps", type=int, default=200, show_default=True,
+              help="Time steps of the pilot run of a dynamic scene.")
+@click.option("-o", "--output", type=click.Path(dir_okay=False, path_type=pathlib.Path), default=None,
+              help="Write the table as netCDF.")
+@click.option("--json", "as_json", is_flag=True, help="Print the report as JSON.")
+def advise_cmd(scene_file, scene_name, check, rtol, pilot_steps, output, as_json) -> None:
+    """Which reductions a scene admits, with the error and speed-up of each (measured)."""
+    from . import io
+    from .advise import advise
+    from .plugins import RegistryError
+    from .scene import SceneError
+    from .simulate import InstabilityError
+    from .statics import ConvergenceError
+
+    if (scene_file is None) == (scene_name is None):
+        raise CommandError("give a scene file or --scene NAME (one of them)")
+    if scene_file is not None and not scene_file.is_file():
+        raise CommandError(f"{scene_file}: no such file")
+    if not 0.0 < rtol <= 1.0:
+        raise CommandError(f"--rtol must be in (0, 1], got {rtol:g}")
+    if pilot_steps < 2:
+        raise CommandError(f"--pilot-steps must be ≥ 2, got {pilot_steps}")
+    if output is not None:
+        if scene_file is not None and output.resolve() == scene_file.resolve():
+            raise CommandError(f"-o {output}: that is the scene file; give another output file")
+        try:
+            io.check_output(output)
+        except (ValueError, OSError) as exc:
+            raise CommandError(str(exc)) from None
+    with _stop_cleanly(), _warnings_as_lines():
+        try:
+            report = advise(scene_file if scene_file is not None else scene_name, check=check, rtol=rtol,
+                            pilot_steps=pilot_steps)
+        except (InstabilityError, ConvergenceError) as exc:
+            raise CommandError(str(exc), RUN_ERROR) from None
+        except (SceneError, RegistryError, ValueError, TypeError, ArithmeticError) as exc:
+            raise CommandError(str(exc) or type(exc).__name__) from None
+        if output is not None:
+            try:
+                io.write_dataset(report.to_dataset(), output)
+            except OSError as exc:
+                raise CommandError(f"{exc.filename or output}: {exc.strerror or exc}", RUN_ERROR) from None
+    click.echo(json.dumps(report.to_dict(), indent=1, ensure_ascii=False) if as_json else str(report))
+    if output is not None:
+        click.echo(f"wrote {output}")
+
+
+def register(main: click.Group) -> None:
+    """Add the ``advise`` command to the click group ``main``."""
+    main.add_command(advise_cmd)

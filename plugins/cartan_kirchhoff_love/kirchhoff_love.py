@@ -1,0 +1,307 @@
+"""The ``kirchhoff-love`` medium: a Koiter shell adapted to its Gauss map (paper §VII.B).
+
+(M, X, G) = (a 2D chart (u, v), E³, SE(3)), d = 2.  The structure field Φ = (r, R) carries the
+mid-surface point r and a frame R = (e₁ e₂ e₃); the strains X_α = Φ⁻¹∂_αΦ = {θ_α; π_α}
+(α = u, v; translations first) are those of the Cosserat surface (paper §VI.B,
+:mod:`cartan_cosserat_surface.surface`).  The Kirchhoff–Love surface is the Cosserat surface
+*adapted* to its Gauss map (§VII.B): e₃ is the unit normal, i.e.
+
+    θ_u,3 = θ_v,3 = 0        (∂_α r = θ_α,1 e₁ + θ_α,2 e₂),
+
+declared by :meth:`KirchhoffLove.constrained_strains` (component 2 of X on both axes) and held
+by the statics' Lagrange multipliers on every lattice edge (:func:`cartan.solve_static`,
+:func:`cartan.continuation`).  The multiplier of θ_α,3 is the stress conjugate to the normal
+component of ∂_α r: the transverse shear force, a reaction (the fictitious stress of §IV.E),
+returned as ``constraint_force``.
+
+Strain measures (invariant under a rotation of the frame about e₃)
+    * metric a_αβ = θ_α,1 θ_β,1 + θ_α,2 θ_β,2 (the first fundamental form; components 1, 2 only:
+      on the constraint it is θ_α·θ_β), membrane strain ε_αβ = ½(a_αβ − a⁰_αβ);
+    * second fundamental form b_αβ = ∂_α r·∂_β e₃ = θ_α,1 π_β,2 − θ_α,2 π_β,1 (∂_β e₃ =
+      R(π_β × e₃) = R(π_β,2, −π_β,1, 0)), symmetrised, and the change of curvature
+      κ_αβ = sym(b)_αβ − sym(b⁰)_αβ.
+
+Energy per unit chart area (Koiter; St Venant–Kirchhoff, plane stress, thickness h)
+    U = √a⁰ [ ½ h 𝒞(ε, ε) + ½ (h³/12) 𝒞(κ, κ) ],  𝒞^{αβγδ} = E/(1−ν²) [ν A^αβ A^γδ +
+    ½(1−ν)(A^αγ A^βδ + A^αδ A^βγ)], A = (a⁰)⁻¹,
+
+with no transverse-shear term: the stress does not depend on θ_α,3 (the constrained
+components) nor on π_α,3.  With n = h𝒞ε and m = (h³/12)𝒞κ,
+
+    ∂U/∂θ_α = √a⁰ [ n^αβ (θ_β,1, θ_β,2, 0) + m^αβ (π_β,2, −π_β,1, 0) ],
+    ∂U/∂π_β = √a⁰ m^αβ (−θ_α,2, θ_α,1, 0).
+
+Conventions
+    * Mean curvature H = ½ tr(a⁻¹b) = ½(κ₁ + κ₂) with b_αβ = ∂_α r·∂_β e₃: H > 0 where the
+      surface bends away from e₃ (a sphere with the outward normal has H = +1/R, a cylinder of
+      radius R with the outward normal H = +1/(2R)); Gauss curvature K = det b / det a.
+    * Bending energy: for a plate (flat rest state, Cartesian chart) and small strains the
+      bending part is ½D[(tr κ)² − 2(1 − ν) det κ] = ½D(2H)² − D(1 − ν)K, D = Eh³/(12(1 − ν²)):
+      the factor ½ in front of (2H)², i.e. Helfrich's κ_b = D and κ_G = −D(1 − ν).
+    * Drill: π_α,3 (in an adapted frame the Levi-Civita connection form, §VII.B) enters neither
+      the energy nor an output; the rotation Ω₃ about e₃ is a gauge (zero inertia), so the
+      statics hold it at zero: the frame is transported without spin about the normal, from
+      the initial state's e₁ (the coordinate gauge e₁ ∥ ∂_u r for the built-in shapes).  The
+      principal gauge is not built.
+
+Kinetic data are those of :class:`~cartan_cosserat_surface.surface.CosseratSurface` (ρh, ρh³/12,
+0 about e₃).  :func:`cartan.simulate` refuses the medium (it does not honour
+constrained strains): the Kirchhoff–Love surface runs in the static solvers only.
+"""
+
+from __future__ import annotations
+
+from typing import Any, ClassVar
+
+import numpy as np
+from cartan_cosserat_surface.surface import CosseratSurface, _constitutive
+from numba import njit
+
+from cartan.medium import MediumKernels
+
+__all__ = ["KirchhoffLove", "koiter_energy", "koiter_stress"]
+
+
+# ====================================================================== point kernels
+@njit(cache=True)
+def _koiter(X, X0, p, Q, want):  # pragma: no cover - compiled
+    """Energy density at one point; writes Q = ∂U/∂X when ``want`` (see the module docstring)."""
+    E, nu, h = p[0], p[1], p[2]
+    cs = E / (1.0 - nu * nu)
+    # rest metric (in-plane components), its inverse and the area element
+    a0uu = X0[0, 0] * X0[0, 0] + X0[0, 1] * X0[0, 1]
+    a0uv = X0[0, 0] * X0[1, 0] + X0[0, 1] * X0[1, 1]
+    a0vv = X0[1, 0] * X0[1, 0] + X0[1, 1] * X0[1, 1]
+    det0 = a0uu * a0vv - a0uv * a0uv
+    J = np.sqrt(det0)
+    Auu, Auv, Avv = a0vv / det0, -a0uv / det0, a0uu / det0
+    # membrane strain in the metric of the tangent components
+    auu = X[0, 0] * X[0, 0] + X[0, 1] * X[0, 1]
+    auv = X[0, 0] * X[1, 0] + X[0, 1] * X[1, 1]
+    avv = X[1, 0] * X[1, 0] + X[1, 1] * X[1, 1]
+    euu, euv, evv = 0.5 * (auu - a0uu), 0.5 * (auv - a0uv), 0.5 * (avv - a0vv)
+    # second fundamental form b_ab = θ_a · (π_b2, −π_b1, 0)
+    buu = X[0, 0] * X[0, 4] - X[0, 1] * X[0, 3]
+    buv = X[0, 0] * X[1, 4] - X[0, 1] * X[1, 3]
+    bvu = X[1, 0] * X[0, 4] - X[1, 1] * X[0, 3]
+    bvv = X[1, 0] * X[1, 4] - X[1, 1] * X[1, 3]
+    b0uu = X0[0, 0] * X0[0, 4] - X0[0, 1] * X0[0, 3]
+    b0uv = X0[0, 0] * X0[1, 4] - X0[0, 1] * X0[1, 3]
+    b0vu = X0[1, 0] * X0[0, 4] - X0[1, 1] * X0[0, 3]
+    b0vv = X0[1, 0] * X0[1, 4] - X0[1, 1] * X0[1, 3]
+    kuu, kuv, kvv = buu - b0uu, 0.5 * (buv + bvu - b0uv - b0vu), bvv - b0vv
+    nuu, nuv, nvv = _constitutive(euu, euv, evv, Auu, Auv, Avv, nu, cs * h)
+    muu, muv, mvv = _constitutive(kuu, kuv, kvv, Auu, Auv, Avv, nu, cs * h * h * h / 12.0)
+    U = 0.5 * J * (nuu * euu + 2.0 * nuv * euv + nvv * evv + muu * kuu + 2.0 * muv * kuv + mvv * kvv)
+    if want:
+        for i in range(2):
+            Q[0, i] = J * (nuu * X[0, i] + nuv * X[1, i])
+            Q[1, i] = J * (nuv * X[0, i] + nvv * X[1, i])
+        Q[0, 0] += J * (muu * X[0, 4] + muv * X[1, 4])
+        Q[0, 1] -= J * (muu * X[0, 3] + muv * X[1, 3])
+        Q[1, 0] += J * (muv * X[0, 4] + mvv * X[1, 4])
+        Q[1, 1] -= J * (muv * X[0, 3] + mvv * X[1, 3])
+        Q[0, 3] = -J * (muu * X[0, 1] + muv * X[1, 1])
+        Q[0, 4] = J * (muu * X[0, 0] + muv * X[1, 0])
+        Q[1, 3] = -J * (muv * X[0, 1] + mvv * X[1, 1])
+        Q[1, 4] = J * (muv * X[0, 0] + mvv * X[1, 0])
+        # the constrained θ_α,3 and the drill π_α,3 carry no constitutive stress
+        Q[0, 2] = 0.0
+        Q[1, 2] = 0.0
+        Q[0, 5] = 0.0
+        Q[1, 5] = 0.0
+    return U
+
+
+@njit(cache=True)
+def koiter_energy(X, X0, p):  # pragma: no cover - compiled
+    """Koiter energy density U(X; X₀) per unit chart area; ``p = (E, ν, h)``; X, X₀ ``(2, 6)``."""
+    Q = np.empty((1, 1))
+    return _koiter(X, X0, p, Q, False)
+
+
+@njit(cache=True)
+def koiter_stress(X, X0, p, Q):  # pragma: no cover - compiled
+    """Writes Q = ∂U/∂X ``(2, 6)`` (see :func:`koiter_energy`)."""
+    _koiter(X, X0, p, Q, True)
+
+
+@njit(cache=True)
+def _fields(X, X0, p, out):  # pragma: no cover - compiled
+    """(n^uu, n^uv, n^vv, m^uu, m^uv, m^vv, K, H, U_bending, U_membrane) at one point, ``out`` (10,)."""
+    E, nu, h = p[0], p[1], p[2]
+    cs = E / (1.0 - nu * nu)
+    a0 = np.zeros(3)
+    a = np.zeros(3)
+    for i in range(2):
+        a0[0] += X0[0, i] * X0[0, i]
+        a0[1] += X0[0, i] * X0[1, i]
+        a0[2] += X0[1, i] * X0[1, i]
+        a[0] += X[0, i] * X[0, i]
+        a[1] += X[0, i] * X[1, i]
+        a[2] += X[1, i] * X[1, i]
+    det0 = a0[0] * a0[2] - a0[1] * a0[1]
+    J = np.sqrt(det0)
+    Auu, Auv, Avv = a0[2] / det0, -a0[1] / det0, a0[0] / det0
+    b = np.empty((2, 2))
+    b0 = np.empty((2, 2))
+    for i in range(2):
+        for j in range(2):
+            b[i, j] = X[i, 0] * X[j, 4] - X[i, 1] * X[j, 3]
+            b0[i, j] = X0[i, 0] * X0[j, 4] - X0[i, 1] * X0[j, 3]
+    euu, euv, evv = 0.5 * (a[0] - a0[0]), 0.5 * (a[1] - a0[1]), 0.5 * (a[2] - a0[2])
+    kuu, kuv, kvv = b[0, 0] - b0[0, 0], 0.5 * (b[0, 1] + b[1, 0] - b0[0, 1] - b0[1, 0]), b[1, 1] - b0[1, 1]
+    n = _constitutive(euu, euv, evv, Auu, Auv, Avv, nu, cs * h)
+    m = _constitutive(kuu, kuv, kvv, Auu, Auv, Avv, nu, cs * h ** 3 / 12.0)
+    out[0], out[1], out[2] = n
+    out[3], out[4], out[5] = m
+    det = a[0] * a[2] - a[1] * a[1]
+    bs = 0.5 * (b[0, 1] + b[1, 0])
+    out[6] = (b[0, 0] * b[1, 1] - bs * bs) / det
+    out[7] = 0.5 * (a[2] * b[0, 0] - 2.0 * a[1] * bs + a[0] * b[1, 1]) / det
+    out[8] = 0.5 * J * (m[0] * kuu + 2.0 * m[1] * kuv + m[2] * kvv)
+    out[9] = 0.5 * J * (n[0] * euu + 2.0 * n[1] * euv + n[2] * evv)
+
+
+@njit(cache=True)
+def _fields_batch(X, X0, p, out):  # pragma: no cover - compiled
+    for i in range(X.shape[0]):
+        _fields(X[i], X0[i], p, out[i])
+
+
+# ====================================================================== medium
+class KirchhoffLove(CosseratSurface):
+    """Kirchhoff–Love (Koiter) plate and shell on SE(3), d = 2, adapted to its Gauss map
+    (paper §VII.B): the transverse shear strains θ_α,3 are held at zero.
+
+    Parameters
+    ----------
+    E : float
+        Young's modulus (> 0), default 1.
+    poisson : float
+        Poisson ratio ν, in (−1, 0.5), default 0.3.
+    thickness : float
+        Shell thickness h (> 0), default 0.1.
+    density : float
+        Mass density ρ (> 0), default 1 (the kinetic metric; unused by the statics).
+    rest_curvature : sequence of 2 floats
+        Constant rest curvatures (k_u, k_v) of the chart axes (a cylinder of radius 1/k): at most
+        one may be non-zero.  Other stress-free shapes are given as ``Problem(reference=Φ_ref)``
+        with frames adapted to the reference surface (e₃ its normal).
+
+    Notes
+    -----
+    ``X``, ``Q`` have shape ``[..., 2, 6]``, components ``(θ_α; π_α)``.  Energy, stress and
+    conventions: see the module docstring.  Initial states (``flat``, ``cylinder``,
+    ``surface``) and loads (``gravity``, ``dead-load``, ``director-pressure`` — here a pressure
+    along the normal —, ``simple-support``) are those of ``cosserat-surface``; a ``surface``
+    with given ``frames`` must have e₃ along the normal.
+    """
+
+    name: ClassVar[str] = "kirchhoff-love"
+    output_fields: ClassVar[dict[str, tuple[str, str]]] = {
+        "normal_x": ("unit normal e3 (Gauss map), x component", "1"),
+        "normal_y": ("unit normal e3 (Gauss map), y component", "1"),
+        "normal_z": ("unit normal e3 (Gauss map), z component", "1"),
+        "membrane_force_uu": ("membrane force n^uu (thickness-integrated, contravariant)", "N m-1"),
+        "membrane_force_uv": ("membrane force n^uv (thickness-integrated, contravariant)", "N m-1"),
+        "membrane_force_vv": ("membrane force n^vv (thickness-integrated, contravariant)", "N m-1"),
+        "bending_moment_uu": ("bending moment m^uu (thickness-integrated, contravariant)", "N"),
+        "bending_moment_uv": ("bending moment m^uv (thickness-integrated, contravariant)", "N"),
+        "bending_moment_vv": ("bending moment m^vv (thickness-integrated, contravariant)", "N"),
+        "gauss_curvature": ("Gauss curvature K = det b / det a", "m-2"),
+        "mean_curvature": ("mean curvature H = tr(a^-1 b)/2, positive where the surface bends away from e3",
+                           "m-1"),
+        "bending_energy_density": ("Koiter bending energy per unit chart area", "J m-2"),
+        "membrane_energy_density": ("Koiter membrane energy per unit chart area", "J m-2"),
+    }
+
+    def __init__(self, E: float = 1.0, poisson: float = 0.3, thickness: float = 0.1, density: float = 1.0,
+                 rest_curvature: Any = (0.0, 0.0)):
+        super().__init__(E=E, poisson=poisson, thickness=thickness, density=density, shear_correction=1.0,
+                         rest_curvature=rest_curvature)
+
+    # ------------------------------------------------------------------ contract
+    def parameters(self) -> dict[str, Any]:
+        """Constructor keywords (JSON-serialisable); ``KirchhoffLove(**parameters())`` rebuilds it."""
+        return {"E": self.E, "poisson": self.nu, "thickness": self.h, "density": self.rho,
+                "rest_curvature": self.k0.tolist()}
+
+    def constrained_strains(self) -> tuple[np.ndarray, np.ndarray]:
+        """θ_u,3 = θ_v,3 = 0: component 2 of X (the e₃ component of θ_α) held at 0 on every edge
+        of both axes — e₃ is the Gauss map (paper §VII.B); the multipliers are the transverse
+        shear forces."""
+        return np.array([2]), np.array([0.0])
+
+    def point_kernels(self) -> MediumKernels:
+        return MediumKernels(koiter_energy, koiter_stress, np.array([self.E, self.nu, self.h]))
+
+    def planar_reduction(self) -> None:
+        """None: a shell has no planar twin."""
+        return None
+
+    # ------------------------------------------------------------------ initial states
+    def _surface(self, grid, position=None, frames=None):
+        pos, E = super()._surface(grid, position=position, frames=frames)
+        if frames is not None:  # the frames must be adapted: e₃ normal to the surface
+            u, v = self._mesh(grid)
+            eps = 1e-6 * max(grid.length)
+            ru = (np.asarray(position(u + eps, v)) - np.asarray(position(u - eps, v))) / (2 * eps)
+            rv = (np.asarray(position(u, v + eps)) - np.asarray(position(u, v - eps))) / (2 * eps)
+            e3 = E[..., :, 2]
+            tilt = np.maximum(np.abs(np.sum(e3 * ru, axis=-1)) / np.linalg.norm(ru, axis=-1),
+                              np.abs(np.sum(e3 * rv, axis=-1)) / np.linalg.norm(rv, axis=-1))
+            if np.max(tilt) > 1e-6:
+                raise ValueError(f"frames: e3 must be the unit normal of the surface (Kirchhoff–Love adaptation), "
+                                 f"but |e3·r_α|/|r_α| reaches {np.max(tilt):.3e}")
+        return pos, E
+
+    # ------------------------------------------------------------------ picture
+    @classmethod
+    def draw(cls, ds: Any, fig: Any) -> bool:
+        """The last configuration of a result (run, equilibrium or continuation path) twice in
+        3D, coloured by the mean curvature H and by the Gauss curvature K (the first
+        configuration as a grey wireframe); False (the generic picture) when the file holds no
+        surface or no curvature fields."""
+        from cartan.plotting import _draw_surface_panel, _is_surface, _points
+
+        pts = _points(ds)
+        if not _is_surface(pts) or "mean_curvature" not in ds or "gauss_curvature" not in ds:
+            return False
+        _draw_surface_panel(fig, (1, 2, 1), ds, pts, "mean_curvature", "mean curvature H")
+        _draw_surface_panel(fig, (1, 2, 2), ds, pts, "gauss_curvature", "Gauss curvature K")
+        return True
+
+    # ------------------------------------------------------------------ outputs
+    def fields(self, X: np.ndarray, X0: np.ndarray | None = None) -> np.ndarray:
+        """Resultants, curvatures and energy densities at strains X ``[..., 2, 6]`` (rest strain
+        X0, default the medium's): ``[..., 10]`` = (n^uu, n^uv, n^vv, m^uu, m^uv, m^vv, K, H,
+        bending energy density, membrane energy density)."""
+        X = np.asarray(X, dtype=float)
+        X0 = self.rest_strain() if X0 is None else np.asarray(X0, dtype=float)
+        lead = X.shape[:-2]
+        Xf = np.ascontiguousarray(X.reshape(-1, 2, 6))
+        X0f = np.ascontiguousarray(np.broadcast_to(X0, X.shape).reshape(-1, 2, 6))
+        out = np.empty((Xf.shape[0], 10))
+        _fields_batch(Xf, X0f, np.array([self.E, self.nu, self.h]), out)
+        return out.reshape(*lead, 10)
+
+    def resultants(self, X: np.ndarray, X0: np.ndarray | None = None) -> np.ndarray:
+        """(n^uu, n^uv, n^vv, 0, 0, m^uu, m^uv, m^vv, K, H) ``[..., 10]``, the layout of
+        :meth:`CosseratSurface.resultants`; the transverse shear force is a reaction (the
+        statics' ``constraint_force``), shown here as 0."""
+        f = self.fields(X, X0)
+        z = np.zeros(f.shape[:-1] + (2,))
+        return np.concatenate([f[..., :3], z, f[..., 3:8]], axis=-1)
+
+    def outputs(self, q: np.ndarray, X: np.ndarray, N: np.ndarray, grid: Any) -> dict[str, np.ndarray]:
+        """Normal, resultants, curvatures and energy densities at the nodes (relative to the
+        medium's rest strain)."""
+        f = self.fields(X)
+        names = ["membrane_force_uu", "membrane_force_uv", "membrane_force_vv", "bending_moment_uu",
+                 "bending_moment_uv", "bending_moment_vv", "gauss_curvature", "mean_curvature",
+                 "bending_energy_density", "membrane_energy_density"]
+        out = {name: f[..., i] for i, name in enumerate(names)}
+        out["normal_x"], out["normal_y"], out["normal_z"] = q[..., 1, 3], q[..., 2, 3], q[..., 3, 3]
+        return out
+
