@@ -45,6 +45,16 @@ TOL = 1e-12
 #: one force evaluation or one drift: a few hundred operations in another order
 OP_TOL = 1e-13
 SLOW = pytest.mark.slow
+#: integrators the fast suite runs per module (each loop of each module compiles for 10-45 s on a
+#: fresh cache): the toy rod on SO(2) the Euler family only, the Cosserat rod on SE(3) and the
+#: sigma model on S² the leapfrog and the RKMK loops; every other pair is in ``make test-slow``
+FAST_TOY = {"lie-euler"}
+FAST_ROD = {"lie-verlet", "overdamped-1", "overdamped-2", "rkmk4"}
+
+
+def _fast_only(names, fast):
+    """``names`` as parameters, those outside ``fast`` marked slow."""
+    return [n if n in fast else pytest.param(n, marks=SLOW) for n in names]
 
 #: (integrator factory, Δt, steps): Δt inside each method's stable range for the toy rods
 #: (forward-euler is unstable at every Δt: a few small steps only)
@@ -214,8 +224,7 @@ FAST_GRID_CASES = ("sigma-cylinder-fd4",)
 # ---------------------------------------------------------------------------- d = 1: agreement
 @pytest.mark.parametrize("group", GROUPS)
 @pytest.mark.parametrize(("kind", "derivative"), CASES, ids=CASE_IDS)
-@pytest.mark.parametrize("name", [pytest.param(n, marks=SLOW) if n == "forward-euler" else n
-                                  for n in sorted(INTEGRATORS)])
+@pytest.mark.parametrize("name", _fast_only(sorted(INTEGRATORS), FAST_TOY))
 def test_toy_rods_agree_with_python(name, kind, derivative, group):
     make, dt, nsteps = INTEGRATORS[name]
     scheme, (ref, ri), (fast, fi) = run_both(toy_problem(group, kind), make, dt, nsteps, derivative=derivative)
@@ -230,8 +239,7 @@ def test_toy_rods_agree_with_python(name, kind, derivative, group):
 
 
 @pytest.mark.parametrize("planar", [False, pytest.param(True, marks=SLOW)], ids=["SE3", "SE2"])
-@pytest.mark.parametrize("name", [pytest.param(n, marks=SLOW) if n == "forward-euler" else n
-                                  for n in sorted(INTEGRATORS)])
+@pytest.mark.parametrize("name", _fast_only(sorted(INTEGRATORS), FAST_ROD))
 def test_rods_under_gravity_with_fd4(name, planar):
     """The Cosserat rod with a dead end load, gravity and damping, ``fd4`` (its ``fd2`` runs are
     in ``tests/test_compiled_paths.py``)."""
@@ -241,7 +249,7 @@ def test_rods_under_gravity_with_fd4(name, planar):
     assert (fi.nstep, fi.nforce) == (ri.nstep, ri.nforce)
 
 
-@pytest.mark.parametrize("name", ["lie-verlet", "lie-euler", "overdamped-1", "overdamped-2"])
+@pytest.mark.parametrize("name", _fast_only(["lie-verlet", "lie-euler", "overdamped-1", "overdamped-2"], FAST_ROD))
 def test_blocks_and_caches_match_the_step_loop(name):
     """Split into blocks, the compiled path counts like the Python path (first-same-as-last
     force, cached overdamped velocity), gives the bits of one call, and hands its caches over to
@@ -260,7 +268,7 @@ def test_blocks_and_caches_match_the_step_loop(name):
     assert fi.nforce == ri.nforce
 
 
-@pytest.mark.parametrize("name", ["lie-euler", "overdamped-1", pytest.param("overdamped-2", marks=pytest.mark.slow)])
+@pytest.mark.parametrize("name", _fast_only(["lie-euler", "overdamped-1", "overdamped-2"], {"overdamped-1"}))
 def test_fast_spin_agrees(name):
     """Turns of 0.3 rad per step and nodes at rest (the clamp) in the same run, for the
     integrators ``tests/test_compiled_paths.py`` does not spin (for the overdamped flows, a
@@ -326,8 +334,7 @@ def test_coupled_stiffness():
 
 # ---------------------------------------------------------------------------- d = 2, 3: agreement
 @pytest.mark.parametrize("case", [c if c in FAST_GRID_CASES else pytest.param(c, marks=SLOW) for c in GRID_CASES])
-@pytest.mark.parametrize("name", [pytest.param(n, marks=SLOW) if n == "forward-euler" else n
-                                  for n in sorted(GRID_INTEGRATORS)])
+@pytest.mark.parametrize("name", _fast_only(sorted(GRID_INTEGRATORS), FAST_ROD))
 def test_grids_agree_with_python(name, case):
     make, dt, nsteps = GRID_INTEGRATORS[name]
     build, derivative = GRID_CASES[case]
@@ -409,7 +416,8 @@ def test_force_and_drift_match_the_scheme(case):
 
 
 # ---------------------------------------------------------------------------- stopping, declining
-@pytest.mark.parametrize("make", [LieVerlet, LieEuler, RKMK4], ids=["lie-verlet", "lie-euler", "rkmk4"])
+@pytest.mark.parametrize("make", [LieVerlet, pytest.param(LieEuler, marks=SLOW), RKMK4],
+                         ids=["lie-verlet", "lie-euler", "rkmk4"])
 @pytest.mark.parametrize("grid", ["rod", "sigma-d2"])
 def test_kinetic_limit_stops_after_the_failing_step(grid, make):
     problem = rod_problem() if grid == "rod" else GRID_CASES["sigma-cylinder-fd4"][0]()

@@ -171,7 +171,9 @@ def solid_run() -> xr.Dataset:
     problem = cartan.Problem(solid, grid, solid.initial_state(grid, "undeformed"),
                              boundaries={"u-start": cartan.Clamped(),
                                          "u-end": cartan.Free(load=[-0.2, 0.0, 0.0, 0.0, 0.0, 0.0])})
-    return cartan.simulate(problem, integrator="lie-verlet", dt=0.02, t_end=0.6, save_every=10, progress=False)
+    # the reference path: the picture is tested here, the compiled loop by the solid's own tests
+    return cartan.simulate(problem, integrator="lie-verlet", dt=0.02, t_end=0.6, save_every=10, progress=False,
+                           compiled=False)
 
 
 def test_a_cosserat_solid_run_is_drawn_as_a_block(solid_run, tmp_path):
@@ -221,7 +223,9 @@ def string_run() -> xr.Dataset:
     grid = cartan.Grid(32, length=2 * math.pi, periodic=True)
     problem = cartan.Problem(rod, grid, rod.initial_state(grid, "loop"))
     h = grid.spacing[0]
-    return cartan.simulate(problem, integrator="lie-verlet", dt=0.5 * h, t_end=8 * h, save_every=2, progress=False)
+    # the reference path: the picture is tested here, the compiled loop by the string's own tests
+    return cartan.simulate(problem, integrator="lie-verlet", dt=0.5 * h, t_end=8 * h, save_every=2, progress=False,
+                           compiled=False)
 
 
 def test_the_relativistic_string_draws_its_worldlines(string_run, tmp_path, monkeypatch):

@@ -134,6 +134,8 @@ def test_cantilever_reduced_equals_full(cantilever_runs):
     assert float(np.ptp(full.position.values[:, -1, 1])) > 1e-3  # the tip moved in the plane
 
 
+@pytest.mark.slow  # compiles the implicit blocks on SE(3) and SE(2) (60-90 s on a fresh cache); the
+# cantilever above keeps the reduction's equality in the fast suite
 def test_ring_reduced_equals_full(ring_runs):
     reduced, full = ring_runs
     assert_same_run(reduced, full)

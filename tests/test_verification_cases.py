@@ -41,7 +41,10 @@ RUNS = [(name, integ, scheme) for name, case in sorted(CASES.items()) if case.ki
 #: every level of these takes several seconds (continuation paths at four resolutions)
 SLOW_ALL_LEVELS = {"rod-euler-buckling", "rod-cantilever-elastica", "plate-buckling-column",
                    "plate-buckling-wide-column", "plate-navier-thick", "plate-navier-thin", "solid-uniaxial-stress",
-                   "plate-buckling-column-kl"}
+                   "plate-buckling-column-kl", "shell-scordelis-lo", "shell-pinched-cylinder"}
+#: cases whose quick levels alone take tens of seconds (the shells' grids of 33² – 65² nodes):
+#: their coarse levels run in the fast suite in their own files (tests/test_cosserat_surface_shells.py)
+SLOW_QUICK = {"shell-scordelis-lo", "shell-pinched-cylinder"}
 
 
 def _slow_poincare(run: tuple) -> bool:
@@ -51,7 +54,8 @@ def _slow_poincare(run: tuple) -> bool:
     return run[0].startswith("relativistic-") and run[1:] != ("lie-verlet", "lattice")
 
 
-QUICK_RUNS = [pytest.param(*run, marks=pytest.mark.slow) if _slow_poincare(run) else run for run in RUNS]
+QUICK_RUNS = [pytest.param(*run, marks=pytest.mark.slow) if _slow_poincare(run) or run[0] in SLOW_QUICK else run
+              for run in RUNS]
 ALL_LEVEL_RUNS = [pytest.param(*run, marks=pytest.mark.slow) if run[0] in SLOW_ALL_LEVELS or _slow_poincare(run)
                   else run for run in RUNS]
 

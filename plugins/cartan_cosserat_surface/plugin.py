@@ -21,3 +21,4 @@ def cartan_register_scenes(register):
 @cartan.hookimpl
 def cartan_register_cases(register):
     register_cases(register, f"{__package__}.cases")
+    register_cases(register, f"{__package__}.cases_shells")

@@ -51,7 +51,8 @@ import cartan
 from cartan.medium import KernelMedium, MediumKernels, check_finite, check_positive
 from cartan.problem import ConstantFieldPotential, InitialState, PotentialLoad, UniformForce
 
-__all__ = ["CosseratSurface", "PenaltySupport", "SurfaceGravity", "surface_energy", "surface_stress"]
+__all__ = ["CosseratSurface", "PenaltySupport", "SurfaceGravity", "SymmetrySupport", "surface_energy",
+           "surface_stress"]
 
 
 # ====================================================================== point kernels
@@ -278,6 +279,88 @@ class PenaltySupport(PotentialLoad):
                 "director_stiffness": self.s}
 
 
+class SymmetrySupport(PenaltySupport):
+    """A symmetry plane (or a plane support) along edges: ``U = ½ k (n·(x − x̄))² + ½ s (n·(p − p̄))²``
+    per unit chart area on the nodes of the listed edges, 0 elsewhere.
+
+    n is a fixed spatial unit vector, x a node's position and p = R e₃ its director; x̄ and p̄ the
+    held values (those of the first configuration the load sees, or set by :meth:`hold`).  On
+    a symmetry plane through the held nodes with normal n, a mirror-symmetric deformation has
+    n·u = 0 and keeps the director in the plane (n·p = 0 when p̄ lies in it): the rotation is
+    about n, so the tangential moment and the transverse force through the plane vanish by
+    symmetry and need no condition.  The drill is a gauge (§VI.B), so holding the director holds
+    every rotation a symmetry plane constrains.  A support: not scaled by the load parameter
+    λ (:attr:`cartan.problem.Load.scaled` False); a penalty, as :class:`PenaltySupport`.
+
+    Parameters
+    ----------
+    edges : sequence of str
+        Ends ``"u-start"``, ``"u-end"``, ``"v-start"``, ``"v-end"``.
+    normal : str or array_like, shape ``(3,)``
+        ``"x"``, ``"y"``, ``"z"`` or a non-zero spatial vector (normalised).
+    position_stiffness : float
+        k ≥ 0, per unit chart area.
+    director_stiffness : float
+        s ≥ 0, per unit chart area.
+    """
+
+    AXES: ClassVar[dict[str, tuple[float, float, float]]] = {"x": (1.0, 0.0, 0.0), "y": (0.0, 1.0, 0.0),
+                                                             "z": (0.0, 0.0, 1.0)}
+
+    def __init__(self, edges: Any = PenaltySupport.EDGES, normal: Any = "x", position_stiffness: float = 1.0,
+                 director_stiffness: float = 1.0):
+        if isinstance(normal, str):
+            if normal not in self.AXES:
+                raise ValueError(f"normal must be 'x', 'y', 'z' or a non-zero vector (3,), got {normal!r}")
+            n = np.array(self.AXES[normal])
+        else:
+            n = check_finite("normal", normal, (3,))
+            if not np.linalg.norm(n) > 0.0:
+                raise ValueError(f"normal must be 'x', 'y', 'z' or a non-zero vector (3,), got {normal!r}")
+        self.normal = n / np.linalg.norm(n)
+        k = float(check_positive("position_stiffness", position_stiffness, allow_zero=True, shape=()))
+        super().__init__(edges, np.zeros(3), director_stiffness)
+        self.kn = k
+
+    def hold(self, Phi: np.ndarray) -> SymmetrySupport:
+        """Hold the positions and directors of ``Phi`` ``(nu, nv, 4, 4)`` (returns self)."""
+        Phi = np.asarray(Phi, dtype=float)
+        shape = Phi.shape[:-2]
+        if len(shape) != 2:
+            raise ValueError(f"SymmetrySupport needs a d = 2 grid, got node shape {shape}")
+        mask = np.zeros(shape)
+        for e in self.edges:
+            idx = [slice(None), slice(None)]
+            idx[0 if e[0] == "u" else 1] = 0 if e.endswith("start") else -1
+            mask[tuple(idx)] = 1.0
+        nn = np.outer(self.normal, self.normal)
+        self._held = (mask[..., None, None] * (self.kn * nn), mask[..., None, None] * (self.s * nn),
+                      Phi[..., 1:, 0].copy(), Phi[..., 1:, 3].copy())
+        return self
+
+    def _fields(self, q: np.ndarray) -> tuple[np.ndarray, ...]:
+        if self._held is None or self._held[0].shape[:-2] != q.shape[:-2]:
+            self.hold(q)
+        return self._held
+
+    def potential_energy(self, q: np.ndarray) -> np.ndarray:
+        K, S, x, p = self._fields(q)
+        dx = q[..., 1:, 0] - x
+        dp = q[..., 1:, 3] - p
+        return 0.5 * (np.einsum("...i,...ij,...j->...", dx, K, dx) + np.einsum("...i,...ij,...j->...", dp, S, dp))
+
+    def potential_gradient(self, q: np.ndarray) -> np.ndarray:
+        K, S, x, p = self._fields(q)
+        grad = np.zeros(np.shape(q))
+        grad[..., 1:, 0] = np.einsum("...ij,...j->...i", K, q[..., 1:, 0] - x)
+        grad[..., 1:, 3] = np.einsum("...ij,...j->...i", S, q[..., 1:, 3] - p)
+        return grad
+
+    def to_dict(self) -> dict[str, Any]:
+        return {"kind": "symmetry", "edges": list(self.edges), "normal": self.normal.tolist(),
+                "position_stiffness": self.kn, "director_stiffness": self.s}
+
+
 # ====================================================================== medium
 def _frames_from_tangents(ru: np.ndarray, rv: np.ndarray) -> np.ndarray:
     """Frames ``[..., 3, 3]`` (columns e₁, e₂, e₃): e₁ ∥ r_u, e₃ ∥ r_u × r_v (the coordinate gauge)."""
@@ -322,7 +405,8 @@ class CosseratSurface(KernelMedium):
     name: ClassVar[str] = "cosserat-surface"
     material_dim: ClassVar[int] = 2
     initial_kinds: ClassVar[tuple[str, ...]] = ("flat", "cylinder", "surface")
-    load_kinds: ClassVar[tuple[str, ...]] = ("gravity", "dead-load", "director-pressure", "simple-support")
+    load_kinds: ClassVar[tuple[str, ...]] = ("gravity", "dead-load", "director-pressure", "simple-support",
+                                             "symmetry")
     output_fields: ClassVar[dict[str, tuple[str, str]]] = {
         "director_x": ("director p = R e3, x component", "1"),
         "director_y": ("director p = R e3, y component", "1"),
@@ -397,7 +481,8 @@ class CosseratSurface(KernelMedium):
         a force ``pressure`` per unit chart area along the director, a follower load),
         ``"dead-load"`` (``force``: a spatially fixed force (3,) per unit chart area) or
         ``"simple-support"`` (:class:`PenaltySupport`: ``edges``, ``position_stiffness``,
-        ``director_stiffness``)."""
+        ``director_stiffness``) or ``"symmetry"`` (:class:`SymmetrySupport`: ``edges``, ``normal``,
+        ``position_stiffness``, ``director_stiffness``)."""
         if kind == "gravity":
             if set(params) != {"g"}:
                 raise ValueError(f"load 'gravity' takes exactly the parameter 'g', got {sorted(params)}")
@@ -408,6 +493,8 @@ class CosseratSurface(KernelMedium):
             return ConstantFieldPotential(check_finite("force", params["force"], (3,)), 1.0)
         if kind == "simple-support":
             return PenaltySupport(**params)
+        if kind == "symmetry":
+            return SymmetrySupport(**params)
         if kind == "director-pressure":
             if set(params) != {"pressure"}:
                 raise ValueError(
