@@ -526,7 +526,7 @@ def test_rod_under_gravity_runs_compiled_and_agrees(scheme, generated_runs):
 
 
 # ---------------------------------------------------------------------------- d = 2
-@pytest.mark.parametrize("name", ["lie-verlet", "rkmk4"])
+@pytest.mark.parametrize("name", ["lie-verlet", pytest.param("rkmk4", marks=pytest.mark.slow)])
 def test_sigma_model_d2_lattice_agrees(name):
     """The sigma model on S² on a 12 × 9 cylinder with a clamped face and a follower face
     load: the root frame only, every edge array agrees (Δt = 1e-3 is a Courant number of 0.01)."""

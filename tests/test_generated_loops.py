@@ -193,6 +193,8 @@ def test_reference_configuration_is_stress_free():
     assert np.max(np.abs(Lattice(rod_ref).internal_force(Lattice(rod_ref).initial_state()))) <= 1e-12
 
 
+@pytest.mark.slow  # the coupled quartic toy's own module (20-30 s on a fresh cache); corner energies of
+# coupled SE(3) media stay in the fast suite through the shell and the solid
 def test_lie_verlet_conserves_the_corner_energy_to_second_order():
     """Free sheet (no loads): the energy error of lie-verlet falls 4× when Δt halves."""
     problem = _sheet(True)
@@ -339,6 +341,8 @@ def test_indefinite_metric_runs_compiled_and_agrees(integrators):
     _compare(problem, integrators, dt=1e-3, t_end=0.01)
 
 
+@pytest.mark.slow  # the Poincaré toy's own module (20-30 s on a fresh cache); the indefinite metric stays
+# in the fast suite through the relativistic string (tests/test_relativistic_rod.py)
 def test_indefinite_metric_lie_verlet_energy_second_order():
     """The energy K + V (both indefinite) of lie-verlet errs by O(Δt²): 4× less per halving."""
     problem = _indefinite_problem()

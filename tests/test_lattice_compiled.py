@@ -636,9 +636,9 @@ SIGMA_INTEGRATORS = {
     "overdamped-2": (lambda: Overdamped(order=2), 2e-5, 15, True),
 }
 #: the first-order integrators' loops (each a further compile of a minute under load) in ``make test-slow``
-#: the d = 2 sigma model keeps lie-verlet and rkmk4 in the fast suite (the other loops of its
+#: the d = 2 sigma model keeps lie-verlet in the fast suite (the other loops of its
 #: module compile for 10-25 s each on a fresh cache)
-SLOW_SIGMA = {"forward-euler", "overdamped-2", "lie-euler", "overdamped-1"}
+SLOW_SIGMA = {"forward-euler", "overdamped-2", "lie-euler", "overdamped-1", "rkmk4"}
 
 
 @pytest.mark.parametrize("periodic", [(True, True), (False, False), (True, False)], ids=["torus", "open", "cylinder"])

@@ -339,6 +339,7 @@ def test_documented_dask_commands(tmp_path):
                 proc.kill()
 
 
+@pytest.mark.slow  # starts a dask cluster and kills a worker (≈ 11 s)
 def test_local_cluster_worker_killed(tmp_path):
     distributed = pytest.importorskip("distributed")
     case = SlowSpinningArc()

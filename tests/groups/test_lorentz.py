@@ -476,6 +476,8 @@ def test_generic_expm_matches_scipy_on_poincare():
     assert rel(scipy.linalg.expm(poincare_matrix(xi)), mp_expm(poincare_matrix(xi))) <= 1e-13
 
 
+@pytest.mark.slow  # compiles the Poincaré dexp⁻¹ point kernel on its own (≈ 25 s on a fresh cache); the
+# relativistic string's loops run the same kernel in the fast suite
 @pytest.mark.parametrize("z", [0.0, 1e-7, 5e-3, 0.05, 1.5])
 def test_poincare_dexp_inv_and_E_point_kernels(z):
     """The compiled dexp⁻¹, 𝓔, dexp⁻¹ᵀ pair, Ad_gᵀ and log of the Poincaré group against the numpy
