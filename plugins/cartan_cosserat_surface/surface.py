@@ -51,8 +51,8 @@ import cartan
 from cartan.medium import KernelMedium, MediumKernels, check_finite, check_positive
 from cartan.problem import ConstantFieldPotential, InitialState, PotentialLoad, UniformForce
 
-__all__ = ["CosseratSurface", "PenaltySupport", "SurfaceGravity", "SymmetrySupport", "surface_energy",
-           "surface_stress"]
+__all__ = ["CosseratSurface", "PenaltySupport", "SurfaceGravity", "SymmetrySupport", "shell_point",
+           "surface_energy", "surface_stress"]
 
 
 # ====================================================================== point kernels
@@ -67,22 +67,33 @@ def _constitutive(xuu, xuv, xvv, Auu, Auv, Avv, nu, c):  # pragma: no cover - co
 
 
 @njit(cache=True)
-def _surface(X, X0, p, Q, want):  # pragma: no cover - compiled
-    """Energy density at one point; writes Q = ∂U/∂X when ``want`` (see the module docstring)."""
-    E, nu, h, ks = p[0], p[1], p[2], p[3]
+def shell_point(X, X0, p, Q, want, nm, ks):  # pragma: no cover - compiled
+    """Energy density of a first-order shell at one point; writes Q = ∂U/∂X when ``want``.
+
+    The membrane strain is half the change of the metric θ_a · θ_b over the first ``nm``
+    components of θ (3: the Naghdi shell's whole θ; 2: the tangent components of a
+    Kirchhoff–Love surface, whose θ_a,3 is held at zero); the transverse shear energy has the
+    factor ``ks`` (κ_s; 0: none).  ``p = (E, ν, h, …)``; X, X₀ ``(2, 6)``; Q ``(2, 6)``, the
+    drill components π_a,3 and, with ``nm = 2``, θ_a,3 without constitutive stress (see the
+    module docstring).
+    """
+    E, nu, h = p[0], p[1], p[2]
     cs = E / (1.0 - nu * nu)
     G = 0.5 * E / (1.0 + nu)
     # rest metric, its inverse and the area element
-    a0uu = X0[0, 0] * X0[0, 0] + X0[0, 1] * X0[0, 1] + X0[0, 2] * X0[0, 2]
-    a0uv = X0[0, 0] * X0[1, 0] + X0[0, 1] * X0[1, 1] + X0[0, 2] * X0[1, 2]
-    a0vv = X0[1, 0] * X0[1, 0] + X0[1, 1] * X0[1, 1] + X0[1, 2] * X0[1, 2]
+    a0uu, a0uv, a0vv = 0.0, 0.0, 0.0
+    auu, auv, avv = 0.0, 0.0, 0.0
+    for k in range(nm):
+        a0uu += X0[0, k] * X0[0, k]
+        a0uv += X0[0, k] * X0[1, k]
+        a0vv += X0[1, k] * X0[1, k]
+        auu += X[0, k] * X[0, k]
+        auv += X[0, k] * X[1, k]
+        avv += X[1, k] * X[1, k]
     det0 = a0uu * a0vv - a0uv * a0uv
     J = np.sqrt(det0)
     Auu, Auv, Avv = a0vv / det0, -a0uv / det0, a0uu / det0
     # membrane strain
-    auu = X[0, 0] * X[0, 0] + X[0, 1] * X[0, 1] + X[0, 2] * X[0, 2]
-    auv = X[0, 0] * X[1, 0] + X[0, 1] * X[1, 1] + X[0, 2] * X[1, 2]
-    avv = X[1, 0] * X[1, 0] + X[1, 1] * X[1, 1] + X[1, 2] * X[1, 2]
     euu, euv, evv = 0.5 * (auu - a0uu), 0.5 * (auv - a0uv), 0.5 * (avv - a0vv)
     # bending: b_ab = θ_a · d_b with d_b = (π_b2, −π_b1, 0)
     buu = X[0, 0] * X[0, 4] - X[0, 1] * X[0, 3]
@@ -94,18 +105,20 @@ def _surface(X, X0, p, Q, want):  # pragma: no cover - compiled
     b0vu = X0[1, 0] * X0[0, 4] - X0[1, 1] * X0[0, 3]
     b0vv = X0[1, 0] * X0[1, 4] - X0[1, 1] * X0[1, 3]
     kuu, kuv, kvv = buu - b0uu, 0.5 * (buv + bvu - b0uv - b0vu), bvv - b0vv
-    # transverse shear
-    gu, gv = X[0, 2] - X0[0, 2], X[1, 2] - X0[1, 2]
     nuu, nuv, nvv = _constitutive(euu, euv, evv, Auu, Auv, Avv, nu, cs * h)
     muu, muv, mvv = _constitutive(kuu, kuv, kvv, Auu, Auv, Avv, nu, cs * h * h * h / 12.0)
-    kg = ks * G * h
-    qu, qv = kg * (Auu * gu + Auv * gv), kg * (Auv * gu + Avv * gv)
-    U = 0.5 * J * (nuu * euu + 2.0 * nuv * euv + nvv * evv + qu * gu + qv * gv
-                   + muu * kuu + 2.0 * muv * kuv + mvv * kvv)
+    U = 0.5 * J * (nuu * euu + 2.0 * nuv * euv + nvv * evv + muu * kuu + 2.0 * muv * kuv + mvv * kvv)
+    qu, qv = 0.0, 0.0
+    if ks != 0.0:  # transverse shear
+        gu, gv = X[0, 2] - X0[0, 2], X[1, 2] - X0[1, 2]
+        kg = ks * G * h
+        qu, qv = kg * (Auu * gu + Auv * gv), kg * (Auv * gu + Avv * gv)
+        U = 0.5 * J * (nuu * euu + 2.0 * nuv * euv + nvv * evv + qu * gu + qv * gv
+                       + muu * kuu + 2.0 * muv * kuv + mvv * kvv)
     if want:
         for i in range(3):
-            Q[0, i] = J * (nuu * X[0, i] + nuv * X[1, i])
-            Q[1, i] = J * (nuv * X[0, i] + nvv * X[1, i])
+            Q[0, i] = J * (nuu * X[0, i] + nuv * X[1, i]) if i < nm else 0.0
+            Q[1, i] = J * (nuv * X[0, i] + nvv * X[1, i]) if i < nm else 0.0
         Q[0, 2] += J * qu
         Q[1, 2] += J * qv
         # ∂/∂θ_a of Σ m^ab b_ab: m^ab (π_b2, −π_b1)
@@ -121,6 +134,12 @@ def _surface(X, X0, p, Q, want):  # pragma: no cover - compiled
         Q[0, 5] = 0.0
         Q[1, 5] = 0.0
     return U
+
+
+@njit(cache=True)
+def _surface(X, X0, p, Q, want):  # pragma: no cover - compiled
+    """Energy density of the Naghdi shell at one point; ``p = (E, ν, h, κ_s)`` (:func:`shell_point`)."""
+    return shell_point(X, X0, p, Q, want, 3, p[3])
 
 
 @njit(cache=True)

@@ -54,7 +54,7 @@ from __future__ import annotations
 from typing import Any, ClassVar
 
 import numpy as np
-from cartan_cosserat_surface.surface import CosseratSurface, _constitutive
+from cartan_cosserat_surface.surface import CosseratSurface, _constitutive, shell_point
 from numba import njit
 
 from cartan.medium import MediumKernels
@@ -65,52 +65,11 @@ __all__ = ["KirchhoffLove", "koiter_energy", "koiter_stress"]
 # ====================================================================== point kernels
 @njit(cache=True)
 def _koiter(X, X0, p, Q, want):  # pragma: no cover - compiled
-    """Energy density at one point; writes Q = ∂U/∂X when ``want`` (see the module docstring)."""
-    E, nu, h = p[0], p[1], p[2]
-    cs = E / (1.0 - nu * nu)
-    # rest metric (in-plane components), its inverse and the area element
-    a0uu = X0[0, 0] * X0[0, 0] + X0[0, 1] * X0[0, 1]
-    a0uv = X0[0, 0] * X0[1, 0] + X0[0, 1] * X0[1, 1]
-    a0vv = X0[1, 0] * X0[1, 0] + X0[1, 1] * X0[1, 1]
-    det0 = a0uu * a0vv - a0uv * a0uv
-    J = np.sqrt(det0)
-    Auu, Auv, Avv = a0vv / det0, -a0uv / det0, a0uu / det0
-    # membrane strain in the metric of the tangent components
-    auu = X[0, 0] * X[0, 0] + X[0, 1] * X[0, 1]
-    auv = X[0, 0] * X[1, 0] + X[0, 1] * X[1, 1]
-    avv = X[1, 0] * X[1, 0] + X[1, 1] * X[1, 1]
-    euu, euv, evv = 0.5 * (auu - a0uu), 0.5 * (auv - a0uv), 0.5 * (avv - a0vv)
-    # second fundamental form b_ab = θ_a · (π_b2, −π_b1, 0)
-    buu = X[0, 0] * X[0, 4] - X[0, 1] * X[0, 3]
-    buv = X[0, 0] * X[1, 4] - X[0, 1] * X[1, 3]
-    bvu = X[1, 0] * X[0, 4] - X[1, 1] * X[0, 3]
-    bvv = X[1, 0] * X[1, 4] - X[1, 1] * X[1, 3]
-    b0uu = X0[0, 0] * X0[0, 4] - X0[0, 1] * X0[0, 3]
-    b0uv = X0[0, 0] * X0[1, 4] - X0[0, 1] * X0[1, 3]
-    b0vu = X0[1, 0] * X0[0, 4] - X0[1, 1] * X0[0, 3]
-    b0vv = X0[1, 0] * X0[1, 4] - X0[1, 1] * X0[1, 3]
-    kuu, kuv, kvv = buu - b0uu, 0.5 * (buv + bvu - b0uv - b0vu), bvv - b0vv
-    nuu, nuv, nvv = _constitutive(euu, euv, evv, Auu, Auv, Avv, nu, cs * h)
-    muu, muv, mvv = _constitutive(kuu, kuv, kvv, Auu, Auv, Avv, nu, cs * h * h * h / 12.0)
-    U = 0.5 * J * (nuu * euu + 2.0 * nuv * euv + nvv * evv + muu * kuu + 2.0 * muv * kuv + mvv * kvv)
-    if want:
-        for i in range(2):
-            Q[0, i] = J * (nuu * X[0, i] + nuv * X[1, i])
-            Q[1, i] = J * (nuv * X[0, i] + nvv * X[1, i])
-        Q[0, 0] += J * (muu * X[0, 4] + muv * X[1, 4])
-        Q[0, 1] -= J * (muu * X[0, 3] + muv * X[1, 3])
-        Q[1, 0] += J * (muv * X[0, 4] + mvv * X[1, 4])
-        Q[1, 1] -= J * (muv * X[0, 3] + mvv * X[1, 3])
-        Q[0, 3] = -J * (muu * X[0, 1] + muv * X[1, 1])
-        Q[0, 4] = J * (muu * X[0, 0] + muv * X[1, 0])
-        Q[1, 3] = -J * (muv * X[0, 1] + mvv * X[1, 1])
-        Q[1, 4] = J * (muv * X[0, 0] + mvv * X[1, 0])
-        # the constrained θ_α,3 and the drill π_α,3 carry no constitutive stress
-        Q[0, 2] = 0.0
-        Q[1, 2] = 0.0
-        Q[0, 5] = 0.0
-        Q[1, 5] = 0.0
-    return U
+    """Energy density at one point; writes Q = ∂U/∂X when ``want`` (see the module docstring):
+    the shell energy of :func:`~cartan_cosserat_surface.surface.shell_point` with the metric
+    of the tangent components and no transverse shear (θ_a,3 is held at zero; neither it nor
+    the drill π_a,3 carries a constitutive stress)."""
+    return shell_point(X, X0, p, Q, want, 2, 0.0)
 
 
 @njit(cache=True)
