@@ -218,6 +218,15 @@ class SurfaceGravity(ConstantFieldPotential):
         return {"kind": "gravity", "g": self.field.tolist(), "mass": self.density}
 
 
+def _edge_nodes(edge: str) -> tuple[int, tuple]:
+    """The chart axis an edge (``"u-start"``, ``"u-end"``, ``"v-start"``, ``"v-end"``) ends and
+    the index of its nodes in a ``(nu, nv, …)`` array."""
+    axis = 0 if edge[0] == "u" else 1
+    idx: list[Any] = [slice(None), slice(None)]
+    idx[axis] = 0 if edge.endswith("start") else -1
+    return axis, tuple(idx)
+
+
 class PenaltySupport(PotentialLoad):
     """Elastic edge supports: ``U = ½ (x − x̄)ᵀ K (x − x̄) + ½ (p − p̄)ᵀ S (p − p̄)`` per unit chart area.
 
@@ -265,10 +274,7 @@ class PenaltySupport(PotentialLoad):
         K = np.zeros((*shape, 3))
         S = np.zeros((*shape, 3, 3))
         for e in self.edges:
-            axis = 0 if e[0] == "u" else 1
-            idx = [slice(None), slice(None)]
-            idx[axis] = 0 if e.endswith("start") else -1
-            idx = tuple(idx)
+            axis, idx = _edge_nodes(e)
             K[idx] = self.k
             t = Phi[idx][..., 1:, 2 if axis == 0 else 1]   # tangent of the edge: e₂ on u-edges, e₁ on v-edges
             S[idx] += self.s * t[..., :, None] * t[..., None, :]
@@ -349,9 +355,7 @@ class SymmetrySupport(PenaltySupport):
             raise ValueError(f"SymmetrySupport needs a d = 2 grid, got node shape {shape}")
         mask = np.zeros(shape)
         for e in self.edges:
-            idx = [slice(None), slice(None)]
-            idx[0 if e[0] == "u" else 1] = 0 if e.endswith("start") else -1
-            mask[tuple(idx)] = 1.0
+            mask[_edge_nodes(e)[1]] = 1.0
         nn = np.outer(self.normal, self.normal)
         self._held = (mask[..., None, None] * (self.kn * nn), mask[..., None, None] * (self.s * nn),
                       Phi[..., 1:, 0].copy(), Phi[..., 1:, 3].copy())
