@@ -219,7 +219,7 @@ class VortexRing(Case):
     """
 
     name = "filament-vortex-ring"
-    medium = "cosserat-rod"
+    medium = "filament"  # the filament's case; the run carries it on cosserat-rod (kinematic_medium)
     description = "vortex ring under the binormal flow: translates at speed 1/R along its normal, shape kept"
     reference = ("r(t) = r(0) + (t/R)·n for the circle of radius R under ∂_t r = κb (local induction approximation, "
                  "Hasimoto 1972; unit circulation coefficient: speed κ = 1/R)")
