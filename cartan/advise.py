@@ -90,7 +90,8 @@ if TYPE_CHECKING:  # pragma: no cover
 from .problem import Clamped, Damping, Free, InitialState, Problem
 
 __all__ = ["HELD_STRAINS", "LARGE_RADIUS", "PILOT_STEPS", "PLANAR", "Advice", "HeldStrainMedium", "ReductionAdvice",
-           "advise", "held_strain_problem", "plane_limit_problem"]
+           "MethodAdvice", "MethodCandidate", "advise", "advise_method", "held_strain_problem",
+           "plane_limit_problem"]
 
 #: time steps of the pilot run of a dynamic scene (fewer when the scene's run is shorter)
 PILOT_STEPS = 200
@@ -891,8 +892,11 @@ def _advise_sphere(subject: _Subject, full_ds: Any, full_time: float, rtol: floa
 
 # ---------------------------------------------------------------------------- the entry point
 def advise(problem_or_scene: Any, check: bool = False, *, rtol: float = DEFAULT_RTOL,
-           pilot_steps: int = PILOT_STEPS) -> Advice:
+           pilot_steps: int = PILOT_STEPS, tol: float | None = None) -> Advice | MethodAdvice:
     """Which reductions a scene admits, measured on the scene (see the module docstring).
+
+    With ``tol`` (a dynamic scene): the cheapest integrator and Δt that reach the accuracy
+    ``tol`` instead, :func:`advise_method` (``check`` and ``rtol`` do not apply).
 
     Parameters
     ----------
@@ -926,6 +930,10 @@ def advise(problem_or_scene: Any, check: bool = False, *, rtol: float = DEFAULT_
     cartan.statics.ConvergenceError, cartan.simulate.InstabilityError
         The scene's own solve or pilot failed.
     """
+    if tol is not None:
+        if check:
+            raise ValueError("tol and check=True do not combine: the method advice runs no reduced model")
+        return advise_method(problem_or_scene, tol, pilot_steps=pilot_steps)
     start = time.perf_counter()
     if not isinstance(check, bool | np.bool_):
         raise ValueError(f"check must be True or False, got {check!r}")
@@ -957,3 +965,401 @@ def advise(problem_or_scene: Any, check: bool = False, *, rtol: float = DEFAULT_
     return Advice(subject.name, subject.mode, subject.problem.medium.name, pilot, float(rtol), bool(check),
                   reductions, time.perf_counter() - start)
 
+
+
+# ---------------------------------------------------------------------------- a method for a tolerance
+#: integrators a dynamic scene is advised among (those that do not apply to the medium are skipped)
+TOL_INTEGRATORS = ("lie-verlet", "rkmk4", "implicit-midpoint", "lie-euler")
+#: the candidate time steps are Δt_scene·2^k for these k
+TOL_DT_POWERS = (-2, -1, 0, 1, 2)
+#: the reference run takes Δt_scene divided by this, with the most accurate integrator available
+TOL_REFERENCE_DIVISOR = 8
+#: explicit candidates above this multiple of the integrator's CFL estimate are not run
+TOL_CFL_CAP = 2.0
+#: timed runs of each candidate (the fastest is its cost)
+TOL_REPEATS = 2
+#: the order of preference of the reference integrator (most accurate first)
+_REFERENCE_ORDER = ("rkmk4", "implicit-midpoint", "lie-verlet", "lie-euler")
+
+
+@dataclasses.dataclass
+class MethodCandidate:
+    """One run of the work-precision sweep of :func:`advise_method`.
+
+    Attributes
+    ----------
+    integrator, scheme : str
+    dt : float
+    status : str
+        ``"ok"``, ``"unstable: ..."`` (the run blew up), ``"beyond CFL"`` (not run: Δt above
+        :data:`TOL_CFL_CAP` times the CFL estimate of an explicit integrator) or
+        ``"failed: ..."`` (another error of the run).
+    error : float
+        Max norm of the final node positions against the reference run (NaN unless ``ok``).
+    wall_time : float
+        Seconds spent stepping, after compilation (NaN unless ``ok``; see :func:`advise_method`).
+    dt_max : float
+        The integrator's CFL estimate at the initial state (inf: no limit).
+    """
+
+    integrator: str
+    scheme: str
+    dt: float
+    status: str
+    error: float = math.nan
+    wall_time: float = math.nan
+    dt_max: float = math.nan
+
+    @property
+    def ok(self) -> bool:
+        """The run finished with finite results."""
+        return self.status == "ok"
+
+
+@dataclasses.dataclass
+class MethodAdvice:
+    """What :func:`advise_method` (``advise(..., tol=...)``) returns.
+
+    Attributes
+    ----------
+    scene, medium, scheme : str
+    n : int
+        Nodes of the scene's grid (the resolution every run uses).
+    tol : float
+        Requested accuracy (absolute, length units: max norm of the final node positions).
+    t_end : float
+        End time of the study runs.
+    dt_scene : float
+    reference : str
+        The reference run (integrator and Δt).
+    reference_error : float
+        Estimated error of the reference: the error of the reference integrator at
+        ``2·Δt_ref`` divided by ``2^p − 1`` (p its order; NaN when that run is missing).
+    candidates : list of MethodCandidate
+    recommended : MethodCandidate or None
+        The cheapest candidate whose error ≤ ``tol``.
+    fastest : MethodCandidate or None
+        The cheapest finished candidate of the sweep, whatever its error.
+    wall_time : float
+        Seconds spent in :func:`advise_method`.
+    spatial_n : int
+        Nodes of the refined grid of the spatial check (0: not made).
+    spatial_difference : float
+        Max norm of the final positions of the reference run on the scene's grid against the same
+        run on the refined grid, at the shared nodes: the size of the spatial discretisation error
+        the time-step advice does not cover (NaN when not measured).
+    """
+
+    scene: str
+    medium: str
+    scheme: str
+    n: int
+    tol: float
+    t_end: float
+    dt_scene: float
+    reference: str
+    reference_error: float
+    candidates: list[MethodCandidate]
+    recommended: MethodCandidate | None
+    fastest: MethodCandidate | None
+    wall_time: float = 0.0
+    spatial_n: int = 0
+    spatial_difference: float = math.nan
+
+    @property
+    def within_2x_of_fastest(self) -> bool:
+        """The recommendation costs at most twice the fastest run of the sweep."""
+        if self.recommended is None or self.fastest is None:
+            return False
+        return self.recommended.wall_time <= 2.0 * self.fastest.wall_time
+
+    @property
+    def failures(self) -> list[MethodCandidate]:
+        """The stability map: the candidates that blew up or were not run past the CFL estimate."""
+        return [c for c in self.candidates if not c.ok]
+
+    def to_dict(self) -> dict[str, Any]:
+        """The report as plain Python (JSON-serialisable, NaN and inf as ``None``)."""
+
+        def clean(v: Any) -> Any:
+            return None if isinstance(v, float) and not math.isfinite(v) else v
+
+        def row(c: MethodCandidate | None) -> dict[str, Any] | None:
+            return None if c is None else {k: clean(v) for k, v in dataclasses.asdict(c).items()}
+
+        out = {k: clean(getattr(self, k)) for k in ("scene", "medium", "scheme", "n", "tol", "t_end", "dt_scene",
+                                                     "reference", "reference_error", "wall_time", "spatial_n",
+                                                     "spatial_difference")}
+        out["candidates"] = [row(c) for c in self.candidates]
+        out["recommended"] = row(self.recommended)
+        out["fastest"] = row(self.fastest)
+        out["within_2x_of_fastest"] = self.within_2x_of_fastest
+        return out
+
+    def __str__(self) -> str:
+        def f(x: float, spec: str = ".3g") -> str:
+            return "—" if not math.isfinite(x) else format(x, spec)
+
+        lines = [f"scene {self.scene!r} ({self.medium}, {self.scheme}, n = {self.n}): method for tol = {self.tol:g}",
+                 f"error: max |position − reference| at t = {self.t_end:g}; reference {self.reference} "
+                 f"(its estimated error {f(self.reference_error)}); spatial resolution: the scene's", "",
+                 f"{'integrator':<18} {'dt':>10} {'CFL est.':>10} {'error':>10} {'time [s]':>9}  status"]
+        for c in self.candidates:
+            lines.append(f"{c.integrator:<18} {c.dt:>10.4g} {f(c.dt_max, '.4g'):>10} {f(c.error):>10} "
+                         f"{f(c.wall_time):>9}  {c.status}")
+        lines.append("")
+        fails = self.failures
+        if fails:
+            lines.append("stability map (failed): " + ", ".join(
+                f"{c.integrator} at dt = {c.dt:.4g} ({c.status.split(':')[0]})" for c in fails))
+        if self.recommended is None:
+            lines.append(f"recommended: none — no candidate reaches tol = {self.tol:g}")
+        else:
+            r = self.recommended
+            lines.append(f"recommended: {r.integrator}, {r.scheme}, n = {self.n}, dt = {r.dt:.4g} "
+                         f"(error {r.error:.3g}, {r.wall_time:.3g} s)")
+        if self.fastest is not None:
+            lines.append(f"fastest in the sweep: {self.fastest.integrator}, dt = {self.fastest.dt:.4g} "
+                         f"({self.fastest.wall_time:.3g} s, error {self.fastest.error:.3g}); recommendation within 2×: "
+                         f"{'yes' if self.within_2x_of_fastest else 'no'}")
+        if self.spatial_n:
+            lines.append(f"spatial check (reference run on n = {self.spatial_n}): max |position(n = {self.n}) − "
+                         f"position(n = {self.spatial_n})| = {f(self.spatial_difference)} at the shared nodes")
+            if math.isfinite(self.spatial_difference) and self.spatial_difference > self.tol:
+                lines.append(f"warning: the scene's grid alone differs from the refined one by more than tol "
+                             f"({self.spatial_difference:.3g} > {self.tol:g}): refine the grid; the time-step advice "
+                             "does not cover the spatial error")
+        if math.isfinite(self.reference_error) and self.tol < 10.0 * self.reference_error:
+            lines.append(f"warning: tol is below 10× the reference's estimated error ({self.reference_error:.3g}); "
+                         "the errors near tol are not resolved")
+        return "\n".join(lines)
+
+    def plot(self, path: str | os.PathLike) -> pathlib.Path:
+        """Work-precision chart: error against wall time per integrator (log–log), the tol line,
+        the recommendation circled; written with matplotlib (Agg).  Returns the path."""
+        from .study import _figure
+
+        plt, fig, ax = _figure()
+        for name in dict.fromkeys(c.integrator for c in self.candidates):
+            pts = [(c.wall_time, c.error) for c in sorted(self.candidates, key=lambda c: c.dt)
+                   if c.integrator == name and c.ok and c.error > 0 and c.wall_time > 0]  # joined in Δt order
+            if pts:
+                ax.loglog(*zip(*pts, strict=True), "o-", label=name)
+        ax.axhline(self.tol, color="k", ls="--", lw=0.8, label=f"tol = {self.tol:g}")
+        if self.recommended is not None and self.recommended.error > 0:
+            ax.loglog([self.recommended.wall_time], [self.recommended.error], "o", ms=14, mfc="none", color="r",
+                      label="recommended")
+        ax.set_xlabel("wall time of the steps [s] (after compilation)")
+        ax.set_ylabel("max |position − reference|")
+        ax.set_title(f"work-precision: {self.scene}, t = {self.t_end:g}")
+        ax.grid(True, which="both", alpha=0.3)
+        ax.legend(fontsize=8)
+        path = pathlib.Path(path)
+        fig.savefig(path, dpi=110)
+        plt.close(fig)
+        return path
+
+
+def _check_tol(tol: Any) -> float:
+    if isinstance(tol, bool) or not isinstance(tol, int | float | np.floating | np.integer) \
+            or not math.isfinite(float(tol)) or float(tol) <= 0.0:
+        raise ValueError(f"tol must be a finite number > 0, got {tol!r}")
+    return float(tol)
+
+
+def _final_positions(ds: Any) -> np.ndarray:
+    p = ds["position"]
+    return np.asarray(p.isel(time=-1).values if "time" in p.dims else p.values, dtype=float)
+
+
+def _step_time(ds: Any, total: float) -> float:
+    """The run's own count of the seconds spent stepping (``total``, the call's time, when absent)."""
+    import json
+
+    config = ds.attrs.get("cartan_config")
+    t = json.loads(config).get("counters", {}).get("wall_time") if config else None
+    return float(t) if t is not None and math.isfinite(float(t)) else float(total)
+
+
+def _try_resolve(problem: Problem, integrator: str, settings: Mapping[str, Any], dt: float) -> float | None:
+    """The CFL estimate of ``integrator`` on the scene, or None when it does not apply to the medium."""
+    from .simulate import StabilityWarning, _resolve_run
+
+    opts = settings.get("integrator_options") if integrator == settings.get("integrator") else None
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", StabilityWarning)
+        try:
+            run = _resolve_run(problem, integrator, settings.get("scheme"), dt, 2 * dt, 1, None, None, None, opts,
+                               settings.get("scheme_options"), False, 1e3, compiled=True, command="", max_steps=None)
+        except (ValueError, TypeError):
+            return None
+    return float(run.dt_max)
+
+
+def advise_method(problem_or_scene: Any, tol: float, *, pilot_steps: int = PILOT_STEPS,
+                  integrators: tuple[str, ...] = TOL_INTEGRATORS,
+                  dt_powers: tuple[int, ...] = TOL_DT_POWERS, spatial: bool = True) -> MethodAdvice:
+    """The cheapest (integrator, Δt) that reaches ``tol`` on a dynamic scene, from a sweep on the scene.
+
+    The output of interest is the scene's final node positions ``[nodes, k]`` at the study's end
+    time ``T = min(t_end, pilot_steps·Δt_scene)``; the error of a run is the max norm of their
+    difference from a reference run: the same scene with the most accurate integrator that
+    applies (:data:`_REFERENCE_ORDER`, rkmk4 first) at ``Δt_scene /`` :data:`TOL_REFERENCE_DIVISOR`.
+    It is a reference of the time discretisation at the scene's spatial resolution: the scheme
+    and the grid are the scene's, and the spatial discretisation error is not part of the
+    error; it is measured separately (``spatial``), the reference run on the refined grid.  The
+    reference's own error is estimated from the same integrator at twice its Δt (Richardson,
+    order p: ``e(2Δt)/(2^p − 1)``).
+
+    Candidates: every integrator of ``integrators`` that applies to the medium (one whose run
+    cannot be set up, a ``ValueError``, is skipped) at ``Δt_scene·2^k``, ``k`` in ``dt_powers``.
+    An explicit integrator is not run above :data:`TOL_CFL_CAP` times its CFL estimate
+    (``"beyond CFL"``); a run that blows up is recorded as ``"unstable"`` (the stability map),
+    not raised.  Cost: the wall time of the time steps as the run counts it (the ``wall_time``
+    counter of ``cartan_config``: the stepping loop, without the set-up and the assembly of the
+    Dataset, which do not depend on the method), the fastest of :data:`TOL_REPEATS` runs, measured
+    after a two-step warm-up run of the same integrator that compiles its loop; it depends on
+    the machine and its load.
+
+    Parameters
+    ----------
+    problem_or_scene : Scene, path, str or dict
+        A dynamic scene (a :class:`~cartan.scene.Scene`, a scene file, a registered name or a dict).
+    tol : float
+        Accepted error, > 0 (length units: the max norm of the final node positions).
+    pilot_steps : int, default 200
+        Steps of the scene's Δt in the study (fewer when the scene's run is shorter).
+    integrators : tuple of str
+    dt_powers : tuple of int
+    spatial : bool, default True
+        Also run the reference on the refined grid (``n → 2n − 1`` nodes of an open
+        one-dimensional grid, ``2n`` of a periodic one: the scene's nodes are every other node)
+        and report the difference at the shared nodes separately (``spatial_difference``);
+        skipped for grids of dimension > 1 and for scenes without a source table.
+
+    Returns
+    -------
+    MethodAdvice
+
+    Raises
+    ------
+    ValueError
+        Bad ``tol`` or ``pilot_steps``; a static or continuation scene; no integrator applies.
+    cartan.simulate.InstabilityError
+        The reference run blew up.
+    """
+    from .simulate import InstabilityError
+
+    start = time.perf_counter()
+    tol = _check_tol(tol)
+    if isinstance(pilot_steps, bool) or not isinstance(pilot_steps, int | np.integer) or pilot_steps < 2:
+        raise ValueError(f"pilot_steps must be an integer ≥ 2, got {pilot_steps!r}")
+    subject = _subject(problem_or_scene)
+    if subject.mode != "dynamic" or not subject.run_settings:
+        raise ValueError(f"scene {subject.name!r}: advice for a tolerance needs a dynamic scene, got mode "
+                         f"{subject.mode!r}")
+    dt0, t_end, run0 = _dynamic_settings(subject, int(pilot_steps))
+    problem = subject.problem
+    base = dict(subject.run_settings)
+    scheme = str(run0.scheme.name)
+    cfl = {name: _try_resolve(problem, name, base, dt0) for name in integrators}
+    usable = [name for name in integrators if cfl[name] is not None]
+    if not usable:
+        raise ValueError(f"scene {subject.name!r}: none of the integrators {', '.join(integrators)} applies to "
+                         f"medium {problem.medium.name!r}")
+
+    def settings(name: str, dt: float) -> dict[str, Any]:
+        s = {k: v for k, v in base.items() if k not in ("integrator", "integrator_options", "dt")}
+        if name == base.get("integrator") and base.get("integrator_options"):
+            s["integrator_options"] = dict(base["integrator_options"])
+        return s | {"integrator": name, "dt": dt}
+
+    warmed: set[str] = set()
+
+    def timed_run(name: str, dt: float) -> tuple[Any, float]:
+        if name not in warmed:
+            with contextlib.suppress(InstabilityError):
+                _simulate(problem, settings(name, dt), 2 * dt)
+            warmed.add(name)
+        runs = [_timed(_simulate, problem, settings(name, dt), t_end) for _ in range(TOL_REPEATS)]
+        return runs[-1][0], min(_step_time(ds, t) for ds, t in runs)
+
+    ref_name = next(n for n in _REFERENCE_ORDER if n in usable)
+    ref_dt = dt0 / TOL_REFERENCE_DIVISOR
+    ref_ds, _ = timed_run(ref_name, ref_dt)
+    ref = _final_positions(ref_ds)
+    if not np.all(np.isfinite(ref)):
+        raise InstabilityError(f"the reference run ({ref_name}, dt = {ref_dt:.4g}) ended with non-finite positions")
+
+    candidates: list[MethodCandidate] = []
+    for name in usable:
+        explicit = bool(getattr(_registered_integrator(name), "explicit", True))
+        for k in sorted(dt_powers):
+            dt = dt0 * 2.0 ** k
+            c = MethodCandidate(name, scheme, dt, "ok", dt_max=float(cfl[name]))
+            if explicit and 0.0 < c.dt_max < math.inf and dt > TOL_CFL_CAP * c.dt_max:
+                c.status = "beyond CFL"
+            else:
+                try:
+                    ds, c.wall_time = timed_run(name, dt)
+                    pos = _final_positions(ds)
+                    if not np.all(np.isfinite(pos)):
+                        c.status, c.wall_time = "unstable: non-finite positions", math.nan
+                    else:
+                        c.error = float(np.max(np.linalg.norm(pos - ref, axis=-1)))
+                except InstabilityError as exc:
+                    why = " ".join(str(exc).split()).split(";", 1)[0].removeprefix("pilot run ")
+                    c.status = "unstable: " + why.removeprefix("unstable ")
+                except (ValueError, ArithmeticError) as exc:
+                    c.status = "failed: " + (" ".join(str(exc).split()) or type(exc).__name__)
+            candidates.append(c)
+
+    ref_err = math.nan
+    twice = [c for c in candidates if c.integrator == ref_name and c.ok and math.isclose(c.dt, 2 * ref_dt)]
+    if twice:
+        order = float(getattr(_registered_integrator(ref_name), "order", 2))
+        ref_err = twice[0].error / (2.0 ** order - 1.0)
+    spatial_n, spatial_diff = 0, math.nan
+    fine = _refined_scene(problem_or_scene) if spatial else None
+    if fine is not None:
+        spatial_n = int(np.prod(fine.problem.grid.shape))
+        with contextlib.suppress(InstabilityError, ValueError, ArithmeticError):
+            fine_ds = _simulate(fine.problem, settings(ref_name, ref_dt), t_end)
+            spatial_diff = float(np.max(np.linalg.norm(_final_positions(fine_ds)[::2][:len(ref)] - ref, axis=-1)))
+    done = [c for c in candidates if c.ok]
+    good = [c for c in done if c.error <= tol]
+    return MethodAdvice(subject.name, problem.medium.name, scheme, int(np.prod(problem.grid.shape)), tol, t_end,
+                        dt0, f"{ref_name} at dt = {ref_dt:.4g}", ref_err, candidates,
+                        min(good, key=lambda c: c.wall_time) if good else None,
+                        min(done, key=lambda c: c.wall_time) if done else None, time.perf_counter() - start,
+                        spatial_n, spatial_diff)
+
+
+def _refined_scene(obj: Any) -> Any:
+    """The scene with its one-dimensional grid refined so that its nodes are every other node
+    (``n → 2n − 1``, periodic ``n → 2n``), or None when that cannot be built."""
+    from .scene import Scene, load_scene
+    from .scene import scene as registered
+
+    try:
+        if isinstance(obj, str | os.PathLike):
+            path = pathlib.Path(obj)
+            obj = load_scene(path) if path.suffix == ".toml" or path.exists() else registered(str(obj))
+        elif isinstance(obj, Mapping):
+            obj = load_scene(obj)
+        if not isinstance(obj, Scene) or not isinstance(obj.source.get("grid"), Mapping):
+            return None
+        grid = dict(obj.source["grid"])
+        if "n" not in grid or len(obj.problem.grid.shape) != 1:
+            return None
+        n = int(grid["n"])
+        grid["n"] = 2 * n if grid.get("periodic", False) else 2 * n - 1
+        return load_scene(dict(obj.source) | {"grid": grid})
+    except (ValueError, TypeError, OSError):
+        return None
+
+
+def _registered_integrator(name: str) -> Any:
+    from .plugins import get_registry
+
+    return get_registry().get("integrators", name)

@@ -8,6 +8,12 @@
     difference and time ratio beside the prediction; ``-o`` writes the table as netCDF;
     ``--json`` prints the report as JSON; ``--scene NAME`` advises a registered scene.
 
+``cartan advise SCENE.toml --tol 1e-4 [--chart wp.png] [--pilot-steps 200] [--json]``
+    instead proposes the cheapest (integrator, Δt) of a dynamic scene whose final node
+    positions are within ``tol`` of a fine reference run, from a short work-precision sweep
+    on the scene (:func:`cartan.advise.advise_method`), with the stability map; ``--chart``
+    writes the work-precision chart (PNG).
+
 Bad input prints one line ``cartan: error: ...`` on stderr and exits with status 2 without
 writing anything; a solve or pilot that fails exits with status 1.
 """
@@ -15,6 +21,7 @@ writing anything; a solve or pilot that fails exits with status 1.
 from __future__ import annotations
 
 import json
+import math
 import pathlib
 
 import click
@@ -35,7 +42,11 @@ __all__ = ["advise_cmd", "register"]
 @click.option("-o", "--output", type=click.Path(dir_okay=False, path_type=pathlib.Path), default=None,
               help="Write the table as netCDF.")
 @click.option("--json", "as_json", is_flag=True, help="Print the report as JSON.")
-def advise_cmd(scene_file, scene_name, check, rtol, pilot_steps, output, as_json) -> None:
+@click.option("--tol", type=str, default=None, metavar="X",
+              help="Propose the cheapest integrator and time step reaching this accuracy (dynamic scenes).")
+@click.option("--chart", type=click.Path(dir_okay=False, path_type=pathlib.Path), default=None,
+              help="With --tol: write the work-precision chart (PNG).")
+def advise_cmd(scene_file, scene_name, check, rtol, pilot_steps, output, as_json, tol, chart) -> None:
     """Which reductions a scene admits, with the error and speed-up of each (measured)."""
     from . import io
     from .advise import advise
@@ -52,6 +63,23 @@ def advise_cmd(scene_file, scene_name, check, rtol, pilot_steps, output, as_json
         raise CommandError(f"--rtol must be in (0, 1], got {rtol:g}")
     if pilot_steps < 2:
         raise CommandError(f"--pilot-steps must be ≥ 2, got {pilot_steps}")
+    tol_value = None
+    if tol is not None:
+        try:
+            tol_value = float(tol)
+        except ValueError:
+            raise CommandError(f"--tol must be a number > 0, got {tol!r}") from None
+        if not math.isfinite(tol_value) or tol_value <= 0.0:
+            raise CommandError(f"--tol must be a finite number > 0, got {tol}")
+        if check or output is not None:
+            raise CommandError("--tol does not combine with --check or -o")
+        if chart is not None:
+            if scene_file is not None and chart.resolve() == scene_file.resolve():
+                raise CommandError(f"--chart {chart}: that is the scene file; give another output file")
+            if not chart.parent.is_dir():
+                raise CommandError(f"--chart {chart}: no such directory {chart.parent}")
+    elif chart is not None:
+        raise CommandError("--chart needs --tol")
     if output is not None:
         if scene_file is not None and output.resolve() == scene_file.resolve():
             raise CommandError(f"-o {output}: that is the scene file; give another output file")
@@ -59,6 +87,9 @@ def advise_cmd(scene_file, scene_name, check, rtol, pilot_steps, output, as_json
             io.check_output(output)
         except (ValueError, OSError) as exc:
             raise CommandError(str(exc)) from None
+    if tol_value is not None:
+        _advise_tol(scene_file if scene_file is not None else scene_name, tol_value, pilot_steps, chart, as_json)
+        return
     with _stop_cleanly(), _warnings_as_lines():
         try:
             report = advise(scene_file if scene_file is not None else scene_name, check=check, rtol=rtol,
@@ -75,6 +106,30 @@ def advise_cmd(scene_file, scene_name, check, rtol, pilot_steps, output, as_json
     click.echo(json.dumps(report.to_dict(), indent=1, ensure_ascii=False) if as_json else str(report))
     if output is not None:
         click.echo(f"wrote {output}")
+
+
+def _advise_tol(subject, tol: float, pilot_steps: int, chart: pathlib.Path | None, as_json: bool) -> None:
+    """``--tol``: the method advice, printed, and its chart written."""
+    from .advise import advise_method
+    from .plugins import RegistryError
+    from .scene import SceneError
+    from .simulate import InstabilityError
+
+    with _stop_cleanly(), _warnings_as_lines():
+        try:
+            report = advise_method(subject, tol, pilot_steps=pilot_steps)
+        except InstabilityError as exc:
+            raise CommandError(str(exc), RUN_ERROR) from None
+        except (SceneError, RegistryError, ValueError, TypeError, ArithmeticError) as exc:
+            raise CommandError(str(exc) or type(exc).__name__) from None
+        if chart is not None:
+            try:
+                report.plot(chart)
+            except OSError as exc:
+                raise CommandError(f"{exc.filename or chart}: {exc.strerror or exc}", RUN_ERROR) from None
+    click.echo(json.dumps(report.to_dict(), indent=1, ensure_ascii=False) if as_json else str(report))
+    if chart is not None:
+        click.echo(f"wrote {chart}")
 
 
 def register(main: click.Group) -> None:
