@@ -32,11 +32,18 @@ def _final(ds) -> np.ndarray:
     return np.asarray(ds["position"].isel(time=-1).values, dtype=float)
 
 
+#: the whole sweep compiles every integrator's loop for the rod (≈ 3 min on a fresh cache, most of it
+#: loops no other fast test needs): its tests are in ``make test-slow``; the fast suite keeps the
+#: lie-verlet sweep, the dispatch and the bad input
+SWEEP = pytest.mark.slow
+
+
 @pytest.fixture(scope="module")
 def advice() -> MethodAdvice:
     return advise_method(scene(SCENE), TOL, pilot_steps=STEPS)
 
 
+@SWEEP
 def test_recommendation_meets_tol_when_run(advice):
     sc = scene(SCENE)
     rec = advice.recommended
@@ -52,6 +59,7 @@ def test_recommendation_meets_tol_when_run(advice):
     assert err == pytest.approx(rec.error, rel=1e-6, abs=1e-12)  # the same runs, deterministic
 
 
+@SWEEP
 def test_recommendation_is_the_cheapest_within_tol(advice):
     ok = [c for c in advice.candidates if c.ok]
     assert {c.integrator for c in advice.candidates} == {"lie-verlet", "rkmk4", "implicit-midpoint", "lie-euler"}
@@ -81,6 +89,7 @@ def test_unreachable_tol_recommends_nothing_and_beyond_cfl_is_not_run():
     assert "stability map" in str(adv)
 
 
+@SWEEP
 def test_a_run_that_blows_up_is_a_failure_not_an_error():
     # lie-euler has no stable Δt for undamped motion (CFL estimate 0): over t = 1 the energy
     # balance error of the butterfly grows past the blow-up threshold at Δt = 0.01, not at 0.005
@@ -92,6 +101,7 @@ def test_a_run_that_blows_up_is_a_failure_not_an_error():
     assert adv.recommended is small
 
 
+@SWEEP
 def test_spatial_check_falls_with_the_grid(advice):
     # the reference on n and 2n − 1 nodes: the lattice is second order in h, so halving h from
     # n = 21 to 41 divides the difference by about 4; the range (2, 8), an observed order in
@@ -115,6 +125,7 @@ def test_advise_with_tol_dispatches_and_checks_tol():
         advise("rod-timoshenko-static", tol=1e-4)
 
 
+@SWEEP
 def test_cli_tol_prints_the_advice_and_writes_the_chart(tmp_path):
     chart = tmp_path / "wp.png"
     res = CliRunner().invoke(main, ["advise", "--scene", SCENE, "--tol", "1e-3", "--pilot-steps", "8",
