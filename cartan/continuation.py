@@ -343,7 +343,7 @@ def continuation(
 
     first = _newton(sysm, _Point(state, mu, 0.0),
                     residual=lambda pt: sysm.residual(pt.state, pt.mu, 0.0),
-                    factorise=lambda pt, offset: _lu_solve(sysm.jacobian(pt.state, pt.mu, 0.0, offset)),
+                    factorise=lambda pt, offset: _lu_solve(sysm.jacobian(pt.state, pt.mu, 0.0, offset), sysm.lu_order),
                     move=settle_move, converged=lambda pt, r: small(r), scale=scale, max_iter=max_iter,
                     max_halvings=max_halvings, xtol=xtol, mixed=mixed)
     if not first.converged:  # the start (e.g. with residual stresses) must settle at λ = 0
