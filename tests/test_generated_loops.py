@@ -120,6 +120,7 @@ def test_a_group_without_dexp_inv_kernels_gets_van_loan():
     assert "_vanloan_E" in frag.imports and "def g_dexp_inv(" in frag.source and "def g_E(" in frag.source
 
 
+@pytest.mark.slow  # compiles the Van Loan and Padé kernels on their own (≈ 15 s on a fresh cache)
 def test_van_loan_kernels_match_the_reference():
     from cartan.groups._generic_kernels import expm_point, vanloan_E_point
 
@@ -218,7 +219,12 @@ def test_kernel_medium_reference_path_uses_its_kernels():
         out = np.empty((2, 6))
         k.stress(X[i], med.rest_strain(), k.params, out)
         assert np.array_equal(Q[i], out)
-    check_medium(med, schemes=["lattice"], integrators=["lie-verlet"])
+
+
+@pytest.mark.slow  # compiles the coupled quartic toy's loop (≈ 25 s on a fresh cache); kernel media run
+# compiled in the fast suite through the shell and the solid (tests/test_cosserat_surface.py, _solid.py)
+def test_kernel_medium_conforms_compiled():
+    check_medium(CoupledQuartic("SE3", d=2), schemes=["lattice"], integrators=["lie-verlet"])
 
 
 def test_group_point_kernels_declared():

@@ -91,6 +91,17 @@ CASES = {
     "collocation-SE3-dead": (lambda: Collocation(rod_problem("dead")), 2.5e-2),
     "collocation-SE2-follower": (lambda: Collocation(rod_problem("follower", planar=True)), 2.5e-2),
 }
+#: problems whose implicit blocks no other fast test compiles (10-30 s each on a fresh cache): the
+#: sphere rod, the d = 2 sigma model and the d = 2 SE(2) toy; SO(3) and d = 2 stay covered in the
+#: fast suite by the explicit loops, the implicit blocks by the SE(3), SE(2) and SO(2) problems
+SLOW_CASES = {"lattice-SO3-sphere-rod", "lattice-d2-SO3-sigma", "lattice-d2-SE2"}
+
+
+def case_params(names):
+    """``names`` as parameters, those of :data:`SLOW_CASES` (and the d = 2 SE(2) face loads,
+    the same module) marked slow."""
+    return [pytest.param(n, marks=pytest.mark.slow) if n in SLOW_CASES or n.startswith("lattice-d2-SE2") else n
+            for n in names]
 
 
 
@@ -108,7 +119,7 @@ def _moved_state(scheme):
 
 
 # ---------------------------------------------------------------------------- one residual
-@pytest.mark.parametrize("name", sorted(CASES))
+@pytest.mark.parametrize("name", case_params(sorted(CASES)))
 def test_residual_matches_the_reference(name):
     make, _ = CASES[name]
     scheme = make()
@@ -162,7 +173,7 @@ def _run(make, dt: float, compiled: bool, steps: int, tol: float):
     return state, integ
 
 
-@pytest.mark.parametrize("name", sorted(CASES))
+@pytest.mark.parametrize("name", case_params(sorted(CASES)))
 def test_steps_match_the_reference(name):
     """Both paths solve the same stage equation to the Newton tolerance, from iterates that
     differ by round-off: each step's state agrees to about tol (relative), and K steps of a

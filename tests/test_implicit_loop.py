@@ -16,7 +16,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 from cartan_verification.stiff import stiff_rod
-from test_implicit_compiled import CASES, _toy2_problem
+from test_implicit_compiled import CASES, _toy2_problem, case_params
 from toys import rel_error
 
 import cartan
@@ -127,7 +127,7 @@ def test_stiff_rod_blocks_match_the_python_driver(stiff, factor, options):
     _assert_same(ref, fast, ri, fi)
 
 
-@pytest.mark.parametrize("name", sorted(LOOP_CASES))
+@pytest.mark.parametrize("name", case_params(sorted(LOOP_CASES)))
 def test_blocks_match_the_python_driver(name):
     """Lattice d = 1, 2 (open, periodic: a ring and a sphere-rod; SO(2), SE(2), SO(3), SE(3),
     gauge components) and collocation; damping, uniform forces, gravity, dead and follower

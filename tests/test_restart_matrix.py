@@ -326,6 +326,7 @@ BLOCK_CASES = [(key, problem) for problem in PROBLEMS for key in BLOCK_INTEGRATO
 #: the first-order loops of the d = 2 sigma model on the lattice; their blocks stay covered by
 #: the same integrators on the rod
 SLOW_BLOCK_CASES = {("kinematic", "rod", "collocation"), ("implicit-midpoint", "sigma-2d", "collocation"),
+                    ("implicit-midpoint", "sigma-2d", "lattice"),
                     ("lie-euler", "sigma-2d", "lattice"), ("forward-euler", "sigma-2d", "lattice"),
                     ("rkmk4", "sigma-2d", "lattice")}
 
