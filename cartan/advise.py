@@ -78,7 +78,7 @@ import os
 import pathlib
 import time
 import warnings
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from typing import TYPE_CHECKING, Any, ClassVar
 
 import numpy as np
@@ -1326,13 +1326,20 @@ def advise_method(problem_or_scene: Any, tol: float, *, pilot_steps: int = PILOT
         with contextlib.suppress(InstabilityError, ValueError, ArithmeticError):
             fine_ds = _simulate(fine.problem, settings(ref_name, ref_dt), t_end)
             spatial_diff = float(np.max(np.linalg.norm(_final_positions(fine_ds)[::2][:len(ref)] - ref, axis=-1)))
+    recommended, fastest = choose_method(candidates, tol)
+    return MethodAdvice(subject.name, problem.medium.name, scheme, int(np.prod(problem.grid.shape)), tol, t_end,
+                        dt0, f"{ref_name} at dt = {ref_dt:.4g}", ref_err, candidates, recommended, fastest,
+                        time.perf_counter() - start, spatial_n, spatial_diff)
+
+
+def choose_method(candidates: Sequence[MethodCandidate], tol: float
+                  ) -> tuple[MethodCandidate | None, MethodCandidate | None]:
+    """(the cheapest finished candidate whose error is at most ``tol``, the cheapest finished
+    candidate whatever its error); None where there is none."""
     done = [c for c in candidates if c.ok]
     good = [c for c in done if c.error <= tol]
-    return MethodAdvice(subject.name, problem.medium.name, scheme, int(np.prod(problem.grid.shape)), tol, t_end,
-                        dt0, f"{ref_name} at dt = {ref_dt:.4g}", ref_err, candidates,
-                        min(good, key=lambda c: c.wall_time) if good else None,
-                        min(done, key=lambda c: c.wall_time) if done else None, time.perf_counter() - start,
-                        spatial_n, spatial_diff)
+    return (min(good, key=lambda c: c.wall_time) if good else None,
+            min(done, key=lambda c: c.wall_time) if done else None)
 
 
 def _refined_scene(obj: Any) -> Any:
