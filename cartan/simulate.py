@@ -54,7 +54,8 @@ beyond half the state's own ``|K| + |V| + |D| + |W|`` — energy the physics did
 energy against ``max_energy_growth`` times the energy scale.  The energy scale is the largest
 ``|K| + |V| + |D| + |W|`` (kinetic, potential, dissipated, external work) of the states
 checked so far whose energy budget closed (balance error at most half that sum), so that
-energy created by a blow-up never becomes the yardstick.  The run then stops with
+energy created by a blow-up never becomes the yardstick; a run released from rest (initial
+energy at round-off) takes the energy after its first step, which only the loads put there.  The run then stops with
 :class:`InstabilityError`, after writing the frames up to the last good state, and that
 state as a checkpoint, to the output file (or to a temporary file when there is none).
 """
@@ -403,6 +404,8 @@ def _make_guard(scheme: Scheme, integrator: Integrator, growth: float | None, e0
                 "dissipated_energy": float(state.scalars.get("dissipated_energy", 0.0)),
                 "external_work": float(state.scalars.get("external_work", 0.0)),
             }
+            if state.scalars.get("nstep") == 1:
+                _scale_from_rest(scale, energies)
             reason = _balance(energies, e0, growth, scale[0])
             if reason is None:
                 _raise_scale(scale, energies, e0)
@@ -449,6 +452,23 @@ def _balance_error(rec: Mapping[str, Any], e0: float) -> float:
     return abs(
         rec["kinetic_energy"] + rec["potential_energy"] + rec["dissipated_energy"] - rec["external_work"] - e0
     )
+
+
+#: initial energy below this fraction of the first checked state's: the run starts from rest
+_REST = 1e-8
+
+
+def _scale_from_rest(scale: list[float], rec: Mapping[str, Any]) -> None:
+    """At the run's first step: a run released from rest (initial ``|K| + |V|`` at round-off,
+    below ``_REST`` times the energy after one step) takes the energy after one step as its
+    scale.  What is there the loads put there in one step, and a first-order integrator's
+    energy balance need not close at step 1 (explicit Euler under gravity: K = ½m(gΔt)², W = 0).
+    Only step 1: later, energy that dwarfs the initial state's may be a blow-up's."""
+    if scale[1] == 0:
+        magnitude = _magnitude(rec)
+        if scale[0] <= _REST * magnitude:
+            scale[0] = magnitude
+            scale[1] = 1
 
 
 def _raise_scale(scale: list[float], rec: Mapping[str, Any], e0: float) -> None:
