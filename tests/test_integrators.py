@@ -7,7 +7,7 @@ import pytest
 from toys import arc_problem
 
 from cartan.integrators import RKMK4, ForwardEuler, Kinematic, LieEuler, LieVerlet, Overdamped
-from cartan.problem import Clamped, Damping, Free, Problem
+from cartan.problem import Clamped, Damping, Free, Load, Problem
 from cartan.schemes.lattice import Lattice
 
 
@@ -47,6 +47,36 @@ def test_observed_time_order(integrator, order, dts):
         errs.append(_config_error(ref_s, ref, s, st))
     ratio = errs[0] / errs[1]
     assert 0.75 * 2**order <= ratio <= 1.25 * 2**order, (errs, ratio)
+
+
+class _QuadraticDrag(Load):
+    """A nonlinear velocity-dependent force T = −c N|N| (lie-verlet's fixed-point closing kick)."""
+
+    dissipative = True
+    velocity_dependent = True
+
+    def force(self, Phi, N, t):
+        return -2.0 * N * np.abs(N)
+
+
+@pytest.mark.parametrize("drag", ["linear", "quadratic"])
+def test_lie_verlet_is_second_order_with_velocity_dependent_forces(drag):
+    """With damping the closing half kick is implicit in the velocity (trapezoidal impulse): the
+    observed order is 2 within ±25 % as for the undamped rod above (an explicit closing kick,
+    with the half-step velocity, gives ratios ≈ 2: first order).  Damping 2 s⁻¹ on every
+    component changes the motion by O(1) over the run; the quadratic drag runs the fixed-point
+    closing kick, the linear one the closed form."""
+    load = Damping(2.0) if drag == "linear" else _QuadraticDrag()
+    prob = arc_problem(n=9, curvature=1.0, velocity=[0, 0.3, 0, 0.5, 0, 0.2])
+    prob = Problem(prob.medium, prob.grid, prob.initial, loads=[load])
+    t_end = 0.4
+    ref_s, ref = _run(prob, RKMK4(), 2.5e-4, t_end)
+    errs = []
+    for dt in (1e-2, 5e-3):
+        s, st = _run(prob, LieVerlet(), dt, t_end)
+        errs.append(_config_error(ref_s, ref, s, st))
+    ratio = errs[0] / errs[1]
+    assert 0.75 * 4 <= ratio <= 1.25 * 4, (errs, ratio)
 
 
 def test_lie_verlet_energy_error_is_second_order_and_bounded():

@@ -24,6 +24,7 @@ from typing import Any
 import numpy as np
 
 from ..compiled.tableaux import TABLEAUX
+from ..problem import Damping
 from ..schemes.base import Scheme, State
 from .base import Integrator
 
@@ -111,6 +112,24 @@ def _abelian_pieces(group, live: np.ndarray) -> list[np.ndarray]:
     return [np.array(p) for p in pieces]
 
 
+#: fixed-point iterations of lie-verlet's closing kick for nonlinear velocity-dependent forces
+_CLOSING_ITERATIONS = 50
+
+
+def _damping(scheme: Scheme) -> np.ndarray:
+    """Γ: the summed coefficients of the problem's ``Damping`` loads, ``(r,)``."""
+    gamma = np.zeros(scheme.group.dim)
+    for load in scheme.problem.loads:
+        if isinstance(load, Damping):
+            gamma = gamma + np.asarray(load.coefficients, dtype=float)
+    return gamma
+
+
+def _closing_matrix(scheme: Scheme, gamma: np.ndarray, dt: float) -> np.ndarray:
+    """``(I + ½ΔtΓM⁺)⁻¹``, ``(r, r)``: lie-verlet's closing kick implicit in linear damping."""
+    return np.linalg.inv(np.eye(gamma.size) + 0.5 * dt * gamma[:, None] * scheme.inverse_metric)
+
+
 class LieVerlet(Integrator):
     """Symplectic, explicit, second-order splitting that stays in G.
 
@@ -121,6 +140,14 @@ class LieVerlet(Integrator):
     group of the splitting of the free rigid body (McLachlan 1993; Dullweber, Leimkuhler &
     McLachlan 1997).  The force at the end of a step is reused at the start of the next when
     no load depends on N (one force evaluation per step).
+
+    With loads that depend on N (damping) the closing half kick is implicit in the velocity,
+    ``S⁺ = S½ + ½Δt W(Φ⁺, N(S⁺))``, so that the damping impulse over a step is the trapezoidal
+    ``−½ΔtΓ(N_n + N_{n+1})`` and the method stays second order (an explicit closing kick,
+    with ``N(S½)``, is first order in the damping).  For linear damping (``Damping`` loads:
+    W = W₀ − ΓN, N = M⁺S) it is solved in closed form, ``(I + ½ΔtΓM⁺)S⁺ = S½ + ½Δt W₀(Φ⁺)``,
+    with one force evaluation (at N = 0), as in the compiled loops; other velocity-dependent
+    forces by fixed-point iteration.
     """
 
     name = "lie-verlet"
@@ -193,11 +220,44 @@ class LieVerlet(Integrator):
             scheme.drift(state, tau, Np, exact=True)
         scheme.constrain(state)
         t1 = state.t + dt
-        W1 = self.force(scheme, state, scheme.velocity(state), t1)
-        state.S = state.S + 0.5 * dt * W1
-        scheme.constrain(state)
+        W1 = self._closing_kick(scheme, state, dt, t1)
         # cache the force at the new configuration for the next step's first kick
         self._fsal = ((id(state), t1, state.scalars.get("nstep", 0) + 1), W1)
+
+    def _closing_kick(self, scheme: Scheme, state: State, dt: float, t1: float) -> np.ndarray:
+        """``S⁺ = S½ + ½Δt W(Φ⁺, N)`` with N = N(S⁺) (implicit, see the class docstring) when
+        a force depends on N, else N(S½); returns the W applied."""
+        loads = scheme.problem.loads
+        dependent = [ld for ld in loads if ld.velocity_dependent]
+        medium_dependent = bool(getattr(scheme.medium, "velocity_dependent_forces", False))
+        half = 0.5 * dt
+        start = state.S
+        if not dependent and not medium_dependent:
+            W1 = self.force(scheme, state, scheme.velocity(state), t1)
+        elif not medium_dependent and all(isinstance(ld, Damping) for ld in dependent):
+            gamma = _damping(scheme)
+            W0 = self.force(scheme, state, np.zeros_like(state.S), t1)
+            rhs = start + half * W0
+            if scheme.diagonal_metric:
+                inv = np.diag(scheme.inverse_metric)
+                state.S = rhs / (1.0 + half * gamma * inv)
+            else:  # S⁺ = (I + ½ΔtΓM⁺)⁻¹ (S½ + ½Δt W₀)
+                state.S = np.einsum("kl,...l->...k", _closing_matrix(scheme, gamma, dt), rhs)
+            scheme.constrain(state)
+            return W0 - gamma * scheme.velocity(state)
+        else:  # fixed point of S⁺ = S½ + ½Δt W(Φ⁺, N(S⁺)), from the explicit kick
+            W1 = self.force(scheme, state, scheme.velocity(state), t1)
+            for _ in range(_CLOSING_ITERATIONS):
+                state.S = start + half * W1
+                scheme.constrain(state)
+                W_next = self.force(scheme, state, scheme.velocity(state), t1)
+                change = np.max(np.abs(W_next - W1), initial=0.0)
+                W1 = W_next
+                if change <= 1e-14 * np.max(np.abs(W1), initial=0.0):
+                    break
+        state.S = start + half * W1
+        scheme.constrain(state)
+        return W1
 
     def compiled_loop(self, scheme: Scheme, state: State, dt: float):
         seq = self._sequence(scheme)
@@ -209,7 +269,8 @@ class LieVerlet(Integrator):
         W = (np.array(self._fsal[1], dtype=float) if have else np.zeros(state.S.shape)).reshape(-1, r)
         velocity_free = not any(ld.velocity_dependent for ld in scheme.problem.loads) and not getattr(
             scheme.medium, "velocity_dependent_forces", False)
-        return "lie_verlet_loop", (W, bool(have), bool(velocity_free), pieces, fracs)
+        closing = _closing_matrix(scheme, _damping(scheme), dt)
+        return "lie_verlet_loop", (W, bool(have), bool(velocity_free), pieces, fracs, closing)
 
     def compiled_loop_done(self, state: State, args: tuple) -> None:
         self._fsal = ((id(state), state.t, state.scalars.get("nstep", 0)), args[0].reshape(state.S.shape))

@@ -56,13 +56,17 @@ def _book(D, C, S, N, t, dt, p0d, p0e, diss, ext, K, check, limit):
             _blown(D, C, S, check, limit))
 
 
-def lie_verlet_loop(D, C, S, W, have_w, velocity_free, pieces, fracs, t, dt, nsteps, diss, ext, check, limit):
+def lie_verlet_loop(D, C, S, W, have_w, velocity_free, pieces, fracs, closing, t, dt, nsteps, diss, ext, check,
+                    limit):
     """``lie-verlet``: half kick, exact free flow split into pieces (``pieces`` ``[P, r, r]``,
-    ``fracs`` of Δt, palindromic), half kick; W carries the force between steps (FSAL)."""
+    ``fracs`` of Δt, palindromic), half kick; W carries the force between steps (FSAL).  With
+    damping (not ``velocity_free``) the closing kick is implicit in the damping,
+    ``S⁺ = closing·(S½ + ½Δt W(N = 0))`` with ``closing = (I + ½ΔtΓM⁺)⁻¹`` ``[r, r]``."""
     K = op_work(D)  # noqa: F821
     n = S.shape[0]
     N = np.empty((n, R_))  # noqa: F821
     Dn = np.empty((n, M_, M_))  # noqa: F821
+    rhs = np.empty(R_)  # noqa: F821
     nforce = 0
     op_velocity(D, S, N)  # noqa: F821
     p0d, p0e = op_powers(D, C, N, t, K)  # noqa: F821
@@ -78,15 +82,31 @@ def lie_verlet_loop(D, C, S, W, have_w, velocity_free, pieces, fracs, t, dt, nst
         op_free_flow(D, C, S, pieces, fracs, dt, Dn, K)  # noqa: F821
         op_constrain(D, S)  # noqa: F821
         t1 = t + dt
-        op_velocity(D, S, N)  # noqa: F821
-        op_force(D, C, t1, N, W, K)  # noqa: F821
+        if velocity_free:
+            op_velocity(D, S, N)  # noqa: F821
+            op_force(D, C, t1, N, W, K)  # noqa: F821
+            for i in range(n):
+                for k in range(R_):  # noqa: F821
+                    S[i, k] += 0.5 * dt * W[i, k]
+        else:
+            N[:] = 0.0
+            op_force(D, C, t1, N, W, K)  # noqa: F821
+            for i in range(n):
+                for k in range(R_):  # noqa: F821
+                    rhs[k] = S[i, k] + 0.5 * dt * W[i, k]
+                for k in range(R_):  # noqa: F821
+                    v = 0.0
+                    for j in range(R_):  # noqa: F821
+                        v += closing[k, j] * rhs[j]
+                    S[i, k] = v
         nforce += 1
         have_w = True
-        for i in range(n):
-            for k in range(R_):  # noqa: F821
-                S[i, k] += 0.5 * dt * W[i, k]
         op_constrain(D, S)  # noqa: F821
         op_velocity(D, S, N)  # noqa: F821
+        if not velocity_free:  # the force at the new state: W(N = 0) − ΓN
+            for i in range(n):
+                for k in range(R_):  # noqa: F821
+                    W[i, k] -= D.damp[k] * N[i, k]
         t = t1
         done += 1
         p0d, p0e, diss, ext, blown = _book(D, C, S, N, t, dt, p0d, p0e, diss, ext, K, check, limit)

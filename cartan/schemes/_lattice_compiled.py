@@ -531,7 +531,13 @@ def _node_pass(P, OUT, INC, Phi, S, N, W, gam, half, gather, close, kick, constr
                 fixed = clamped[i]
                 for k in range(r):
                     s = S[i, k]
-                    if kick:
+                    if kick and damp_force and live[k] and not fixed:
+                        # lie-verlet's closing kick, implicit in the damping (trapezoidal):
+                        # (1 + ½Δt c/m) S⁺ = S½ + ½Δt W(N = 0), W(N = 0) = W + cN
+                        w0 = W[i, k] + N[i, k] * damp[k]
+                        s = (s + half * w0) / (1.0 + half * damp[k] / mass[k])
+                        W[i, k] = w0 - damp[k] * (s / mass[k])
+                    elif kick:
                         s = s + half * W[i, k]
                     if constrain and (fixed or not live[k]):
                         s = 0.0

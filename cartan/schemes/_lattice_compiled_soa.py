@@ -678,13 +678,29 @@ def _close_chunk(P, OUT, INC, phi, s, Nv, w, half, close, velocity, inv, need_ki
         if not close:
             continue
         t = 0.0
-        for i0 in range(hi - lo):
-            i = lo + i0
-            v = s[k, i] + half * w[k, i]
-            if constrained and (clamped[i] or not live[k]):
-                v = 0.0
-            s[k, i] = v
-            t += v
+        if has_damp and live[k]:
+            # lie-verlet's closing kick, implicit in the damping (trapezoidal):
+            # (1 + ½Δt c/m) S⁺ = S½ + ½Δt W(N = 0), W(N = 0) = W + cN
+            ck = damp[k]
+            m = mass[k]
+            den = 1.0 + half * ck / m
+            for i0 in range(hi - lo):
+                i = lo + i0
+                w0 = w[k, i] + Nv[k, i] * ck
+                v = (s[k, i] + half * w0) / den
+                if constrained and clamped[i]:
+                    v = 0.0
+                s[k, i] = v
+                w[k, i] = w0 - ck * (v / m)
+                t += v
+        else:
+            for i0 in range(hi - lo):
+                i = lo + i0
+                v = s[k, i] + half * w[k, i]
+                if constrained and (clamped[i] or not live[k]):
+                    v = 0.0
+                s[k, i] = v
+                t += v
         tot += t
         if velocity:
             m = mass[k]
