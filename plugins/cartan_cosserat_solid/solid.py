@@ -58,6 +58,7 @@ from cartan.medium import (
     check_positive,
 )
 from cartan.problem import ConstantFieldPotential, InitialState
+from cartan.supports import PenaltySupport, SymmetrySupport
 
 __all__ = [
     "translation_holonomies",
@@ -293,7 +294,7 @@ class CosseratSolid(QuadraticMedium):
 
     name: ClassVar[str] = "cosserat-solid"
     material_dim: ClassVar[int] = 3
-    load_kinds: ClassVar[tuple[str, ...]] = ("gravity",)
+    load_kinds: ClassVar[tuple[str, ...]] = ("gravity", "symmetry", "simple-support")
     initial_kinds: ClassVar[tuple[str, ...]] = ("undeformed", "stretch", "deformation", "twist", "arrays")
 
     def __init__(self, lam: float = 1.0, mu: float = 1.0, kappa: float = 0.5, alpha: float = 0.1,
@@ -381,11 +382,19 @@ class CosseratSolid(QuadraticMedium):
 
     # ------------------------------------------------------------------ loads
     def make_load(self, kind: str, **params: Any):
-        """``"gravity"``: :class:`Gravity` with ``g`` (3,) and this solid's density."""
+        """``"gravity"``: :class:`Gravity` with ``g`` (3,) and this solid's density;
+        ``"symmetry"`` (:class:`cartan.supports.SymmetrySupport`: ``edges`` (faces), ``normal``,
+        ``position_stiffness``, ``director_stiffness``, per unit volume) and ``"simple-support"``
+        (:class:`cartan.supports.PenaltySupport`) on the faces of the block (d = 3)."""
         if kind == "gravity":
             if set(params) != {"g"}:
                 raise ValueError(f"load 'gravity' takes exactly the parameter 'g', got {sorted(params)}")
             return Gravity(params["g"], self.rho)
+        if kind in ("symmetry", "simple-support"):
+            if "dim" in params:
+                raise ValueError(f"load {kind!r}: 'dim' is the solid's, 3; do not give it")
+            support = SymmetrySupport if kind == "symmetry" else PenaltySupport
+            return support(**params, dim=3)
         return super().make_load(kind, **params)
 
     # ------------------------------------------------------------------ outputs
