@@ -64,6 +64,14 @@ The reductions
     with clamped or unloaded free ends and drag loads (mapped at equal dissipated power).
     *Speed-up*: the time of the planar pilot against the sphere's.
 
+A method for a tolerance
+------------------------
+``advise(scene, tol=...)``: for a dynamic scene the cheapest (integrator, Δt) whose final
+positions are within ``tol`` of a fine reference run (:func:`advise_method`); for a static
+scene the coarsest grid whose equilibrium positions are within ``tol`` (relative) by
+Richardson extrapolation over three refinement levels, and for a continuation scene the same
+at its path's final point (:func:`advise_resolution`).
+
 Timings are wall-clock times of the runs after a warm-up run of each model (the numba
 compilation is not counted; a static solve's time is the fastest of :data:`STATIC_REPEATS`);
 they depend on the machine and its load.
@@ -90,8 +98,8 @@ if TYPE_CHECKING:  # pragma: no cover
 from .problem import Clamped, Damping, Free, InitialState, Problem
 
 __all__ = ["HELD_STRAINS", "LARGE_RADIUS", "PILOT_STEPS", "PLANAR", "Advice", "HeldStrainMedium", "ReductionAdvice",
-           "MethodAdvice", "MethodCandidate", "advise", "advise_method", "held_strain_problem",
-           "plane_limit_problem"]
+           "MethodAdvice", "MethodCandidate", "ResolutionAdvice", "ResolutionCandidate", "advise", "advise_method",
+           "advise_resolution", "held_strain_problem", "plane_limit_problem"]
 
 #: time steps of the pilot run of a dynamic scene (fewer when the scene's run is shorter)
 PILOT_STEPS = 200
@@ -295,17 +303,26 @@ class _Subject:
     measure: Any = None
 
 
-def _subject(obj: Any) -> _Subject:
-    from .scene import Scene, load_scene
+def _load(obj: Any) -> Any:
+    """``obj`` as a :class:`~cartan.scene.Scene` when it names one (a scene file, a registered
+    name, a scene dict); anything else is returned as it is."""
+    from .scene import load_scene
     from .scene import scene as registered
+
+    if isinstance(obj, str | os.PathLike):
+        path = pathlib.Path(obj)
+        return load_scene(path) if path.suffix == ".toml" or path.exists() else registered(str(obj))
+    if isinstance(obj, Mapping):
+        return load_scene(obj)
+    return obj
+
+
+def _subject(obj: Any) -> _Subject:
+    from .scene import Scene
 
     if isinstance(obj, Problem):
         return _Subject(obj, obj.name or obj.medium.name, "static", {}, {})
-    if isinstance(obj, str | os.PathLike):
-        path = pathlib.Path(obj)
-        obj = load_scene(path) if path.suffix == ".toml" or path.exists() else registered(str(obj))
-    elif isinstance(obj, Mapping):
-        obj = load_scene(obj)
+    obj = _load(obj)
     if not isinstance(obj, Scene):
         raise TypeError(f"advise takes a Problem, a Scene, a scene file or a registered scene name, got {obj!r}")
     if obj.mode == "static" and obj.initial_guess is not None:
@@ -892,11 +909,13 @@ def _advise_sphere(subject: _Subject, full_ds: Any, full_time: float, rtol: floa
 
 # ---------------------------------------------------------------------------- the entry point
 def advise(problem_or_scene: Any, check: bool = False, *, rtol: float = DEFAULT_RTOL,
-           pilot_steps: int = PILOT_STEPS, tol: float | None = None) -> Advice | MethodAdvice:
+           pilot_steps: int = PILOT_STEPS, tol: float | None = None) -> Advice | MethodAdvice | ResolutionAdvice:
     """Which reductions a scene admits, measured on the scene (see the module docstring).
 
-    With ``tol`` (a dynamic scene): the cheapest integrator and Δt that reach the accuracy
-    ``tol`` instead, :func:`advise_method` (``check`` and ``rtol`` do not apply).
+    With ``tol``: a method for the accuracy ``tol`` instead (``check`` and ``rtol`` do not
+    apply) — for a dynamic scene the cheapest integrator and Δt, :func:`advise_method`; for a
+    static scene the coarsest grid, :func:`advise_resolution` (a continuation scene: at its
+    path's final point).
 
     Parameters
     ----------
@@ -933,7 +952,11 @@ def advise(problem_or_scene: Any, check: bool = False, *, rtol: float = DEFAULT_
     if tol is not None:
         if check:
             raise ValueError("tol and check=True do not combine: the method advice runs no reduced model")
-        return advise_method(problem_or_scene, tol, pilot_steps=pilot_steps)
+        _check_tol(tol)
+        obj = _load(problem_or_scene)
+        if isinstance(obj, Problem) or getattr(obj, "mode", None) in ("static", "continuation"):
+            return advise_resolution(obj, tol)
+        return advise_method(obj, tol, pilot_steps=pilot_steps)
     start = time.perf_counter()
     if not isinstance(check, bool | np.bool_):
         raise ValueError(f"check must be True or False, got {check!r}")
@@ -1306,7 +1329,7 @@ def advise_method(problem_or_scene: Any, tol: float, *, pilot_steps: int = PILOT
                     if not np.all(np.isfinite(pos)):
                         c.status, c.wall_time = "unstable: non-finite positions", math.nan
                     else:
-                        c.error = float(np.max(np.linalg.norm(pos - ref, axis=-1)))
+                        c.error = _max_distance(pos, ref)
                 except InstabilityError as exc:
                     why = " ".join(str(exc).split()).split(";", 1)[0].removeprefix("pilot run ")
                     c.status = "unstable: " + why.removeprefix("unstable ")
@@ -1325,35 +1348,36 @@ def advise_method(problem_or_scene: Any, tol: float, *, pilot_steps: int = PILOT
         spatial_n = int(np.prod(fine.problem.grid.shape))
         with contextlib.suppress(InstabilityError, ValueError, ArithmeticError):
             fine_ds = _simulate(fine.problem, settings(ref_name, ref_dt), t_end)
-            spatial_diff = float(np.max(np.linalg.norm(_final_positions(fine_ds)[::2][:len(ref)] - ref, axis=-1)))
+            spatial_diff = _max_distance(_shared_nodes(_final_positions(fine_ds), 1, len(ref)), ref)
     recommended, fastest = choose_method(candidates, tol)
     return MethodAdvice(subject.name, problem.medium.name, scheme, int(np.prod(problem.grid.shape)), tol, t_end,
                         dt0, f"{ref_name} at dt = {ref_dt:.4g}", ref_err, candidates, recommended, fastest,
                         time.perf_counter() - start, spatial_n, spatial_diff)
 
 
-def choose_method(candidates: Sequence[MethodCandidate], tol: float
-                  ) -> tuple[MethodCandidate | None, MethodCandidate | None]:
+def choose_method(candidates: Sequence[Any], tol: float, *, cost: Any = None, error: Any = None
+                  ) -> tuple[Any, Any]:
     """(the cheapest finished candidate whose error is at most ``tol``, the cheapest finished
-    candidate whatever its error); None where there is none."""
+    candidate whatever its error); None where there is none.
+
+    ``candidates`` have ``ok``; ``cost(c)`` and ``error(c)`` default to ``c.wall_time`` and
+    ``c.error`` (:class:`MethodCandidate`); :func:`advise_resolution` passes the number of
+    nodes and the relative error of a :class:`ResolutionCandidate`.
+    """
+    cost = cost if cost is not None else (lambda c: c.wall_time)
+    error = error if error is not None else (lambda c: c.error)
     done = [c for c in candidates if c.ok]
-    good = [c for c in done if c.error <= tol]
-    return (min(good, key=lambda c: c.wall_time) if good else None,
-            min(done, key=lambda c: c.wall_time) if done else None)
+    good = [c for c in done if error(c) <= tol]
+    return (min(good, key=cost) if good else None, min(done, key=cost) if done else None)
 
 
 def _refined_scene(obj: Any) -> Any:
     """The scene with its one-dimensional grid refined so that its nodes are every other node
     (``n → 2n − 1``, periodic ``n → 2n``), or None when that cannot be built."""
     from .scene import Scene, load_scene
-    from .scene import scene as registered
 
     try:
-        if isinstance(obj, str | os.PathLike):
-            path = pathlib.Path(obj)
-            obj = load_scene(path) if path.suffix == ".toml" or path.exists() else registered(str(obj))
-        elif isinstance(obj, Mapping):
-            obj = load_scene(obj)
+        obj = _load(obj)
         if not isinstance(obj, Scene) or not isinstance(obj.source.get("grid"), Mapping):
             return None
         grid = dict(obj.source["grid"])
@@ -1364,6 +1388,345 @@ def _refined_scene(obj: Any) -> Any:
         return load_scene(dict(obj.source) | {"grid": grid})
     except (ValueError, TypeError, OSError):
         return None
+
+
+# ---------------------------------------------------------------------------- a resolution for a tolerance
+#: the largest grid (nodes) :func:`advise_resolution` recommends
+TOL_MAX_N = 10001
+#: below this observed order the Richardson estimates of :func:`advise_resolution` are not trusted
+TOL_MIN_ORDER = 0.5
+#: differences of two levels below this multiple of the output's scale are round-off
+TOL_ROUNDOFF = 1e-12
+
+
+def _shared_nodes(pos: np.ndarray, refinements: int, count: int) -> np.ndarray:
+    """The nodes ``[count, k]`` of ``pos`` ``[nodes, k]`` that a grid refined ``refinements`` times
+    (:func:`_refined_scene`: ``n → 2n − 1``, periodic ``n → 2n``) shares with the grid of ``count``
+    nodes it was refined from: every ``2^refinements``-th node."""
+    return pos[:: 2 ** refinements][:count]
+
+
+def _max_distance(a: np.ndarray, b: np.ndarray) -> float:
+    """``max_i |a_i − b_i|`` over the nodes of two position arrays ``[nodes, k]``."""
+    return float(np.max(np.linalg.norm(np.asarray(a) - np.asarray(b), axis=-1)))
+
+
+def _richardson(d0: float, d1: float, floor: float) -> tuple[float, list[float]]:
+    """Observed order and Richardson error estimates of three levels h, h/2, h/4 from the
+    differences ``d0 = |u_h − u_{h/2}|`` and ``d1 = |u_{h/2} − u_{h/4}|``.
+
+    Returns ``(p, [e(h), e(h/2), e(h/4)])`` with ``p = log₂(d0/d1)`` and, for an error ``C hᵖ``,
+    ``e(h) = d0·2ᵖ/(2ᵖ − 1)``, ``e(h/2) = d0/(2ᵖ − 1)``, ``e(h/4) = d1/(2ᵖ − 1)``.  When ``d1 ≤ floor``
+    (round-off) the order is NaN and the estimates are the differences themselves
+    ``[d0, d1, d1]``; when ``p`` < :data:`TOL_MIN_ORDER` (or is undefined) the estimates are NaN.
+    """
+    if d1 <= floor:
+        return math.nan, [d0, d1, d1]
+    if not d0 > 0.0 or not math.isfinite(d0 / d1):
+        return math.nan, [math.nan] * 3
+    p = math.log2(d0 / d1)
+    if p < TOL_MIN_ORDER:
+        return p, [math.nan] * 3
+    f = 2.0 ** p - 1.0
+    return p, [d0 * 2.0 ** p / f, d0 / f, d1 / f]
+
+
+@dataclasses.dataclass
+class ResolutionCandidate:
+    """One grid of the refinement study of :func:`advise_resolution`.
+
+    Attributes
+    ----------
+    n : int
+        Nodes of the grid.
+    scheme : str
+    error : float
+        Estimated discretisation error of the equilibrium node positions at the nodes shared
+        with the scene's grid, ``max_i |x_i(n) − x_i(∞)|`` (length units; Richardson, see
+        :func:`advise_resolution`; NaN when the levels are not in the asymptotic range).
+    relative_error : float
+        ``error / scale`` (:attr:`ResolutionAdvice.scale`): what ``tol`` bounds.
+    order : float
+        The observed order the estimate uses (from the three levels, the same on every level;
+        NaN when the refined grids agree to round-off).
+    difference : float
+        ``max_i |x_i(n) − x_i(n')|`` at the shared nodes, n' the next level (NaN on the finest).
+    wall_time : float
+        Seconds of the solve, the fastest of :data:`STATIC_REPEATS` after a warm-up solve (of a
+        continuation: the whole path, once); it depends on the machine and its load (reported,
+        not used by the choice).
+    newton_iterations : int
+    """
+
+    n: int
+    scheme: str
+    error: float = math.nan
+    relative_error: float = math.nan
+    order: float = math.nan
+    difference: float = math.nan
+    wall_time: float = math.nan
+    newton_iterations: int = 0
+
+    @property
+    def ok(self) -> bool:
+        """The level has an error estimate."""
+        return math.isfinite(self.relative_error)
+
+
+@dataclasses.dataclass
+class ResolutionAdvice:
+    """What :func:`advise_resolution` (``advise(static_scene, tol=...)``) returns.
+
+    Attributes
+    ----------
+    scene, medium, scheme : str
+    mode : str
+        ``"static"`` or ``"continuation"``.
+    output : str
+        What the error measures (the equilibrium node positions at the scene's nodes; of a
+        continuation, at the path's final point).
+    tol : float
+        Requested accuracy, relative to ``scale``.
+    scale : float
+        The output's scale: the largest displacement of the shared nodes from the initial state
+        on the finest level (the grid length when nothing moves).
+    observed_order : float
+        ``log₂(d₀/d₁)``, ``d₀ = max|x(n) − x(2n−1)|``, ``d₁ = max|x(2n−1) − x(4n−3)|`` at the
+        shared nodes (NaN when ``d₁`` is round-off).
+    levels : list of ResolutionCandidate
+        The three grids n, 2n − 1, 4n − 3 (periodic: n, 2n, 4n).
+    recommended : ResolutionCandidate or None
+        The coarsest level whose estimated relative error is at most ``tol`` (None: none is).
+    recommended_n : int
+        Its n; or, when no level is within ``tol``, the n extrapolated from the observed order
+        (``extrapolated``), at most ``max_n`` (``capped``); 0 when there is no recommendation.
+    extrapolated : bool
+        ``recommended_n`` is an extrapolation (not solved here).
+    capped : bool
+        The extrapolated n exceeds ``max_n``: ``recommended_n`` is the largest grid allowed and
+        does not reach ``tol`` by the estimate.
+    predicted_error : float
+        Estimated relative error at ``recommended_n``.
+    max_n : int
+    note : str
+        How the recommendation was reached.
+    wall_time : float
+        Seconds spent in :func:`advise_resolution`.
+    """
+
+    scene: str
+    medium: str
+    scheme: str
+    mode: str
+    output: str
+    tol: float
+    scale: float
+    observed_order: float
+    levels: list[ResolutionCandidate]
+    recommended: ResolutionCandidate | None
+    recommended_n: int
+    extrapolated: bool
+    capped: bool
+    predicted_error: float
+    max_n: int
+    note: str = ""
+    wall_time: float = 0.0
+
+    def to_dict(self) -> dict[str, Any]:
+        """The report as plain Python (JSON-serialisable, NaN and inf as ``None``)."""
+
+        def clean(v: Any) -> Any:
+            return None if isinstance(v, float) and not math.isfinite(v) else v
+
+        def row(c: ResolutionCandidate | None) -> dict[str, Any] | None:
+            return None if c is None else {k: clean(v) for k, v in dataclasses.asdict(c).items()}
+
+        out = {k: clean(getattr(self, k)) for k in ("scene", "medium", "scheme", "mode", "output", "tol", "scale",
+                                                     "observed_order", "recommended_n", "extrapolated", "capped",
+                                                     "predicted_error", "max_n", "note", "wall_time")}
+        out["levels"] = [row(c) for c in self.levels]
+        out["recommended"] = row(self.recommended)
+        return out
+
+    def table(self) -> str:
+        """The levels as a text table: n, estimated error (absolute and relative), observed
+        order, difference to the next level, solve time."""
+        def f(x: float, spec: str = ".3g") -> str:
+            return "—" if not math.isfinite(x) else format(x, spec)
+
+        lines = [f"{'n':>7} {'est. error':>11} {'relative':>10} {'order':>6} {'diff. next':>11} {'time [s]':>9}"]
+        for c in self.levels:
+            mark = "  <- recommended" if c is self.recommended else ""
+            lines.append(f"{c.n:>7} {f(c.error):>11} {f(c.relative_error):>10} {f(c.order, '.2f'):>6} "
+                         f"{f(c.difference):>11} {f(c.wall_time):>9}{mark}")
+        return "\n".join(lines)
+
+    def __str__(self) -> str:
+        ns = ", ".join(str(c.n) for c in self.levels)
+        p = "—" if not math.isfinite(self.observed_order) else format(self.observed_order, ".3f")
+        lines = [f"scene {self.scene!r} ({self.medium}, {self.scheme}, {self.mode}): resolution for tol = {self.tol:g}",
+                 f"error: {self.output}, relative to the scale {self.scale:.4g}",
+                 f"Richardson from n = {ns}; observed order {p}", "", self.table(), ""]
+        if self.recommended_n == 0:
+            lines.append(f"recommended: none — {self.note}")
+        elif self.extrapolated:
+            what = "capped at max_n" if self.capped else "extrapolated"
+            lines.append(f"recommended: n = {self.recommended_n} ({what}; predicted relative error "
+                         f"{self.predicted_error:.3g}) — {self.note}")
+        else:
+            lines.append(f"recommended: n = {self.recommended_n} (estimated relative error {self.predicted_error:.3g}"
+                         f" ≤ {self.tol:g}; solve {self.recommended.wall_time:.3g} s) — {self.note}")
+        return "\n".join(lines)
+
+    def plot(self, path: str | os.PathLike) -> pathlib.Path:
+        """Convergence chart: the estimated relative error against n (log–log), the tol line and
+        the recommendation; written with matplotlib (Agg).  Returns the path."""
+        from .study import _figure
+
+        plt, fig, ax = _figure()
+        pts = [(c.n, c.relative_error) for c in self.levels if c.ok and c.relative_error > 0]
+        if pts:
+            ax.loglog(*zip(*pts, strict=True), "o-", label=f"{self.scheme} (estimated)")
+        ax.axhline(self.tol, color="k", ls="--", lw=0.8, label=f"tol = {self.tol:g}")
+        if self.recommended_n and math.isfinite(self.predicted_error) and self.predicted_error > 0:
+            ax.loglog([self.recommended_n], [self.predicted_error], "o", ms=14, mfc="none", color="r",
+                      label="recommended" + (" (extrapolated)" if self.extrapolated else ""))
+        ax.set_xlabel("nodes n")
+        ax.set_ylabel("estimated relative error of the positions")
+        ax.set_title(f"resolution: {self.scene}")
+        ax.grid(True, which="both", alpha=0.3)
+        ax.legend(fontsize=8)
+        path = pathlib.Path(path)
+        fig.savefig(path, dpi=110)
+        plt.close(fig)
+        return path
+
+
+def advise_resolution(scene: Any, tol: float, *, max_n: int = TOL_MAX_N) -> ResolutionAdvice:
+    """The coarsest grid of a static scene whose equilibrium is within ``tol``, from three levels.
+
+    The scene is solved (:func:`cartan.statics.solve_static` with its ``[static]`` settings; the
+    lattice scheme, the only one it supports; a continuation scene: its path with its
+    ``[continuation]`` settings, :func:`cartan.continuation`, and the output is taken at the
+    path's final point, which must be at the same load factor on every level — the path ends
+    on ``lambda_max`` exactly) on its grid of n nodes and on the grids refined
+    twice by :func:`_refined_scene` (``n → 2n − 1 → 4n − 3``; periodic ``n → 2n → 4n``), whose
+    every second (fourth) node is a node of the scene's grid.  The output is the equilibrium
+    node positions ``x_i`` at the scene's nodes; with ``d₀ = max_i |x_i(n) − x_i(2n−1)|`` and
+    ``d₁ = max_i |x_i(2n−1) − x_i(4n−3)|``, the observed order is ``p = log₂(d₀/d₁)`` and, for an
+    error ``C h^p``, Richardson's estimates are
+
+        e(n) = d₀·2^p/(2^p − 1),   e(2n−1) = d₀/(2^p − 1),   e(4n−3) = d₁/(2^p − 1),
+
+    compared with ``tol·scale``, the scale the largest displacement of those nodes (the grid
+    length when nothing moves).  The recommendation is the coarsest level within ``tol``
+    (:func:`choose_method` with the number of nodes as the cost).  When none is, the grid is
+    extrapolated from the finest level, ``e ∝ h^p``: the number of intervals
+    ``(4n − 4)·(e(4n−3)/tol)^{1/p}`` rounded up to a multiple of the scene's ``n − 1`` (so that the
+    scene's nodes stay nodes), flagged ``extrapolated`` (not solved) and capped at ``max_n``
+    (``capped``).  When ``d₁`` is round-off (:data:`TOL_ROUNDOFF` of the scale) the differences
+    themselves are the estimates; when ``p`` < :data:`TOL_MIN_ORDER` the levels are not in the
+    asymptotic range and nothing is recommended.
+
+    Parameters
+    ----------
+    scene : Scene, path, str or dict
+        A static or continuation scene with a one-dimensional grid of ``n`` nodes (its
+        ``[grid]`` table), on a medium with node positions (an affine group).
+    tol : float
+        Accepted relative error, > 0.
+    max_n : int, default :data:`TOL_MAX_N`
+        The largest grid an extrapolation recommends, ≥ 3.
+
+    Returns
+    -------
+    ResolutionAdvice
+
+    Raises
+    ------
+    ValueError
+        Bad ``tol`` or ``max_n``; not a static or continuation scene (a
+        :class:`~cartan.Problem` has no grid table to refine); a grid that cannot be refined;
+        a medium without node positions; paths that end at different load factors.
+    cartan.statics.ConvergenceError
+        A solve or a path failed.
+    """
+    start = time.perf_counter()
+    tol = _check_tol(tol)
+    if isinstance(max_n, bool) or not isinstance(max_n, int | np.integer) or max_n < 3:
+        raise ValueError(f"max_n must be an integer ≥ 3, got {max_n!r}")
+    if isinstance(scene, Problem):
+        raise ValueError("the advice for a tolerance needs a scene (file, registered name or dict), not a Problem: it "
+                         "refines the grid of a static or continuation scene and sweeps the time step of a dynamic one")
+    subject = _subject(scene)
+    if subject.mode not in ("static", "continuation"):
+        raise ValueError(f"scene {subject.name!r}: the resolution advice needs a static or continuation scene, got "
+                         f"mode {subject.mode!r}")
+    scenes = [_load(scene)]
+    for _ in range(2):
+        fine = _refined_scene(scenes[-1])
+        if fine is None:
+            raise ValueError(f"scene {subject.name!r}: the resolution advice needs a one-dimensional grid with n in "
+                             "its [grid] table")
+        scenes.append(fine)
+    problem = subject.problem
+    n0 = int(problem.grid.shape[0])
+    scheme = str(subject.solver_options.get("scheme", "lattice"))
+    levels, pos, lam = [], [], []
+    for k, sc in enumerate(scenes):  # each level with its own subject: a measure reads its own grid
+        ds, seconds = _run(subject if k == 0 else _subject(sc), sc.problem, None, warm=k == 0)
+        if "position" not in ds:
+            raise ValueError(f"scene {subject.name!r}: medium {problem.medium.name!r} has no node positions to "
+                             "measure the resolution on")
+        pos.append(_shared_nodes(_final_positions(ds), k, n0))
+        if subject.mode == "continuation":
+            lam.append(float(ds["load_factor"].values[-1]))
+        levels.append(ResolutionCandidate(int(sc.problem.grid.shape[0]), scheme, wall_time=seconds,
+                                          newton_iterations=int(ds.attrs.get("newton_iterations", 0))))
+    if lam and not math.isclose(min(lam), max(lam), rel_tol=1e-9, abs_tol=1e-12):
+        raise ValueError(f"scene {subject.name!r}: the paths on n = {levels[0].n}, {levels[1].n}, {levels[2].n} end "
+                         f"at different load factors ({', '.join(f'{v:.6g}' for v in lam)}): no common final point")
+    d0, d1 = _max_distance(pos[0], pos[1]), _max_distance(pos[1], pos[2])
+    levels[0].difference, levels[1].difference = d0, d1
+    length = float(problem.grid.length[0])
+    scale = _max_distance(pos[2], _initial_positions(problem))
+    scale_of = "the largest displacement" if scale > TOL_ROUNDOFF * length else "the grid length"
+    scale = scale if scale > TOL_ROUNDOFF * length else length
+    p, errors = _richardson(d0, d1, TOL_ROUNDOFF * scale)
+    note = "" if math.isfinite(p) or not math.isfinite(errors[0]) else \
+        "the refined grids agree to round-off: the differences to the next level are the estimates"
+    for c, e in zip(levels, errors, strict=True):
+        c.error, c.relative_error, c.order = e, e / scale, p
+    recommended, _ = choose_method(levels, tol, cost=lambda c: c.n, error=lambda c: c.relative_error)
+    rec_n, extrapolated, capped, predicted = 0, False, False, math.nan
+    if recommended is not None:
+        rec_n, predicted = recommended.n, recommended.relative_error
+        note = note or f"the coarsest of the three levels within tol (Richardson, observed order {p:.3f})"
+    elif levels[-1].ok and math.isfinite(p):
+        periodic = bool(problem.grid.periodic[0])
+        m0 = n0 if periodic else n0 - 1  # intervals of the scene's grid
+        m2 = 4 * m0
+        e2 = levels[-1].relative_error
+        m = max(m2 + m0, math.ceil(m2 * (e2 / tol) ** (1.0 / p) / m0 * (1.0 - 1e-12)) * m0)
+        m_cap = max(m2, (max_n - (0 if periodic else 1)) // m0 * m0)
+        extrapolated, capped = True, m > m_cap
+        m = min(m, m_cap)
+        rec_n, predicted = m + (0 if periodic else 1), e2 * (m2 / m) ** p
+        note = (f"extrapolated from the finest level with the observed order {p:.3f} (e ∝ h^p), not solved; "
+                f"{'n' if periodic else 'n − 1'} a multiple of {m0} so that the scene's nodes stay nodes")
+        if capped:
+            note = (f"tol is not reached within max_n = {max_n}: the largest grid allowed, n = {rec_n}, is predicted "
+                    f"at {predicted:.3g}; " + note)
+    elif not levels[-1].ok:
+        note = (f"observed order {p:.3g} (below {TOL_MIN_ORDER} or undefined): the three levels are not in the "
+                "asymptotic range; refine the scene's grid and ask again")
+    else:
+        note = "the finest level is not within tol and its difference is round-off: nothing to extrapolate"
+    where = f" at the path's final point λ = {lam[0]:.6g}" if lam else ""
+    output = f"max |x − x(∞)| of the equilibrium node positions{where} at the scene's {n0} nodes ({scale_of})"
+    return ResolutionAdvice(subject.name, problem.medium.name, scheme, subject.mode, output, tol, scale, p, levels,
+                            recommended, rec_n, extrapolated, capped, predicted, int(max_n), note,
+                            time.perf_counter() - start)
 
 
 def _registered_integrator(name: str) -> Any:

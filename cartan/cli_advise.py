@@ -12,7 +12,12 @@
     instead proposes the cheapest (integrator, Δt) of a dynamic scene whose final node
     positions are within ``tol`` of a fine reference run, from a short work-precision sweep
     on the scene (:func:`cartan.advise.advise_method`), with the stability map; ``--chart``
-    writes the work-precision chart (PNG).
+    writes the work-precision chart (PNG).  On a static scene it proposes the coarsest grid n
+    whose equilibrium node positions are within ``tol`` (relative to their largest
+    displacement), by Richardson extrapolation over the grids n, 2n − 1, 4n − 3
+    (:func:`cartan.advise.advise_resolution`), extrapolated beyond them from the observed order
+    when none is within ``tol``; ``--chart`` then writes the error against n.  A continuation
+    scene gets the same advice at its path's final point.
 
 Bad input prints one line ``cartan: error: ...`` on stderr and exits with status 2 without
 writing anything; a solve or pilot that fails exits with status 1.
@@ -43,7 +48,8 @@ __all__ = ["advise_cmd", "register"]
               help="Write the table as netCDF.")
 @click.option("--json", "as_json", is_flag=True, help="Print the report as JSON.")
 @click.option("--tol", type=str, default=None, metavar="X",
-              help="Propose the cheapest integrator and time step reaching this accuracy (dynamic scenes).")
+              help="Propose the cheapest integrator and time step (dynamic scene) or the coarsest grid (static "
+                   "scene) reaching this accuracy (continuation scene: its final point).")
 @click.option("--chart", type=click.Path(dir_okay=False, path_type=pathlib.Path), default=None,
               help="With --tol: write the work-precision chart (PNG).")
 def advise_cmd(scene_file, scene_name, check, rtol, pilot_steps, output, as_json, tol, chart) -> None:
@@ -109,16 +115,18 @@ def advise_cmd(scene_file, scene_name, check, rtol, pilot_steps, output, as_json
 
 
 def _advise_tol(subject, tol: float, pilot_steps: int, chart: pathlib.Path | None, as_json: bool) -> None:
-    """``--tol``: the method advice, printed, and its chart written."""
-    from .advise import advise_method
+    """``--tol``: the method advice (dynamic) or the resolution advice (static), printed, and its
+    chart written."""
+    from .advise import advise
     from .plugins import RegistryError
     from .scene import SceneError
     from .simulate import InstabilityError
+    from .statics import ConvergenceError
 
     with _stop_cleanly(), _warnings_as_lines():
         try:
-            report = advise_method(subject, tol, pilot_steps=pilot_steps)
-        except InstabilityError as exc:
+            report = advise(subject, tol=tol, pilot_steps=pilot_steps)
+        except (InstabilityError, ConvergenceError) as exc:
             raise CommandError(str(exc), RUN_ERROR) from None
         except (SceneError, RegistryError, ValueError, TypeError, ArithmeticError) as exc:
             raise CommandError(str(exc) or type(exc).__name__) from None

@@ -142,8 +142,8 @@ def test_advise_with_tol_dispatches_and_checks_tol():
         advise(SCENE, tol=0.0)
     with pytest.raises(ValueError, match="tol"):
         advise(SCENE, tol=math.nan)
-    with pytest.raises(ValueError, match="dynamic"):
-        advise("rod-timoshenko-static", tol=1e-4)
+    with pytest.raises(ValueError, match="dynamic"):  # a Problem carries no run settings to refine
+        advise(scene("rod-timoshenko-static").problem, tol=1e-4)
 
 
 @SWEEP
