@@ -1005,6 +1005,15 @@ TOL_REPEATS = 2
 _REFERENCE_ORDER = ("rkmk4", "implicit-midpoint", "lie-verlet", "lie-euler")
 
 
+def _json_value(v: Any) -> Any:
+    """A report value as JSON: NaN and inf as ``None``."""
+    return None if isinstance(v, float) and not math.isfinite(v) else v
+
+
+def _json_row(c: Any) -> dict[str, Any] | None:
+    """A candidate (a dataclass) of a report as a JSON object, or ``None``."""
+    return None if c is None else {k: _json_value(v) for k, v in dataclasses.asdict(c).items()}
+
 @dataclasses.dataclass
 class MethodCandidate:
     """One run of the work-precision sweep of :func:`advise_method`.
@@ -1103,13 +1112,7 @@ class MethodAdvice:
 
     def to_dict(self) -> dict[str, Any]:
         """The report as plain Python (JSON-serialisable, NaN and inf as ``None``)."""
-
-        def clean(v: Any) -> Any:
-            return None if isinstance(v, float) and not math.isfinite(v) else v
-
-        def row(c: MethodCandidate | None) -> dict[str, Any] | None:
-            return None if c is None else {k: clean(v) for k, v in dataclasses.asdict(c).items()}
-
+        clean, row = _json_value, _json_row
         out = {k: clean(getattr(self, k)) for k in ("scene", "medium", "scheme", "n", "tol", "t_end", "dt_scene",
                                                      "reference", "reference_error", "wall_time", "spatial_n",
                                                      "spatial_difference")}
@@ -1160,7 +1163,7 @@ class MethodAdvice:
     def plot(self, path: str | os.PathLike) -> pathlib.Path:
         """Work-precision chart: error against wall time per integrator (log–log), the tol line,
         the recommendation circled; written with matplotlib (Agg).  Returns the path."""
-        from .study import _figure
+        from .study import _figure, finish_chart
 
         plt, fig, ax = _figure()
         for name in dict.fromkeys(c.integrator for c in self.candidates):
@@ -1174,13 +1177,7 @@ class MethodAdvice:
                       label="recommended")
         ax.set_xlabel("wall time of the steps [s] (after compilation)")
         ax.set_ylabel("max |position − reference|")
-        ax.set_title(f"work-precision: {self.scene}, t = {self.t_end:g}")
-        ax.grid(True, which="both", alpha=0.3)
-        ax.legend(fontsize=8)
-        path = pathlib.Path(path)
-        fig.savefig(path, dpi=110)
-        plt.close(fig)
-        return path
+        return finish_chart(fig, ax, path, f"work-precision: {self.scene}, t = {self.t_end:g}")
 
 
 def _check_tol(tol: Any) -> float:
@@ -1534,13 +1531,7 @@ class ResolutionAdvice:
 
     def to_dict(self) -> dict[str, Any]:
         """The report as plain Python (JSON-serialisable, NaN and inf as ``None``)."""
-
-        def clean(v: Any) -> Any:
-            return None if isinstance(v, float) and not math.isfinite(v) else v
-
-        def row(c: ResolutionCandidate | None) -> dict[str, Any] | None:
-            return None if c is None else {k: clean(v) for k, v in dataclasses.asdict(c).items()}
-
+        clean, row = _json_value, _json_row
         out = {k: clean(getattr(self, k)) for k in ("scene", "medium", "scheme", "mode", "output", "tol", "scale",
                                                      "observed_order", "recommended_n", "extrapolated", "capped",
                                                      "predicted_error", "max_n", "note", "wall_time")}
@@ -1581,7 +1572,7 @@ class ResolutionAdvice:
     def plot(self, path: str | os.PathLike) -> pathlib.Path:
         """Convergence chart: the estimated relative error against n (log–log), the tol line and
         the recommendation; written with matplotlib (Agg).  Returns the path."""
-        from .study import _figure
+        from .study import _figure, finish_chart
 
         plt, fig, ax = _figure()
         pts = [(c.n, c.relative_error) for c in self.levels if c.ok and c.relative_error > 0]
@@ -1593,13 +1584,7 @@ class ResolutionAdvice:
                       label="recommended" + (" (extrapolated)" if self.extrapolated else ""))
         ax.set_xlabel("nodes n")
         ax.set_ylabel("estimated relative error of the positions")
-        ax.set_title(f"resolution: {self.scene}")
-        ax.grid(True, which="both", alpha=0.3)
-        ax.legend(fontsize=8)
-        path = pathlib.Path(path)
-        fig.savefig(path, dpi=110)
-        plt.close(fig)
-        return path
+        return finish_chart(fig, ax, path, f"resolution: {self.scene}")
 
 
 def advise_resolution(scene: Any, tol: float, *, max_n: int = TOL_MAX_N) -> ResolutionAdvice:

@@ -780,6 +780,19 @@ def _figure():
     return plt, fig, ax
 
 
+def finish_chart(fig: Any, ax: Any, path: str | os.PathLike, title: str, legend_size: int = 8) -> pathlib.Path:
+    """Title, log grid and legend on ``ax``; write ``fig`` to ``path`` (PNG, 110 dpi) and close it."""
+    import matplotlib.pyplot as plt
+
+    ax.set_title(title)
+    ax.grid(True, which="both", alpha=0.3)
+    ax.legend(fontsize=legend_size)
+    path = pathlib.Path(path)
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+    return path
+
+
 def _slopes(ax: Any, x: np.ndarray, y: np.ndarray, orders: Iterable[float], sign: float = 1.0) -> None:
     """Dashed reference lines of the given slopes, through the finest point of the data."""
     ok = np.isfinite(x) & np.isfinite(y) & (x > 0) & (y > 0)
@@ -890,10 +903,4 @@ def plot_stability(ds: Any, path: str | os.PathLike) -> pathlib.Path:
     _slopes(ax, h_all, np.where(d_all > 0, d_all, np.nan), [1.0])
     ax.set_xlabel("dx")
     ax.set_ylabel("Δt")
-    ax.set_title(ds.attrs.get("title", "stability"))
-    ax.grid(True, which="both", alpha=0.3)
-    ax.legend(fontsize=8)
-    path = pathlib.Path(path)
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
-    return path
+    return finish_chart(fig, ax, path, ds.attrs.get("title", "stability"))

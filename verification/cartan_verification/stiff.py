@@ -202,13 +202,7 @@ def plot_stability_map(ds: xr.Dataset, path: str | os.PathLike) -> pathlib.Path:
                 ax.annotate(f"×{b / a:.0f}", (x, b), textcoords="offset points", xytext=(4, 6), fontsize=8)
     ax.set_xlabel("dx")
     ax.set_ylabel("Δt")
-    ax.set_title(ds.attrs.get("title", "stability map"))
-    ax.grid(True, which="both", alpha=0.3)
-    ax.legend(fontsize=8)
-    path = pathlib.Path(path)
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
-    return path
+    return cartan.study.finish_chart(fig, ax, path, ds.attrs.get("title", "stability map"))
 
 
 class StiffRodStability(Case):
