@@ -1345,7 +1345,8 @@ def advise_method(problem_or_scene: Any, tol: float, *, pilot_steps: int = PILOT
         spatial_n = int(np.prod(fine.problem.grid.shape))
         with contextlib.suppress(InstabilityError, ValueError, ArithmeticError):
             fine_ds = _simulate(fine.problem, settings(ref_name, ref_dt), t_end)
-            spatial_diff = _max_distance(_shared_nodes(_final_positions(fine_ds), 1, len(ref)), ref)
+            spatial_diff = _max_distance(_shared_nodes(_final_positions(fine_ds), 1, ref.shape[:-1]),
+                                         ref.reshape(-1, ref.shape[-1]))
     recommended, fastest = choose_method(candidates, tol)
     return MethodAdvice(subject.name, problem.medium.name, scheme, int(np.prod(problem.grid.shape)), tol, t_end,
                         dt0, f"{ref_name} at dt = {ref_dt:.4g}", ref_err, candidates, recommended, fastest,
@@ -1369,20 +1370,36 @@ def choose_method(candidates: Sequence[Any], tol: float, *, cost: Any = None, er
 
 
 def _refined_scene(obj: Any) -> Any:
-    """The scene with its one-dimensional grid refined so that its nodes are every other node
-    (``n → 2n − 1``, periodic ``n → 2n``), or None when that cannot be built."""
+    """The scene with its grid refined along every axis so that its nodes are every other node
+    (``n → 2n − 1``, periodic ``n → 2n``; the ``n`` of a d = 1 ``[grid]`` table or the ``shape``
+    of any), or None when that cannot be built."""
     from .scene import Scene, load_scene
+
+    def finer(n: int, periodic: bool) -> int:
+        return 2 * n if periodic else 2 * n - 1
 
     try:
         obj = _load(obj)
         if not isinstance(obj, Scene) or not isinstance(obj.source.get("grid"), Mapping):
             return None
         grid = dict(obj.source["grid"])
-        if "n" not in grid or len(obj.problem.grid.shape) != 1:
+        periodic = obj.problem.grid.periodic
+        if "n" in grid and len(periodic) == 1:
+            grid["n"] = finer(int(grid["n"]), periodic[0])
+        elif "shape" in grid:
+            grid["shape"] = [finer(int(n), per) for n, per in zip(obj.problem.grid.shape, periodic, strict=True)]
+        else:
             return None
-        n = int(grid["n"])
-        grid["n"] = 2 * n if grid.get("periodic", False) else 2 * n - 1
-        return load_scene(dict(obj.source) | {"grid": grid})
+        source = dict(obj.source) | {"grid": grid}
+        for table in ("static", "continuation"):  # a measured node is the same material point
+            measure = source.get(table, {}).get("measure") if isinstance(source.get(table), Mapping) else None
+            node = measure.get("node") if isinstance(measure, Mapping) else None
+            index = [node] if isinstance(node, int) and not isinstance(node, bool) else node
+            if isinstance(index, list) and all(isinstance(i, int) and not isinstance(i, bool) for i in index):
+                fine = [2 * i if i >= 0 or per else 2 * i + 1 for i, per in zip(index, periodic, strict=False)]
+                source[table] = dict(source[table]) | {"measure": dict(measure) | {
+                    "node": fine[0] if isinstance(node, int) else fine}}  # names ("end") stay
+        return load_scene(source)
     except (ValueError, TypeError, OSError):
         return None
 
@@ -1396,11 +1413,19 @@ TOL_MIN_ORDER = 0.5
 TOL_ROUNDOFF = 1e-12
 
 
-def _shared_nodes(pos: np.ndarray, refinements: int, count: int) -> np.ndarray:
-    """The nodes ``[count, k]`` of ``pos`` ``[nodes, k]`` that a grid refined ``refinements`` times
-    (:func:`_refined_scene`: ``n → 2n − 1``, periodic ``n → 2n``) shares with the grid of ``count``
-    nodes it was refined from: every ``2^refinements``-th node."""
-    return pos[:: 2 ** refinements][:count]
+def _grid_label(shape: tuple[int, ...], n: int) -> str:
+    """``n`` for a d = 1 grid, ``n₁×n₂…`` otherwise."""
+    return "×".join(str(k) for k in shape) if len(shape) > 1 else str(n)
+
+
+def _shared_nodes(pos: np.ndarray, refinements: int, shape: tuple[int, ...]) -> np.ndarray:
+    """The nodes ``[prod(shape), k]`` of ``pos`` ``[*fine_shape, k]`` that a grid refined
+    ``refinements`` times (:func:`_refined_scene`: ``n → 2n − 1``, periodic ``n → 2n``, along
+    every axis) shares with the grid of ``shape`` it was refined from: every
+    ``2^refinements``-th node along each axis."""
+    step = slice(None, None, 2 ** refinements)
+    shared = pos[(step,) * len(shape)][tuple(slice(0, n) for n in shape)]
+    return shared.reshape(-1, pos.shape[-1])
 
 
 def _max_distance(a: np.ndarray, b: np.ndarray) -> float:
@@ -1453,6 +1478,8 @@ class ResolutionCandidate:
         continuation: the whole path, once); it depends on the machine and its load (reported,
         not used by the choice).
     newton_iterations : int
+    shape : tuple of int
+        The grid's nodes along each axis (n is their product).
     """
 
     n: int
@@ -1463,6 +1490,7 @@ class ResolutionCandidate:
     difference: float = math.nan
     wall_time: float = math.nan
     newton_iterations: int = 0
+    shape: tuple[int, ...] = ()
 
     @property
     def ok(self) -> bool:
@@ -1495,8 +1523,9 @@ class ResolutionAdvice:
     recommended : ResolutionCandidate or None
         The coarsest level whose estimated relative error is at most ``tol`` (None: none is).
     recommended_n : int
-        Its n; or, when no level is within ``tol``, the n extrapolated from the observed order
-        (``extrapolated``), at most ``max_n`` (``capped``); 0 when there is no recommendation.
+        Its number of nodes; or, when no level is within ``tol``, the grid extrapolated from the
+        observed order (``extrapolated``), at most ``max_n`` nodes along any axis (``capped``); 0
+        when there is no recommendation.
     extrapolated : bool
         ``recommended_n`` is an extrapolation (not solved here).
     capped : bool
@@ -1528,13 +1557,15 @@ class ResolutionAdvice:
     max_n: int
     note: str = ""
     wall_time: float = 0.0
+    recommended_shape: tuple[int, ...] = ()
 
     def to_dict(self) -> dict[str, Any]:
         """The report as plain Python (JSON-serialisable, NaN and inf as ``None``)."""
         clean, row = _json_value, _json_row
         out = {k: clean(getattr(self, k)) for k in ("scene", "medium", "scheme", "mode", "output", "tol", "scale",
                                                      "observed_order", "recommended_n", "extrapolated", "capped",
-                                                     "predicted_error", "max_n", "note", "wall_time")}
+                                                     "predicted_error", "max_n", "note", "wall_time",
+                                                     "recommended_shape")}
         out["levels"] = [row(c) for c in self.levels]
         out["recommended"] = row(self.recommended)
         return out
@@ -1545,15 +1576,15 @@ class ResolutionAdvice:
         def f(x: float, spec: str = ".3g") -> str:
             return "—" if not math.isfinite(x) else format(x, spec)
 
-        lines = [f"{'n':>7} {'est. error':>11} {'relative':>10} {'order':>6} {'diff. next':>11} {'time [s]':>9}"]
+        lines = [f"{'n':>9} {'est. error':>11} {'relative':>10} {'order':>6} {'diff. next':>11} {'time [s]':>9}"]
         for c in self.levels:
             mark = "  <- recommended" if c is self.recommended else ""
-            lines.append(f"{c.n:>7} {f(c.error):>11} {f(c.relative_error):>10} {f(c.order, '.2f'):>6} "
-                         f"{f(c.difference):>11} {f(c.wall_time):>9}{mark}")
+            lines.append(f"{_grid_label(c.shape, c.n):>9} {f(c.error):>11} {f(c.relative_error):>10} "
+                         f"{f(c.order, '.2f'):>6} {f(c.difference):>11} {f(c.wall_time):>9}{mark}")
         return "\n".join(lines)
 
     def __str__(self) -> str:
-        ns = ", ".join(str(c.n) for c in self.levels)
+        ns = ", ".join(_grid_label(c.shape, c.n) for c in self.levels)
         p = "—" if not math.isfinite(self.observed_order) else format(self.observed_order, ".3f")
         lines = [f"scene {self.scene!r} ({self.medium}, {self.scheme}, {self.mode}): resolution for tol = {self.tol:g}",
                  f"error: {self.output}, relative to the scale {self.scale:.4g}",
@@ -1562,10 +1593,12 @@ class ResolutionAdvice:
             lines.append(f"recommended: none — {self.note}")
         elif self.extrapolated:
             what = "capped at max_n" if self.capped else "extrapolated"
-            lines.append(f"recommended: n = {self.recommended_n} ({what}; predicted relative error "
+            lines.append(f"recommended: n = {_grid_label(self.recommended_shape, self.recommended_n)} ({what}; "
+                         "predicted relative error "
                          f"{self.predicted_error:.3g}) — {self.note}")
         else:
-            lines.append(f"recommended: n = {self.recommended_n} (estimated relative error {self.predicted_error:.3g}"
+            lines.append(f"recommended: n = {_grid_label(self.recommended_shape, self.recommended_n)} (estimated "
+                         f"relative error {self.predicted_error:.3g}"
                          f" ≤ {self.tol:g}; solve {self.recommended.wall_time:.3g} s) — {self.note}")
         return "\n".join(lines)
 
@@ -1595,7 +1628,8 @@ def advise_resolution(scene: Any, tol: float, *, max_n: int = TOL_MAX_N) -> Reso
     ``[continuation]`` settings, :func:`cartan.continuation`, and the output is taken at the
     path's final point, which must be at the same load factor on every level — the path ends
     on ``lambda_max`` exactly) on its grid of n nodes and on the grids refined
-    twice by :func:`_refined_scene` (``n → 2n − 1 → 4n − 3``; periodic ``n → 2n → 4n``), whose
+    twice by :func:`_refined_scene` (``n → 2n − 1 → 4n − 3``; periodic ``n → 2n → 4n``; along every
+    axis of a d ≥ 2 grid), whose
     every second (fourth) node is a node of the scene's grid.  The output is the equilibrium
     node positions ``x_i`` at the scene's nodes; with ``d₀ = max_i |x_i(n) − x_i(2n−1)|`` and
     ``d₁ = max_i |x_i(2n−1) − x_i(4n−3)|``, the observed order is ``p = log₂(d₀/d₁)`` and, for an
@@ -1606,22 +1640,22 @@ def advise_resolution(scene: Any, tol: float, *, max_n: int = TOL_MAX_N) -> Reso
     compared with ``tol·scale``, the scale the largest displacement of those nodes (the grid
     length when nothing moves).  The recommendation is the coarsest level within ``tol``
     (:func:`choose_method` with the number of nodes as the cost).  When none is, the grid is
-    extrapolated from the finest level, ``e ∝ h^p``: the number of intervals
-    ``(4n − 4)·(e(4n−3)/tol)^{1/p}`` rounded up to a multiple of the scene's ``n − 1`` (so that the
-    scene's nodes stay nodes), flagged ``extrapolated`` (not solved) and capped at ``max_n``
-    (``capped``).  When ``d₁`` is round-off (:data:`TOL_ROUNDOFF` of the scale) the differences
-    themselves are the estimates; when ``p`` < :data:`TOL_MIN_ORDER` the levels are not in the
-    asymptotic range and nothing is recommended.
+    extrapolated from the finest level, ``e ∝ h^p``: the scene's intervals along every axis
+    multiplied by ``f = ⌈4·(e(4n−3)/tol)^{1/p}⌉`` (at least 5, beyond the finest level; an integer,
+    so that the scene's nodes stay nodes), flagged ``extrapolated`` (not solved) and capped at
+    ``max_n`` nodes along any axis (``capped``).  When ``d₁`` is round-off (:data:`TOL_ROUNDOFF`
+    of the scale) the differences themselves are the estimates; when ``p`` <
+    :data:`TOL_MIN_ORDER` the levels are not in the asymptotic range and nothing is recommended.
 
     Parameters
     ----------
     scene : Scene, path, str or dict
-        A static or continuation scene with a one-dimensional grid of ``n`` nodes (its
+        A static or continuation scene with a grid of ``n`` nodes (d = 1) or of any ``shape`` (its
         ``[grid]`` table), on a medium with node positions (an affine group).
     tol : float
         Accepted relative error, > 0.
     max_n : int, default :data:`TOL_MAX_N`
-        The largest grid an extrapolation recommends, ≥ 3.
+        The most nodes along any axis an extrapolation recommends, ≥ 3.
 
     Returns
     -------
@@ -1651,11 +1685,11 @@ def advise_resolution(scene: Any, tol: float, *, max_n: int = TOL_MAX_N) -> Reso
     for _ in range(2):
         fine = _refined_scene(scenes[-1])
         if fine is None:
-            raise ValueError(f"scene {subject.name!r}: the resolution advice needs a one-dimensional grid with n in "
-                             "its [grid] table")
+            raise ValueError(f"scene {subject.name!r}: the resolution advice needs a [grid] table with n (d = 1) or "
+                             "shape")
         scenes.append(fine)
     problem = subject.problem
-    n0 = int(problem.grid.shape[0])
+    shape0 = tuple(int(n) for n in problem.grid.shape)
     scheme = str(subject.solver_options.get("scheme", "lattice"))
     levels, pos, lam = [], [], []
     for k, sc in enumerate(scenes):  # each level with its own subject: a measure reads its own grid
@@ -1663,17 +1697,18 @@ def advise_resolution(scene: Any, tol: float, *, max_n: int = TOL_MAX_N) -> Reso
         if "position" not in ds:
             raise ValueError(f"scene {subject.name!r}: medium {problem.medium.name!r} has no node positions to "
                              "measure the resolution on")
-        pos.append(_shared_nodes(_final_positions(ds), k, n0))
+        pos.append(_shared_nodes(_final_positions(ds), k, shape0))
         if subject.mode == "continuation":
             lam.append(float(ds["load_factor"].values[-1]))
-        levels.append(ResolutionCandidate(int(sc.problem.grid.shape[0]), scheme, wall_time=seconds,
+        shape = tuple(int(n) for n in sc.problem.grid.shape)
+        levels.append(ResolutionCandidate(int(np.prod(shape)), scheme, wall_time=seconds, shape=shape,
                                           newton_iterations=int(ds.attrs.get("newton_iterations", 0))))
     if lam and not math.isclose(min(lam), max(lam), rel_tol=1e-9, abs_tol=1e-12):
         raise ValueError(f"scene {subject.name!r}: the paths on n = {levels[0].n}, {levels[1].n}, {levels[2].n} end "
                          f"at different load factors ({', '.join(f'{v:.6g}' for v in lam)}): no common final point")
     d0, d1 = _max_distance(pos[0], pos[1]), _max_distance(pos[1], pos[2])
     levels[0].difference, levels[1].difference = d0, d1
-    length = float(problem.grid.length[0])
+    length = float(max(problem.grid.length))
     scale = _max_distance(pos[2], _initial_positions(problem))
     scale_of = "the largest displacement" if scale > TOL_ROUNDOFF * length else "the grid length"
     scale = scale if scale > TOL_ROUNDOFF * length else length
@@ -1683,35 +1718,37 @@ def advise_resolution(scene: Any, tol: float, *, max_n: int = TOL_MAX_N) -> Reso
     for c, e in zip(levels, errors, strict=True):
         c.error, c.relative_error, c.order = e, e / scale, p
     recommended, _ = choose_method(levels, tol, cost=lambda c: c.n, error=lambda c: c.relative_error)
-    rec_n, extrapolated, capped, predicted = 0, False, False, math.nan
+    rec_n, rec_shape, extrapolated, capped, predicted = 0, (), False, False, math.nan
     if recommended is not None:
-        rec_n, predicted = recommended.n, recommended.relative_error
+        rec_n, rec_shape, predicted = recommended.n, recommended.shape, recommended.relative_error
         note = note or f"the coarsest of the three levels within tol (Richardson, observed order {p:.3f})"
     elif levels[-1].ok and math.isfinite(p):
-        periodic = bool(problem.grid.periodic[0])
-        m0 = n0 if periodic else n0 - 1  # intervals of the scene's grid
-        m2 = 4 * m0
+        # every axis refined by the same integer factor f of the scene's intervals (the finest level: 4)
+        ends = [0 if per else 1 for per in problem.grid.periodic]
+        m0 = [n - e for n, e in zip(shape0, ends, strict=True)]  # intervals of the scene's grid
         e2 = levels[-1].relative_error
-        m = max(m2 + m0, math.ceil(m2 * (e2 / tol) ** (1.0 / p) / m0 * (1.0 - 1e-12)) * m0)
-        m_cap = max(m2, (max_n - (0 if periodic else 1)) // m0 * m0)
-        extrapolated, capped = True, m > m_cap
-        m = min(m, m_cap)
-        rec_n, predicted = m + (0 if periodic else 1), e2 * (m2 / m) ** p
+        f = max(5, math.ceil(4.0 * (e2 / tol) ** (1.0 / p) * (1.0 - 1e-12)))
+        f_cap = max(4, min((max_n - e) // m for m, e in zip(m0, ends, strict=True)))
+        extrapolated, capped = True, f > f_cap
+        f = min(f, f_cap)
+        rec_shape = tuple(f * m + e for m, e in zip(m0, ends, strict=True))
+        rec_n, predicted = int(np.prod(rec_shape)), e2 * (4.0 / f) ** p
         note = (f"extrapolated from the finest level with the observed order {p:.3f} (e ∝ h^p), not solved; "
-                f"{'n' if periodic else 'n − 1'} a multiple of {m0} so that the scene's nodes stay nodes")
+                f"the scene's intervals refined {f}-fold so that its nodes stay nodes")
         if capped:
-            note = (f"tol is not reached within max_n = {max_n}: the largest grid allowed, n = {rec_n}, is predicted "
-                    f"at {predicted:.3g}; " + note)
+            note = (f"tol is not reached within max_n = {max_n} nodes along an axis: the largest grid allowed, "
+                    f"n = {_grid_label(rec_shape, rec_n)}, is predicted at {predicted:.3g}; " + note)
     elif not levels[-1].ok:
         note = (f"observed order {p:.3g} (below {TOL_MIN_ORDER} or undefined): the three levels are not in the "
                 "asymptotic range; refine the scene's grid and ask again")
     else:
         note = "the finest level is not within tol and its difference is round-off: nothing to extrapolate"
     where = f" at the path's final point λ = {lam[0]:.6g}" if lam else ""
-    output = f"max |x − x(∞)| of the equilibrium node positions{where} at the scene's {n0} nodes ({scale_of})"
+    output = (f"max |x − x(∞)| of the equilibrium node positions{where} at the scene's "
+              f"{_grid_label(shape0, int(np.prod(shape0)))} nodes ({scale_of})")
     return ResolutionAdvice(subject.name, problem.medium.name, scheme, subject.mode, output, tol, scale, p, levels,
                             recommended, rec_n, extrapolated, capped, predicted, int(max_n), note,
-                            time.perf_counter() - start)
+                            time.perf_counter() - start, tuple(rec_shape))
 
 
 def _registered_integrator(name: str) -> Any:

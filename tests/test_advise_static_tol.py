@@ -243,3 +243,45 @@ def test_richardson_estimates_on_given_differences():
     assert math.isnan(p) and est == [3e-6, 1e-16, 1e-16]
     p, est = _richardson(1e-4, 1e-4 * 2.0 ** -0.4, 1e-14)  # order 0.4 < TOL_MIN_ORDER: no estimate
     assert p == pytest.approx(0.4) and p < TOL_MIN_ORDER and all(math.isnan(x) for x in est)
+
+
+# ---------------------------------------------------------------------------- a d = 2 grid
+#: the Navier plate (cosserat-surface, simply supported, uniform pressure) on 5 × 5 nodes: the
+#: advice solves 5², 9², 17²; the lattice is second order on it (the case plate-navier-thin)
+PLATE, PLATE_SHAPE, PLATE_TOL = "plate-navier", [5, 5], 1e-2
+
+
+def _plate_source(shape: list[int]) -> dict:
+    src = dict(scene(PLATE).source)
+    src["grid"] = dict(src["grid"]) | {"shape": shape}
+    centre = dict(src["static"]["measure"]) | {"node": [n // 2 for n in shape]}
+    src["static"] = dict(src["static"]) | {"measure": centre}
+    return src
+
+
+@pytest.fixture(scope="module")
+def plate_advice() -> ResolutionAdvice:
+    return advise_resolution(load_scene(_plate_source(PLATE_SHAPE)), PLATE_TOL)
+
+
+def test_d2_grid_is_refined_along_every_axis_with_its_measured_node(plate_advice):
+    from cartan.advise import _refined_scene
+
+    fine = _refined_scene(load_scene(_plate_source(PLATE_SHAPE)))
+    assert fine.problem.grid.shape == (9, 9)
+    assert list(fine.source["static"]["measure"]["node"]) == [4, 4]  # the centre stays the centre
+    assert [c.shape for c in plate_advice.levels] == [(5, 5), (9, 9), (17, 17)]
+    assert [c.n for c in plate_advice.levels] == [25, 81, 289]
+
+
+def test_d2_observed_order_and_recommendation_meet_tol(plate_advice):
+    """Second order within the verification window; the recommended grid, re-solved, is within
+    tol of a reference one level finer than the study's finest (33 × 33)."""
+    assert ORDER - BELOW <= plate_advice.observed_order <= ORDER + ABOVE
+    assert plate_advice.recommended is not None and not plate_advice.extrapolated
+    shape = list(plate_advice.recommended_shape)
+    coarse, fine = load_scene(_plate_source(shape)), load_scene(_plate_source([2 * n - 1 for n in shape]))
+    a = cartan.solve_static(coarse.problem, **coarse.solver_options)["position"].isel(time=-1).values
+    b = cartan.solve_static(fine.problem, **fine.solver_options)["position"].isel(time=-1).values
+    diff = float(np.max(np.linalg.norm(a - b[::2, ::2], axis=-1)))
+    assert diff / plate_advice.scale <= PLATE_TOL, (diff, plate_advice.scale)
