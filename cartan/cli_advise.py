@@ -55,11 +55,6 @@ __all__ = ["advise_cmd", "register"]
 def advise_cmd(scene_file, scene_name, check, rtol, pilot_steps, output, as_json, tol, chart) -> None:
     """Which reductions a scene admits, with the error and speed-up of each (measured)."""
     from . import io
-    from .advise import advise
-    from .plugins import RegistryError
-    from .scene import SceneError
-    from .simulate import InstabilityError
-    from .statics import ConvergenceError
 
     if (scene_file is None) == (scene_name is None):
         raise CommandError("give a scene file or --scene NAME (one of them)")
@@ -93,30 +88,19 @@ def advise_cmd(scene_file, scene_name, check, rtol, pilot_steps, output, as_json
             io.check_output(output)
         except (ValueError, OSError) as exc:
             raise CommandError(str(exc)) from None
+    subject = scene_file if scene_file is not None else scene_name
     if tol_value is not None:
-        _advise_tol(scene_file if scene_file is not None else scene_name, tol_value, pilot_steps, chart, as_json)
-        return
-    with _stop_cleanly(), _warnings_as_lines():
-        try:
-            report = advise(scene_file if scene_file is not None else scene_name, check=check, rtol=rtol,
-                            pilot_steps=pilot_steps)
-        except (InstabilityError, ConvergenceError) as exc:
-            raise CommandError(str(exc), RUN_ERROR) from None
-        except (SceneError, RegistryError, ValueError, TypeError, ArithmeticError) as exc:
-            raise CommandError(str(exc) or type(exc).__name__) from None
-        if output is not None:
-            try:
-                io.write_dataset(report.to_dataset(), output)
-            except OSError as exc:
-                raise CommandError(f"{exc.filename or output}: {exc.strerror or exc}", RUN_ERROR) from None
-    click.echo(json.dumps(report.to_dict(), indent=1, ensure_ascii=False) if as_json else str(report))
-    if output is not None:
-        click.echo(f"wrote {output}")
+        _report(subject, dict(tol=tol_value, pilot_steps=pilot_steps), as_json, chart,
+                lambda report, path: report.plot(path))
+    else:
+        _report(subject, dict(check=check, rtol=rtol, pilot_steps=pilot_steps), as_json, output,
+                lambda report, path: io.write_dataset(report.to_dataset(), path))
 
 
-def _advise_tol(subject, tol: float, pilot_steps: int, chart: pathlib.Path | None, as_json: bool) -> None:
-    """``--tol``: the method advice (dynamic) or the resolution advice (static), printed, and its
-    chart written."""
+def _report(subject, options: dict, as_json: bool, path: pathlib.Path | None, write) -> None:
+    """Run :func:`cartan.advise.advise` on ``subject`` with ``options``, print its report (text or
+    JSON) and, with ``path``, write it there with ``write(report, path)`` (the table's netCDF file
+    or the ``--tol`` chart); failures are one-line errors."""
     from .advise import advise
     from .plugins import RegistryError
     from .scene import SceneError
@@ -125,19 +109,19 @@ def _advise_tol(subject, tol: float, pilot_steps: int, chart: pathlib.Path | Non
 
     with _stop_cleanly(), _warnings_as_lines():
         try:
-            report = advise(subject, tol=tol, pilot_steps=pilot_steps)
+            report = advise(subject, **options)
         except (InstabilityError, ConvergenceError) as exc:
             raise CommandError(str(exc), RUN_ERROR) from None
         except (SceneError, RegistryError, ValueError, TypeError, ArithmeticError) as exc:
             raise CommandError(str(exc) or type(exc).__name__) from None
-        if chart is not None:
+        if path is not None:
             try:
-                report.plot(chart)
+                write(report, path)
             except OSError as exc:
-                raise CommandError(f"{exc.filename or chart}: {exc.strerror or exc}", RUN_ERROR) from None
+                raise CommandError(f"{exc.filename or path}: {exc.strerror or exc}", RUN_ERROR) from None
     click.echo(json.dumps(report.to_dict(), indent=1, ensure_ascii=False) if as_json else str(report))
-    if chart is not None:
-        click.echo(f"wrote {chart}")
+    if path is not None:
+        click.echo(f"wrote {path}")
 
 
 def register(main: click.Group) -> None:
