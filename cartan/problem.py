@@ -485,6 +485,13 @@ class Problem:
             return True
         return any(isinstance(b, Free) and b.load is not None and not b.follower for b in self.boundaries.values())
 
+    @property
+    def velocity_free(self) -> bool:
+        """True when no force reads the velocity N: no velocity-dependent load (damping) and no
+        velocity-dependent forces of the medium."""
+        return not (getattr(self.medium, "velocity_dependent_forces", False)
+                    or any(load.velocity_dependent for load in self.loads))
+
     def to_dict(self) -> dict[str, Any]:
         return {
             "name": self.name,

@@ -194,8 +194,7 @@ class LieVerlet(Integrator):
     def _kick_force(self, scheme: Scheme, state: State) -> np.ndarray:
         N = scheme.velocity(state)
         key = (id(state), state.t, state.scalars.get("nstep", 0))
-        velocity_free = not any(ld.velocity_dependent for ld in scheme.problem.loads) and not getattr(
-            scheme.medium, "velocity_dependent_forces", False)
+        velocity_free = scheme.problem.velocity_free
         if velocity_free and self._fsal is not None and self._fsal[0] == key:
             return self._fsal[1]
         return self.force(scheme, state, N, state.t)
@@ -227,14 +226,13 @@ class LieVerlet(Integrator):
     def _closing_kick(self, scheme: Scheme, state: State, dt: float, t1: float) -> np.ndarray:
         """``S⁺ = S½ + ½Δt W(Φ⁺, N)`` with N = N(S⁺) (implicit, see the class docstring) when
         a force depends on N, else N(S½); returns the W applied."""
-        loads = scheme.problem.loads
-        dependent = [ld for ld in loads if ld.velocity_dependent]
-        medium_dependent = bool(getattr(scheme.medium, "velocity_dependent_forces", False))
+        problem = scheme.problem
         half = 0.5 * dt
         start = state.S
-        if not dependent and not medium_dependent:
+        if problem.velocity_free:
             W1 = self.force(scheme, state, scheme.velocity(state), t1)
-        elif not medium_dependent and all(isinstance(ld, Damping) for ld in dependent):
+        elif not getattr(scheme.medium, "velocity_dependent_forces", False) and all(
+                isinstance(ld, Damping) for ld in problem.loads if ld.velocity_dependent):
             gamma = _damping(scheme)
             W0 = self.force(scheme, state, np.zeros_like(state.S), t1)
             rhs = start + half * W0
@@ -267,8 +265,7 @@ class LieVerlet(Integrator):
         key = (id(state), state.t, state.scalars.get("nstep", 0))
         have = self._fsal is not None and self._fsal[0] == key
         W = (np.array(self._fsal[1], dtype=float) if have else np.zeros(state.S.shape)).reshape(-1, r)
-        velocity_free = not any(ld.velocity_dependent for ld in scheme.problem.loads) and not getattr(
-            scheme.medium, "velocity_dependent_forces", False)
+        velocity_free = scheme.problem.velocity_free
         closing = _closing_matrix(scheme, _damping(scheme), dt)
         return "lie_verlet_loop", (W, bool(have), bool(velocity_free), pieces, fracs, closing)
 

@@ -1198,8 +1198,7 @@ def lie_verlet_force(scheme, integrator, stamp: tuple, S: np.ndarray) -> tuple[b
     on the velocity, whether the integrator's first-same-as-last force belongs to the state
     (``stamp`` of :func:`advance_context`), and that force (a C-ordered copy shaped like
     ``S``) or zeros."""
-    velocity_free = not any(ld.velocity_dependent for ld in scheme.problem.loads) and not getattr(
-        scheme.medium, "velocity_dependent_forces", False)
+    velocity_free = scheme.problem.velocity_free
     fsal = integrator._fsal
     have = bool(velocity_free and fsal is not None and fsal[0] == stamp)
     W = np.array(fsal[1], dtype=float, order="C").reshape(S.shape) if have else np.zeros_like(S)
