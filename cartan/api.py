@@ -2,7 +2,7 @@
 
 ``cartan.simulate``, ``cartan.open``, ``cartan.load_scene``, ``cartan.scene``,
 ``cartan.medium`` and the problem-building classes (``Problem``, ``Grid``,
-``InitialState``, ``Free``, ``Clamped``, ``Damping``, ``UniformForce``, ``PotentialLoad``),
+``InitialState``, ``Free``, ``Clamped``, ``Damping``, ``UniformForce``, ``NodeForce``, ``PotentialLoad``),
 with the errors and warnings a run can raise (``InstabilityError``, ``StabilityWarning``,
 ``SceneError``).  Importing this module does not import xarray (that happens on the first
 run or read).
@@ -29,6 +29,7 @@ from .problem import (
     Damping,
     Free,
     InitialState,
+    NodeForce,
     PotentialLoad,
     Problem,
     UniformForce,
@@ -52,6 +53,7 @@ __all__ = [
     "Scene",
     "SceneError",
     "StabilityWarning",
+    "NodeForce",
     "UniformForce",
     "load_scene",
     "medium",

@@ -19,6 +19,7 @@ axis: ``"start"``/``"end"`` for d = 1 (or ``"u-start"``, ``"v-end"``, … in gen
 from __future__ import annotations
 
 import abc
+import numbers
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 from typing import Any
@@ -36,6 +37,7 @@ __all__ = [
     "Free",
     "InitialState",
     "Load",
+    "NodeForce",
     "PotentialLoad",
     "Problem",
     "UniformForce",
@@ -276,6 +278,116 @@ class UniformForce(Load):
 
     def to_dict(self):
         return {"kind": "UniformForce", "components": np.asarray(self.components).tolist(), "frame": self.frame}
+
+
+class NodeForce(Load):
+    """A generalised point force P ∈ 𝔤* on one node of the grid (scene load kind ``"node-force"``).
+
+    The node receives P: the force density (per unit reference volume, as every
+    :class:`~cartan.problem.Load`) is P/w at the node, w its quadrature weight
+    (:meth:`~cartan.grid.Grid.node_weights`, trapezoidal: the lattice's and fd2 collocation's
+    weights; fd4 collocation's SBP norm weighs the rows next to an open end differently), and 0
+    elsewhere.  As :class:`~cartan.problem.UniformForce`, P is either fixed in the spatial frame
+    (``frame="spatial"``, the default: a dead load, body components Ad_Rᵀ P with R the rotational
+    part of Φ at the node, as a free end's dead load) or in the body frame (``frame="body"``, a
+    follower load).  Not conservative in general: its power goes to ``external_work``.
+
+    Parameters
+    ----------
+    grid : Grid
+        The grid the node belongs to.
+    force : array_like, shape ``(r,)``
+        P in the dual basis of the group's Lie algebra, r its dimension (SE(3): force then
+        moment, as a free end's ``load``); checked against the medium's group in :meth:`bind`.
+    node : int or sequence of int, optional
+        The node's index along each axis (d entries; a negative index counts from the end).
+    at : float or sequence of float, optional
+        Material coordinates of the point (d entries): the nearest node is taken (every point of
+        the chart is within half a cell of one along each axis).  A coordinate must lie in the
+        chart, [0, L] along each axis (periodic axes wrap the last half cell to node 0), up to
+        10⁻⁶ of a cell for written decimals.  Give exactly one of ``node`` and ``at``.
+    frame : {"spatial", "body"}
+        The frame P is fixed in.
+
+    Attributes
+    ----------
+    node : tuple of int
+        The node's index (d entries, ≥ 0).
+    force_components : ndarray, shape ``(r,)``
+        P.
+    weight : float
+        w, the node's quadrature weight.
+    """
+
+    def __init__(self, grid: Grid, force: Any, *, node: Any = None, at: Any = None, frame: str = "spatial"):
+        if not isinstance(grid, Grid):
+            raise TypeError(f"grid must be a Grid, got {type(grid).__name__}")
+        self.force_components = check_finite("force", force)
+        if self.force_components.ndim != 1:
+            raise ValueError(f"force must be a vector of load components, got shape {self.force_components.shape}")
+        if frame not in ("spatial", "body"):
+            raise ValueError(f"frame must be 'spatial' or 'body', got {frame!r}")
+        self.frame = frame
+        self.needs_structure_field = frame == "spatial"
+        if (node is None) == (at is None):
+            raise ValueError(f"give exactly one of node (an index per axis) and at (material coordinates per axis), "
+                             f"got {'both' if node is not None else 'neither'}")
+        if at is not None:
+            at = np.atleast_1d(check_finite("at", at))
+            if at.ndim != 1:
+                raise ValueError(f"at must be a list of coordinates, one per grid axis, got shape {at.shape}")
+        self.at = None if at is None else tuple(float(x) for x in at)
+        self.node = _node_index(grid, node) if node is not None else _nearest_node(grid, self.at)
+        self.weight = float(grid.node_weights()[self.node])
+        self.shape = grid.shape
+
+    def bind(self, medium: Any) -> None:
+        self._group = medium.group
+        r = medium.group.dim
+        if self.force_components.shape != (r,):
+            raise ValueError(f"force must have {r} components (the dimension of {medium.group.name}, medium "
+                             f"{medium.name!r}), got {self.force_components.shape[0]}")
+
+    def force(self, Phi: np.ndarray | None, N: np.ndarray, t: float) -> np.ndarray:
+        """``[*shape, r]``: P/w (body components) at the node, 0 elsewhere."""
+        out = np.zeros((*self.shape, self.force_components.shape[0]))
+        P = self.force_components
+        if self.frame == "spatial":
+            P = dead_to_body(self._group, np.asarray(Phi)[self.node], P)
+        out[self.node] = P / self.weight
+        return out
+
+    def to_dict(self) -> dict[str, Any]:
+        out = {"kind": "node-force", "node": list(self.node), "force": self.force_components.tolist(),
+               "frame": self.frame}
+        if self.at is not None:
+            out["at"] = list(self.at)
+        return out
+
+
+def _node_index(grid: Grid, node: Any) -> tuple[int, ...]:
+    """``node`` (an int for d = 1, or d ints) as a non-negative index of ``grid``; ValueError naming node."""
+    idx = [node] if grid.d == 1 and not isinstance(node, list | tuple) else node
+    ranges = ", ".join(f"{-n}..{n - 1}" for n in grid.shape)
+    if not (isinstance(idx, list | tuple) and len(idx) == grid.d and all(
+            isinstance(i, numbers.Integral) and not isinstance(i, bool) and -n <= i < n
+            for i, n in zip(idx, grid.shape, strict=True))):
+        raise ValueError(f"node must be {grid.d} integer(s), one per axis, in {ranges}, got {node!r}")
+    return tuple(int(i) % n for i, n in zip(idx, grid.shape, strict=True))
+
+
+def _nearest_node(grid: Grid, at: tuple[float, ...]) -> tuple[int, ...]:
+    """The node nearest to the material point ``at`` (d coordinates in the chart); ValueError naming at."""
+    if len(at) != grid.d:
+        raise ValueError(f"at must have {grid.d} coordinate(s), one per grid axis, got {list(at)}")
+    out = []
+    for name, x, n, L, h, periodic in zip(grid.axis_names, at, grid.shape, grid.length, grid.spacing,
+                                          grid.periodic, strict=True):
+        if not -1e-6 * h <= x <= L + 1e-6 * h:
+            raise ValueError(f"at = {list(at)} is outside the chart: {name} = {x:g} is not in [0, {L:g}]")
+        i = round(x / h)
+        out.append(i % n if periodic else min(max(i, 0), n - 1))
+    return tuple(out)
 
 
 @dataclass

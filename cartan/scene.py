@@ -28,8 +28,9 @@ A scene file names a registered medium and gives, in plain tables, everything
     t_end = 1.0
     save_every = 100
 
-Load kinds ``"damping"`` (``coefficients``) and ``"uniform-force"`` (``components``,
-``frame``) are the core's; every other kind is built by ``medium.make_load(kind, **rest)``.
+Load kinds ``"damping"`` (``coefficients``), ``"uniform-force"`` (``components``,
+``frame``) and ``"node-force"`` (:class:`~cartan.problem.NodeForce`: ``force``, ``at`` or ``node``, ``frame``)
+are the core's; every other kind is built by ``medium.make_load(kind, **rest)``.
 
 Modes
 -----
@@ -108,7 +109,7 @@ from .limits import (  # noqa: F401 - re-exported: the limits' home is cartan.li
     step_limit,
 )
 from .plugins import get_registry
-from .problem import Clamped, Damping, Free, Problem, UniformForce
+from .problem import Clamped, Damping, Free, NodeForce, Problem, UniformForce
 
 __all__ = [
     "MAX_ITERATIONS",
@@ -650,7 +651,7 @@ def _boundaries(reader: _Reader, data: Mapping) -> dict:
     return out
 
 
-def _loads(reader: _Reader, data: Mapping, medium) -> list:
+def _loads(reader: _Reader, data: Mapping, medium, grid: Grid | None = None) -> list:
     loads = data.get("loads", [])
     if isinstance(loads, Mapping):
         loads = [loads]
@@ -674,8 +675,15 @@ def _loads(reader: _Reader, data: Mapping, medium) -> list:
                 if "components" not in rest:
                     raise reader.fail(f"{key}.components", "missing key")
                 load = UniformForce(rest["components"], frame=rest.get("frame", "body"))
+            elif kind == "node-force":
+                reader.no_extra(rest, {"force", "at", "node", "frame"}, key)
+                if "force" not in rest:
+                    raise reader.fail(f"{key}.force", "missing key")
+                if grid is None:
+                    raise reader.fail(key, "a node force needs the scene's grid")
+                load = NodeForce(grid, **rest)
             else:
-                available = ["damping", "uniform-force", *getattr(medium, "load_kinds", ())]
+                available = ["damping", "uniform-force", "node-force", *getattr(medium, "load_kinds", ())]
                 if getattr(medium, "load_kinds", ()) and kind not in available:
                     raise reader.fail(
                         f"{key}.kind", f"unknown load kind {kind!r}; available: {', '.join(available)}"
@@ -1237,7 +1245,7 @@ def load_scene(path_or_dict: str | pathlib.Path | Mapping[str, Any]) -> Scene:
     medium = _building(reader, "parameters", params, cls, **params)
     grid = _grid(reader, data, medium)
     boundaries = _boundaries(reader, data)
-    loads = _loads(reader, data, medium)
+    loads = _loads(reader, data, medium, grid)
     initial = _initial(reader, data, medium, grid)
     try:
         with np.errstate(over="raise", invalid="raise", divide="raise"):

@@ -121,7 +121,7 @@ def test_support_bad_input():
     with pytest.raises(ValueError, match="nv must be an integer"):
         pinched_cylinder_problem(1)
     with pytest.raises(ValueError, match="node must be"):
-        cases_shells.NodeForce(cartan.Grid((3, 3)), (3, 0), (0.0, 0.0, 1.0))
+        cartan.NodeForce(cartan.Grid((3, 3)), (0.0, 0.0, 1.0, 0.0, 0.0, 0.0), node=(3, 0))
 
 
 def test_richardson_recovers_a_power_law():

@@ -65,7 +65,7 @@ radial point loads at mid-length: the inward displacement under a load is 1.8248
 Olson & Cowper 1969; MacNeal & Harder 1985), a thin-shell (Kirchhoff–Love) value.  The octant
 u ∈ [0, πR/2], v ∈ [0, L/2] with n_v nodes along and round(π/2·(n_v − 1)) + 1 around (square
 cells), the load point at the corner (0, L/2), where it carries a quarter of the load
-(:class:`NodeForce`).  In a first-order-shear theory the deflection under a point force is
+(:class:`cartan.NodeForce`).  In a first-order-shear theory the deflection under a point force is
 unbounded: the Reissner–Mindlin shear part grows like P ln(1/dx)/(2πκ_sGh), by
 P ln 2/(2πκ_sGh) = 3.824·10⁻⁸ (0.21 % of the reference) per halving of dx.  With κ_s = 5/6 the
 lattice gives 1.3868, 1.6833, 1.7971, 1.8340 (·10⁻⁵) at n_v = 9, 17, 33, 65 (−24 %, −7.8 %, −1.5 %,
@@ -92,12 +92,11 @@ import xarray as xr
 from cartan_verification.case import StaticCase
 
 import cartan
-from cartan.medium import check_finite
-from cartan.problem import ConstantFieldPotential, PotentialLoad, Problem
+from cartan.problem import ConstantFieldPotential, Problem
 
 from .surface import PenaltySupport, SymmetrySupport
 
-__all__ = ["NodeForce", "PinchedCylinder", "ScordelisLoRoof", "all_cases", "node_displacement",
+__all__ = ["PinchedCylinder", "ScordelisLoRoof", "all_cases", "node_displacement",
            "pinched_cylinder_problem", "richardson", "scordelis_lo_problem"]
 
 #: MacNeal & Harder's value of the Scordelis–Lo roof (vertical deflection of a free edge's midpoint)
@@ -112,41 +111,6 @@ PINCHED_REFERENCE = 1.8248e-5
 PINCHED_LIMIT = 1.8282e-5
 #: support stiffness relative to the shell's at the grid scale
 PENALTY = 1e6
-
-
-class NodeForce(PotentialLoad):
-    """A dead point force F at one node: ``U = −F·x/w`` at that node (w its lattice weight, so
-    that the node receives the force F), 0 elsewhere.
-
-    Parameters
-    ----------
-    grid : cartan.Grid
-        The grid (its :meth:`~cartan.grid.Grid.node_weights` give w).
-    node : tuple of int
-        The node's index on the grid (d entries).
-    force : array_like, shape ``(3,)``
-        F in the spatial frame.
-    """
-
-    def __init__(self, grid: Any, node: Any, force: Any):
-        node = tuple(int(i) for i in np.atleast_1d(node))
-        if len(node) != grid.d or any(not 0 <= i < n for i, n in zip(node, grid.shape, strict=True)):
-            raise ValueError(f"node must be an index of a grid of shape {grid.shape}, got {node}")
-        self.node = node
-        self.F = check_finite("force", force, (3,))
-        self.field = np.zeros((*grid.shape, 3))
-        self.field[node] = self.F / grid.node_weights()[node]
-
-    def potential_energy(self, q: np.ndarray) -> np.ndarray:
-        return -np.einsum("...i,...i->...", q[..., 1:, 0], self.field)
-
-    def potential_gradient(self, q: np.ndarray) -> np.ndarray:
-        grad = np.zeros(np.shape(q))
-        grad[..., 1:, 0] = -self.field
-        return grad
-
-    def to_dict(self) -> dict[str, Any]:
-        return {"kind": "node-force", "node": list(self.node), "force": self.F.tolist()}
 
 
 def _check_nodes(name: str, n: Any, low: int = 3) -> int:
@@ -230,7 +194,7 @@ def pinched_cylinder_problem(nv: int, nu: int | None = None, *, penalty: float =
     grid = cartan.Grid((nu, nv), length=(0.5 * math.pi * R, 0.5 * L))
     init = med.initial_state(grid, "cylinder", radius=R)
     node = (0, nv - 1)
-    loads = [NodeForce(grid, node, (0.0, 0.0, -0.25)),
+    loads = [cartan.NodeForce(grid, (0.0, 0.0, -0.25, 0.0, 0.0, 0.0), node=node),
              *_supports(med, grid, init.Phi, {"u-start": "x", "u-end": "z", "v-end": "y"}, "v-start", penalty)]
     return Problem(med, grid, init, loads=loads, name="shell-pinched-cylinder"), node
 
