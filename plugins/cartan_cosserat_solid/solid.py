@@ -35,6 +35,15 @@ reference path), and declares closed-form numba point kernels of the same energy
 compiled loops.  The kinetic energy is
 ``K = ½ρ|V|² + ½ρj|Ω|²``.
 
+Stress tensors in the spatial frame (outputs)
+--------------------------------------------
+Q^α is per unit reference area and in body components.  The nominal tensors
+``P_{iα} = (R F^α)_i``, ``C_{iα} = (R M^α)_i`` (face normal the second index: the traction on a
+face of outer reference normal N is P N) and the Cauchy tensors ``σ = P Fᵀ/J``, ``C Fᵀ/J``
+(F_{iα} = (R θ_α)_i, J = det F; per unit current area) are recorded as node fields
+(:data:`STRESS_OUTPUTS`); for small strains P_{iα} → t_{αi}, C_{iα} → m_{αi}, Eringen's
+tensors transposed.
+
 Positive definiteness (Eringen, *Microcontinuum Field Theories I*, §5.3): with E split into its
 deviatoric, spherical and skew parts, U = ½(λ + (2μ+κ)/3)(tr E)² + ½(2μ+κ)|dev sym E|² +
 ½κ|skw E|² + ½(α + (β+γ)/3)(tr K)² + ½(β+γ)|dev sym K|² + ½(γ−β)|skw K|², so U > 0 for every
@@ -63,6 +72,8 @@ from cartan.supports import PenaltySupport, SymmetrySupport
 __all__ = [
     "translation_holonomies",
     "CosseratSolid",
+    "STRESS_OUTPUTS",
+    "stress_tensor",
     "Gravity",
     "eringen_stresses",
     "micropolar_stiffness",
@@ -71,6 +82,28 @@ __all__ = [
 ]
 
 _AXES = "uvw"
+
+#: the stress tensors a solid can record (``output_stresses``): name → (row labels, column
+#: labels, long-name template, units, which record set); the node fields are ``{name}_{row}{col}``
+STRESS_OUTPUTS: dict[str, tuple[str, str, str, str, str]] = {
+    "force_stress": ("uvw", "123", "force stress F^{r}_{c} (body frame: face ⊥ {r}, component on d{c}; "
+                     "per unit reference area)", "force/length^2", "body"),
+    "couple_stress": ("uvw", "123", "couple stress M^{r}_{c} (body frame: face ⊥ {r}, component on d{c}; "
+                      "per unit reference area)", "force/length", "body"),
+    "nominal_force_stress": ("xyz", "uvw", "nominal force stress P_{r}{c} = (R F^{c})_{r} (spatial component "
+                             "{r} of the force per unit reference area on the face ⊥ {c})", "force/length^2",
+                             "nominal"),
+    "nominal_couple_stress": ("xyz", "uvw", "nominal couple stress C_{r}{c} = (R M^{c})_{r} (spatial component "
+                              "{r} of the couple per unit reference area on the face ⊥ {c})", "force/length",
+                              "nominal"),
+    "cauchy_force_stress": ("xyz", "xyz", "Cauchy force stress σ_{r}{c} = (P Fᵀ/J)_{r}{c} (spatial component "
+                            "{r} of the force per unit current area on the face with normal e_{c})",
+                            "force/length^2", "cauchy"),
+    "cauchy_couple_stress": ("xyz", "xyz", "Cauchy couple stress (C Fᵀ/J)_{r}{c} (spatial component {r} of "
+                             "the couple per unit current area on the face with normal e_{c})", "force/length",
+                             "cauchy"),
+}
+_STRESS_SETS = ("body", "nominal", "cauchy")
 
 
 @njit(cache=True)
@@ -228,6 +261,74 @@ def torsion_stiffness_ratio(radius: Any, lam: float, mu: float, kappa: float, al
     return M / (G * J)
 
 
+def _stress_sets(value: Any) -> tuple[str, ...]:
+    """``output_stresses`` → the recorded sets, a sub-tuple of ``("body", "nominal", "cauchy")``."""
+    if value is True or value is np.True_:
+        return _STRESS_SETS
+    if value is False or value is np.False_:
+        return ()
+    items = (value,) if isinstance(value, str) else value
+    try:
+        items = tuple(items)
+    except TypeError:
+        items = (None,)
+    bad = [v for v in items if v not in _STRESS_SETS]
+    if bad or not items:
+        raise ValueError(f"output_stresses must be True, False or a subset of {list(_STRESS_SETS)}, "
+                         f"got {value!r}")
+    return tuple(k for k in _STRESS_SETS if k in items)
+
+
+def stress_tensor(ds: Any, name: str) -> Any:
+    """A recorded stress tensor of a solid's run as one variable with two tensor dimensions.
+
+    The core records a medium's outputs as one value per node (or a scalar) per frame, so the
+    solid records each tensor as nine node fields ``{name}_{row}{col}``; this gathers them.
+
+    Parameters
+    ----------
+    ds : xarray.Dataset
+        A run or equilibrium of ``cosserat-solid`` (:func:`cartan.simulate`,
+        :func:`cartan.solve_static`, :func:`cartan.continuation`).
+    name : str
+        A key of :data:`STRESS_OUTPUTS`: ``"nominal_force_stress"`` (P, rows x, y, z, columns u,
+        v, w), ``"nominal_couple_stress"``, ``"cauchy_force_stress"`` (σ, rows and columns x, y,
+        z), ``"cauchy_couple_stress"``, ``"force_stress"`` and ``"couple_stress"`` (body frame,
+        rows u, v, w, columns 1, 2, 3).
+
+    Returns
+    -------
+    xarray.DataArray
+        Dimensions ``(*ds[first component].dims, "row", "col")`` — e.g. ``(time, u, v, w, row,
+        col)`` — with coordinates ``row``, ``col`` (the labels above) and the attributes
+        ``long_name`` and ``units``.
+
+    Raises
+    ------
+    ValueError
+        For an unknown ``name`` or a tensor the run did not record (``output_stresses``).
+    """
+    import xarray as xr
+
+    if name not in STRESS_OUTPUTS:
+        raise ValueError(f"name must be one of {sorted(STRESS_OUTPUTS)}, got {name!r}")
+    rows, cols, long_name, units, which = STRESS_OUTPUTS[name]
+    keys = [[f"{name}_{r}{c}" for c in cols] for r in rows]
+    missing = [k for row in keys for k in row if k not in ds]
+    if missing:
+        raise ValueError(f"the dataset has no {name!r} (variables {missing[:3]}…): record it with "
+                         f"output_stresses containing {which!r}")
+    first = ds[keys[0][0]]
+    data = np.stack([np.stack([np.asarray(ds[k].values) for k in row], axis=-1) for row in keys], axis=-2)
+    coords = {dim: ds[dim] for dim in first.dims if dim in ds.coords}
+    coords |= {"row": ("row", list(rows)), "col": ("col", list(cols))}
+    for dim in ("time", "step"):
+        if dim in ds.coords and ds[dim].dims == ("time",) and "time" in first.dims:
+            coords[dim] = ds[dim]
+    return xr.DataArray(data, dims=(*first.dims, "row", "col"), coords=coords, name=name,
+                        attrs={"long_name": long_name.format(r="[row]", c="[col]"), "units": units})
+
+
 # ====================================================================== gravity
 class Gravity(ConstantFieldPotential):
     """Uniform gravity, the configurational potential ``U(q) = −ρ g·x`` per unit reference volume.
@@ -274,16 +375,22 @@ class CosseratSolid(QuadraticMedium):
         Mass density ρ > 0 per unit reference volume.
     micro_inertia : float, default 0.1
         Micro-inertia j > 0 (a length squared): the rotational inertia is ρj.
-    output_stresses : bool, default True
-        Record the force- and couple-stress tensor components in every saved frame (18 node
-        fields; the displacement and the micro-rotation are always recorded).
+    output_stresses : bool or str or sequence of str, default True
+        The stress tensors recorded in every saved frame, nine node fields each (the
+        displacement and the micro-rotation are always recorded): ``"body"`` — F^α_k, M^α_k
+        (``force_stress_{α}{k}``, ``couple_stress_{α}{k}``); ``"nominal"`` — the spatial nominal
+        tensors P_{iα} = (R F^α)_i, C_{iα} = (R M^α)_i (``nominal_force_stress_{i}{α}``, …);
+        ``"cauchy"`` — σ = P Fᵀ/J and C Fᵀ/J (``cauchy_force_stress_{i}{j}``, …).  True records
+        all three (54 node fields), False none.  :func:`stress_tensor` gathers a tensor's nine
+        fields into one ``(…, row, col)`` variable.
 
     Raises
     ------
     ValueError
         For non-finite constants, ρ ≤ 0 or j ≤ 0, or an energy that is not positive definite,
         naming the failing condition (3λ + 2μ + κ > 0, 2μ + κ > 0, κ > 0, 3α + β + γ > 0,
-        β + γ > 0, γ − β > 0).
+        β + γ > 0, γ − β > 0); for ``output_stresses`` not a bool or a subset of
+        ``("body", "nominal", "cauchy")``.
 
     Notes
     -----
@@ -299,7 +406,7 @@ class CosseratSolid(QuadraticMedium):
 
     def __init__(self, lam: float = 1.0, mu: float = 1.0, kappa: float = 0.5, alpha: float = 0.1,
                  beta: float = 0.05, gamma: float = 0.1, density: float = 1.0, micro_inertia: float = 0.1,
-                 output_stresses: bool = True):
+                 output_stresses: bool | str | tuple[str, ...] = True):
         self.space = cartan.space("frame-E3")
         self.group = self.space.group
         c = {name: float(check_finite(name, value, ())) for name, value in
@@ -319,9 +426,10 @@ class CosseratSolid(QuadraticMedium):
                     + ", ".join(f"{k}={v!r}" for k, v in c.items()))
         self.rho = float(check_positive("density", density, shape=()))
         self.j = float(check_positive("micro_inertia", micro_inertia, shape=()))
-        if not isinstance(output_stresses, bool | np.bool_):
-            raise ValueError(f"output_stresses must be True or False, got {output_stresses!r}")
-        self.output_stresses = bool(output_stresses)
+        self.stress_outputs = _stress_sets(output_stresses)
+        self.output_stresses: bool | list[str] = (
+            len(self.stress_outputs) == len(_STRESS_SETS) if len(self.stress_outputs) in (0, len(_STRESS_SETS))
+            else list(self.stress_outputs))
         self.constants = c
         X0 = np.zeros((3, 6))
         X0[:, :3] = np.eye(3)
@@ -329,15 +437,11 @@ class CosseratSolid(QuadraticMedium):
         fields = {f"displacement_{x}": (f"displacement x_{x} − {_AXES['xyz'.index(x)]}", "length")
                   for x in "xyz"}
         fields |= {f"microrotation_{x}": (f"micro-rotation vector component {x} (log R)", "1") for x in "xyz"}
-        if self.output_stresses:
-            for a in _AXES:
-                for k in range(3):
-                    fields[f"force_stress_{a}{k + 1}"] = (
-                        f"force stress F^{a}_{k + 1} = t_{a}{k + 1} (body frame, per unit reference area)",
-                        "force/length^2")
-                    fields[f"couple_stress_{a}{k + 1}"] = (
-                        f"couple stress M^{a}_{k + 1} = m_{a}{k + 1} (body frame, per unit reference area)",
-                        "force/length")
+        for name, (rows, cols, long_name, units, which) in STRESS_OUTPUTS.items():
+            if which in self.stress_outputs:
+                for r in rows:
+                    for col in cols:
+                        fields[f"{name}_{r}{col}"] = (long_name.format(r=r, c=col), units)
         self.output_fields = fields
 
     # ------------------------------------------------------------------ contract
@@ -380,6 +484,69 @@ class CosseratSolid(QuadraticMedium):
         Q = self.stress(X)
         return Q[..., :3], Q[..., 3:]
 
+    @staticmethod
+    def deformation_gradient(frames: np.ndarray, X: np.ndarray) -> np.ndarray:
+        """The deformation gradient ``F_{iα} = ∂_α x_i = (R θ_α)_i`` from the frames and strains.
+
+        Parameters
+        ----------
+        frames : array, shape ``[..., 3, 3]``
+            Micro-rotations R (directors as columns).
+        X : array, shape ``[..., 3, 6]``
+            Strains (rows α; θ_α the first three components).
+
+        Returns
+        -------
+        numpy.ndarray, shape ``[..., 3, 3]``
+            ``F[..., i, α]``.
+        """
+        return np.asarray(frames, dtype=float) @ np.swapaxes(np.asarray(X, dtype=float)[..., :3], -1, -2)
+
+    def nominal_stress_tensors(self, frames: np.ndarray, X: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """The spatial nominal force and couple stresses, per unit reference area.
+
+        ``P_{iα} = (R F^α)_i`` and ``C_{iα} = (R M^α)_i``: column α is the force (couple) per unit
+        reference area on the face whose reference normal is e_α, in spatial components i, so
+        that the traction on a face of outer reference normal N is ``P N`` (a first
+        Piola–Kirchhoff tensor, not symmetric).  For small strains P_{iα} → t_{αi} and
+        C_{iα} → m_{αi}: Eringen's tensors transposed (his first index is the face normal).
+
+        Parameters
+        ----------
+        frames : array, shape ``[..., 3, 3]``
+            Micro-rotations R.
+        X : array, shape ``[..., 3, 6]``
+            Strains.
+
+        Returns
+        -------
+        (P, C) : arrays, shape ``[..., 3, 3]``
+            Rows spatial x, y, z; columns the material axes u, v, w.
+        """
+        R = np.asarray(frames, dtype=float)
+        Q = self.stress(X)
+        return R @ np.swapaxes(Q[..., :3], -1, -2), R @ np.swapaxes(Q[..., 3:], -1, -2)
+
+    def cauchy_stress_tensors(self, frames: np.ndarray, X: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """The Cauchy force and couple stresses ``σ = P Fᵀ/J``, ``C Fᵀ/J`` (J = det F), per unit
+        current area: the force (couple) on a face of current unit normal n is σ n (C Fᵀ n/J),
+        by Nanson's formula n da = J F⁻ᵀN dA.  Not symmetric for a micropolar solid.
+
+        Parameters
+        ----------
+        frames : array, shape ``[..., 3, 3]``
+        X : array, shape ``[..., 3, 6]``
+
+        Returns
+        -------
+        (sigma, couple) : arrays, shape ``[..., 3, 3]``
+            Rows and columns spatial x, y, z (column j: the face with normal e_j).
+        """
+        P, C = self.nominal_stress_tensors(frames, X)
+        F = self.deformation_gradient(frames, X)
+        Ft_J = np.swapaxes(F, -1, -2) / np.linalg.det(F)[..., None, None]
+        return P @ Ft_J, C @ Ft_J
+
     # ------------------------------------------------------------------ loads
     def make_load(self, kind: str, **params: Any):
         """``"gravity"``: :class:`Gravity` with ``g`` (3,) and this solid's density;
@@ -399,19 +566,27 @@ class CosseratSolid(QuadraticMedium):
 
     # ------------------------------------------------------------------ outputs
     def outputs(self, q: np.ndarray, X: np.ndarray, N: np.ndarray, grid: Any) -> dict[str, np.ndarray]:
-        """Displacement ``x − (u, v, w)``, micro-rotation vector log R, and (``output_stresses``)
-        the stress components ``Q^α`` at the nodal strains; node fields of shape ``grid.shape``."""
+        """Displacement ``x − (u, v, w)``, micro-rotation vector log R, and the stress tensors of
+        ``output_stresses`` at the nodal strains (:data:`STRESS_OUTPUTS`; the frames R are the
+        nodes'); node fields of shape ``grid.shape``."""
         coords = np.stack(np.meshgrid(*[grid.coordinates(a) for a in range(3)], indexing="ij"), axis=-1)
         disp = q[..., 1:, 0] - coords
-        phi = rotation_vector(q[..., 1:, 1:])
+        R = q[..., 1:, 1:]
+        phi = rotation_vector(R)
         out = {f"displacement_{x}": disp[..., i] for i, x in enumerate("xyz")}
         out |= {f"microrotation_{x}": phi[..., i] for i, x in enumerate("xyz")}
-        if self.output_stresses:
-            Q = self.stress(X)
-            for a, name in enumerate(_AXES):
-                for k in range(3):
-                    out[f"force_stress_{name}{k + 1}"] = Q[..., a, k]
-                    out[f"couple_stress_{name}{k + 1}"] = Q[..., a, 3 + k]
+        tensors: dict[str, np.ndarray] = {}
+        if "body" in self.stress_outputs:
+            tensors["force_stress"], tensors["couple_stress"] = self.stress_tensors(X)
+        if "nominal" in self.stress_outputs:
+            tensors["nominal_force_stress"], tensors["nominal_couple_stress"] = self.nominal_stress_tensors(R, X)
+        if "cauchy" in self.stress_outputs:
+            tensors["cauchy_force_stress"], tensors["cauchy_couple_stress"] = self.cauchy_stress_tensors(R, X)
+        for name, T in tensors.items():
+            rows, cols = STRESS_OUTPUTS[name][:2]
+            for i, r in enumerate(rows):
+                for j, col in enumerate(cols):
+                    out[f"{name}_{r}{col}"] = T[..., i, j]
         return out
 
     # ------------------------------------------------------------------ initial states
