@@ -15,6 +15,12 @@ Dynamics (``lie-verlet`` on the lattice, conformal–temporal gauge, c = 1):
 * :class:`BoostedLoop` — the same loop moving at βc along its axis: collapse time dilated by γ;
 * :class:`SpinningLoop` — a Kibble–Turok loop x = ½[a(σ − t) + b(σ + t)] with a and b in
   planes at angle ψ: a loop with angular momentum, moving in three dimensions.
+
+Limit (a parameter refinement, v/c halved with the level):
+
+* :class:`NewtonianLimit` — a Nambu–Goto standing wave whose largest speed is v, against the
+  linear taut string (tension μc², mass μ per lab length) with the same lab shape: the
+  difference falls as (v/c)² (docs §2, "Newtonian limit").
 """
 
 from __future__ import annotations
@@ -28,6 +34,7 @@ from numba import njit
 
 import cartan
 
+from .limit import amplitude, lab_period, newtonian_string, standing_wave, tilt_for_speed
 from .string import loop_exact
 
 if TYPE_CHECKING:  # pragma: no cover
@@ -35,7 +42,8 @@ if TYPE_CHECKING:  # pragma: no cover
 
     from cartan.problem import Problem
 
-__all__ = ["BoostComposition", "BoostedLoop", "BoostedRod", "CollapsingLoop", "SpinningLoop", "all_cases"]
+__all__ = ["BoostComposition", "BoostedLoop", "BoostedRod", "CollapsingLoop", "NewtonianLimit", "SpinningLoop",
+           "all_cases"]
 
 #: proper acceleration α (c = 1) of :class:`BoostComposition`: rapidity ατ reaches 20 at τ = 20
 ALPHA = 1.0
@@ -248,6 +256,153 @@ class SpinningLoop(CollapsingLoop):
     tilt = math.pi / 3
 
 
+class NewtonianLimit(Case):
+    """Slow motion: a Nambu–Goto standing wave against the linear taut string, v/c → 0 (c = μ = 1).
+
+    An infinite string along e₁, periodic in σ with period L = 2π (a translation holonomy of
+    one lab period X_L = L J₀(θ₀)), released from rest with the tangent angle θ₀ cos(2πσ/L):
+    its largest speed is v = c sin θ₀, and level ℓ sets v/c = 0.2·2^−ℓ.  The Newtonian
+    counterpart is the linear taut string of tension μc² and mass μ per lab length released
+    from rest with the same lab shape y₀(x) (closed form, d'Alembert,
+    :func:`cartan_relativistic.limit.newtonian_string`; cartan has no medium that is exactly
+    this string: the ``cosserat-rod`` carries frames with rotational inertia and shear, a
+    dispersive Timoshenko string).
+
+    The Nambu–Goto side runs through the core (``lie-verlet`` on the lattice) at Courant
+    number 1, Δt = h/c: the lattice is the chain of linear springs of the wave equation
+    (docs §3), on which the leapfrog at Courant number 1 reproduces d'Alembert's solution at
+    the nodes exactly, so the run carries no discretisation error (checked against the exact
+    standing wave, :func:`cartan_relativistic.limit.standing_wave`) and the difference is the
+    physics alone.  Compared at t = L/(3c): the distance along e₂ between the two lab-frame
+    curves at the Nambu–Goto nodes' lab abscissae, relative to the amplitude A.  The expected
+    exponent is 2 (the quartic term of the Nambu–Goto Lagrangian in static gauge, docs §2).
+    """
+
+    name = "relativistic-newtonian-limit"
+    medium = "relativistic-rod"
+    description = "Nambu–Goto standing wave vs the linear taut string as v/c → 0: difference O((v/c)²)"
+    reference = ("the linear taut string ∂²_t y = c² ∂²_x y (tension μc², mass μ per lab length) is the v/c → 0 "
+                 "limit of the Nambu–Goto string; the quartic term of ℓ = −μc²√(1 + y′² − ẏ²/c²) is O((v/c)²) "
+                 "(the Nambu–Goto action in static gauge; Vilenkin & Shellard, Cosmic Strings and Other Topological "
+                 "Defects, ch. 6)")
+    quantity = "transverse lab position of the Nambu–Goto nodes at t = L/(3c) against the taut string's y(x, t)"
+    norm = "max over nodes of |y − y_Newton(x)| / A, A the amplitude"
+    space_order = None
+    time_order_of = None
+    parameter_order = 2.0
+    default_integrators = ("lie-verlet",)
+    default_schemes = ("lattice",)
+    levels = (0, 1, 2, 3)
+    tolerance = 3.8e-4
+    tolerance_reason = ("v/c = 0.025 (level 3): the closed forms give the leading term C(v/c)², C = 0.547 at "
+                        "t = L/(3c), i.e. 3.42e-4, and the Courant-1 run adds only round-off; margin 10 %")
+
+    length, nodes, c = 2 * math.pi, 96, 1.0
+
+    @staticmethod
+    def speed(level: int) -> float:
+        """The largest speed v/c of the level's standing wave, 0.2·2^−level."""
+        return 0.2 / 2**level
+
+    def limit_levels(self, levels=None) -> dict[int, float]:
+        """Level → c/v (the limit parameter: the difference falls as (c/v)^−2)."""
+        return {level: 1.0 / self.speed(level) for level in (self.levels if levels is None else levels)}
+
+    def problem(self, level: int, scheme: str = "lattice") -> tuple[Problem, dict[str, Any]]:
+        med = cartan.medium("relativistic-rod", c=self.c)
+        grid = cartan.Grid(self.nodes, length=self.length, periodic=True)
+        theta0 = tilt_for_speed(self.speed(level))
+        x, v = standing_wave(grid.coordinates(0), 0.0, theta0, self.length, self.c)
+        init = med.state_from(x, v)
+        H = np.eye(5)
+        H[2, 0] = lab_period(theta0, self.length)  # Φ(σ + L) = H Φ(σ): one lab period along e₁
+        steps = self.nodes // 3  # t_end = L/(3c) = (n/3) h/c: Courant number 1
+        t_end = self.length / (3 * self.c)
+        return cartan.Problem(med, grid, cartan.InitialState(Phi=init.Phi, N=init.N, holonomy=H),
+                              name=self.name), {"dt": t_end / steps, "t_end": t_end, "save_every": steps // 4}
+
+    def tilt(self, problem: Problem) -> float:
+        """θ₀ of a problem of this case, from its holonomy: J₀(θ₀) = X_L / L."""
+        from scipy.optimize import brentq
+        from scipy.special import jv
+
+        ratio = float(problem.initial.holonomy[2, 0]) / self.length
+        return float(brentq(lambda th: jv(0, th) - ratio, 1e-9, 1.0, xtol=1e-15, rtol=4 * np.finfo(float).eps))
+
+    def difference(self, ds: xr.Dataset, problem: Problem, frame: int = -1) -> float:
+        """max |y − y_Newton(x)|/A over the nodes at the saved ``frame``."""
+        theta0 = self.tilt(problem)
+        t = float(ds.time[frame])
+        y = newtonian_string(ds.lab_x.values[frame], t, theta0, self.length, problem.medium.c)
+        return float(np.max(np.abs(ds.lab_y.values[frame] - y)) / amplitude(theta0, self.length))
+
+    def error(self, ds: xr.Dataset, problem: Problem) -> float:
+        return self.difference(ds, problem)
+
+    def measure(self, levels=None) -> list[dict[str, Any]]:
+        """Run ``levels`` (default the case's) and collect, per level: ``beta`` (v/c), ``error``
+        (at t = L/3c), ``quarter`` (the same difference at t = L/4c), ``exact`` (largest
+        distance of the run from the exact standing wave over the saved frames, relative to
+        A) and the curves of the last frame (``x``, ``y``, ``y_newton``, ``amplitude``)."""
+        rows = []
+        for level in self.levels if levels is None else levels:
+            problem, settings = self.problem(level)
+            ds = self.run(problem, settings, self.default_integrators[0])
+            theta0 = self.tilt(problem)
+            A = amplitude(theta0, self.length)
+            sigma = problem.grid.coordinates(0)
+            exact = 0.0
+            for k, t in enumerate(ds.time.values):
+                x, _ = standing_wave(sigma, float(t), theta0, self.length, self.c)
+                lab = np.stack([ds.lab_x.values[k], ds.lab_y.values[k], ds.lab_z.values[k]], axis=-1)
+                exact = max(exact, float(np.max(np.abs(lab - x))) / A)
+            quarter = int(np.argmin(np.abs(ds.time.values - self.length / (4 * self.c))))
+            t_last = float(ds.time[-1])
+            rows.append({
+                "level": level, "beta": self.speed(level), "error": self.error(ds, problem),
+                "quarter": self.difference(ds, problem, quarter), "quarter_time": float(ds.time[quarter]),
+                "exact": exact, "amplitude": A, "lab_period": float(problem.initial.holonomy[2, 0]),
+                "time": t_last, "x": ds.lab_x.values[-1].copy(), "y": ds.lab_y.values[-1].copy(),
+                "y_newton": newtonian_string(ds.lab_x.values[-1], t_last, theta0, self.length, self.c)})
+        return rows
+
+    def draw(self, rows: list[dict[str, Any]], fig: Any) -> float:
+        """The c → ∞ chart into a matplotlib figure: the difference against v/c with its fitted
+        slope, and the differences scaled by A(v/c)² along the string.  Returns the slope."""
+        from matplotlib.ticker import NullFormatter
+
+        from cartan.study import observed_order
+
+        beta = np.array([r["beta"] for r in rows])
+        err = np.array([r["error"] for r in rows])
+        quarter = np.array([r["quarter"] for r in rows])
+        slope = observed_order(beta, err)
+        a1, a2 = fig.subplots(1, 2)
+        a1.loglog(beta, err, "o-", label=f"t = L/3c: fitted slope {slope:.3f}")
+        a1.loglog(beta, quarter, "s-", label=f"t = L/4c: slope {observed_order(beta, quarter):.3f}")
+        fine = np.geomspace(beta.min(), beta.max(), 20)
+        a1.loglog(fine, math.pi / 8 * fine**2, "k--", lw=0.8, label="(π/8)(v/c)²: the frequency shift")
+        a1.loglog(beta, [max(r["exact"], 1e-17) for r in rows], "x:", label="Nambu–Goto run vs exact (round-off)")
+        a1.xaxis.set_minor_formatter(NullFormatter())
+        a1.set_xticks(beta, [f"{b:g}" for b in beta])
+        a1.set_xlabel("largest speed v/c")
+        a1.set_ylabel("max |y_NG − y_Newton| / A")
+        a1.set_title("Nambu–Goto string → linear taut string")
+        a1.grid(True, which="both", alpha=0.3)
+        a1.legend(fontsize=8)
+        for r in rows:
+            order = np.argsort(r["x"] % r["lab_period"])
+            xs = (r["x"] % r["lab_period"])[order] / r["lab_period"]
+            a2.plot(xs, ((r["y"] - r["y_newton"]) / (r["amplitude"] * r["beta"] ** 2))[order],
+                    label=f"v/c = {r['beta']:g}")
+        a2.set_xlabel("lab x / lab period")
+        a2.set_ylabel("(y_NG − y_Newton) / (A (v/c)²)")
+        a2.set_title("the difference at t = L/3c, scaled by (v/c)²: one curve")
+        a2.grid(True, alpha=0.3)
+        a2.legend(fontsize=8)
+        return slope
+
+
 def all_cases() -> list[Case]:
     """One instance of every relativistic-rod case."""
-    return [BoostComposition(), BoostedRod(), CollapsingLoop(), BoostedLoop(), SpinningLoop()]
+    return [BoostComposition(), BoostedRod(), CollapsingLoop(), BoostedLoop(), SpinningLoop(), NewtonianLimit()]

@@ -3,9 +3,14 @@
 ``cartan plot RUN.nc`` draws them through :meth:`RelativisticRod.draw
 <cartan_relativistic.string.RelativisticRod.draw>` (the medium's picture hook,
 :meth:`cartan.medium.Medium.draw`), and so does ``python -m cartan_relativistic.pictures RUN.nc
-OUT.png``: side by side, the string at the saved lab times in the x–y plane and the worldlines
-(lab time against the distance from the centre of energy) of a few material points, with the
-light cone for reference.
+OUT.png``: side by side, the string at equal lab times in the x–y plane and the worldlines of
+a few material points.  For a closed string the worldlines are drawn as lab time against the
+distance from the centre of the string, with the inward light ray for reference; for an open
+string as the Minkowski diagram (lab time against lab x), with the saved frames — the slices of
+constant run time, simultaneous in the string's own frame when the run is in proper time — and
+the light cone.  When the nodes of a saved frame carry different lab times (a run in proper
+time, the ``kinematic`` integrator), the snapshots are interpolated along each worldline to
+common lab times, so that what is drawn is the string as the lab sees it (Lorentz-contracted).
 """
 
 from __future__ import annotations
@@ -16,7 +21,7 @@ from typing import Any
 
 import numpy as np
 
-__all__ = ["REQUIRED", "draw", "draw_figure", "main"]
+__all__ = ["REQUIRED", "draw", "draw_figure", "lab_snapshots", "main"]
 
 #: the per-node outputs of the medium the pictures are drawn from
 REQUIRED: tuple[str, ...] = ("lab_x", "lab_y", "lab_z", "coordinate_time")
@@ -61,23 +66,33 @@ def draw_figure(ds: Any, fig: Any, nodes: int = 8) -> bool:
     closed = bool(np.all(problem.get("grid", {}).get("periodic", [True])))
     x, y, z = (np.asarray(ds[k].values, dtype=float) for k in ("lab_x", "lab_y", "lab_z"))
     t = np.asarray(ds["coordinate_time"].values, dtype=float)
-    frame_t = t.mean(axis=1)
+    snap_t, sx, sy = lab_snapshots(t, x, y)
     a1, a2 = fig.subplots(1, 2)
     cmap = cm.viridis
-    norm = colors.Normalize(vmin=float(frame_t[0]), vmax=float(max(frame_t[-1], frame_t[0] + 1e-12)))
-    for k in range(x.shape[0]):
-        xs, ys = (np.append(x[k], x[k, 0]), np.append(y[k], y[k, 0])) if closed else (x[k], y[k])
-        a1.plot(xs, ys, color=cmap(norm(frame_t[k])), lw=1.0)
-    a1.set_aspect("equal", adjustable="datalim")
+    norm = colors.Normalize(vmin=float(snap_t[0]), vmax=float(max(snap_t[-1], snap_t[0] + 1e-12)))
+    # a straight string moving along its own line would draw every snapshot on one line: stack them by lab time
+    stacked = not closed and float(np.ptp(sy)) <= 1e-9 * max(float(np.ptp(sx)), 1e-300)
+    for k in range(sx.shape[0]):
+        xs, ys = (np.append(sx[k], sx[k, 0]), np.append(sy[k], sy[k, 0])) if closed else (sx[k], sy[k])
+        if stacked:
+            ys = np.full_like(xs, snap_t[k])
+        a1.plot(xs, ys, color=cmap(norm(snap_t[k])), lw=1.0 if closed else 2.0, marker=None if closed else "|")
+    if stacked:
+        a1.set_ylabel("lab time t (the string lies along x)")
+    else:
+        a1.set_aspect("equal", adjustable="datalim")
+        a1.set_ylabel("y (lab)")
     a1.set_xlabel("x (lab)")
-    a1.set_ylabel("y (lab)")
-    a1.set_title("string at the saved lab times")
+    a1.set_title("string at equal lab times")
     a1.grid(True, alpha=0.3)
     sm = cm.ScalarMappable(norm=norm, cmap=cmap)
     sm.set_array([])
     fig.colorbar(sm, ax=a1, shrink=0.8, label="lab time t")
-    centre = np.stack([x.mean(axis=1), y.mean(axis=1), z.mean(axis=1)], axis=-1)
     idx = np.unique(np.linspace(0, x.shape[1] - 1, nodes).round().astype(int))
+    if not closed:
+        _minkowski(a2, t, x, idx, c)
+        return True
+    centre = np.stack([x.mean(axis=1), y.mean(axis=1), z.mean(axis=1)], axis=-1)
     for i in idx:
         d = np.linalg.norm(np.stack([x[:, i], y[:, i], z[:, i]], axis=-1) - centre, axis=-1)
         a2.plot(d, t[:, i], lw=1.0)
@@ -91,6 +106,52 @@ def draw_figure(ds: Any, fig: Any, nodes: int = 8) -> bool:
     a2.legend(loc="upper right", fontsize=8)
     a2.grid(True, alpha=0.3)
     return True
+
+
+def lab_snapshots(t: np.ndarray, x: np.ndarray, y: np.ndarray,
+                  frames: int | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The string at common lab times, interpolated linearly along each node's worldline.
+
+    Parameters
+    ----------
+    t, x, y : arrays, shape ``(frames, nodes)``
+        Lab time and lab positions of every node at every saved frame.
+    frames : int, optional
+        Number of lab times (default: as many as saved frames).
+
+    Returns
+    -------
+    (times, xs, ys) : arrays of shapes ``(k,)``, ``(k, nodes)``, ``(k, nodes)``
+        Lab times spread over the interval every worldline covers, and the positions there.
+        When the nodes of each frame share its lab time (temporal gauge) these are the saved
+        frames themselves; when no lab time is covered by every worldline, the saved frames.
+    """
+    frames = t.shape[0] if frames is None else int(frames)
+    if np.allclose(t, t[:, :1], rtol=0.0, atol=1e-12 * max(1.0, float(np.max(np.abs(t))))):
+        return t[:, 0], x, y
+    lo, hi = float(np.max(t[0])), float(np.min(t[-1]))
+    if not hi > lo or np.any(np.diff(t, axis=0) <= 0):
+        return t.mean(axis=1), x, y
+    times = np.linspace(lo, hi, frames)
+    xs = np.stack([np.interp(times, t[:, i], x[:, i]) for i in range(t.shape[1])], axis=-1)
+    ys = np.stack([np.interp(times, t[:, i], y[:, i]) for i in range(t.shape[1])], axis=-1)
+    return times, xs, ys
+
+
+def _minkowski(ax: Any, t: np.ndarray, x: np.ndarray, idx: np.ndarray, c: float) -> None:
+    """Worldlines (lab time against lab x) of the nodes ``idx``, the saved frames and the light cone."""
+    for k in range(t.shape[0]):
+        ax.plot(x[k], t[k], color="0.6", lw=0.8, label="saved frames (constant run time)" if k == 0 else None)
+    for i in idx:
+        ax.plot(x[:, i], t[:, i], lw=1.2)
+    t0, x0 = float(t[0, 0]), float(x[0, 0])
+    span = float(t.max() - t0)
+    ax.plot([x0, x0 + c * span], [t0, t0 + span], "k--", lw=0.8, label="light ray")
+    ax.set_xlabel("x (lab)")
+    ax.set_ylabel("lab time t")
+    ax.set_title(f"worldlines of {idx.size} material points (Minkowski diagram)")
+    ax.legend(loc="upper left", fontsize=8)
+    ax.grid(True, alpha=0.3)
 
 
 def draw(ds: Any, path: str, nodes: int = 8) -> None:

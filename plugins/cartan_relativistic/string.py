@@ -214,7 +214,12 @@ class RelativisticRod(KernelMedium):
 
         ``"straight"``: a straight segment along e₁ at rest, |∂_u x| = 1 (the rest strain),
         with ``origin`` (3,); its free ends are not a solution of the constraints (the ends of a
-        free Nambu–Goto string move at c), so it is for clamped ends or kinematics.
+        free Nambu–Goto string move at c), so it is for clamped ends or kinematics.  ``boost``
+        β ∈ (−1, 1) (default 0) gives the same rod seen from a frame moving at −βc along e₁:
+        Φ = B(η)·Φ_rest with B(η) the boost of rapidity η = atanh β (the frame Λ = B(η) is the
+        rod's rest frame, the events r = B(η)(0, u, 0, 0) are simultaneous in it, not in the
+        lab) and N = {U; 0}, U = (c, 0, 0, 0): the rod in inertial motion at βc along its axis,
+        for the ``kinematic`` integrator in proper time (lab length L₀/γ, energy γμc²L₀).
 
         Parameters
         ----------
@@ -235,8 +240,19 @@ class RelativisticRod(KernelMedium):
             check_keywords(kind, self._loop, params)
             x, v = self._loop(grid, **params)
         elif kind == "straight":
-            check_keywords(kind, self._straight, params)
+            boost = params.pop("boost", 0.0)
+            check_keywords(kind, self._straight, params, extra=("boost",))
+            beta = float(check_finite("boost", boost, ()))
+            if not -1.0 < beta < 1.0:
+                raise ValueError(f"boost must be in (−1, 1) (a speed in units of c), got {boost!r}")
             x, v = self._straight(grid, **params)
+            init = self.state_from(x, v)
+            if beta == 0.0:
+                return init
+            xi = np.zeros(10)
+            xi[4] = math.atanh(beta)  # the boost B(η) along e₁, rapidity η = atanh β
+            Phi = np.einsum("ij,njk->nik", self.group.exp(xi), init.Phi)
+            return InitialState(Phi=Phi, N=init.N)
         else:
             return super().initial_state(grid, kind, **params)
         return self.state_from(x, v)
