@@ -8,9 +8,11 @@ from cartan.plugins import register_cases, register_scenes
 
 @cartan.hookimpl
 def cartan_register_media(register):
+    from .helfrich import HelfrichMembrane
     from .kirchhoff_love import KirchhoffLove
 
     register("kirchhoff-love", KirchhoffLove)
+    register("helfrich-membrane", HelfrichMembrane)
 
 
 @cartan.hookimpl
