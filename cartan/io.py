@@ -16,7 +16,8 @@ Fields per frame
 Series
     ``kinetic_energy``, ``potential_energy``, ``dissipated_energy``, ``external_work``,
     ``integrability_residual``, ``closure_residual``, ``group_defect`` and
-    ``total_momentum`` (spatial frame, per component); coordinate ``step`` (time-step index).
+    ``total_momentum`` (spatial frame, per component); coordinate ``step`` (time-step index);
+    with an integrator that holds constrained strains (``rattle``), ``constraint_residual``.
 
 Units
 -----
@@ -107,6 +108,8 @@ _META: dict[str, tuple[str, str]] = {
     "spatial_residual": ("spatial integrability residual (lattice: plaquette holonomy; collocation: |Δ_αβ|)",
                          "mixed"),
     "group_defect": ("group membership defect max‖defining relation of Φ‖", "1"),
+    "constraint_residual": ("constrained strain residual max|X_e[k] − value_k| (Medium.constrained_strains)",
+                            "mixed"),
     "total_momentum": ("total momentum in the spatial frame (momentum map)", "mixed"),
 }
 
@@ -195,6 +198,9 @@ def frame_record(scheme: Scheme, integrator: Integrator, state: State) -> dict[s
         if scheme.grid.d > 1:
             rec["spatial_residual"] = float(scheme.spatial_residual(state))
         rec["group_defect"] = float(np.max(g.defect(Phi))) if Phi.size else 0.0
+        held = getattr(integrator, "constraint_residual", None)
+        if held is not None:
+            rec["constraint_residual"] = float(held(scheme, state))
         rec["total_momentum"] = np.array(_total_momentum(scheme, state, Phi), dtype=float)
         med = scheme.medium
         if getattr(med, "output_fields", None):

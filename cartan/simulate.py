@@ -90,6 +90,8 @@ if TYPE_CHECKING:  # pragma: no cover
 __all__ = ["InstabilityError", "StabilityWarning", "simulate"]
 
 DEFAULT_INTEGRATOR = "lie-verlet"
+#: the default integrator of a medium with constrained strains (it holds them with multipliers)
+CONSTRAINED_INTEGRATOR = "rattle"
 DEFAULT_SCHEME = "lattice"
 DEFAULT_FRAMES = 100
 
@@ -807,16 +809,13 @@ def _resolve_run(
             )
         problem_or_scene = ck_info["scene"]
     problem, sc = _as_scene(problem_or_scene)
-    if problem.medium.constrained_strains() is not None:
-        raise ValueError(
-            f"medium {problem.medium.name!r} holds strain components fixed (constrained_strains); the time "
-            "integrators do not honour such constraints yet: use cartan.solve_static or cartan.continuation"
-        )
+    held = problem.medium.constrained_strains() is not None
     run_defaults = sc.run_settings() if sc is not None else {}
     ck_run = ck_info["run"] if ck_info else {}
 
     integ_spec = _first(
-        integrator, ck_run.get("integrator"), run_defaults.get("integrator"), DEFAULT_INTEGRATOR
+        integrator, ck_run.get("integrator"), run_defaults.get("integrator"),
+        CONSTRAINED_INTEGRATOR if held else DEFAULT_INTEGRATOR
     )
     scheme_spec = _first(scheme, ck_run.get("scheme"), run_defaults.get("scheme"), DEFAULT_SCHEME)
     same_integ = _name_of(integ_spec) == (
@@ -839,6 +838,12 @@ def _resolve_run(
     integ_obj: Integrator = integ(**iopts) if isinstance(integ, type) else integ
     if not isinstance(integ, type):
         integ_obj.reset()
+    if held and not integ_obj.constrained:
+        raise ValueError(
+            f"medium {problem.medium.name!r} holds strain components fixed (constrained_strains) and integrator "
+            f"{integ_obj.name!r} does not honour them: use integrator={CONSTRAINED_INTEGRATOR!r} (the default for "
+            "such media)"
+        )
     live = getattr(scheme_obj, "live", None)
     if integ_obj.uses_momentum and live is not None and not np.any(live):
         raise ValueError(

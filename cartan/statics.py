@@ -80,6 +80,7 @@ from typing import Any
 
 import numpy as np
 
+from .constraints import StrainConstraints
 from .problem import InitialState, Problem, dead_to_body
 
 __all__ = ["ConvergenceError", "solve_static"]
@@ -395,83 +396,12 @@ class _Equilibrium:
     def _setup_constraints(self, medium: Any, state: Any) -> None:
         """The constrained strain components of the medium (:meth:`~cartan.medium.Medium.
         constrained_strains`): one multiplier per edge (with an unknown at either end) and
-        component, after the pin multipliers.  Any lattice: with axes coupled at the corners
-        too, since the constraint rows and the reaction are per edge (see
-        :meth:`_check_constraint_stress` for what the medium must satisfy)."""
-        spec = medium.constrained_strains() if hasattr(medium, "constrained_strains") else None
-        self.con_comp = np.zeros(0, dtype=np.int64)
-        self.con_val = np.zeros(0)
-        self.con_active: list[np.ndarray] = []
-        self.ncon = 0
-        if spec is None:
-            return
-        comp, val = spec
-        comp = np.atleast_1d(np.asarray(comp)).astype(np.int64)
-        val = np.atleast_1d(np.asarray(val, dtype=float))
-        r_dim, sch = self.r_dim, self.sch
-        if comp.shape != val.shape or comp.ndim != 1 or len(set(comp.tolist())) != comp.size:
-            raise ValueError(f"constrained_strains: {type(medium).__name__} must return distinct components and "
-                             f"as many values, got components {comp.tolist()} and values {val.tolist()}")
-        if np.any(comp < 0) or np.any(comp >= r_dim) or not np.all(np.isfinite(val)):
-            raise ValueError(f"constrained_strains: components must be in [0, {r_dim}) and values finite, got "
-                             f"components {comp.tolist()} and values {val.tolist()}")
-        # the energy must not depend on the constrained components: their stress is the multiplier
-        self._check_constraint_stress(medium, state, comp)
-        tails, heads = sch.edge_nodes()
-        live_node = self.unknown_flat.any(axis=1)
-        self.con_tails, self.con_heads = tails, heads
-        self.con_active = [live_node[t] | live_node[h] for t, h in zip(tails, heads, strict=True)]
-        self.con_comp, self.con_val = comp, val
-        self.con_unit = -1.0 / float(np.prod(sch.h))
-        self.ncon = int(sum(int(a.sum()) for a in self.con_active)) * comp.size
-
-    def _check_constraint_stress(self, medium: Any, state: Any, comp: np.ndarray) -> None:
-        """``ValueError`` when the medium's point stress depends on a constrained component.
-
-        The strains the lattice evaluates the stress at are probed: on a lattice with coupled
-        axes (d ≥ 2, the energy at the corners) the corner strains ``[C, d, r]`` and every
-        slot of their stress; otherwise each axis' edge strains with the other axes at rest
-        and that axis' slot.  Each set is probed as it is and moved by a seeded random 1 %
-        (a dependence that vanishes at a symmetric state, e.g. a flat plate, still shows):
-        component k of each slot is moved by 1e-3·max(1, |X[k]|) and the stress must not
-        change by more than 1e-9·max(1, |Q|)."""
-        sch, d, r = self.sch, self.sch.grid.d, self.r_dim
-        samples: list[tuple[np.ndarray, np.ndarray | None, list[int]]] = []
-        if sch.coupled:
-            _, Xc = sch._corner_strains(state)
-            X0 = sch.corners()["X0"] if self.problem.reference is not None else None
-            samples.append((Xc, X0, list(range(d))))
-        else:
-            for axis, x in enumerate(self.strains(state)):
-                _, full = sch._axis_stress(x, axis)
-                X0 = sch.edge_rest_strains(axis)
-                samples.append((full.reshape(-1, d, r), None if X0 is None else X0.reshape(-1, d, r), [axis]))
-
-        def stress(X: np.ndarray, X0: np.ndarray | None) -> np.ndarray:
-            with np.errstate(all="ignore"):
-                return medium.stress(X) if X0 is None else medium.stress_at(X, X0)
-
-        rng = np.random.default_rng(20240611)
-        for X, X0, slots in samples:
-            moved_all = X.copy()
-            for a in slots:
-                size = np.maximum(1.0, np.abs(X[:, a, :]))
-                moved_all[:, a, :] += 1e-2 * size * rng.standard_normal(X[:, a, :].shape)
-            for probe in (X, moved_all):
-                q0 = stress(probe, X0)[:, slots]
-                if not np.all(np.isfinite(q0)):
-                    continue  # outside the medium's domain: nothing to compare
-                bound = 1e-9 * max(1.0, float(np.max(np.abs(q0), initial=0.0)))
-                for a in slots:
-                    for k in comp:
-                        moved = probe.copy()
-                        moved[:, a, k] += 1e-3 * max(1.0, float(np.max(np.abs(probe[:, a, k]), initial=0.0)))
-                        dq = float(np.max(np.abs(stress(moved, X0)[:, slots] - q0), initial=0.0))
-                        if not dq <= bound:
-                            raise ValueError(
-                                f"constrained_strains: the stress of medium {medium.name!r} depends on the "
-                                f"constrained strain component {int(k)} (change {dq:.3e}); a constrained "
-                                "component's stress is a reaction and must not be constitutive")
+        component, after the pin multipliers (:class:`cartan.constraints.StrainConstraints`,
+        which also checks that the medium's stress does not depend on them).  Any lattice: with
+        axes coupled at the corners too, since the constraint rows and the reaction are per edge."""
+        self.con = StrainConstraints(self.sch, self.unknown, state)
+        self.ncon = self.con.ncon
+        self._edge_shapes = [x.shape for x in self.strains(state)]
 
     def constraints_met(self, r: np.ndarray, tol: float) -> bool:
         """Whether the strain-constraint rows of a residual ``r`` ``(m,)`` are within 1e-3·tol
@@ -479,74 +409,29 @@ class _Equilibrium:
         return float(np.max(np.abs(r[self.nunk + self.npin: self.m]), initial=0.0)) <= 1e-3 * tol
 
     def constraint_stress(self, mu_c: np.ndarray) -> list[np.ndarray]:
-        """Per axis, the edge stresses ``[*edge_shape, r]`` whose constrained components are
-        the multipliers ``mu_c`` ``(ncon,)`` times ``con_unit = −1/cell`` (zero elsewhere).
+        """Per axis, the edge stresses ``[*edge_shape, r]`` of the strain constraints' unknowns
+        ``mu_c`` ``(ncon,)`` (:meth:`cartan.constraints.StrainConstraints.stress`).
 
         The unknowns are ``ν = −cell·μ``: the reaction ``−cell·B_cᵀ μ`` of the edge stresses μ
         is then ``B_cᵀ ν`` and the Jacobian ``[[K, B_cᵀ], [B_c, 0]]`` is symmetric.  The
         reaction is assembled edge by edge (:meth:`assemble`, the transpose of the exact strain
         rate), never through the medium's stress, so it is the same whether the energy is
         summed over the edges or over the corners of a coupled lattice."""
-        out, start = [], 0
-        edge_shapes = [x.shape for x in self.strains(self.state0)]
-        for shape_e, active in zip(edge_shapes, self.con_active, strict=True):
-            Q = np.zeros((int(np.prod(shape_e[:-1])), self.r_dim))
-            n = int(active.sum()) * self.con_comp.size
-            Q[np.ix_(np.flatnonzero(active), self.con_comp)] = (mu_c[start:start + n].reshape(-1, self.con_comp.size)
-                                                                 * self.con_unit)
-            start += n
-            out.append(Q.reshape(shape_e))
-        return out
+        return self.con.stress(mu_c, self._edge_shapes)
 
     def constraint_values(self, state: Any, active_only: bool = True) -> np.ndarray:
         """``X_e[k] − value_k`` on the constrained edges (flat, multiplier order), or with
         ``active_only=False`` on every edge ``[E, c]`` (all axes concatenated)."""
-        if not self.ncon:
-            return np.zeros(0) if active_only else np.zeros((0, 0))
-        vals = []
-        for x, active in zip(self.strains(state), self.con_active, strict=True):
-            xe = x.reshape(-1, self.r_dim)[:, self.con_comp] - self.con_val
-            vals.append(xe[active].ravel() if active_only else xe)
-        if not vals:
-            return np.zeros(0)
-        return np.concatenate(vals) if active_only else np.concatenate(vals, axis=0)
+        return self.con.values(state, active_only)
 
     def edge_multipliers(self, mu_c: np.ndarray) -> np.ndarray:
         """The multipliers on every edge ``[E, c]`` (NaN on edges between fixed nodes)."""
-        rows = []
-        for Q, active in zip(self.constraint_stress(mu_c), self.con_active, strict=True):
-            q = Q.reshape(-1, self.r_dim)[:, self.con_comp].copy()
-            q[~active] = np.nan
-            rows.append(q)
-        return np.concatenate(rows, axis=0)
+        return self.con.edge_multipliers(mu_c, self._edge_shapes)
 
     def _constraint_matrix(self, state: Any):
         """``B_c = ∂(X_e[k])/∂δ`` ``(ncon, nunk)``: the constrained rows of the strain rate
         :meth:`strain_rate`, exact (the reaction of edge stresses μ is ``−cell·B_cᵀ μ``)."""
-        import scipy.sparse as sp
-
-        g, sch = self.g, self.sch
-        c = self.con_comp.size
-        rows, cols, vals = [], [], []
-        start = 0
-        for axis, active in enumerate(self.con_active):
-            xi = g.log(state.arrays[sch._key(axis)]).reshape(-1, self.r_dim)[active]
-            h = sch.h[axis]
-            ne = xi.shape[0]
-            row = start + np.arange(ne * c).reshape(ne, c)
-            for node, M in ((self.con_tails[axis][active], -g.dexp_inv(xi) / h),
-                            (self.con_heads[axis][active], g.dexp_inv(-xi) / h)):
-                Mk = M[:, self.con_comp, :]  # [ne, c, r]
-                col = self.index[node]  # [ne, r]
-                cc = np.broadcast_to(col[:, None, :], Mk.shape)
-                rr = np.broadcast_to(row[:, :, None], Mk.shape)
-                ok = cc >= 0
-                rows.append(rr[ok])
-                cols.append(cc[ok])
-                vals.append(Mk[ok])
-            start += ne * c
-        return sp.csr_matrix((np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols))),
-                             shape=(self.ncon, self.nunk))
+        return self.con.matrix(state)
 
     def _constraint_jacobian(self, state: Any):
         """The constraints' part of the Jacobian ``(m, m)``: the reaction columns ``B_cᵀ``
@@ -1542,7 +1427,7 @@ def _constraint_outputs(ds: Any, eq: _Equilibrium, state: Any, mu: np.ndarray) -
                       "strain component (a reaction)", "units": "force"})
     ds["constraint_residual"] = ("time", np.array([res]),
                                  {"long_name": "max |X_e[k] − value_k| over the constrained edges", "units": "1"})
-    ds.coords["constrained_component"] = ("constrained_component", eq.con_comp)
-    ds.attrs["constraint_components"] = [int(k) for k in eq.con_comp]
-    ds.attrs["constraint_values"] = [float(v) for v in eq.con_val]
+    ds.coords["constrained_component"] = ("constrained_component", eq.con.comp)
+    ds.attrs["constraint_components"] = [int(k) for k in eq.con.comp]
+    ds.attrs["constraint_values"] = [float(v) for v in eq.con.value]
     ds.attrs["constraint_residual_max"] = res

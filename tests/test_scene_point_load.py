@@ -13,8 +13,8 @@ import pytest
 from click.testing import CliRunner
 
 import cartan
-from cartan.cli import main
 from cartan import NodeForce
+from cartan.cli import main
 from cartan.scene import SceneError, load_scene
 from cartan.statics import solve_static
 

@@ -7,8 +7,8 @@ from ..plugins import hookimpl
 
 @hookimpl
 def cartan_register_integrators(register):
-    from . import explicit, implicit
+    from . import constrained, explicit, implicit
 
     for cls in (explicit.ForwardEuler, explicit.LieEuler, explicit.LieVerlet, explicit.RKMK4,
-                explicit.Overdamped, explicit.Kinematic, implicit.ImplicitMidpoint):
+                explicit.Overdamped, explicit.Kinematic, implicit.ImplicitMidpoint, constrained.Rattle):
         register(cls.name, cls)

@@ -50,6 +50,9 @@ class Integrator(abc.ABC):
     rate: ClassVar[str] = "inertial"
     #: False for integrators that prescribe N (kinematic, overdamped): S is not evolved.
     uses_momentum: ClassVar[bool] = True
+    #: True for integrators that hold the medium's constrained strains
+    #: (:meth:`~cartan.medium.Medium.constrained_strains`) with multipliers (``rattle``)
+    constrained: ClassVar[bool] = False
 
     def __init__(self, **options: Any):
         if options:

@@ -200,9 +200,17 @@ class LieVerlet(Integrator):
         return self.force(scheme, state, N, state.t)
 
     def _step(self, scheme: Scheme, state: State, dt: float) -> None:
-        g = scheme.group
         state.S = state.S + 0.5 * dt * self._kick_force(scheme, state)
         scheme.constrain(state)
+        self._free_flow(scheme, state, dt)
+        t1 = state.t + dt
+        W1 = self._closing_kick(scheme, state, dt, t1)
+        # cache the force at the new configuration for the next step's first kick
+        self._fsal = ((id(state), t1, state.scalars.get("nstep", 0) + 1), W1)
+
+    def _free_flow(self, scheme: Scheme, state: State, dt: float) -> None:
+        """The exact split free flow over ``dt`` (configuration and momentum, in place)."""
+        g = scheme.group
         for P, frac in self._sequence(scheme):
             if scheme.diagonal_metric:
                 N = scheme.velocity(state)
@@ -218,10 +226,6 @@ class LieVerlet(Integrator):
             state.S = _coAd_exp(g, tau, Np, state.S)
             scheme.drift(state, tau, Np, exact=True)
         scheme.constrain(state)
-        t1 = state.t + dt
-        W1 = self._closing_kick(scheme, state, dt, t1)
-        # cache the force at the new configuration for the next step's first kick
-        self._fsal = ((id(state), t1, state.scalars.get("nstep", 0) + 1), W1)
 
     def _closing_kick(self, scheme: Scheme, state: State, dt: float, t1: float) -> np.ndarray:
         """``S⁺ = S½ + ½Δt W(Φ⁺, N)`` with N = N(S⁺) (implicit, see the class docstring) when

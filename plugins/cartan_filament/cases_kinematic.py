@@ -4,7 +4,8 @@ gauges along a helix, and the binormal (local induction) flow of a vortex ring t
 
 The binormal flow is run on the ``cosserat-rod`` medium (on SE(3), the same structure field
 and strains as the filament): a prescribed-velocity run uses nothing of the medium but its
-group, and :func:`cartan.simulate` refuses media with constrained strains.
+group, and the ``kinematic`` integrator does not hold constrained strains (``rattle`` does,
+for dynamics).
 """
 
 from __future__ import annotations

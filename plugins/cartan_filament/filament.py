@@ -14,9 +14,9 @@ and the force n conjugate to θ is not constitutive: it is the multiplier of the
 θ = (1, 0, 0), the fictitious stress of §IV.E, which :func:`cartan.solve_static` and
 :func:`cartan.continuation` compute and return as ``constraint_force``.
 
-Dynamics with the constraints is not built: :func:`cartan.simulate` does not honour
-:meth:`~cartan.medium.Medium.constrained_strains`, and a filament run in time is a rod with
-no stretching or shear stiffness.  Use the filament with the static solvers.
+In time, :func:`cartan.simulate` runs it with the ``rattle`` integrator
+(:mod:`cartan.integrators.constrained`, the default for media with constrained strains): the
+same rows held to round-off at every step by multipliers, the fictitious stresses in time.
 """
 
 from __future__ import annotations

@@ -45,8 +45,8 @@ Conventions
       principal gauge is not built.
 
 Kinetic data are those of :class:`~cartan_cosserat_surface.surface.CosseratSurface` (ρh, ρh³/12,
-0 about e₃).  :func:`cartan.simulate` refuses the medium (it does not honour
-constrained strains): the Kirchhoff–Love surface runs in the static solvers only.
+0 about e₃).  :func:`cartan.simulate` runs it with the ``rattle`` integrator, which holds
+θ_α,3 = 0 by multipliers at every step (:mod:`cartan.integrators.constrained`).
 """
 
 from __future__ import annotations

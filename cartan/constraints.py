@@ -1,0 +1,216 @@
+"""Strain components held fixed on a lattice's edges (paper §III.E, §IV.E).
+
+A medium may hold some components of its strain at fixed values
+(:meth:`~cartan.medium.Medium.constrained_strains`): the inextensible, unshearable filament
+has θ = (1, 0, 0) (§VII.A), the Kirchhoff–Love surface θ_{α,3} = 0 (§VII.B).  On the lattice
+each edge e = (i, j) along an axis carries the exact strain X_e = log(Φ_i⁻¹Φ_j)/h, so the
+constraint is one row per edge and component,
+
+    c_{e,k}(Φ) = X_e[k] − value_k = 0,
+
+whose derivative along the drift Φ_i ← Φ_i exp(δ_i) is exact,
+
+    B_c δ = [dexp⁻¹(−hX_e) δ_j − dexp⁻¹(hX_e) δ_i]_k / h.
+
+Its reaction is the lattice's internal force of edge stresses μ whose component k is the
+multiplier (the fictitious stress of §IV.E): ``−cell·B_cᵀμ`` on the nodes.  The statics
+(:mod:`cartan.statics`) solve the saddle-point system with these rows, and the ``rattle``
+integrator (:mod:`cartan.integrators.constrained`) keeps them in time.
+
+:class:`StrainConstraints` holds the rows of one problem on one lattice: which edges are
+constrained (every edge with an unknown at either end), the values, the Jacobian ``B_c`` and
+the edge stresses of given multipliers.  It knows no medium beyond the declaration.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+
+__all__ = ["StrainConstraints"]
+
+
+class StrainConstraints:
+    """The constrained strain rows of a problem on a lattice.
+
+    Parameters
+    ----------
+    scheme : Lattice
+        The lattice (its ``edge_strains``, ``edge_nodes``, ``_key`` and ``h``).
+    unknown : array of bool ``[*shape, r]``
+        The node components that move (live, not clamped).
+    state : State
+        A state of the lattice at which the medium's stress is probed (see
+        :meth:`check_stress`).
+    check : bool
+        Probe the medium's stress for a dependence on a constrained component.
+
+    Attributes
+    ----------
+    ncon : int
+        Number of rows: constrained edges × constrained components (0 when the medium holds
+        nothing fixed).
+    comp, value : ndarray ``(c,)``
+        The constrained components and their values.
+    active : list of bool arrays ``[E_α]``
+        Per axis, the edges with an unknown at either end (the others are fixed by the clamps).
+    unit : float
+        ``−1/cell``: the multipliers ν of the rows are ``−cell·μ``, so that the reaction on the
+        unknowns is ``B_cᵀν`` (see :meth:`stress`).
+    """
+
+    def __init__(self, scheme: Any, unknown: np.ndarray, state: Any, check: bool = True):
+        medium = scheme.medium
+        self.sch = scheme
+        self.g = scheme.group
+        self.r_dim = r_dim = scheme.group.dim
+        nnode = int(np.prod(scheme.grid.shape))
+        flat = np.asarray(unknown, dtype=bool).reshape(nnode, r_dim)
+        self.nunk = int(flat.sum())
+        self.index = -np.ones((nnode, r_dim), dtype=np.int64)
+        self.index[flat] = np.arange(self.nunk)
+        self.comp = np.zeros(0, dtype=np.int64)
+        self.value = np.zeros(0)
+        self.active: list[np.ndarray] = []
+        self.tails: list[np.ndarray] = []
+        self.heads: list[np.ndarray] = []
+        self.unit = -1.0 / float(np.prod(scheme.h))
+        self.ncon = 0
+        spec = medium.constrained_strains() if hasattr(medium, "constrained_strains") else None
+        if spec is None:
+            return
+        comp, val = spec
+        comp = np.atleast_1d(np.asarray(comp)).astype(np.int64)
+        val = np.atleast_1d(np.asarray(val, dtype=float))
+        if comp.shape != val.shape or comp.ndim != 1 or len(set(comp.tolist())) != comp.size:
+            raise ValueError(f"constrained_strains: {type(medium).__name__} must return distinct components and "
+                             f"as many values, got components {comp.tolist()} and values {val.tolist()}")
+        if np.any(comp < 0) or np.any(comp >= r_dim) or not np.all(np.isfinite(val)):
+            raise ValueError(f"constrained_strains: components must be in [0, {r_dim}) and values finite, got "
+                             f"components {comp.tolist()} and values {val.tolist()}")
+        if check:  # the energy must not depend on the constrained components: their stress is the multiplier
+            self.check_stress(state, comp)
+        tails, heads = scheme.edge_nodes()
+        live_node = flat.any(axis=1)
+        self.tails, self.heads = tails, heads
+        self.active = [live_node[t] | live_node[h] for t, h in zip(tails, heads, strict=True)]
+        self.comp, self.value = comp, val
+        self.ncon = int(sum(int(a.sum()) for a in self.active)) * comp.size
+
+    # ------------------------------------------------------------------ the medium's side
+    def check_stress(self, state: Any, comp: np.ndarray) -> None:
+        """``ValueError`` when the medium's point stress depends on a constrained component.
+
+        The strains the lattice evaluates the stress at are probed: on a lattice with coupled
+        axes (d ≥ 2, the energy at the corners) the corner strains ``[C, d, r]`` and every
+        slot of their stress; otherwise each axis' edge strains with the other axes at rest
+        and that axis' slot.  Each set is probed as it is and moved by a seeded random 1 %
+        (a dependence that vanishes at a symmetric state, e.g. a flat plate, still shows):
+        component k of each slot is moved by 1e-3·max(1, |X[k]|) and the stress must not
+        change by more than 1e-9·max(1, |Q|)."""
+        sch, medium = self.sch, self.sch.medium
+        d, r = sch.grid.d, self.r_dim
+        samples: list[tuple[np.ndarray, np.ndarray | None, list[int]]] = []
+        if sch.coupled:
+            _, Xc = sch._corner_strains(state)
+            X0 = sch.corners()["X0"] if sch.problem.reference is not None else None
+            samples.append((Xc, X0, list(range(d))))
+        else:
+            for axis, x in enumerate(sch.edge_strains(state)):
+                _, full = sch._axis_stress(x, axis)
+                X0 = sch.edge_rest_strains(axis)
+                samples.append((full.reshape(-1, d, r), None if X0 is None else X0.reshape(-1, d, r), [axis]))
+
+        def stress(X: np.ndarray, X0: np.ndarray | None) -> np.ndarray:
+            with np.errstate(all="ignore"):
+                return medium.stress(X) if X0 is None else medium.stress_at(X, X0)
+
+        rng = np.random.default_rng(20240611)
+        for X, X0, slots in samples:
+            moved_all = X.copy()
+            for a in slots:
+                size = np.maximum(1.0, np.abs(X[:, a, :]))
+                moved_all[:, a, :] += 1e-2 * size * rng.standard_normal(X[:, a, :].shape)
+            for probe in (X, moved_all):
+                q0 = stress(probe, X0)[:, slots]
+                if not np.all(np.isfinite(q0)):
+                    continue  # outside the medium's domain: nothing to compare
+                bound = 1e-9 * max(1.0, float(np.max(np.abs(q0), initial=0.0)))
+                for a in slots:
+                    for k in comp:
+                        moved = probe.copy()
+                        moved[:, a, k] += 1e-3 * max(1.0, float(np.max(np.abs(probe[:, a, k]), initial=0.0)))
+                        dq = float(np.max(np.abs(stress(moved, X0)[:, slots] - q0), initial=0.0))
+                        if not dq <= bound:
+                            raise ValueError(
+                                f"constrained_strains: the stress of medium {medium.name!r} depends on the "
+                                f"constrained strain component {int(k)} (change {dq:.3e}); a constrained "
+                                "component's stress is a reaction and must not be constitutive")
+
+    # ------------------------------------------------------------------ rows
+    def values(self, state: Any, active_only: bool = True) -> np.ndarray:
+        """``X_e[k] − value_k`` on the constrained edges ``(ncon,)`` (multiplier order), or with
+        ``active_only=False`` on every edge ``[E, c]`` (all axes concatenated)."""
+        if not self.ncon:
+            return np.zeros(0) if active_only else np.zeros((0, 0))
+        vals = []
+        for x, active in zip(self.sch.edge_strains(state), self.active, strict=True):
+            xe = x.reshape(-1, self.r_dim)[:, self.comp] - self.value
+            vals.append(xe[active].ravel() if active_only else xe)
+        return np.concatenate(vals) if active_only else np.concatenate(vals, axis=0)
+
+    def matrix(self, state: Any):
+        """``B_c = ∂(X_e[k])/∂δ`` ``(ncon, nunk)`` (scipy CSR): the constrained rows of the exact
+        strain rate of the drift Φ_i ← Φ_i exp(δ_i), δ on the unknowns."""
+        import scipy.sparse as sp
+
+        g, sch = self.g, self.sch
+        c = self.comp.size
+        rows, cols, vals = [], [], []
+        start = 0
+        for axis, active in enumerate(self.active):
+            xi = g.log(state.arrays[sch._key(axis)]).reshape(-1, self.r_dim)[active]
+            h = sch.h[axis]
+            ne = xi.shape[0]
+            row = start + np.arange(ne * c).reshape(ne, c)
+            for node, M in ((self.tails[axis][active], -g.dexp_inv(xi) / h),
+                            (self.heads[axis][active], g.dexp_inv(-xi) / h)):
+                Mk = M[:, self.comp, :]  # [ne, c, r]
+                col = self.index[node]  # [ne, r]
+                cc = np.broadcast_to(col[:, None, :], Mk.shape)
+                rr = np.broadcast_to(row[:, :, None], Mk.shape)
+                ok = cc >= 0
+                rows.append(rr[ok])
+                cols.append(cc[ok])
+                vals.append(Mk[ok])
+            start += ne * c
+        if not rows:
+            return sp.csr_matrix((self.ncon, self.nunk))
+        return sp.csr_matrix((np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols))),
+                             shape=(self.ncon, self.nunk))
+
+    # ------------------------------------------------------------------ multipliers
+    def stress(self, nu: np.ndarray, edge_shapes: list[tuple[int, ...]]) -> list[np.ndarray]:
+        """Per axis, the edge stresses ``[*edge_shape, r]`` whose constrained components are
+        ``unit·ν`` (zero elsewhere) for the row multipliers ``nu`` ``(ncon,)``: μ = −ν/cell, the
+        edge stresses whose reaction ``−cell·B_cᵀμ`` is ``B_cᵀν``."""
+        out, start = [], 0
+        c = self.comp.size
+        for shape_e, active in zip(edge_shapes, self.active, strict=True):
+            Q = np.zeros((int(np.prod(shape_e[:-1])), self.r_dim))
+            n = int(active.sum()) * c
+            Q[np.ix_(np.flatnonzero(active), self.comp)] = nu[start:start + n].reshape(-1, c) * self.unit
+            start += n
+            out.append(Q.reshape(shape_e))
+        return out
+
+    def edge_multipliers(self, nu: np.ndarray, edge_shapes: list[tuple[int, ...]]) -> np.ndarray:
+        """The edge stresses of :meth:`stress` on every edge ``[E, c]`` (NaN on edges between
+        fixed nodes)."""
+        rows = []
+        for Q, active in zip(self.stress(nu, edge_shapes), self.active, strict=True):
+            q = Q.reshape(-1, self.r_dim)[:, self.comp].copy()
+            q[~active] = np.nan
+            rows.append(q)
+        return np.concatenate(rows, axis=0)

@@ -1,0 +1,310 @@
+"""``rattle``: lie-verlet with the medium's constrained strains held by multipliers.
+
+A medium that holds strain components fixed (:meth:`~cartan.medium.Medium.constrained_strains`,
+paper §III.E: the inextensible, unshearable filament, θ = (1, 0, 0)) moves on the manifold
+c(Φ) = 0 of :class:`cartan.constraints.StrainConstraints` (one row per lattice edge and
+component).  Its equations of motion carry the constraint forces — the fictitious stresses of
+§IV.E, edge stresses conjugate to the held components — as Lagrange multipliers:
+
+    w Ṡ = w(ad_NᵀS + W) + B_c(Φ)ᵀν,        c(Φ) = 0        (so B_c(Φ) N = 0),
+
+with B_c the exact strain rate of the drift (the rows of ``StrainConstraints.matrix``).  The
+step is RATTLE (Andersen 1983; Leimkuhler & Skeel 1994) on the lie-verlet splitting:
+
+1. half kick with the position multiplier ν:  S½ = Sₙ + ½Δt(Wₙ + B_c(Φₙ)ᵀν/w);
+2. lie-verlet's exact split free flow over Δt from (Φₙ, S½), giving Φₙ₊₁(ν);
+3. ν solves c(Φₙ₊₁(ν)) = 0 — a quasi-Newton iteration from the force-level multiplier (the one
+   that keeps the constraints' acceleration at zero) with the matrix
+   ½Δt B_c(Φ̃) D B_c(Φₙ)ᵀ (Φ̃ the first trial, D = dexp(−ΔtÑ)·Δt·M⁺/w per node on the
+   unknowns), converged to round-off (|c| ≤ 1e-13, or stagnating below 1e-10, times
+   max(1, |value|)); about four trial flows per step;
+4. closing half kick with the velocity multiplier μ:  Sₙ₊₁ = S½ + ½Δt(Wₙ₊₁ + B_c(Φₙ₊₁)ᵀμ/w),
+   μ such that B_c(Φₙ₊₁)Nₙ₊₁ = 0 — one linear solve (with ``Damping`` loads the kick is
+   implicit in the damping as in lie-verlet, and μ is solved with it).
+
+The constraints hold at every step to the iteration's tolerance (round-off: the rows are
+X_e[k] − value_k of the exact edge strains), the velocities are tangent to the constraint
+manifold, and the constraint forces do no work, so the energy balance of the run is the one of
+lie-verlet (second order, bounded energy error for conservative media).  The time step is
+limited by the waves the constraints leave (bending and twist for a filament), not by those
+they remove.  The state a step starts from is first brought onto the manifold if it is not
+(a configuration projection along M⁺Bᵀ, then the velocity projection): a sampled initial
+shape need not satisfy the constraints to round-off.
+
+Runs on the ``lattice`` scheme (whose edges carry the exact strains) in Python; a medium
+without constrained strains gets lie-verlet's steps unchanged.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+
+from ..problem import Damping
+from ..schemes.base import Scheme, State
+from .explicit import _CLOSING_ITERATIONS, LieVerlet, _closing_matrix, _damping
+
+__all__ = ["Rattle"]
+
+#: quasi-Newton iterations of the position multipliers allowed per step
+_MAX_ITERATIONS = 40
+
+
+class Rattle(LieVerlet):
+    """RATTLE on the lie-verlet splitting: second order, symplectic, constraints to round-off.
+
+    See the module docstring for the step.  Options: none.  Counters as lie-verlet's, plus
+    ``niter`` (quasi-Newton iterations of the position multipliers, summed over the steps).
+    """
+
+    name = "rattle"
+    order = 2
+    symplectic = True
+    stability = 2.0
+    #: honours the medium's constrained strains (:meth:`~cartan.medium.Medium.constrained_strains`)
+    constrained = True
+
+    def reset(self) -> None:
+        super().reset()
+        self.niter = 0
+        self._held: tuple | None = None
+        self._metrics: dict = {}
+
+    def compiled_loop(self, scheme: Scheme, state: State, dt: float):
+        """None: the constrained step runs in Python (its multipliers need a sparse solve)."""
+        return None
+
+    # ------------------------------------------------------------------ setup
+    def _constraints(self, scheme: Scheme, state: State):
+        """``(StrainConstraints, unknown mask [*shape, r], nodes with unknowns, tolerance)`` of
+        the scheme, built once."""
+        if self._held is not None and self._held[0] is scheme:
+            return self._held[1]
+        from ..constraints import StrainConstraints
+
+        if not hasattr(scheme, "edge_strains") or not hasattr(scheme, "edge_nodes"):
+            raise ValueError(f"integrator 'rattle' holds the constrained strains on the lattice's edges; scheme "
+                             f"{scheme.name!r} has none: use scheme='lattice'")
+        r = scheme.group.dim
+        unknown = np.broadcast_to(scheme.live, (*scheme.grid.shape, r)).copy()
+        unknown[scheme._clamped] = False
+        con = StrainConstraints(scheme, unknown, state)
+        flat = unknown.reshape(-1, r)
+        nodes = np.flatnonzero(flat.any(axis=1))
+        scale = max(1.0, float(np.max(np.abs(con.value), initial=0.0)))
+        held = (con, unknown, nodes, scale)
+        self._held = (scheme, held)
+        return held
+
+    def _metric(self, scheme: Scheme, nodes: np.ndarray, unknown: np.ndarray, closing: np.ndarray | None):
+        """``P`` ``(nunk, nunk)`` (CSR): N on the unknowns of a nodal impulse I on them is ``P I``,
+        blocks ``(M⁺·closing)[live, live]/w_i`` (closing the damped kick's matrix, or I)."""
+        import scipy.sparse as sp
+
+        key = (id(scheme), None if closing is None else closing.tobytes())
+        cache = self._metrics
+        if key in cache:
+            return cache[key]
+        if len(cache) > 4:
+            cache.clear()
+        live = scheme.live
+        A = scheme.inverse_metric if closing is None else scheme.inverse_metric @ closing
+        block = A[np.ix_(live, live)]
+        w = scheme.weights.reshape(-1)[nodes]
+        P = sp.kron(sp.diags(1.0 / w), sp.csr_matrix(block), format="csr")
+        if P.shape[0] != int(unknown.sum()):  # (every moving node has the live components unknown)
+            raise AssertionError("rattle: the unknowns are not the live components of the free nodes")
+        cache[key] = P
+        return P
+
+    def _flow_jacobian(self, scheme: Scheme, state: State, dt: float, held: tuple):
+        """``(nunk, nunk)`` (BSR): the drift at Φₙ₊₁ of a change of the impulse on the unknowns,
+        ``dexp(−ΔtN_i)·Δt·M⁺/w_i`` per node (exp(Δt(N + δN)) = exp(ΔtN) exp(dexp(−ΔtN)ΔtδN);
+        N the trial's velocity, exact for the unsplit flow, to O(Δt²|N|²) for lie-verlet's)."""
+        import scipy.sparse as sp
+
+        _, unknown, nodes, _ = held
+        live = scheme.live
+        r = scheme.group.dim
+        N = scheme.velocity(state).reshape(-1, r)[nodes]
+        E = scheme.group.dexp(-dt * N)[:, live][:, :, live]  # [nb, l, l]
+        A = scheme.inverse_metric[np.ix_(live, live)]
+        w = scheme.weights.reshape(-1)[nodes]
+        blocks = dt * np.einsum("nij,jk->nik", E, A) / w[:, None, None]
+        nb, nl = blocks.shape[0], int(live.sum())
+        return sp.bsr_matrix((blocks, np.arange(nb), np.arange(nb + 1)), shape=(nb * nl, nb * nl)).tocsr()
+
+    def _impulse(self, unknown: np.ndarray, weights: np.ndarray, vec: np.ndarray) -> np.ndarray:
+        """The force density ``[*shape, r]`` of the nodal impulse ``vec`` on the unknowns."""
+        out = np.zeros(unknown.shape)
+        out[unknown] = vec
+        return out / weights[..., None]
+
+    # ------------------------------------------------------------------ projections
+    def _project_velocity(self, scheme: Scheme, state: State, B, closing: np.ndarray | None, half: float,
+                          held: tuple, skip_tangent: bool = False) -> None:
+        """Add the impulse ``½Δt·closing·B_cᵀμ/w`` that makes ``B_c N = 0`` (one linear solve)."""
+        import scipy.sparse.linalg as spla
+
+        con, unknown, nodes, _ = held
+        N = scheme.velocity(state)[unknown]
+        res = B @ N
+        if skip_tangent and np.max(np.abs(res), initial=0.0) <= 1e-13 * abs(B).max() * np.max(np.abs(N), initial=0.0):
+            return  # tangent to round-off already
+        P = self._metric(scheme, nodes, unknown, closing)
+        A = (B @ P @ B.T).tocsc() * half
+        mu = -spla.splu(A).solve(res)
+        imp = self._impulse(unknown, scheme.weights, B.T @ mu)
+        if closing is not None:
+            imp = np.einsum("kl,...l->...k", closing, imp)
+        state.S = state.S + half * imp
+        scheme.constrain(state)
+
+    def _project_configuration(self, scheme: Scheme, state: State, held: tuple) -> None:
+        """Bring Φ onto c(Φ) = 0 by Gauss–Newton steps δ = −P Bᵀ(B P Bᵀ)⁻¹c along the drift
+        (the M-weighted least correction); ``ValueError`` when it does not converge."""
+        import scipy.sparse.linalg as spla
+
+        con, unknown, nodes, scale = held
+        P = self._metric(scheme, nodes, unknown, None)
+        c = con.values(state)
+        for _ in range(_MAX_ITERATIONS):
+            if np.max(np.abs(c), initial=0.0) <= 1e-13 * scale:
+                return
+            B = con.matrix(state)
+            delta = -(P @ (B.T @ spla.splu((B @ P @ B.T).tocsc()).solve(c)))
+            full = np.zeros(unknown.shape)
+            full[unknown] = delta
+            scheme.drift(state, 1.0, full, exact=True)
+            c_next = con.values(state)
+            if np.max(np.abs(c_next)) > 0.5 * np.max(np.abs(c)) and np.max(np.abs(c_next)) <= 1e-10 * scale:
+                return  # at round-off
+            c = c_next
+        raise ValueError(f"rattle: the initial configuration is too far from the constrained strains (max |X_e[k] − "
+                         f"value_k| = {np.max(np.abs(c)):.3e} after {_MAX_ITERATIONS} projection steps)")
+
+    def _predict(self, scheme: Scheme, state: State, B, W: np.ndarray, held: tuple) -> np.ndarray:
+        """The force-level multiplier λ at the step's start, a guess of the step's ν: the one
+        that keeps the constraints' acceleration at zero, ``d/dt(B_c N) = 0`` with
+        ``Ṡ = ad_NᵀS + W + B_cᵀλ/w``, i.e. ``(B P B_cᵀ)λ = −B[M⁺(ad_NᵀS + W)] − Ḃ_c N``
+        (Ḃ_c N by central differences along the drift)."""
+        import scipy.sparse.linalg as spla
+
+        from .explicit import _adT
+
+        con, unknown, nodes, _ = held
+        N = scheme.velocity(state)
+        size = float(np.max(np.abs(N), initial=0.0))
+        rate = np.zeros(con.ncon)
+        if size > 0.0:
+            eps = 1e-6 / size
+            moved = []
+            for sign in (1.0, -1.0):
+                trial = State(state.t, state.S, {k: v.copy() for k, v in state.arrays.items()})
+                scheme.drift(trial, sign * eps, N, exact=True)
+                moved.append(con.matrix(trial))
+            rate = ((moved[0] - moved[1]) @ N[unknown]) / (2.0 * eps)
+        acc = scheme.medium.velocity(_adT(scheme.group, N, state.S) + W)
+        P = self._metric(scheme, nodes, unknown, None)
+        return -spla.splu((B @ P @ B.T).tocsc()).solve(B @ acc[unknown] + rate)
+
+    def constraint_residual(self, scheme: Scheme, state: State) -> float:
+        """max |X_e[k] − value_k| over the constrained edges and components (0 when none)."""
+        if scheme.medium.constrained_strains() is None:
+            return 0.0
+        return float(np.max(np.abs(self._constraints(scheme, state)[0].values(state)), initial=0.0))
+
+    # ------------------------------------------------------------------ step
+    def _step(self, scheme: Scheme, state: State, dt: float) -> None:
+        if scheme.medium.constrained_strains() is None:  # nothing held: lie-verlet's step
+            super()._step(scheme, state, dt)
+            return
+        held = self._constraints(scheme, state)
+        con, unknown, nodes, scale = held
+        if not con.ncon:
+            super()._step(scheme, state, dt)
+            return
+        import scipy.sparse.linalg as spla
+
+        half = 0.5 * dt
+        # the step starts on the manifold, with a tangent velocity
+        if np.max(np.abs(con.values(state)), initial=0.0) > 1e-10 * scale:
+            self._project_configuration(scheme, state, held)
+            self._fsal = None
+        B0 = con.matrix(state)
+        self._project_velocity(scheme, state, B0, None, half, held, skip_tangent=True)
+        W0 = self._kick_force(scheme, state)
+        S0 = state.S.copy()
+        arrays0 = {k: v.copy() for k, v in state.arrays.items()}
+        nu = self._predict(scheme, state, B0, W0, held)
+        lu = None
+        prev = np.inf
+        for it in range(_MAX_ITERATIONS + 1):
+            state.S = S0 + half * (W0 + self._impulse(unknown, scheme.weights, B0.T @ nu))
+            scheme.constrain(state)
+            state.arrays = {k: v.copy() for k, v in arrays0.items()}
+            self._free_flow(scheme, state, dt)
+            c = con.values(state)
+            err = float(np.max(np.abs(c), initial=0.0))
+            if err <= 1e-13 * scale or (err <= 1e-10 * scale and err > 0.5 * prev):
+                break
+            if not np.isfinite(err) or it == _MAX_ITERATIONS:
+                state.S, state.arrays = S0, arrays0
+                from ..statics import ConvergenceError
+
+                raise ConvergenceError(
+                    f"rattle: the constrained strains were not met at t = {state.t:.6g} (max |X_e[k] − value_k| = "
+                    f"{err:.3e} after {it} iterations); reduce dt", it, err, [err])
+            if lu is None:  # the quasi-Newton matrix, built once per step
+                B1 = con.matrix(state)
+                lu = spla.splu((B1 @ self._flow_jacobian(scheme, state, dt, held) @ B0.T).tocsc() * half)
+            nu = nu - lu.solve(c)
+            prev = err
+        self.niter += it
+        t1 = state.t + dt
+        W1 = self._closing_kick(scheme, state, dt, t1)
+        self._fsal = ((id(state), t1, state.scalars.get("nstep", 0) + 1), W1)
+
+    def _closing_kick(self, scheme: Scheme, state: State, dt: float, t1: float) -> np.ndarray:
+        """``S⁺ = S½ + ½Δt(W(Φ⁺, N⁺) + B_cᵀμ/w)`` with ``B_c N⁺ = 0``; returns the W applied
+        (without the reaction: the next step's first kick has its own multipliers)."""
+        held = self._constraints(scheme, state)
+        con = held[0]
+        problem = scheme.problem
+        half = 0.5 * dt
+        start = state.S
+        B1 = con.matrix(state)
+        if problem.velocity_free:
+            W1 = self.force(scheme, state, scheme.velocity(state), t1)
+            state.S = start + half * W1
+            scheme.constrain(state)
+            self._project_velocity(scheme, state, B1, None, half, held)
+            return W1
+        if not getattr(scheme.medium, "velocity_dependent_forces", False) and all(
+                isinstance(ld, Damping) for ld in problem.loads if ld.velocity_dependent):
+            gamma = _damping(scheme)
+            closing = _closing_matrix(scheme, gamma, dt)
+            W0 = self.force(scheme, state, np.zeros_like(state.S), t1)
+            state.S = np.einsum("kl,...l->...k", closing, start + half * W0)
+            scheme.constrain(state)
+            self._project_velocity(scheme, state, B1, closing, half, held)
+            return W0 - gamma * scheme.velocity(state)
+        # other velocity-dependent forces: fixed point of the projected kick
+        W1 = self.force(scheme, state, scheme.velocity(state), t1)
+        for _ in range(_CLOSING_ITERATIONS):
+            state.S = start + half * W1
+            scheme.constrain(state)
+            self._project_velocity(scheme, state, B1, None, half, held)
+            W_next = self.force(scheme, state, scheme.velocity(state), t1)
+            change = np.max(np.abs(W_next - W1), initial=0.0)
+            W1 = W_next
+            if change <= 1e-14 * np.max(np.abs(W1), initial=0.0):
+                break
+        state.S = start + half * W1
+        scheme.constrain(state)
+        self._project_velocity(scheme, state, B1, None, half, held)
+        return W1
+
+    def options(self) -> dict[str, Any]:
+        return {}

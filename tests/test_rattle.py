@@ -1,0 +1,212 @@
+"""``rattle``: time integration of media with constrained strains (paper §III.E, §IV.E).
+
+The inextensible, unshearable filament (θ = (1, 0, 0) on every lattice edge) run in time: the
+constraints held to round-off, the velocities tangent to them, the energy balance closing to
+the method's second order, the observed order in Δt, exact restarts, and the statics'
+equilibrium reached by a damped run.  Without constraints the step is lie-verlet's.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+import cartan
+from cartan.constraints import StrainConstraints
+from cartan.integrators import LieVerlet, Rattle
+from cartan.schemes import Lattice
+
+#: a 3-D tip wrench: bending about both axes and twist
+TIP = [0.0, -2.0, 0.5, 0.2, 0.0, 0.0]
+
+
+def _filament(n: int = 11, load=TIP, loads=(), initial=None):
+    rod = cartan.medium("filament", bending=(1.0, 1.5), twist=0.8, rotational_inertia=0.01)
+    grid = cartan.Grid(n, length=1.0)
+    return cartan.Problem(rod, grid, initial or rod.initial_state(grid, "straight"),
+                          {"start": cartan.Clamped(), "end": cartan.Free(load=list(load))}, loads=list(loads))
+
+
+@pytest.fixture(scope="module")
+def run():
+    """200 steps of Δt = 5e-3 (the bending waves' limit at n = 11 is ≈ 1e-2)."""
+    integ = Rattle()
+    ds = cartan.simulate(_filament(), integrator=integ, dt=5e-3, t_end=1.0, save_every=20, progress=False)
+    return ds, integ
+
+
+def test_constraints_hold_to_round_off(run):
+    """θ = (1, 0, 0) on every edge at every save, to round-off (the iteration stops at 1e-13)."""
+    ds, integ = run
+    theta = ds["X"].values[..., :3]
+    assert np.max(np.abs(theta - [1.0, 0.0, 0.0])) < 1e-12
+    assert float(ds["constraint_residual"].max()) < 1e-12
+    # the filament moved (bent by several tenths of its length): there was something to hold
+    assert float(np.abs(ds["position"].values[-1, -1, 1])) > 0.1
+    assert integ.niter / integ.nstep < 8  # the multipliers' iteration converges in a few steps
+
+
+def test_energy_balance_is_second_order(run):
+    """K + V − W (W the work of the dead end load) stays at the method's O(Δt²) error, and the
+    constraint forces do no work: halving Δt divides the balance error by ≈ 4."""
+    ds, _ = run
+    balance = ds["kinetic_energy"] + ds["potential_energy"] - ds["external_work"]
+    err_coarse = float(np.max(np.abs(balance)))
+    assert err_coarse < 2e-3 * float(ds["external_work"].max())
+    fine = cartan.simulate(_filament(), integrator="rattle", dt=2.5e-3, t_end=1.0, save_every=40, progress=False)
+    err_fine = float(np.max(np.abs(fine["kinetic_energy"] + fine["potential_energy"] - fine["external_work"])))
+    assert 2.8 < err_coarse / err_fine < 5.7  # 4 = 2², within the spread of a max over 50 saves
+
+
+def test_observed_order_is_two():
+    """Tip position at t = 0.4 for Δt = 8, 4, 2 × 1e-3: the ratio of successive differences
+    gives the order, 2 ± 0.25."""
+    tips = []
+    for dt in (8e-3, 4e-3, 2e-3):
+        ds = cartan.simulate(_filament(n=9), integrator="rattle", dt=dt, t_end=0.4, save_every=int(round(0.4 / dt)),
+                             progress=False)
+        tips.append(ds["position"].values[-1, -1])
+    d1, d2 = np.linalg.norm(tips[0] - tips[1]), np.linalg.norm(tips[1] - tips[2])
+    order = np.log2(d1 / d2)
+    assert 1.75 < order < 2.25, order
+
+
+def test_velocity_is_tangent_after_a_step():
+    """An initial velocity that stretches the filament is projected: after one step
+    B_c N = 0 to round-off and the stretch rate is gone."""
+    prob = _filament(n=7, load=[0.0] * 6)
+    rod = prob.medium
+    grid = prob.grid
+    N0 = np.zeros((7, 6))
+    N0[:, 0] = np.linspace(0.0, 1.0, 7)  # axial velocity growing along the rod: a stretch rate
+    N0[:, 1] = 0.3 * np.linspace(0.0, 1.0, 7)
+    prob = cartan.Problem(rod, grid, cartan.InitialState(prob.initial.Phi, N0), prob.boundaries)
+    sch = Lattice(prob)
+    state = sch.initial_state()
+    integ = Rattle()
+    integ.step(sch, state, 1e-3)
+    unknown = np.broadcast_to(sch.live, (7, 6)).copy()
+    unknown[sch._clamped] = False
+    con = StrainConstraints(sch, unknown, state)
+    N = sch.velocity(state)[unknown]
+    assert np.max(np.abs(con.matrix(state) @ N)) < 1e-12 * max(1.0, np.max(np.abs(N)))
+    assert np.max(np.abs(con.values(state))) < 1e-13
+    assert np.max(np.abs(N)) > 0.01  # the transverse motion is kept
+
+
+def test_without_constraints_rattle_is_lie_verlet():
+    """On a medium that holds nothing fixed the step is lie-verlet's, bit for bit."""
+    rod = cartan.medium("cosserat-rod", stretch_shear=[100.0, 50.0, 50.0], bend_twist=[1.0, 2.0, 2.0], mass=1.0,
+                        rotational_inertia=[0.02, 0.01, 0.01])
+    grid = cartan.Grid(9, length=1.0)
+    prob = cartan.Problem(rod, grid, rod.initial_state(grid, "arc", curvature=2.0),
+                          {"start": cartan.Clamped(), "end": cartan.Free(load=[0.5, 0.3, 0.1, 0.2, 0.0, 0.1])})
+    a = cartan.simulate(prob, integrator=Rattle(), dt=1e-3, t_end=0.02, compiled=False, progress=False)
+    b = cartan.simulate(prob, integrator=LieVerlet(), dt=1e-3, t_end=0.02, compiled=False, progress=False)
+    assert np.array_equal(a["position"].values, b["position"].values)
+    assert np.array_equal(a["S"].values, b["S"].values)
+    assert float(a["constraint_residual"].max()) == 0.0
+
+
+def test_simulate_picks_rattle_and_refuses_the_others():
+    """A medium with constrained strains runs with ``rattle`` by default; an integrator that does
+    not hold the constraints, or a scheme without edge strains, is refused with a clear error."""
+    prob = _filament(n=5)
+    ds = cartan.simulate(prob, dt=5e-3, t_end=0.01, progress=False)
+    assert "constraint_residual" in ds and float(ds["constraint_residual"].max()) < 1e-12
+    with pytest.raises(ValueError, match="integrator='rattle'"):
+        cartan.simulate(prob, integrator="lie-verlet", dt=5e-3, t_end=0.01, progress=False)
+    with pytest.raises(ValueError, match="scheme='lattice'"):
+        cartan.simulate(prob, scheme="collocation", dt=5e-3, t_end=0.01, progress=False)
+
+
+def test_restart_is_bit_for_bit(tmp_path):
+    """A run continued from its checkpoint is the uninterrupted run, bit for bit (the
+    multipliers' iteration starts from the state alone)."""
+    prob = _filament(n=7)
+    kw = dict(integrator="rattle", dt=4e-3, save_every=5, checkpoint_every=1, progress=False)
+    whole = cartan.simulate(prob, t_end=0.08, output=tmp_path / "whole.nc", **kw)
+    cartan.simulate(prob, t_end=0.04, output=tmp_path / "part.nc", **kw)
+    cont = cartan.simulate(prob, restart=tmp_path / "part.nc", t_end=0.08, progress=False)
+    for name in ("position", "frame", "S", "X", "kinetic_energy", "external_work", "constraint_residual"):
+        assert np.array_equal(whole[name].values, cont[name].values), name
+
+
+def test_initial_configuration_is_projected():
+    """A sampled shape that misses θ = (1, 0, 0) (nodes on the parabola y = ½x² at equal x
+    steps, frames along its tangent: the edges stretch and shear) is brought onto the
+    constraints before the first step."""
+    rod = cartan.medium("filament")
+    n = 9
+    grid = cartan.Grid(n, length=1.0)
+    x = grid.coordinates(0)
+    angle = np.arctan(x)  # the tangent of y = ½x²
+    c, sn = np.cos(angle), np.sin(angle)
+    Phi = np.zeros((n, 4, 4))
+    Phi[:, 0, 0] = 1.0
+    Phi[:, 1, 0], Phi[:, 2, 0] = x, 0.5 * x**2
+    Phi[:, 1:, 1:] = np.stack([np.stack([c, -sn, 0 * x], -1), np.stack([sn, c, 0 * x], -1),
+                               np.stack([0 * x, 0 * x, 1 + 0 * x], -1)], axis=-2)
+    prob = cartan.Problem(rod, grid, cartan.InitialState(Phi, np.zeros((n, 6))),
+                          {"start": cartan.Clamped(), "end": cartan.Free()})
+    sch = Lattice(prob)
+    state = sch.initial_state()
+    unknown = np.broadcast_to(sch.live, (n, 6)).copy()
+    unknown[sch._clamped] = False
+    con = StrainConstraints(sch, unknown, state)
+    assert np.max(np.abs(con.values(state))) > 1e-2  # the parabola's arclength is not x
+    Rattle().step(sch, state, 1e-3)
+    assert np.max(np.abs(con.values(state))) < 1e-13
+
+
+@pytest.mark.slow
+def test_length_and_constraints_over_ten_thousand_steps():
+    """10⁴ steps (t = 50, a tip wrench swinging the filament through large 3-D motion): the
+    constraint residual stays at round-off and the energy balance bounded (no drift)."""
+    integ = Rattle()
+    ds = cartan.simulate(_filament(), integrator=integ, dt=5e-3, t_end=50.0, save_every=500, progress=False)
+    assert integ.nstep == 10_000
+    assert float(ds["constraint_residual"].max()) < 1e-12
+    balance = ds["kinetic_energy"] + ds["potential_energy"] - ds["external_work"]
+    assert float(np.max(np.abs(balance))) < 2e-3 * float(ds["external_work"].max())
+
+
+@pytest.mark.slow
+def test_damped_run_settles_on_the_static_elastica():
+    """A damped run of the planar cantilever under a tip dead load α = PL²/B = 2 settles on the
+    equilibrium ``solve_static`` finds with the same constraints (same lattice): the dynamics'
+    multipliers and the statics' are the same fictitious stresses."""
+    damping = cartan.Damping([4.0, 4.0, 4.0, 0.04, 0.04, 0.04])
+    prob = _filament(n=11, load=[0.0, -2.0, 0.0, 0.0, 0.0, 0.0], loads=[damping])
+    rod = cartan.medium("filament", bending=(1.0, 1.0), twist=0.8, rotational_inertia=0.01)
+    prob = cartan.Problem(rod, prob.grid, prob.initial, prob.boundaries, loads=[damping])
+    static = cartan.Problem(rod, prob.grid, prob.initial, prob.boundaries)
+    target = cartan.solve_static(static, load_steps=2)["position"].values[0, -1]
+    ds = cartan.simulate(prob, integrator="rattle", dt=5e-3, t_end=12.0, save_every=400, progress=False)
+    tip = ds["position"].values[-1, -1]
+    assert float(ds["kinetic_energy"][-1]) < 1e-10
+    assert np.linalg.norm(tip - target) < 1e-6
+
+
+@pytest.mark.slow
+def test_stiff_cosserat_rod_tends_to_the_filament_in_time():
+    """Cross-medium limit in time: cosserat-rod with EA = GA = ratio·B/L² (lie-verlet, compiled)
+    against the filament (rattle) from the same start under the same tip wrench; the tip
+    difference at t = 0.4 falls like 1/ratio (the axial and shear strains are F/EA): fitted
+    slope −1 ± 0.1 over ratio = 1e3 … 1e5 (measured −1.00; 1e2 is pre-asymptotic)."""
+    T, dt = 0.4, 5e-4
+    grid = cartan.Grid(11, length=1.0)
+    bc = {"start": cartan.Clamped(), "end": cartan.Free(load=TIP)}
+    fil = cartan.medium("filament", bending=(1.0, 1.5), twist=0.8, rotational_inertia=0.01)
+    ref = cartan.simulate(cartan.Problem(fil, grid, fil.initial_state(grid, "straight"), bc), integrator="rattle",
+                          dt=dt, t_end=T, save_every=int(round(T / dt)), progress=False)["position"].values[-1, -1]
+    ratios, diffs = [1e3, 1e4, 1e5], []
+    for ratio, sub in zip(ratios, (1, 2, 8), strict=True):  # the rod's step below its axial waves' limit
+        rod = cartan.medium("cosserat-rod", stretch_shear=[ratio] * 3, bend_twist=[0.8, 1.0, 1.5], mass=1.0,
+                            rotational_inertia=[0.01] * 3)
+        prob = cartan.Problem(rod, grid, rod.initial_state(grid, "straight"), bc)
+        ds = cartan.simulate(prob, integrator="lie-verlet", dt=dt / sub, t_end=T, save_every=int(round(T * sub / dt)),
+                             progress=False)
+        diffs.append(np.linalg.norm(ds["position"].values[-1, -1] - ref))
+    slope = np.polyfit(np.log(ratios), np.log(diffs), 1)[0]
+    assert -1.1 < slope < -0.9, (slope, diffs)
