@@ -40,10 +40,10 @@ The reductions
     ``rtol``.  On a continuation path the indicator is the largest over the path points, the
     estimate that of the path's end.  *Speed-up*: the ratio of the explicit integrator's CFL
     estimates of the twin and of the rod (axial and shear waves against bending waves): what a
-    dynamic run would gain.  Held strains run in statics only
-    (:func:`cartan.statics.solve_static` and :func:`cartan.continuation` honour
-    :meth:`~cartan.medium.Medium.constrained_strains`, :func:`cartan.simulate` does not), so a
-    dynamic scene gets the indicator and the estimate, never the recommendation.
+    dynamic run would gain.  In time the twin runs with the ``rattle`` integrator (which holds
+    :meth:`~cartan.medium.Medium.constrained_strains`) at its own CFL step; a constrained step
+    costs more than a free one, so for a dynamic scene the twin is recommended only when a
+    measured pilot (``check=True``) is faster over the same simulated time.
 ``SE(3) planar → SE(2)`` (exact; :mod:`cartan.reduction`)
     Detected by :func:`cartan.reduction.planar_reduction` (planar data, planar loads, a medium
     with an exact planar twin): the reduced run changes nothing but the cost, so the error
@@ -665,11 +665,7 @@ def _advise_filament(subject: _Subject, full_ds: Any, rtol: float, check: bool, 
             f"largest displacement {out.error_scale:.3g}; speed-up = ratio of the explicit CFL estimates (what a "
             "dynamic run would gain)")
     if subject.mode == "dynamic":
-        out.note = (f"{what}. Held strains run in statics only (simulate does not hold constraints): "
-                    "not recommended for this dynamic scene" + (" although its strains allow it" if within else ""))
-        if check:
-            out.check_note = "not run: held strains run in statics only"
-        return out
+        return _advise_filament_dynamic(out, subject, held, full_ds, full_time, pilot_t, within, what, rtol, check, k)
     out.recommended = within
     out.note = what + ("" if within else f"; relative error {out.relative_error:.3g} > rtol = {rtol:g}")
     if check:
@@ -688,6 +684,43 @@ def _advise_filament(subject: _Subject, full_ds: Any, rtol: float, check: bool, 
         out.check_note = (f"{what}: full {full_time:.3g} s ({full_ds.attrs.get('newton_iterations')} Newton "
                           f"iterations), held {ftime:.3g} s ({fds.attrs.get('newton_iterations')}); difference "
                           "= largest |x_full − x_held| over the nodes" + (" at the path's end" if path else ""))
+    return out
+
+
+def _advise_filament_dynamic(out: ReductionAdvice, subject: _Subject, held: Problem, full_ds: Any, full_time: float,
+                             pilot_t: float | None, within: bool, what: str, rtol: float, check: bool,
+                             k: int) -> ReductionAdvice:
+    """The held-strain twin of a dynamic scene: it runs with ``rattle`` (the integrator that holds
+    constrained strains) at its own CFL step; recommended only when its strains allow it and a
+    measured pilot (``check``) shows it faster over the same simulated time — the CFL ratio alone
+    does not, since a constrained step costs more than a free one."""
+    out.note = what
+    if not check:
+        out.note += (". In time the twin runs with rattle at its own step; not recommended unmeasured: run with "
+                     "check to time it" + (" (its strains allow it)" if within else ""))
+        return out
+    settings = {key: v for key, v in subject.run_settings.items() if key not in ("integrator_options", "dt")}
+    settings["integrator"] = "rattle"
+    from .simulate import InstabilityError
+    from .statics import ConvergenceError
+
+    try:
+        fds, ftime = _timed(_simulate, held, settings, float(pilot_t))
+    except (ConvergenceError, InstabilityError, ValueError) as exc:
+        out.check_note = f"the held-strain pilot (rattle) failed: {' '.join(str(exc).split())[:200]}"
+        return out
+    p_full = np.asarray(full_ds["position"].values[-1], dtype=float).reshape(-1, k)
+    p_held = np.asarray(fds["position"].values[-1], dtype=float).reshape(-1, k)
+    out.measured_difference = float(np.max(np.linalg.norm(p_full - p_held, axis=-1)))
+    out.time_ratio = full_time / ftime if ftime > 0 else math.nan
+    steps = int(fds["step"].values[-1])
+    out.check_note = (f"pilot runs to t = {float(pilot_t):g}: full {full_time:.3g} s, held (rattle, {steps} steps) "
+                      f"{ftime:.3g} s; difference = largest |x_full − x_held| over the nodes at the pilot's end")
+    out.recommended = within and out.time_ratio > 1.0
+    if within and not out.recommended:
+        out.note += f"; its strains allow it but the pilot is not faster (time ratio {out.time_ratio:.3g})"
+    elif not within:
+        out.note += f"; relative error {out.relative_error:.3g} > rtol = {rtol:g}"
     return out
 
 

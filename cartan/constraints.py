@@ -187,8 +187,15 @@ class StrainConstraints:
             start += ne * c
         if not rows:
             return sp.csr_matrix((self.ncon, self.nunk))
-        return sp.csr_matrix((np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols))),
-                             shape=(self.ncon, self.nunk))
+        vals = np.concatenate(vals)
+        pattern = self.__dict__.get("_pattern")
+        if pattern is None:  # the sparsity is fixed by the edges and the unknowns: sort it once
+            rows, cols = np.concatenate(rows), np.concatenate(cols)
+            order = np.lexsort((cols, rows))
+            indptr = np.concatenate([[0], np.cumsum(np.bincount(rows, minlength=self.ncon))])
+            pattern = self._pattern = (order, cols[order], indptr)
+        order, indices, indptr = pattern
+        return sp.csr_matrix((vals[order], indices, indptr), shape=(self.ncon, self.nunk))
 
     # ------------------------------------------------------------------ multipliers
     def stress(self, nu: np.ndarray, edge_shapes: list[tuple[int, ...]]) -> list[np.ndarray]:

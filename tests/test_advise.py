@@ -192,9 +192,21 @@ def test_dynamic_scene_reports_the_filament_without_recommending_it():
     fil = report[HELD_STRAINS]
     assert report.mode == "dynamic" and "pilot run" in report.pilot
     assert fil.admitted and not fil.recommended
-    assert "statics only" in fil.note
+    assert "not recommended unmeasured" in fil.note
     assert fil.indicator > 0.01  # the soft rod shears visibly under gravity
     assert math.isnan(fil.measured_difference)  # no check asked
+
+
+def test_dynamic_check_runs_the_held_strain_twin_with_rattle():
+    """With check, the twin of a dynamic scene runs (rattle, its own step) over the pilot's time:
+    a measured difference of the order of the estimate and a measured time ratio; recommended
+    only when within rtol and faster."""
+    report = advise("rod-cantilever-gravity", check=True, pilot_steps=20)
+    fil = report[HELD_STRAINS]
+    assert "rattle" in fil.check_note
+    assert math.isfinite(fil.measured_difference) and math.isfinite(fil.time_ratio)
+    assert fil.measured_difference > 0.0
+    assert fil.recommended == (fil.relative_error <= report.rtol and fil.time_ratio > 1.0)
 
 
 def test_a_pilot_that_blows_up_says_so_and_leaves_no_file(tmp_path, monkeypatch):

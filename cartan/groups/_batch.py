@@ -8,6 +8,7 @@ against each other, flattens them to ``P`` points, calls the kernel and restores
 
 from __future__ import annotations
 
+import math
 from collections.abc import Callable, Sequence
 
 import numpy as np
@@ -42,12 +43,19 @@ def run_kernel(
     numpy.ndarray
         Shape ``[..., *out_core]`` with the broadcast batch shape in front.
     """
-    lead = leading_shape(arrays, core_ndims)
-    npts = int(np.prod(lead, dtype=np.int64))
-    flat = []
-    for a, k in zip(arrays, core_ndims):
-        core = a.shape[a.ndim - k :]
-        flat.append(np.ascontiguousarray(np.broadcast_to(a, lead + core).reshape((npts, *core))))
+    first, k0 = arrays[0], core_ndims[0]
+    lead = first.shape[: first.ndim - k0]
+    if all(a.shape[: a.ndim - k] == lead and a.flags.c_contiguous for a, k in zip(arrays, core_ndims)):
+        # the common case: same batch shape, contiguous — reshape views, no broadcast copies
+        npts = math.prod(lead)
+        flat = [a.reshape((npts, *a.shape[a.ndim - k:])) for a, k in zip(arrays, core_ndims)]
+    else:
+        lead = leading_shape(arrays, core_ndims)
+        npts = math.prod(lead)
+        flat = []
+        for a, k in zip(arrays, core_ndims):
+            core = a.shape[a.ndim - k :]
+            flat.append(np.ascontiguousarray(np.broadcast_to(a, lead + core).reshape((npts, *core))))
     out = np.empty((npts, *out_core))
     kernel(*flat, out)
     return out.reshape(lead + tuple(out_core))
