@@ -121,6 +121,12 @@ class Load(abc.ABC):
     In statics and continuation the loads are multiplied by the load parameter λ, except a
     load with :attr:`scaled` False: a support (an elastic spring holding the body) acts at every
     λ, so that a body held only by it is supported from λ = 0 on.
+
+    A load density at a point depends on the frame there only (:attr:`local` True, paper
+    §IV.B); a load whose value at a node reads its neighbours along the grid axes (a pressure on
+    the deformed area, whose tangents are differences of positions) sets :attr:`local` False,
+    and the statics' Jacobian then differences it on the lattice's stencil with the internal
+    forces instead of node by node.
     """
 
     needs_structure_field: bool = False
@@ -128,6 +134,7 @@ class Load(abc.ABC):
     dissipative: bool = False
     velocity_dependent: bool = False
     scaled: bool = True
+    local: bool = True
 
     def bind(self, medium: Medium) -> None:  # noqa: B027 - optional hook
         """Called once with the medium before a run (validate shapes against its group)."""

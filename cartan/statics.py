@@ -739,18 +739,29 @@ class _Equilibrium:
 
     def _local(self, Phi: np.ndarray | None, lam: float, t: float) -> np.ndarray:
         """The nodal forces that act at a node alone, ``[*shape, r]`` (not zeroed off the
-        unknowns): the loads (λ times the scaled ones), the medium's body force and the end
-        loads, times the node weights — :meth:`_nodal` minus the lattice's internal force."""
+        unknowns): the local loads (λ times the scaled ones), the medium's body force and the end
+        loads, times the node weights — :meth:`_nodal` minus the lattice's internal force and
+        minus :meth:`_neighbour_loads`."""
         sch = self.sch
         W = np.zeros((*self.shape, self.r_dim))
         for load in self.problem.loads:
-            W += (lam if load.scaled else 1.0) * load.force(Phi, self.zero, t)
+            if load.local:
+                W += (lam if load.scaled else 1.0) * load.force(Phi, self.zero, t)
         T = self.problem.medium.body_force(Phi, self.zero, t)
         if T is not None:
             W += lam * T
         for idx, b in sch._end_loads:
             P = b.load if b.follower else dead_to_body(self.g, Phi[idx], b.load)
             W[idx] += lam * P / (0.5 * sch.h[sch._end_axis(idx)])
+        return W * self.w
+
+    def _neighbour_loads(self, state: Any, lam: float) -> np.ndarray:
+        """The nodal forces of the loads that read their neighbours (``local`` False), ``[*shape, r]``."""
+        W = np.zeros((*self.shape, self.r_dim))
+        Phi = self.sch.frames(state)
+        for load in self.problem.loads:
+            if not load.local:
+                W += (lam if load.scaled else 1.0) * load.force(Phi, self.zero, state.t)
         return W * self.w
 
     def _local_jacobian(self, state: Any, lam: float):
@@ -830,6 +841,8 @@ class _Equilibrium:
 
             K = self._corner_fd(state, offset) if self.sch.coupled else self._fd(state, nodal)
             K = K + self._local_jacobian(state, lam)
+        if any(not load.local for load in self.problem.loads):  # on the lattice's stencil, like the internal force
+            K = K + self._fd(state, lambda trial: self._neighbour_loads(trial, lam))
         if not self.nmult:
             return sp.csc_matrix(K)
         J = sp.block_diag([K, sp.csc_matrix((self.nmult, self.nmult))], format="csc")

@@ -22,3 +22,4 @@ def cartan_register_scenes(register):
 def cartan_register_cases(register):
     register_cases(register, f"{__package__}.cases")
     register_cases(register, f"{__package__}.cases_shells")
+    register_cases(register, f"{__package__}.cases_pressure")

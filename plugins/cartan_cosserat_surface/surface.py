@@ -48,11 +48,12 @@ import numpy as np
 from numba import njit
 
 import cartan
+from cartan.grid import Grid
 from cartan.medium import KernelMedium, MediumKernels, check_finite, check_positive
-from cartan.problem import ConstantFieldPotential, InitialState, UniformForce
+from cartan.problem import ConstantFieldPotential, InitialState, Load, UniformForce
 from cartan.supports import PenaltySupport, SymmetrySupport  # the core's face supports, d = 2 by default
 
-__all__ = ["CosseratSurface", "PenaltySupport", "SurfaceGravity", "SymmetrySupport", "shell_point",
+__all__ = ["CosseratSurface", "PenaltySupport", "Pressure", "SurfaceGravity", "SymmetrySupport", "shell_point",
            "surface_energy", "surface_stress"]
 
 
@@ -219,6 +220,132 @@ class SurfaceGravity(ConstantFieldPotential):
         return {"kind": "gravity", "g": self.field.tolist(), "mass": self.density}
 
 
+def _axis_derivative(x: np.ndarray, axis: int, h: float, periodic: bool, shift: np.ndarray | None) -> np.ndarray:
+    """Second-order difference ∂x/∂u_axis of node positions x ``[nu, nv, 3]``.
+
+    Central differences inside; on a periodic axis the neighbour across the seam is the first
+    (last) node moved by the axis's holonomy, x(u + L) = R_H x(u) + t_H (``shift`` = the 4 × 4
+    matrix H, None for the identity); on an open axis the one-sided second-order differences
+    (−3x₀ + 4x₁ − x₂)/(2h) and (3x_{n−1} − 4x_{n−2} + x_{n−3})/(2h) at the ends.
+    """
+    x = np.moveaxis(x, axis, 0)
+    out = np.empty_like(x)
+    out[1:-1] = (x[2:] - x[:-2]) / (2.0 * h)
+    if periodic:
+        first, last = x[0], x[-1]
+        if shift is not None:
+            Rh, th = shift[1:, 1:], shift[1:, 0]
+            after_last = first @ Rh.T + th                  # H·x₀
+            before_first = (last - th) @ Rh                  # H⁻¹·x_{n−1}
+        else:
+            after_last, before_first = first, last
+        out[0] = (x[1] - before_first) / (2.0 * h)
+        out[-1] = (after_last - x[-2]) / (2.0 * h)
+    else:
+        out[0] = (-3.0 * x[0] + 4.0 * x[1] - x[2]) / (2.0 * h)
+        out[-1] = (3.0 * x[-1] - 4.0 * x[-2] + x[-3]) / (2.0 * h)
+    return np.moveaxis(out, 0, axis)
+
+
+class Pressure(Load):
+    """A pressure p normal to the *deformed* mid-surface, p per unit deformed area (a follower load).
+
+    The force per unit chart area is, in the spatial frame,
+
+        f = p (∂_u r × ∂_v r),
+
+    |∂_u r × ∂_v r| being the deformed area per unit chart area (an external force density of the
+    balance of linear momentum, paper §IV.B, §VI.B); its body components (the
+    generalised force density T = (Rᵀf, 0), no moment) are what :meth:`force` returns.  The
+    tangents are second-order differences of the *current* node positions on the grid
+    (:func:`_axis_derivative`: central inside and across periodic seams, one-sided at open
+    edges), so the force at a node depends on the positions of its neighbours along each axis.
+
+    Sign convention: positive p pushes along +∂_u r × ∂_v r, which is +e₃ (the director) for
+    the built-in shapes (``"flat"``: +z; ``"cylinder"``: outward, so p > 0 inflates a closed
+    cylinder) and for ``"surface"`` in the coordinate gauge.
+
+    Not conservative as discretised: the work of the continuum pressure on a closed surface is
+    p dV, but the nodal forces of central differences are the gradient of no function of the
+    node positions (their derivative ∂f_i/∂r_j is not symmetric in i, j: ∂f_k/∂r_{k+u} =
+    −(p/4 h_u h_v)[r_{k+v} − r_{k−v}]× while ∂f_{k+u}/∂r_k = (p/4 h_u h_v)[r_{k+u+v} − r_{k+u−v}]×),
+    so a potential −pV would close the energy balance only to O(dx²).  The load is therefore a
+    plain :class:`~cartan.problem.Load`: its power Σ w_i f_i·V_i goes to ``external_work``.
+
+    Statics: the force at a node depends on its neighbours (``local = False``), so
+    ``solve_static`` differences it on the lattice's coloured stencil with the internal forces
+    (a load acting at its node alone is differenced node by node): Newton converges
+    quadratically (differenced node by node, as a local load, a closed cylinder inflated by
+    30 % took 8–10 linearly converging iterations, by 80 % 31–35).
+
+    Parameters
+    ----------
+    pressure : float
+        p (finite; force per unit deformed area).
+    grid : Grid
+        The d = 2 grid of the problem: spacing, periodic axes, node shape; an open axis needs
+        ≥ 3 nodes (one-sided second-order differences).
+    holonomy : dict of int → array ``(4, 4)``, optional
+        For a periodic axis whose closing edge is not the identity, the holonomy H of the
+        problem's initial state (x(u + L) = H·x(u), e.g. a translation by L along the axis of a
+        periodic tube); identity by default.
+    """
+
+    needs_structure_field = True
+    local = False
+
+    def __init__(self, pressure: float, grid: Grid, holonomy: Any = None):
+        self.pressure = float(check_finite("pressure", pressure, ()))
+        if not isinstance(grid, Grid) or grid.d != 2:
+            raise ValueError(f"grid must be a d = 2 Grid, got {grid!r}")
+        for axis, (n, p) in enumerate(zip(grid.shape, grid.periodic, strict=True)):
+            if not p and n < 3:
+                raise ValueError(f"grid: an open axis needs ≥ 3 nodes for the second-order tangents of a pressure, "
+                                 f"axis {axis} has {n}")
+        self.grid = grid
+        self.holonomy: dict[int, np.ndarray] = {}
+        for axis, H in dict(holonomy or {}).items():
+            if axis not in (0, 1) or not grid.periodic[axis]:
+                raise ValueError(f"holonomy: axis must be a periodic axis of the grid (0 or 1), got {axis!r}")
+            H = check_finite(f"holonomy[{axis}]", H, (4, 4))
+            if (np.linalg.norm(H[1:, 1:].T @ H[1:, 1:] - np.eye(3)) > 1e-8 or np.linalg.det(H[1:, 1:]) < 0
+                    or np.any(H[0] != (1.0, 0.0, 0.0, 0.0))):
+                raise ValueError(f"holonomy[{axis}] must be an SE(3) matrix")
+            self.holonomy[int(axis)] = H
+
+    def bind(self, medium: Any) -> None:
+        q_r = getattr(getattr(medium, "space", None), "q_r", None)
+        if medium.group.name != "SE3" or q_r is None or np.shape(q_r) != (4, 4) or not np.allclose(q_r, np.eye(4)):
+            raise ValueError(f"Pressure needs a medium whose points are SE(3) frames (q_r = I), not {medium.name!r}")
+        if medium.material_dim != 2:
+            raise ValueError(f"Pressure needs a surface (material dimension 2), not {medium.name!r}")
+
+    def tangents(self, Phi: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """(∂_u r, ∂_v r) ``[*shape, 3]`` each, from the node positions of Φ ``[*shape, 4, 4]``."""
+        Phi = np.asarray(Phi, dtype=float)
+        if Phi.shape != (*self.grid.shape, 4, 4):
+            raise ValueError(f"Phi must have shape {(*self.grid.shape, 4, 4)} (the pressure's grid), got {Phi.shape}")
+        x = Phi[..., 1:, 0]
+        return tuple(_axis_derivative(x, a, self.grid.spacing[a], self.grid.periodic[a], self.holonomy.get(a))
+                     for a in range(2))
+
+    def spatial_force(self, Phi: np.ndarray) -> np.ndarray:
+        """f = p (∂_u r × ∂_v r) ``[*shape, 3]`` in the spatial frame, per unit chart area."""
+        ru, rv = self.tangents(Phi)
+        return self.pressure * np.cross(ru, rv)
+
+    def force(self, Phi, N, t):
+        """T = (Rᵀf, 0) ``[*shape, 6]``: the pressure's force in body components, no moment."""
+        f = self.spatial_force(Phi)
+        out = np.zeros((*f.shape[:-1], 6))
+        out[..., :3] = np.einsum("...ji,...j->...i", np.asarray(Phi)[..., 1:, 1:], f)
+        return out
+
+    def to_dict(self) -> dict[str, Any]:
+        return {"kind": "pressure", "pressure": self.pressure,
+                "holonomy": {int(a): H.tolist() for a, H in self.holonomy.items()}}
+
+
 # ====================================================================== medium
 def _frames_from_tangents(ru: np.ndarray, rv: np.ndarray) -> np.ndarray:
     """Frames ``[..., 3, 3]`` (columns e₁, e₂, e₃): e₁ ∥ r_u, e₃ ∥ r_u × r_v (the coordinate gauge)."""
@@ -263,8 +390,8 @@ class CosseratSurface(KernelMedium):
     name: ClassVar[str] = "cosserat-surface"
     material_dim: ClassVar[int] = 2
     initial_kinds: ClassVar[tuple[str, ...]] = ("flat", "cylinder", "surface")
-    load_kinds: ClassVar[tuple[str, ...]] = ("gravity", "dead-load", "director-pressure", "simple-support",
-                                             "symmetry")
+    load_kinds: ClassVar[tuple[str, ...]] = ("gravity", "dead-load", "director-pressure", "pressure",
+                                             "simple-support", "symmetry")
     output_fields: ClassVar[dict[str, tuple[str, str]]] = {
         "director_x": ("director p = R e3, x component", "1"),
         "director_y": ("director p = R e3, y component", "1"),
@@ -337,6 +464,8 @@ class CosseratSurface(KernelMedium):
     def make_load(self, kind: str, **params: Any):
         """``"gravity"`` (``g``, 3 components; mass ρh), ``"director-pressure"`` (``pressure``:
         a force ``pressure`` per unit chart area along the director, a follower load),
+        ``"pressure"`` (:class:`Pressure`: ``pressure``, ``grid``, optional ``holonomy``: p per
+        unit deformed area normal to the deformed surface, positive along e₃),
         ``"dead-load"`` (``force``: a spatially fixed force (3,) per unit chart area) or
         ``"simple-support"`` (:class:`PenaltySupport`: ``edges``, ``position_stiffness``,
         ``director_stiffness``) or ``"symmetry"`` (:class:`SymmetrySupport`: ``edges``, ``normal``,
@@ -353,6 +482,11 @@ class CosseratSurface(KernelMedium):
             return PenaltySupport(**params)
         if kind == "symmetry":
             return SymmetrySupport(**params)
+        if kind == "pressure":
+            if not {"pressure", "grid"} <= set(params) <= {"pressure", "grid", "holonomy"}:
+                raise ValueError("load 'pressure' takes the parameters 'pressure' and 'grid' (the problem's Grid) and "
+                                 f"optionally 'holonomy', got {sorted(params)}")
+            return Pressure(**params)
         if kind == "director-pressure":
             if set(params) != {"pressure"}:
                 raise ValueError(
