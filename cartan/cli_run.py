@@ -326,7 +326,8 @@ def _summary(ds: Any, mode: str) -> str:
 @click.option("--snapshots", type=int, default=8, show_default=True, help="Configurations drawn.")
 @click.option("--field", default=None,
               help="A surface (d = 2 in space) or a solid (d = 3) is drawn in 3D coloured by this node variable "
-                   "(default: the displacement's norm).")
+                   "(default: the displacement's norm); a variable with dimensions beyond the nodes takes "
+                   "its component as NAME[a,b] (labels or indices, e.g. nominal_force_stress[x,u]).")
 @click.option("--slice", "slice_", metavar="AXIS[=INDEX]", default=None,
               help="For a solid (d = 3), also draw the material slice AXIS = u, v or w through the middle node "
                    "(or node INDEX), deformed and coloured by --field.")

@@ -13,6 +13,13 @@ Fields per frame
     averaged onto the nodes when d ≥ 2), ``N`` velocity, ``S`` momentum density; for affine
     groups ``position`` = Φ[..., 1:, 0] and ``frame`` = Φ[..., 1:, 1:] (columns are the
     directors), otherwise ``field`` = Φ·q_r (the configuration q in the medium's space).
+Medium outputs
+    The fields a medium declares in ``output_fields`` (:meth:`cartan.medium.Medium.outputs`):
+    a series (a scalar per frame), a node field, or a node field with the extra named
+    dimensions of its declaration, e.g. ``(time, u, v, w, row, col)``, labelled by the
+    medium's ``output_coords``.  An extra dimension may share a name with a core dimension
+    (``row``, ``col``, ``axis``, ``component``) when it has the same size; it then has the core's
+    labels, which the medium's own labels must equal.
 Series
     ``kinetic_energy``, ``potential_energy``, ``dissipated_energy``, ``external_work``,
     ``integrability_residual``, ``closure_residual``, ``group_defect`` and
@@ -60,6 +67,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from .medium import check_output_value, output_coordinate_labels, output_field_specs
 from .state import State
 
 if TYPE_CHECKING:  # pragma: no cover
@@ -204,30 +212,38 @@ def frame_record(scheme: Scheme, integrator: Integrator, state: State) -> dict[s
         rec["total_momentum"] = np.array(_total_momentum(scheme, state, Phi), dtype=float)
         med = scheme.medium
         if getattr(med, "output_fields", None):
+            specs = output_field_specs(med)
+            labels = output_coordinate_labels(med)
             sp = _space(scheme)
             q = sp.act(Phi, sp.q_r) if sp is not None else Phi
             extra = med.outputs(q, np.asarray(scheme.nodal_strains(state)), np.asarray(N), scheme.grid)
-            missing = sorted(set(med.output_fields) - set(extra))
+            missing = sorted(set(specs) - set(extra))
             if missing:
                 raise ValueError(f"medium {med.name!r}: outputs() did not return {missing}")
-            for name in med.output_fields:
-                rec[name] = np.array(extra[name], dtype=float)
+            shape = scheme.grid.shape
+            for name, (_, _, dims) in specs.items():
+                rec[name] = check_output_value(med, name, extra[name], shape, dims, labels)
     return rec
 
 
 def _meta(scheme: Scheme) -> dict[str, tuple[str, str]]:
     """The core variables and the medium's declared :attr:`~cartan.medium.Medium.output_fields`."""
-    extra = dict(getattr(scheme.medium, "output_fields", {}) or {})
+    extra = {name: spec[:2] for name, spec in output_field_specs(scheme.medium).items()}
     clash = sorted(set(extra) & set(_META))
     if clash:
         raise ValueError(f"medium {scheme.medium.name!r} declares output fields named like core variables: {clash}")
     return {**_META, **extra}
 
 
-def _dims(scheme: Scheme, name: str, value: np.ndarray) -> tuple[str, ...]:
+def _dims(scheme: Scheme, name: str, value: np.ndarray,
+          specs: Mapping[str, tuple[str, str, tuple[str, ...]]] | None = None) -> tuple[str, ...]:
+    """The dimensions of one frame's ``value`` of variable ``name`` (without ``time``);
+    ``specs`` is :func:`cartan.medium.output_field_specs` of the medium (computed if None)."""
     nodes = _node_dims(scheme)
-    if name in getattr(scheme.medium, "output_fields", {}):
-        return nodes if np.ndim(value) else ()
+    if specs is None:
+        specs = output_field_specs(scheme.medium)
+    if name in specs:
+        return (*nodes, *specs[name][2]) if np.ndim(value) else ()
     if name == "X":
         if scheme.grid.d == 1:
             return ("edge" if _strain_location(scheme) == "edge" else "node", "component")
@@ -291,6 +307,51 @@ def _coords(scheme: Scheme, sizes: Mapping[str, int]) -> dict[str, Any]:
             {"long_name": "director"},
         )
     return coords
+
+
+def _output_coords(
+    scheme: Scheme,
+    coords: dict[str, Any],
+    core_sizes: Mapping[str, int],
+    sizes: Mapping[str, int],
+    specs: Mapping[str, tuple[str, str, tuple[str, ...]]],
+    data_vars: Mapping[str, Any],
+) -> None:
+    """Check the extra dimensions of the medium's output fields against the core's and add the
+    coordinates of the medium's ``output_coords`` to ``coords``.
+
+    ``core_sizes`` are the dimension sizes of the core's variables, ``sizes`` those of all
+    variables.  A dimension the core also uses must have the core's size, and labels the
+    medium gives it must equal the core's; no dimension may share its name with a variable.
+    Raises ValueError naming the medium (and the field).
+    """
+    med = scheme.medium
+    labels = output_coordinate_labels(med)
+    for name, (_, _, dims) in specs.items():
+        var = data_vars.get(name)
+        if var is None or not dims or len(var[0]) < len(dims):
+            continue
+        for dim, n in zip(dims, var[1].shape[-len(dims):], strict=True):
+            if dim in core_sizes and core_sizes[dim] != n:
+                raise ValueError(f"medium {med.name!r}: output {name!r}: its dimension {dim!r} has {n} entries, "
+                                 f"but the core's variables give {dim!r} {core_sizes[dim]}; name the dimension "
+                                 "differently")
+    used = {dim for _, _, dims in specs.values() for dim in dims}
+    clash = sorted(used & set(data_vars))
+    if clash:
+        raise ValueError(f"medium {med.name!r}: output_fields use dimensions named like variables of the Dataset: "
+                         f"{clash}; name the dimensions differently")
+    for dim, (long_name, values) in labels.items():
+        if dim not in used or dim not in sizes or sizes[dim] != len(values):
+            continue  # unused labels; a wrong count is reported by check_output_value
+        if dim in coords:
+            core = [str(v) for v in np.asarray(coords[dim][1])]
+            if core != list(values):
+                raise ValueError(f"medium {med.name!r}: output_coords[{dim!r}] = {list(values)} differs from the "
+                                 f"labels {core} the core gives the dimension {dim!r}; name the dimension differently "
+                                 "or leave its labels to the core")
+            continue
+        coords[dim] = (dim, np.array(values, dtype=object), {"long_name": long_name})
 
 
 def _jsonable(obj: Any) -> Any:
@@ -364,25 +425,30 @@ def build_dataset(
     problem = scheme.problem
     data_vars = {}
     sizes: dict[str, int] = {}
+    core_sizes: dict[str, int] = {}
+    specs = output_field_specs(scheme.medium)
     nt = len(records["time"])
     for name, (long_name, units) in _meta(scheme).items():
         if name not in records:
             continue
         values = records[name]
         if nt:
-            arr = _stack(values)
+            arr = _stack(values) if name not in specs else _stack_output(scheme, name, values)
         else:  # no frame yet: an empty series with the right trailing shape
             arr = np.zeros((0,))
-        dims = ("time", *_dims(scheme, name, arr[0] if nt else arr))
+        dims = ("time", *_dims(scheme, name, arr[0] if nt else arr, specs))
         if arr.ndim != len(dims):
             arr = arr.reshape((0,) * len(dims))
         for dim, n in zip(dims, arr.shape, strict=True):
             sizes[dim] = n
+            if name not in specs:
+                core_sizes[dim] = n
         attrs = {"long_name": long_name, "units": units}
         if name == "X" and scheme.grid.d > 1:
             attrs["comment"] = "averaged onto the nodes from the scheme's storage"
         data_vars[name] = (dims, arr, attrs)
-    coords = _coords(scheme, sizes)
+    coords = _coords(scheme, core_sizes)
+    _output_coords(scheme, coords, core_sizes, sizes, specs, data_vars)
     coords["time"] = (
         "time",
         np.asarray(records["time"], dtype=float),
@@ -422,6 +488,15 @@ def _stack(values: list) -> np.ndarray:
         if arr.ndim == 1:
             return arr
     return np.stack([np.asarray(v, dtype=float) for v in values])
+
+
+def _stack_output(scheme: Scheme, name: str, values: list) -> np.ndarray:
+    """:func:`_stack` for a medium's output field, whose frames must all have one shape."""
+    shapes = {np.shape(v) for v in values}
+    if len(shapes) > 1:
+        raise ValueError(f"medium {scheme.medium.name!r}: output {name!r} changes shape between frames: "
+                         f"{sorted(shapes)}")
+    return _stack(values)
 
 
 def _assemble(data_vars: Mapping[str, tuple], coords: Mapping[str, tuple], attrs: dict[str, Any]) -> xr.Dataset:

@@ -41,8 +41,11 @@ __all__ = [
     "QuadraticMedium",
     "check_finite",
     "check_keywords",
+    "check_output_value",
     "check_positive",
     "close_on_periodic_grid",
+    "output_coordinate_labels",
+    "output_field_specs",
     "pullback_gradient",
 ]
 
@@ -428,8 +431,15 @@ class Medium(abc.ABC):
             f"available: {', '.join(self.initial_kinds) or 'none'}"
         )
 
-    #: extra per-frame outputs: ``{name: (long_name, units)}``; values come from :meth:`outputs`
-    output_fields: ClassVar[dict[str, tuple[str, str]]] = {}
+    #: extra per-frame outputs: ``{name: (long_name, units)}`` for a scalar or one value per
+    #: node, ``{name: (long_name, units, dims)}`` for an array per node with the extra named
+    #: dimensions ``dims`` (a tuple such as ``("row", "col")``); values come from :meth:`outputs`
+    #: (checked by :func:`output_field_specs` and :func:`check_output_value`)
+    output_fields: ClassVar[dict[str, tuple]] = {}
+    #: optional labels of the extra dimensions of :attr:`output_fields`: ``{dim: labels}`` or
+    #: ``{dim: (long_name, labels)}``, ``labels`` a sequence of distinct strings, one per index
+    #: (``{"row": ["x", "y", "z"]}``); they become the dimension's coordinate in the Dataset
+    output_coords: ClassVar[dict[str, Any]] = {}
 
     def outputs(self, q: np.ndarray, X: np.ndarray, N: np.ndarray, grid: Any) -> dict[str, np.ndarray]:
         """Medium-specific diagnostics recorded in every saved frame (default: none).
@@ -449,7 +459,11 @@ class Medium(abc.ABC):
         -------
         dict
             ``{name: value}`` for every name of :attr:`output_fields`; a value is a scalar
-            (a time series in the output) or an array of shape ``grid.shape`` (a node field).
+            (a time series in the output) or an array of shape ``grid.shape`` (a node field),
+            and for a field declared with extra dimensions ``dims`` an array of shape
+            ``(*grid.shape, *sizes)``, one size per name of ``dims`` (the length of its
+            :attr:`output_coords` labels, when given).  The Dataset variable then has the
+            dimensions ``(time, *node dimensions, *dims)``.
         """
         return {}
 
@@ -571,6 +585,145 @@ class Medium(abc.ABC):
     def __repr__(self) -> str:
         params = ", ".join(f"{k}={v!r}" for k, v in self.parameters().items())
         return f"{type(self).__name__}({params})"
+
+
+#: dimension names an output field cannot use: the core's time and node dimensions and their coordinates
+_RESERVED_DIMS = ("time", "step", "node", "edge", "u", "v", "w", "u_edge")
+
+
+def _medium_label(medium: Any) -> str:
+    return f"medium {getattr(medium, 'name', '') or type(medium).__name__!r}"
+
+
+def output_field_specs(medium: Medium) -> dict[str, tuple[str, str, tuple[str, ...]]]:
+    """The medium's :attr:`~Medium.output_fields`, checked and completed with their extra dimensions.
+
+    Parameters
+    ----------
+    medium : Medium
+
+    Returns
+    -------
+    dict
+        ``{name: (long_name, units, dims)}`` in declaration order; ``dims = ()`` for a scalar
+        or node field declared as ``(long_name, units)``.
+
+    Raises
+    ------
+    ValueError
+        Naming the medium and the field: an entry that is not ``(long_name, units)`` or
+        ``(long_name, units, dims)`` with strings ``long_name`` and ``units``, or ``dims`` not a
+        tuple of distinct non-empty names, or a name of the core's time and node dimensions
+        (``time``, ``step``, ``node``, ``edge``, ``u``, ``v``, ``w``, ``u_edge``).
+    """
+    fields = getattr(medium, "output_fields", None) or {}
+    out: dict[str, tuple[str, str, tuple[str, ...]]] = {}
+    for name, entry in fields.items():
+        where = f"{_medium_label(medium)}: output_fields[{name!r}]"
+        if not isinstance(name, str) or not name:
+            raise ValueError(f"{_medium_label(medium)}: output field names must be non-empty strings, got {name!r}")
+        if not isinstance(entry, (tuple, list)) or len(entry) not in (2, 3):
+            raise ValueError(f"{where} must be (long_name, units) or (long_name, units, dims), got {entry!r}")
+        long_name, units = entry[0], entry[1]
+        if not isinstance(long_name, str) or not isinstance(units, str):
+            raise ValueError(f"{where}: long_name and units must be strings, got {entry[:2]!r}")
+        dims: tuple[str, ...] = ()
+        if len(entry) == 3:
+            raw = entry[2]
+            if isinstance(raw, str) or not isinstance(raw, (tuple, list)):
+                raise ValueError(f"{where}: dims must be a tuple of dimension names such as ('row', 'col'), "
+                                 f"got {raw!r}")
+            dims = tuple(raw)
+            bad = [d for d in dims if not isinstance(d, str) or not d]
+            if bad:
+                raise ValueError(f"{where}: dims must be non-empty strings, got {raw!r}")
+            if len(set(dims)) != len(dims):
+                raise ValueError(f"{where}: dims must be distinct, got {raw!r}")
+            reserved = [d for d in dims if d in _RESERVED_DIMS]
+            if reserved:
+                raise ValueError(f"{where}: dims {reserved} are the core's time and node dimensions; "
+                                 f"choose other names (not {', '.join(_RESERVED_DIMS)})")
+        out[name] = (long_name, units, dims)
+    return out
+
+
+def output_coordinate_labels(medium: Medium) -> dict[str, tuple[str, tuple[str, ...]]]:
+    """The medium's :attr:`~Medium.output_coords`, checked: ``{dim: (long_name, labels)}``.
+
+    A value given as labels alone gets the long name ``"<dim> of the medium's output fields"``.
+    Labels of a dimension no output field uses are kept (and unused).
+
+    Raises
+    ------
+    ValueError
+        Naming the medium and the dimension: labels that are not a non-empty sequence of
+        distinct strings, or a long name that is not a string.
+    """
+    coords = getattr(medium, "output_coords", None) or {}
+    if not isinstance(coords, dict):
+        raise ValueError(f"{_medium_label(medium)}: output_coords must be a dict {{dim: labels}}, got {coords!r}")
+    out: dict[str, tuple[str, tuple[str, ...]]] = {}
+    for dim, value in coords.items():
+        where = f"{_medium_label(medium)}: output_coords[{dim!r}]"
+        long_name = f"{dim} of the medium's output fields"
+        if (isinstance(value, tuple) and len(value) == 2 and isinstance(value[0], str)
+                and not isinstance(value[1], str)):
+            long_name, value = value
+        if isinstance(value, str) or not isinstance(value, (tuple, list)):
+            raise ValueError(f"{where} must be a list of labels (strings), or (long_name, labels), got {value!r}")
+        labels = tuple(value)
+        if not labels or not all(isinstance(v, str) for v in labels) or len(set(labels)) != len(labels):
+            raise ValueError(f"{where} must be a non-empty list of distinct strings, got {value!r}")
+        out[str(dim)] = (long_name, labels)
+    return out
+
+
+def check_output_value(medium: Medium, name: str, value: Any, shape: tuple[int, ...], dims: tuple[str, ...] = (),
+                       labels: dict[str, tuple[str, tuple[str, ...]]] | None = None) -> np.ndarray:
+    """One value returned by :meth:`Medium.outputs`, checked against its declaration, as a float array.
+
+    Parameters
+    ----------
+    medium : Medium
+        Named in the messages.
+    name : str
+        The output field.
+    value : array_like
+        A scalar or an array ``shape`` (``dims = ()``), else an array ``(*shape, *sizes)``.
+    shape : tuple of int
+        The grid's shape (the node dimensions).
+    dims : tuple of str
+        The field's extra dimensions (:func:`output_field_specs`).
+    labels : dict, optional
+        :func:`output_coordinate_labels`: a labelled dimension must have one index per label.
+
+    Returns
+    -------
+    numpy.ndarray
+        A float copy of ``value``.
+
+    Raises
+    ------
+    ValueError
+        Naming the medium and the field, when the shape does not fit the declaration.
+    """
+    arr = np.array(value, dtype=float)
+    shape = tuple(int(n) for n in shape)
+    where = f"{_medium_label(medium)}: output {name!r}"
+    if not dims:
+        if arr.ndim and arr.shape != shape:
+            raise ValueError(f"{where} must be a scalar or one value per node, shape {shape}, got shape {arr.shape}")
+        return arr
+    lead, trailing = arr.shape[: len(shape)], arr.shape[len(shape):]
+    if arr.ndim != len(shape) + len(dims) or lead != shape:
+        raise ValueError(f"{where} declares the extra dimensions {dims}: it must have shape (*{shape}, "
+                         f"{', '.join(f'n_{d}' for d in dims)}), got shape {arr.shape}")
+    for dim, n in zip(dims, trailing, strict=True):
+        known = (labels or {}).get(dim)
+        if known is not None and len(known[1]) != n:
+            raise ValueError(f"{where}: its dimension {dim!r} has {n} entries but output_coords[{dim!r}] has "
+                             f"{len(known[1])} labels {list(known[1])}; trailing shape {trailing}")
+    return arr
 
 
 class QuadraticMedium(Medium):

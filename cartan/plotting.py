@@ -85,24 +85,103 @@ def _node_dims(ds: xr.Dataset) -> tuple[str, ...]:
     return ()
 
 
+def _node_field_dims(var: xr.DataArray, dims: tuple[str, ...]) -> tuple[str, ...] | None:
+    """The dimensions of ``var`` beyond ``time`` and the node dimensions ``dims`` (``()`` for a
+    scalar node field, ``("row", "col")`` for a tensor per node), or None if ``var`` is not a
+    node field."""
+    rest = var.dims[1:] if var.dims[:1] == ("time",) else var.dims
+    if not dims or rest[: len(dims)] != dims:
+        return None
+    return tuple(rest[len(dims):])
+
+
+def _dim_labels(ds: xr.Dataset, dim: str) -> list[str]:
+    """The labels of dimension ``dim``: its coordinate's values as text, else the indices."""
+    if dim in ds.coords and ds[dim].dims == (dim,):
+        return [str(v) for v in ds[dim].values]
+    return [str(k) for k in range(ds.sizes[dim])]
+
+
+def _components_text(ds: xr.Dataset, extra: tuple[str, ...]) -> str:
+    return "; ".join(f"{dim}: {', '.join(_dim_labels(ds, dim))}" for dim in extra)
+
+
+def _select_component(ds: xr.Dataset, field: str, dims: tuple[str, ...]) -> tuple[xr.DataArray, str]:
+    """The node variable named by ``field``: ``NAME`` for a scalar per node, or
+    ``NAME[a,b]`` (``NAME[row=a,col=b]``) for one component of a variable with extra
+    dimensions beyond the nodes, the labels in the order of those dimensions (their indices
+    0, 1, … for a dimension without labels).  Returns the variable and its display name.
+
+    Raises
+    ------
+    ValueError
+        A variable not in the file (the node fields are listed), a variable with extra
+        dimensions and no component (the dimensions and their labels are named), or a
+        component that does not match the dimensions or their labels.
+    """
+    import re
+
+    match = re.fullmatch(r"\s*([^\[\]]+?)\s*(?:\[([^\[\]]*)\])?\s*", str(field))
+    name = match.group(1) if match else str(field)
+    spec = match.group(2) if match else None
+    if name not in ds.data_vars:
+        choices = []
+        for v in sorted(ds.data_vars):
+            extra = _node_field_dims(ds[v], dims)
+            if extra is not None:
+                choices.append(f"{v}[{','.join(extra)}]" if extra else str(v))
+        raise ValueError(f"field {name!r} is not in the file; node fields: {', '.join(choices) or 'none'}")
+    var = ds[name]
+    extra = _node_field_dims(var, dims) or ()
+    if spec is None:
+        if extra:
+            example = ",".join(_dim_labels(ds, d)[0] for d in extra)
+            raise ValueError(f"field {name!r} has the dimensions {', '.join(extra)} beyond the nodes "
+                             f"({_components_text(ds, extra)}): choose a component, e.g. {name}[{example}]")
+        return var, name
+    items = [item.strip() for item in spec.split(",")]
+    if not extra:
+        raise ValueError(f"field {name!r} has no dimension beyond the nodes to choose a component {spec!r} of")
+    if len(items) != len(extra):
+        raise ValueError(f"field {name!r}[{spec}]: give {len(extra)} label(s), one per dimension "
+                         f"{', '.join(extra)} ({_components_text(ds, extra)})")
+    chosen: dict[str, int] = {}
+    keyed = [item.partition("=") for item in items]
+    if all(sep for _, sep, _ in keyed):
+        pairs = [(d.strip(), lab.strip()) for d, _, lab in keyed]
+        unknown = [d for d, _ in pairs if d not in extra]
+        if unknown or len({d for d, _ in pairs}) != len(pairs):
+            raise ValueError(f"field {name!r}[{spec}]: name each of the dimensions {', '.join(extra)} once")
+    elif any(sep for _, sep, _ in keyed):
+        raise ValueError(f"field {name!r}[{spec}]: give all labels by position or all as DIM=LABEL")
+    else:
+        pairs = list(zip(extra, items, strict=True))
+    for dim, label in pairs:
+        labels = _dim_labels(ds, dim)
+        if label not in labels:
+            raise ValueError(f"field {name!r}[{spec}]: {label!r} is not a label of {dim!r} ({', '.join(labels)})")
+        chosen[dim] = labels.index(label)
+    text = ",".join(_dim_labels(ds, d)[chosen[d]] for d in extra)
+    return var.isel(chosen), f"{name}[{text}]"
+
+
 def _node_values(ds: xr.Dataset, pts: np.ndarray, field: str | None, index: int) -> tuple[np.ndarray, str]:
     """The nodal values ``[*nodes]`` (``[n_u, n_v]`` for a surface, ``[n_u, n_v, n_w]`` for a
     solid) a configuration ``pts [time, *nodes, 3]`` is coloured by at snapshot ``index``: the
-    variable ``field`` of the Dataset (a scalar per node), else the displacement from the first
-    snapshot (its norm); and the colour bar's label (long name and units)."""
+    variable ``field`` of the Dataset (a scalar per node, or ``NAME[a,b]`` for one component
+    of a variable with extra dimensions, :func:`_select_component`), else the displacement
+    from the first snapshot (its norm); and the colour bar's label (long name and units)."""
     nodes = pts.shape[1:-1]
     if field is not None:
         dims = _node_dims(ds)
-        if field not in ds:
-            choices = sorted(v for v in ds.data_vars if dims and ds[v].dims[-len(dims):] == dims)
-            raise ValueError(f"field {field!r} is not in the file; node fields: {', '.join(choices) or 'none'}")
-        values = np.asarray(ds[field].values, dtype=float)
+        var, shown = _select_component(ds, field, dims)
+        values = np.asarray(var.values, dtype=float)
         if values.shape[-len(nodes):] != nodes or values.ndim not in (len(nodes), len(nodes) + 1):
-            raise ValueError(f"field {field!r} is not one value per node (shape {values.shape}, nodes {nodes})")
+            raise ValueError(f"field {shown!r} is not one value per node (shape {values.shape}, nodes {nodes})")
         values = values[index] if values.ndim == len(nodes) + 1 else values
-        label = _axis_label(ds[field], field)
-        if len(label) > 40:  # a long name: the variable's name and its units
-            label = _axis_label(ds[field].copy(deep=False).assign_attrs(long_name=field), field)
+        label = _axis_label(var, shown)
+        if "[" in shown or len(label) > 40:  # a component, or a long name: the name and the units
+            label = _axis_label(var.copy(deep=False).assign_attrs(long_name=shown), shown)
         return values, label
     units = str(ds["position"].attrs.get("units", "")) if "position" in ds else ""
     return np.linalg.norm(pts[index] - pts[0], axis=-1), "|displacement|" + (f" [{units}]" if units else "")
@@ -362,6 +441,9 @@ def plot_run(
         the node variable its deformed configuration is coloured by (default: the
         displacement's norm).  A surface is drawn in 3D, the initial one as a wireframe; a
         solid as the outer faces of its deformed lattice, the edges of the initial block dashed.
+        A variable with dimensions beyond the nodes (a tensor per node, say ``(row, col)``) is
+        given with one component: ``"NAME[x,u]"`` (labels in the order of those dimensions,
+        indices for a dimension without labels) or ``"NAME[row=x,col=u]"``.
     slice : str, optional
         For a solid, also draw the material slice ``"u"``, ``"v"`` or ``"w"`` through the
         middle node (``"u=INDEX"`` for another node index), deformed and coloured by ``field``.
@@ -376,8 +458,9 @@ def plot_run(
     Raises
     ------
     ValueError
-        If ``field`` is not a node variable of the file, or ``slice`` names no node plane of a
-        solid (or the result is not a solid).
+        If ``field`` is not a node variable of the file, has dimensions beyond the nodes and no
+        component (the message names the dimensions and their labels), or ``slice`` names no
+        node plane of a solid (or the result is not a solid).
     """
     from matplotlib.figure import Figure
 
@@ -644,7 +727,8 @@ def plot_static(ds: xr.Dataset, path: str | os.PathLike | None = None, title: st
     title : str, optional
         Figure title (default: the Dataset's ``title`` attribute).
     field : str, optional
-        For a surface or a solid, the node variable the equilibrium is coloured by (see
+        For a surface or a solid, the node variable the equilibrium is coloured by, or one
+        component ``"NAME[a,b]"`` of a variable with dimensions beyond the nodes (see
         :func:`plot_run`).
     slice : str, optional
         For a solid, the material slice ``"u"``, ``"v"``, ``"w"`` or ``"AXIS=INDEX"`` also

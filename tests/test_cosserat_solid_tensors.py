@@ -28,16 +28,14 @@ def skew(A: np.ndarray) -> np.ndarray:
 
 
 def node_tensors(solid, init, grid) -> dict[str, np.ndarray]:
-    """The solid's outputs at the nodes of a state, gathered into ``(*shape, 3, 3)`` tensors (the
+    """The solid's stress outputs at the nodes of a state, ``(*shape, 3, 3)`` tensors (the
     strains are the lattice's nodal strains, as in every recorded frame)."""
     scheme = Lattice(cartan.Problem(solid, grid, init))
     state = scheme.initial_state()
     q = np.asarray(scheme.frames(state))
     out = solid.outputs(q, scheme.nodal_strains(state), np.zeros((*grid.shape, 6)), grid)
-    tensors = {}
-    for name, (rows, cols, *_rest) in STRESS_OUTPUTS.items():
-        if f"{name}_{rows[0]}{cols[0]}" in out:
-            tensors[name] = np.stack([np.stack([out[f"{name}_{r}{c}"] for c in cols], -1) for r in rows], -2)
+    tensors = {name: np.asarray(out[name]) for name in STRESS_OUTPUTS if name in out}
+    assert all(T.shape == (*grid.shape, 3, 3) for T in tensors.values())
     return tensors
 
 
@@ -61,7 +59,8 @@ def test_uniaxial_tensors_are_the_closed_form(uniaxial):
     s1, s2, _, _ = uniaxial_stress(p, *(problem.medium.constants[k] for k in ("lam", "mu", "kappa")))
     tol = case.tolerance * p
     P = stress_tensor(ds, "nominal_force_stress")
-    assert P.dims == ("time", "u", "v", "w", "row", "col") and list(P.col.values) == ["u", "v", "w"]
+    assert P.dims == ("time", "u", "v", "w", "row", "axis") and list(P.axis.values) == ["u", "v", "w"]
+    assert list(P.row.values) == ["x", "y", "z"]
     np.testing.assert_allclose(P.values[-1], np.broadcast_to(np.diag([-p, 0.0, 0.0]), P.shape[1:]), rtol=0,
                                atol=tol)
     sigma = stress_tensor(ds, "cauchy_force_stress").values[-1]
@@ -81,7 +80,7 @@ def test_uniaxial_traction_equilibrium(uniaxial):
     case, problem, ds = uniaxial
     p = case.load
     tol = case.tolerance * p
-    P = stress_tensor(ds, "nominal_force_stress").values[-1]
+    P = ds["nominal_force_stress"].values[-1]
     applied = {("u", 1): [-p, 0, 0], ("u", -1): [p, 0, 0]}
     for axis, name in enumerate("uvw"):
         for sign, index in ((1, -1), (-1, 0)):
@@ -91,30 +90,44 @@ def test_uniaxial_traction_equilibrium(uniaxial):
             target = np.broadcast_to(np.asarray(applied.get((name, sign), [0.0, 0.0, 0.0])), traction.shape)
             np.testing.assert_allclose(traction, target, rtol=0, atol=tol, err_msg=f"face {name} {sign:+d}")
     s1, s2, _, _ = uniaxial_stress(p, *(problem.medium.constants[k] for k in ("lam", "mu", "kappa")))
-    sigma = stress_tensor(ds, "cauchy_force_stress").values[-1][-1]  # the face u = L
+    sigma = ds["cauchy_force_stress"].values[-1][-1]  # the face u = L
     np.testing.assert_allclose(sigma @ np.array([1.0, 0.0, 0.0]) * s2**2,
                                np.broadcast_to([-p, 0.0, 0.0], sigma.shape[:-1]), rtol=0, atol=tol)
 
 
-def test_recorded_variables_have_cf_attributes(uniaxial):
+LABELS = {"row": ["x", "y", "z"], "axis": ["u", "v", "w"], "col": ["d1", "d2", "d3"], "normal": ["x", "y", "z"]}
+
+
+def test_recorded_variables_have_cf_attributes(uniaxial, tmp_path):
+    """Each tensor is one variable ``(time, u, v, w, *dims)`` with its labels, long name and
+    units, and comes back unchanged from a netCDF file."""
     _, _, ds = uniaxial
-    for name, (rows, cols, _, units, _) in STRESS_OUTPUTS.items():
-        for r in rows:
-            for c in cols:
-                var = ds[f"{name}_{r}{c}"]
-                assert var.dims == ("time", "u", "v", "w")
-                assert var.attrs["units"] == units and f"{r}" in var.attrs["long_name"]
+    for name, (dims, long_name, units, _) in STRESS_OUTPUTS.items():
+        var = ds[name]
+        assert var.dims == ("time", "u", "v", "w", *dims)
+        assert var.attrs["units"] == units and var.attrs["long_name"] == long_name
+        for dim in dims:
+            assert list(var[dim].values) == LABELS[dim], dim
+    assert ds["normal"].attrs["long_name"] == "spatial direction of the face normal"
+    path = cartan.io.write_dataset(ds, tmp_path / "uniaxial.nc")
+    back = cartan.open(path)
+    for name in STRESS_OUTPUTS:
+        assert back[name].dims == ds[name].dims and back[name].attrs == ds[name].attrs
+        np.testing.assert_array_equal(back[name].values, ds[name].values)
+        for dim in STRESS_OUTPUTS[name][0]:
+            assert list(back[dim].values) == LABELS[dim]
     with pytest.raises(ValueError, match="name must be one of"):
         stress_tensor(ds, "stress")
     with pytest.raises(ValueError, match="output_stresses containing 'cauchy'"):
-        stress_tensor(ds.drop_vars("cauchy_force_stress_yz"), "cauchy_force_stress")
+        stress_tensor(ds.drop_vars("cauchy_force_stress"), "cauchy_force_stress")
 
 
 def test_output_stresses_selects_the_recorded_tensors():
     solid = cartan.medium("cosserat-solid", output_stresses=["nominal", "cauchy"])
     names = set(solid.output_fields)
-    assert "nominal_force_stress_xu" in names and "cauchy_couple_stress_zz" in names
-    assert "force_stress_u1" not in names and len(names) == 6 + 36
+    assert "nominal_force_stress" in names and "cauchy_couple_stress" in names
+    assert "force_stress" not in names and len(names) == 6 + 4
+    assert solid.output_fields["cauchy_couple_stress"][2] == ("row", "normal")
     assert type(solid)(**solid.parameters()).output_fields == solid.output_fields
     assert cartan.medium("cosserat-solid", output_stresses=False).output_fields.keys() == {
         f"{k}_{x}" for k in ("displacement", "microrotation") for x in "xyz"}

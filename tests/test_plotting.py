@@ -246,7 +246,7 @@ def test_the_relativistic_string_draws_its_worldlines(string_run, tmp_path, monk
     fig = plot_run(string_run, tmp_path / "string.png")
     assert len(calls) == 1 and calls[0] is string_run
     titles = [a.get_title() for a in fig.axes]
-    assert "string at the saved lab times" in titles and any(t.startswith("worldlines") for t in titles)
+    assert "string at equal lab times" in titles and any(t.startswith("worldlines") for t in titles)
     assert "energies" not in titles
     # a worldline per drawn node: lab time against the distance from the centre, from t = 0
     (world,) = [a for a in fig.axes if a.get_title().startswith("worldlines")]

@@ -40,7 +40,8 @@ Stress tensors in the spatial frame (outputs)
 Q^α is per unit reference area and in body components.  The nominal tensors
 ``P_{iα} = (R F^α)_i``, ``C_{iα} = (R M^α)_i`` (face normal the second index: the traction on a
 face of outer reference normal N is P N) and the Cauchy tensors ``σ = P Fᵀ/J``, ``C Fᵀ/J``
-(F_{iα} = (R θ_α)_i, J = det F; per unit current area) are recorded as node fields
+(F_{iα} = (R θ_α)_i, J = det F; per unit current area) are recorded as tensors per node,
+variables ``(time, u, v, w, row, axis)`` and ``(time, u, v, w, row, normal)``
 (:data:`STRESS_OUTPUTS`); for small strains P_{iα} → t_{αi}, C_{iα} → m_{αi}, Eringen's
 tensors transposed.
 
@@ -83,25 +84,24 @@ __all__ = [
 
 _AXES = "uvw"
 
-#: the stress tensors a solid can record (``output_stresses``): name → (row labels, column
-#: labels, long-name template, units, which record set); the node fields are ``{name}_{row}{col}``
-STRESS_OUTPUTS: dict[str, tuple[str, str, str, str, str]] = {
-    "force_stress": ("uvw", "123", "force stress F^{r}_{c} (body frame: face ⊥ {r}, component on d{c}; "
-                     "per unit reference area)", "force/length^2", "body"),
-    "couple_stress": ("uvw", "123", "couple stress M^{r}_{c} (body frame: face ⊥ {r}, component on d{c}; "
-                      "per unit reference area)", "force/length", "body"),
-    "nominal_force_stress": ("xyz", "uvw", "nominal force stress P_{r}{c} = (R F^{c})_{r} (spatial component "
-                             "{r} of the force per unit reference area on the face ⊥ {c})", "force/length^2",
-                             "nominal"),
-    "nominal_couple_stress": ("xyz", "uvw", "nominal couple stress C_{r}{c} = (R M^{c})_{r} (spatial component "
-                              "{r} of the couple per unit reference area on the face ⊥ {c})", "force/length",
-                              "nominal"),
-    "cauchy_force_stress": ("xyz", "xyz", "Cauchy force stress σ_{r}{c} = (P Fᵀ/J)_{r}{c} (spatial component "
-                            "{r} of the force per unit current area on the face with normal e_{c})",
-                            "force/length^2", "cauchy"),
-    "cauchy_couple_stress": ("xyz", "xyz", "Cauchy couple stress (C Fᵀ/J)_{r}{c} (spatial component {r} of "
-                             "the couple per unit current area on the face with normal e_{c})", "force/length",
-                             "cauchy"),
+#: the stress tensors a solid can record (``output_stresses``): name → (extra dimensions of the node
+#: variable, long name, units, which record set).  ``row`` (x, y, z: spatial component), ``axis``
+#: (u, v, w: material axis) and ``col`` (d1, d2, d3: director) are the core's dimensions of the run
+#: Dataset; ``normal`` (x, y, z: spatial direction of the face normal) is the solid's
+#: (:attr:`CosseratSolid.output_coords`).  The second dimension is always the face's.
+STRESS_OUTPUTS: dict[str, tuple[tuple[str, str], str, str, str]] = {
+    "force_stress": (("axis", "col"), "force stress F^α_k (body frame; row α: the face ⊥ α, column k: the "
+                     "component on the director d_k; per unit reference area)", "force/length^2", "body"),
+    "couple_stress": (("axis", "col"), "couple stress M^α_k (body frame; row α: the face ⊥ α, column k: the "
+                      "component on the director d_k; per unit reference area)", "force/length", "body"),
+    "nominal_force_stress": (("row", "axis"), "nominal force stress P_iα = (R F^α)_i (row i: spatial component, "
+                             "column α: the face ⊥ α; per unit reference area)", "force/length^2", "nominal"),
+    "nominal_couple_stress": (("row", "axis"), "nominal couple stress C_iα = (R M^α)_i (row i: spatial component, "
+                              "column α: the face ⊥ α; per unit reference area)", "force/length", "nominal"),
+    "cauchy_force_stress": (("row", "normal"), "Cauchy force stress σ = P Fᵀ/J (row i: spatial component, column "
+                            "j: the face with normal e_j; per unit current area)", "force/length^2", "cauchy"),
+    "cauchy_couple_stress": (("row", "normal"), "Cauchy couple stress C Fᵀ/J (row i: spatial component, column j: "
+                             "the face with normal e_j; per unit current area)", "force/length", "cauchy"),
 }
 _STRESS_SETS = ("body", "nominal", "cauchy")
 
@@ -280,53 +280,37 @@ def _stress_sets(value: Any) -> tuple[str, ...]:
 
 
 def stress_tensor(ds: Any, name: str) -> Any:
-    """A recorded stress tensor of a solid's run as one variable with two tensor dimensions.
-
-    The core records a medium's outputs as one value per node (or a scalar) per frame, so the
-    solid records each tensor as nine node fields ``{name}_{row}{col}``; this gathers them.
+    """A recorded stress tensor of a solid's run: the variable ``ds[name]``, checked.
 
     Parameters
     ----------
     ds : xarray.Dataset
         A run or equilibrium of ``cosserat-solid`` (:func:`cartan.simulate`,
-        :func:`cartan.solve_static`, :func:`cartan.continuation`).
+        :func:`cartan.solve_static`), or a file of one read by :func:`cartan.open`.
     name : str
-        A key of :data:`STRESS_OUTPUTS`: ``"nominal_force_stress"`` (P, rows x, y, z, columns u,
-        v, w), ``"nominal_couple_stress"``, ``"cauchy_force_stress"`` (σ, rows and columns x, y,
-        z), ``"cauchy_couple_stress"``, ``"force_stress"`` and ``"couple_stress"`` (body frame,
-        rows u, v, w, columns 1, 2, 3).
+        A key of :data:`STRESS_OUTPUTS`: ``"nominal_force_stress"`` (P, dimensions ``row`` =
+        x, y, z and ``axis`` = u, v, w), ``"nominal_couple_stress"``, ``"cauchy_force_stress"``
+        (σ, ``row`` and ``normal``, both x, y, z), ``"cauchy_couple_stress"``,
+        ``"force_stress"`` and ``"couple_stress"`` (body frame, ``axis`` = u, v, w and ``col`` =
+        d1, d2, d3).
 
     Returns
     -------
     xarray.DataArray
-        Dimensions ``(*ds[first component].dims, "row", "col")`` — e.g. ``(time, u, v, w, row,
-        col)`` — with coordinates ``row``, ``col`` (the labels above) and the attributes
-        ``long_name`` and ``units``.
+        Dimensions ``(time, u, v, w, *tensor dimensions)``, e.g. ``(time, u, v, w, row, axis)``,
+        with their labels as coordinates and the attributes ``long_name`` and ``units``.
 
     Raises
     ------
     ValueError
         For an unknown ``name`` or a tensor the run did not record (``output_stresses``).
     """
-    import xarray as xr
-
     if name not in STRESS_OUTPUTS:
         raise ValueError(f"name must be one of {sorted(STRESS_OUTPUTS)}, got {name!r}")
-    rows, cols, long_name, units, which = STRESS_OUTPUTS[name]
-    keys = [[f"{name}_{r}{c}" for c in cols] for r in rows]
-    missing = [k for row in keys for k in row if k not in ds]
-    if missing:
-        raise ValueError(f"the dataset has no {name!r} (variables {missing[:3]}…): record it with "
-                         f"output_stresses containing {which!r}")
-    first = ds[keys[0][0]]
-    data = np.stack([np.stack([np.asarray(ds[k].values) for k in row], axis=-1) for row in keys], axis=-2)
-    coords = {dim: ds[dim] for dim in first.dims if dim in ds.coords}
-    coords |= {"row": ("row", list(rows)), "col": ("col", list(cols))}
-    for dim in ("time", "step"):
-        if dim in ds.coords and ds[dim].dims == ("time",) and "time" in first.dims:
-            coords[dim] = ds[dim]
-    return xr.DataArray(data, dims=(*first.dims, "row", "col"), coords=coords, name=name,
-                        attrs={"long_name": long_name.format(r="[row]", c="[col]"), "units": units})
+    if name not in ds:
+        raise ValueError(f"the dataset has no {name!r}: record it with output_stresses containing "
+                         f"{STRESS_OUTPUTS[name][3]!r}")
+    return ds[name]
 
 
 # ====================================================================== gravity
@@ -376,13 +360,13 @@ class CosseratSolid(QuadraticMedium):
     micro_inertia : float, default 0.1
         Micro-inertia j > 0 (a length squared): the rotational inertia is ρj.
     output_stresses : bool or str or sequence of str, default True
-        The stress tensors recorded in every saved frame, nine node fields each (the
+        The stress tensors recorded in every saved frame, each a 3 × 3 tensor per node (the
         displacement and the micro-rotation are always recorded): ``"body"`` — F^α_k, M^α_k
-        (``force_stress_{α}{k}``, ``couple_stress_{α}{k}``); ``"nominal"`` — the spatial nominal
-        tensors P_{iα} = (R F^α)_i, C_{iα} = (R M^α)_i (``nominal_force_stress_{i}{α}``, …);
-        ``"cauchy"`` — σ = P Fᵀ/J and C Fᵀ/J (``cauchy_force_stress_{i}{j}``, …).  True records
-        all three (54 node fields), False none.  :func:`stress_tensor` gathers a tensor's nine
-        fields into one ``(…, row, col)`` variable.
+        (``force_stress``, ``couple_stress``, dimensions ``(axis, col)``); ``"nominal"`` — the
+        spatial nominal tensors P_{iα} = (R F^α)_i, C_{iα} = (R M^α)_i (``nominal_force_stress``,
+        ``nominal_couple_stress``, ``(row, axis)``); ``"cauchy"`` — σ = P Fᵀ/J and C Fᵀ/J
+        (``cauchy_force_stress``, ``cauchy_couple_stress``, ``(row, normal)``).  True records all
+        three (six tensors, 54 numbers per node), False none (:data:`STRESS_OUTPUTS`).
 
     Raises
     ------
@@ -401,6 +385,9 @@ class CosseratSolid(QuadraticMedium):
 
     name: ClassVar[str] = "cosserat-solid"
     material_dim: ClassVar[int] = 3
+    #: labels of the solid's own tensor dimension (``row``, ``axis`` and ``col`` are the core's)
+    output_coords: ClassVar[dict[str, Any]] = {
+        "normal": ("spatial direction of the face normal", ["x", "y", "z"])}
     load_kinds: ClassVar[tuple[str, ...]] = ("gravity", "symmetry", "simple-support")
     initial_kinds: ClassVar[tuple[str, ...]] = ("undeformed", "stretch", "deformation", "twist", "arrays")
 
@@ -437,11 +424,9 @@ class CosseratSolid(QuadraticMedium):
         fields = {f"displacement_{x}": (f"displacement x_{x} − {_AXES['xyz'.index(x)]}", "length")
                   for x in "xyz"}
         fields |= {f"microrotation_{x}": (f"micro-rotation vector component {x} (log R)", "1") for x in "xyz"}
-        for name, (rows, cols, long_name, units, which) in STRESS_OUTPUTS.items():
+        for name, (dims, long_name, units, which) in STRESS_OUTPUTS.items():
             if which in self.stress_outputs:
-                for r in rows:
-                    for col in cols:
-                        fields[f"{name}_{r}{col}"] = (long_name.format(r=r, c=col), units)
+                fields[name] = (long_name, units, dims)
         self.output_fields = fields
 
     # ------------------------------------------------------------------ contract
@@ -566,27 +551,21 @@ class CosseratSolid(QuadraticMedium):
 
     # ------------------------------------------------------------------ outputs
     def outputs(self, q: np.ndarray, X: np.ndarray, N: np.ndarray, grid: Any) -> dict[str, np.ndarray]:
-        """Displacement ``x − (u, v, w)``, micro-rotation vector log R, and the stress tensors of
-        ``output_stresses`` at the nodal strains (:data:`STRESS_OUTPUTS`; the frames R are the
-        nodes'); node fields of shape ``grid.shape``."""
+        """Displacement ``x − (u, v, w)`` and micro-rotation vector log R (node fields of shape
+        ``grid.shape``), and the stress tensors of ``output_stresses`` at the nodal strains
+        (:data:`STRESS_OUTPUTS`; the frames R are the nodes'), of shape ``(*grid.shape, 3, 3)``."""
         coords = np.stack(np.meshgrid(*[grid.coordinates(a) for a in range(3)], indexing="ij"), axis=-1)
         disp = q[..., 1:, 0] - coords
         R = q[..., 1:, 1:]
         phi = rotation_vector(R)
         out = {f"displacement_{x}": disp[..., i] for i, x in enumerate("xyz")}
         out |= {f"microrotation_{x}": phi[..., i] for i, x in enumerate("xyz")}
-        tensors: dict[str, np.ndarray] = {}
         if "body" in self.stress_outputs:
-            tensors["force_stress"], tensors["couple_stress"] = self.stress_tensors(X)
+            out["force_stress"], out["couple_stress"] = self.stress_tensors(X)
         if "nominal" in self.stress_outputs:
-            tensors["nominal_force_stress"], tensors["nominal_couple_stress"] = self.nominal_stress_tensors(R, X)
+            out["nominal_force_stress"], out["nominal_couple_stress"] = self.nominal_stress_tensors(R, X)
         if "cauchy" in self.stress_outputs:
-            tensors["cauchy_force_stress"], tensors["cauchy_couple_stress"] = self.cauchy_stress_tensors(R, X)
-        for name, T in tensors.items():
-            rows, cols = STRESS_OUTPUTS[name][:2]
-            for i, r in enumerate(rows):
-                for j, col in enumerate(cols):
-                    out[f"{name}_{r}{col}"] = T[..., i, j]
+            out["cauchy_force_stress"], out["cauchy_couple_stress"] = self.cauchy_stress_tensors(R, X)
         return out
 
     # ------------------------------------------------------------------ initial states

@@ -331,7 +331,7 @@ class RelativisticRod(KernelMedium):
     @classmethod
     def draw(cls, ds: Any, fig: Any) -> bool:
         """The lab-frame picture of a run for ``cartan plot`` (:meth:`cartan.medium.Medium.draw`):
-        the string at the saved lab times and the worldlines of a few material points
+        the string at equal lab times and the worldlines of a few material points
         (:func:`cartan_relativistic.pictures.draw_figure`); False for a result without the
         lab-frame outputs over two frames or more, which gets the generic picture."""
         from .pictures import draw_figure
