@@ -41,9 +41,8 @@ from typing import Any
 
 import numpy as np
 
-from ..problem import Damping
 from ..schemes.base import Scheme, State
-from .explicit import _CLOSING_ITERATIONS, LieVerlet, _closing_matrix, _damping
+from .explicit import LieVerlet, _closing_matrix
 
 __all__ = ["Rattle"]
 
@@ -273,44 +272,21 @@ class Rattle(LieVerlet):
         self._matrix_at = ((id(state), t1, state.scalars.get("nstep", 0) + 1), self._closing_B)
 
     def _closing_kick(self, scheme: Scheme, state: State, dt: float, t1: float) -> np.ndarray:
-        """``S⁺ = S½ + ½Δt(W(Φ⁺, N⁺) + B_cᵀμ/w)`` with ``B_c N⁺ = 0``; returns the W applied
-        (without the reaction: the next step's first kick has its own multipliers)."""
-        held = self._constraints(scheme, state)
-        con = held[0]
-        problem = scheme.problem
-        half = 0.5 * dt
-        start = state.S
-        B1 = self._closing_B = con.matrix(state)
-        if problem.velocity_free:
-            W1 = self.force(scheme, state, scheme.velocity(state), t1)
-            state.S = start + half * W1
-            scheme.constrain(state)
-            self._project_velocity(scheme, state, B1, None, half, held)
-            return W1
-        if not getattr(scheme.medium, "velocity_dependent_forces", False) and all(
-                isinstance(ld, Damping) for ld in problem.loads if ld.velocity_dependent):
-            gamma = _damping(scheme)
-            closing = _closing_matrix(scheme, gamma, dt)
-            W0 = self.force(scheme, state, np.zeros_like(state.S), t1)
-            state.S = np.einsum("kl,...l->...k", closing, start + half * W0)
-            scheme.constrain(state)
-            self._project_velocity(scheme, state, B1, closing, half, held)
-            return W0 - gamma * scheme.velocity(state)
-        # other velocity-dependent forces: fixed point of the projected kick
-        W1 = self.force(scheme, state, scheme.velocity(state), t1)
-        for _ in range(_CLOSING_ITERATIONS):
-            state.S = start + half * W1
-            scheme.constrain(state)
-            self._project_velocity(scheme, state, B1, None, half, held)
-            W_next = self.force(scheme, state, scheme.velocity(state), t1)
-            change = np.max(np.abs(W_next - W1), initial=0.0)
-            W1 = W_next
-            if change <= 1e-14 * np.max(np.abs(W1), initial=0.0):
-                break
-        state.S = start + half * W1
-        scheme.constrain(state)
-        self._project_velocity(scheme, state, B1, None, half, held)
-        return W1
+        """lie-verlet's closing kick (implicit in linear damping, a fixed point for other
+        velocity-dependent forces), each kick followed by the velocity multiplier's impulse
+        (:meth:`_settle`): ``S⁺ = S½ + ½Δt(W(Φ⁺, N⁺) + B_cᵀμ/w)`` with ``B_c N⁺ = 0``; returns
+        the W applied (without the reaction: the next step's first kick has its own multipliers)."""
+        held = scheme.medium.constrained_strains() is not None and self._constraints(scheme, state)[0].ncon
+        self._closing_B = self._constraints(scheme, state)[0].matrix(state) if held else None
+        return super()._closing_kick(scheme, state, dt, t1)
+
+    def _settle(self, scheme: Scheme, state: State, half: float, gamma: np.ndarray | None) -> None:
+        """The velocity projection after a closing kick: with damping the impulse passes through
+        the kick's closing matrix ``(I + ½ΔtΓM⁺)⁻¹`` (μ is solved with the damping)."""
+        if self._closing_B is None:  # nothing held: lie-verlet's kick
+            return
+        closing = None if gamma is None else _closing_matrix(scheme, gamma, 2.0 * half)
+        self._project_velocity(scheme, state, self._closing_B, closing, half, self._constraints(scheme, state))
 
     def options(self) -> dict[str, Any]:
         return {}

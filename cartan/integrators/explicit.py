@@ -229,7 +229,8 @@ class LieVerlet(Integrator):
 
     def _closing_kick(self, scheme: Scheme, state: State, dt: float, t1: float) -> np.ndarray:
         """``S⁺ = S½ + ½Δt W(Φ⁺, N)`` with N = N(S⁺) (implicit, see the class docstring) when
-        a force depends on N, else N(S½); returns the W applied."""
+        a force depends on N, else N(S½); returns the W applied.  :meth:`_settle` follows every
+        kick (nothing here; rattle's velocity projection)."""
         problem = scheme.problem
         half = 0.5 * dt
         start = state.S
@@ -246,12 +247,14 @@ class LieVerlet(Integrator):
             else:  # S⁺ = (I + ½ΔtΓM⁺)⁻¹ (S½ + ½Δt W₀)
                 state.S = np.einsum("kl,...l->...k", _closing_matrix(scheme, gamma, dt), rhs)
             scheme.constrain(state)
+            self._settle(scheme, state, half, gamma)
             return W0 - gamma * scheme.velocity(state)
         else:  # fixed point of S⁺ = S½ + ½Δt W(Φ⁺, N(S⁺)), from the explicit kick
             W1 = self.force(scheme, state, scheme.velocity(state), t1)
             for _ in range(_CLOSING_ITERATIONS):
                 state.S = start + half * W1
                 scheme.constrain(state)
+                self._settle(scheme, state, half, None)
                 W_next = self.force(scheme, state, scheme.velocity(state), t1)
                 change = np.max(np.abs(W_next - W1), initial=0.0)
                 W1 = W_next
@@ -259,7 +262,12 @@ class LieVerlet(Integrator):
                     break
         state.S = start + half * W1
         scheme.constrain(state)
+        self._settle(scheme, state, half, None)
         return W1
+
+    def _settle(self, scheme: Scheme, state: State, half: float, gamma: np.ndarray | None) -> None:  # noqa: B027
+        """After a closing kick of ``half`` = ½Δt (``gamma``: the damping solved with it, or
+        None): a hook for integrators that add an impulse to every kick; nothing here."""
 
     def compiled_loop(self, scheme: Scheme, state: State, dt: float):
         seq = self._sequence(scheme)
