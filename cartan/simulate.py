@@ -838,6 +838,9 @@ def _resolve_run(
     integ_obj: Integrator = integ(**iopts) if isinstance(integ, type) else integ
     if not isinstance(integ, type):
         integ_obj.reset()
+    if held:  # rattle's step runs in Python: compiling the operator set for the guard's energies and the
+        # CFL estimate alone would cost tens of seconds per medium on a fresh cache (kirchhoff-love: 25–30 s)
+        scheme_obj.compiled_diagnostics = False
     if held and not integ_obj.constrained:
         raise ValueError(
             f"medium {problem.medium.name!r} holds strain components fixed (constrained_strains) and integrator "

@@ -250,6 +250,7 @@ def check_medium(medium: Any, params: dict[str, Any] | None = None, *, schemes: 
             except ValueError as exc:
                 rep.skipped.append(f"{label}: {exc}")
                 continue
+            scheme.compiled_diagnostics = compiled  # (no compiled code at all when the compiled loops are not checked)
             opts = {"velocity": lambda t, u, X: np.zeros(r)} if iname == "kinematic" else {}
             integ = cartan.registry("integrators")[iname](**opts)
             try:

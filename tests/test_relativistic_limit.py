@@ -80,6 +80,7 @@ def test_case_is_registered_as_a_limit(case):
     assert case.limit_levels() == {0: 5.0, 1: 10.0, 2: 20.0, 3: 40.0}
 
 
+@pytest.mark.slow  # the periodic string with a translation holonomy compiles its own loop (≈ 40 s)
 def test_nambu_goto_run_is_exact_at_courant_one(rows):
     """Courant number 1 on the lattice: d'Alembert's solution at the nodes, to round-off
     (positions of order L = 2π, relative to A ≥ 0.025: ≤ 32 steps × 2π ε / A ≈ 2e-12)."""
@@ -87,6 +88,7 @@ def test_nambu_goto_run_is_exact_at_courant_one(rows):
         assert r["exact"] <= 2e-12, r["exact"]
 
 
+@pytest.mark.slow  # the periodic string with a translation holonomy compiles its own loop (≈ 40 s)
 def test_difference_falls_as_v_over_c_squared(case, rows):
     """Expected exponent 2 (quartic term of the Nambu–Goto Lagrangian, docs §2); the next
     term is smaller by (v/c)² ≤ 0.04, so the fitted slope of the three finest levels lies
@@ -101,6 +103,7 @@ def test_difference_falls_as_v_over_c_squared(case, rows):
     assert err[-1] <= case.tolerance
 
 
+@pytest.mark.slow  # the periodic string with a translation holonomy compiles its own loop (≈ 40 s)
 def test_quarter_period_is_the_frequency_shift(rows):
     """At t = L/4c the Nambu–Goto string is straight (y = 0: a_y has odd harmonics only) while
     the taut string, faster by 1/J₀(θ₀), is at cos(π/(2J₀)) ≈ −(π/8)θ₀² of its fundamental's
@@ -123,6 +126,7 @@ def test_the_difference_is_seen(case):
     assert case.tilt(problem) == pytest.approx(math.asin(0.025), rel=1e-12)
 
 
+@pytest.mark.slow  # the periodic string with a translation holonomy compiles its own loop (≈ 40 s)
 def test_limit_chart(case, rows, tmp_path):
     from matplotlib.figure import Figure
 
