@@ -676,15 +676,21 @@ def _advise_filament(subject: _Subject, full_ds: Any, rtol: float, check: bool, 
         except ConvergenceError as exc:
             out.check_note = f"the held-strain {subject.mode} solve failed: {' '.join(str(exc).split())[:200]}"
             return out
-        p_full = np.asarray(full_ds["position"].values[-1], dtype=float).reshape(-1, k)
-        p_held = np.asarray(fds["position"].values[-1], dtype=float).reshape(-1, k)
-        out.measured_difference = float(np.max(np.linalg.norm(p_full - p_held, axis=-1)))
-        out.time_ratio = full_time / ftime if ftime > 0 else math.nan
+        _measured(out, full_ds, fds, full_time, ftime, k)
         what = "static solves" if subject.mode == "static" else "continuation paths"
         out.check_note = (f"{what}: full {full_time:.3g} s ({full_ds.attrs.get('newton_iterations')} Newton "
                           f"iterations), held {ftime:.3g} s ({fds.attrs.get('newton_iterations')}); difference "
                           "= largest |x_full − x_held| over the nodes" + (" at the path's end" if path else ""))
     return out
+
+
+def _measured(out: ReductionAdvice, full_ds: Any, held_ds: Any, full_time: float, held_time: float, k: int) -> None:
+    """The check's measurements: the largest distance between the two runs' nodes at their
+    last frame, and the time ratio full/held."""
+    p_full = np.asarray(full_ds["position"].values[-1], dtype=float).reshape(-1, k)
+    p_held = np.asarray(held_ds["position"].values[-1], dtype=float).reshape(-1, k)
+    out.measured_difference = float(np.max(np.linalg.norm(p_full - p_held, axis=-1)))
+    out.time_ratio = full_time / held_time if held_time > 0 else math.nan
 
 
 def _advise_filament_dynamic(out: ReductionAdvice, subject: _Subject, held: Problem, full_ds: Any, full_time: float,
@@ -709,10 +715,7 @@ def _advise_filament_dynamic(out: ReductionAdvice, subject: _Subject, held: Prob
     except (ConvergenceError, InstabilityError, ValueError) as exc:
         out.check_note = f"the held-strain pilot (rattle) failed: {' '.join(str(exc).split())[:200]}"
         return out
-    p_full = np.asarray(full_ds["position"].values[-1], dtype=float).reshape(-1, k)
-    p_held = np.asarray(fds["position"].values[-1], dtype=float).reshape(-1, k)
-    out.measured_difference = float(np.max(np.linalg.norm(p_full - p_held, axis=-1)))
-    out.time_ratio = full_time / ftime if ftime > 0 else math.nan
+    _measured(out, full_ds, fds, full_time, ftime, k)
     steps = int(fds["step"].values[-1])
     out.check_note = (f"pilot runs to t = {float(pilot_t):g}: full {full_time:.3g} s, held (rattle, {steps} steps) "
                       f"{ftime:.3g} s; difference = largest |x_full − x_held| over the nodes at the pilot's end")
