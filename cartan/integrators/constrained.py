@@ -185,13 +185,13 @@ class Rattle(LieVerlet):
         raise ValueError(f"rattle: the initial configuration is too far from the constrained strains (max |X_e[k] − "
                          f"value_k| = {np.max(np.abs(c)):.3e} after {_MAX_ITERATIONS} projection steps)")
 
-    def _predict(self, scheme: Scheme, state: State, B, W: np.ndarray, held: tuple) -> np.ndarray:
+    def _predict(self, scheme: Scheme, state: State, B, W: np.ndarray, c0: np.ndarray, held: tuple) -> np.ndarray:
         """The force-level multiplier λ at the step's start, a guess of the step's ν: the one
         that keeps the constraints' acceleration at zero, ``d/dt(B_c N) = 0`` with
         ``Ṡ = ad_NᵀS + W + B_cᵀλ/w``, i.e. ``(B P B_cᵀ)λ = −B[M⁺(ad_NᵀS + W)] − Ḃ_c N``, where
         ``Ḃ_c N = d²c(Φ exp(εN))/dε²`` (N constant along the drift) by a central second
         difference (ε = 1e-4/max|N|: truncation and round-off both ≈ 1e-8 relative, ample for a
-        starting guess)."""
+        starting guess); ``c0`` are the rows at ``state``, computed once per step."""
         import scipy.sparse.linalg as spla
 
         from .explicit import _adT
@@ -207,7 +207,7 @@ class Rattle(LieVerlet):
                 trial = State(state.t, state.S, {k: v.copy() for k, v in state.arrays.items()})
                 scheme.drift(trial, sign * eps, N, exact=True)
                 moved.append(con.values(trial))
-            rate = (moved[0] - 2.0 * con.values(state) + moved[1]) / eps**2
+            rate = (moved[0] - 2.0 * c0 + moved[1]) / eps**2
         acc = scheme.medium.velocity(_adT(scheme.group, N, state.S) + W)
         P = self._metric(scheme, nodes, unknown, None)
         return -spla.splu((B @ P @ B.T).tocsc()).solve(B @ acc[unknown] + rate)
@@ -232,8 +232,10 @@ class Rattle(LieVerlet):
 
         half = 0.5 * dt
         # the step starts on the manifold, with a tangent velocity
-        if np.max(np.abs(con.values(state)), initial=0.0) > 1e-10 * scale:
+        c0 = con.values(state)
+        if np.max(np.abs(c0), initial=0.0) > 1e-10 * scale:
             self._project_configuration(scheme, state, held)
+            c0 = con.values(state)
             self._fsal = self._matrix_at = None
         key = (id(state), state.t, state.scalars.get("nstep", 0))
         B0 = self._matrix_at[1] if self._matrix_at is not None and self._matrix_at[0] == key else con.matrix(state)
@@ -241,7 +243,7 @@ class Rattle(LieVerlet):
         W0 = self._kick_force(scheme, state)
         S0 = state.S.copy()
         arrays0 = {k: v.copy() for k, v in state.arrays.items()}
-        nu = self._predict(scheme, state, B0, W0, held)
+        nu = self._predict(scheme, state, B0, W0, c0, held)
         lu = None
         prev = np.inf
         for it in range(_MAX_ITERATIONS + 1):
@@ -276,8 +278,8 @@ class Rattle(LieVerlet):
         velocity-dependent forces), each kick followed by the velocity multiplier's impulse
         (:meth:`_settle`): ``S⁺ = S½ + ½Δt(W(Φ⁺, N⁺) + B_cᵀμ/w)`` with ``B_c N⁺ = 0``; returns
         the W applied (without the reaction: the next step's first kick has its own multipliers)."""
-        held = scheme.medium.constrained_strains() is not None and self._constraints(scheme, state)[0].ncon
-        self._closing_B = self._constraints(scheme, state)[0].matrix(state) if held else None
+        con = self._constraints(scheme, state)[0] if scheme.medium.constrained_strains() is not None else None
+        self._closing_B = con.matrix(state) if con is not None and con.ncon else None
         return super()._closing_kick(scheme, state, dt, t1)
 
     def _settle(self, scheme: Scheme, state: State, half: float, gamma: np.ndarray | None) -> None:
