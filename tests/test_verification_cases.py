@@ -41,13 +41,17 @@ RUNS = [(name, integ, scheme) for name, case in sorted(CASES.items()) if case.ki
 #: every level of these takes several seconds (continuation paths at four resolutions)
 SLOW_ALL_LEVELS = {"rod-euler-buckling", "rod-cantilever-elastica", "plate-buckling-column",
                    "plate-buckling-wide-column", "plate-navier-thick", "plate-navier-thin", "solid-uniaxial-stress",
-                   "plate-buckling-column-kl", "shell-scordelis-lo", "shell-pinched-cylinder",
-                   "relativistic-newtonian-limit"}
+                   "plate-buckling-column-kl", "shell-scordelis-lo", "shell-pinched-cylinder", "solid-cylinder-torsion",
+                   "relativistic-newtonian-limit", "plate-modes-kl", "principal-gauge-kl"}
 #: cases whose quick levels alone take tens of seconds (the shells' grids of 33² – 65² nodes):
 #: their coarse levels run in the fast suite in their own files (tests/test_cosserat_surface_shells.py)
 SLOW_QUICK = {"shell-scordelis-lo", "shell-pinched-cylinder",
+              # 33² × 3 and 65² × 3 micropolar slabs, finite-difference Jacobians (minutes; its own test file)
+              "solid-cylinder-torsion",
               # the periodic string with a translation holonomy compiles a Poincaré loop of its own (≈ 40 s)
-              "relativistic-newtonian-limit"}
+              "relativistic-newtonian-limit",
+              # rattle in Python on 2D plates and tubes of 16² – 64² nodes (≈ 30 s each; test_kirchhoff_love_*.py)
+              "plate-modes-kl", "principal-gauge-kl"}
 
 
 def _slow_poincare(run: tuple) -> bool:

@@ -118,7 +118,8 @@ __all__ = ["DEFLECTION_COEFFICIENT", "MOMENT_COEFFICIENT", "HelfrichCylinderEner
            "PlateColumnBucklingKL", "PlateFlexuralWaveKL", "all_cases", "centre_values", "cosserat_limit",
            "cylinder_energy_density", "flexural_frequency", "flexural_wave_problem", "gauge_turn",
            "helfrich_cylinder_problem", "helfrich_tube_problem", "kirchhoff_navier_problem", "kirchhoff_reference",
-           "lattice_flexural_frequency", "modal_amplitude", "quarter_period_frequency", "tube_radius"]
+           "lattice_flexural_frequency", "modal_amplitude", "quarter_period_frequency", "tube_radius",
+           "zero_crossing_frequency"]
 
 #: Navier coefficients of the simply supported square Kirchhoff plate, ν = 0.3
 DEFLECTION_COEFFICIENT = 0.00406235
@@ -570,11 +571,18 @@ def modal_amplitude(ds: xr.Dataset, problem: Problem, mode: int = 1) -> np.ndarr
 
 
 def quarter_period_frequency(ds: xr.Dataset, problem: Problem, mode: int = 1) -> float:
-    """ω = π/(2t₀), t₀ the first zero crossing of :func:`modal_amplitude`, located by the cubic
-    through the four saved times around it (its error is O(Δt⁴): a cosine has no curvature at
-    its zero); NaN when a(t) does not cross zero or fewer than four frames bracket it."""
-    a = modal_amplitude(ds, problem, mode)
-    t = np.asarray(ds["time"].values, dtype=float)
+    """ω = π/(2t₀), t₀ the first zero crossing of :func:`modal_amplitude`
+    (:func:`zero_crossing_frequency`); NaN when a(t) does not cross zero."""
+    return zero_crossing_frequency(np.asarray(ds["time"].values, dtype=float), modal_amplitude(ds, problem, mode))
+
+
+def zero_crossing_frequency(t: np.ndarray, a: np.ndarray) -> float:
+    """ω = π/(2t₀) of a standing wave a(t) = A cos(ωt) released at rest (A > 0), t₀ its first
+    zero crossing, located by the cubic through the four saved times ``t`` ``[time]`` around it
+    (its error is O(Δt⁴): a cosine has no curvature at its zero); NaN when ``a`` ``[time]``
+    does not cross zero or fewer than four frames bracket it."""
+    t = np.asarray(t, dtype=float)
+    a = np.asarray(a, dtype=float)
     below = np.flatnonzero(a <= 0.0)
     if len(t) < 4 or a[0] <= 0.0 or not below.size:
         return float("nan")
@@ -647,4 +655,7 @@ CASES = [NavierPlateKL(), PlateColumnBucklingKL(), HelfrichCylinderEnergy(), Hel
 
 def all_cases() -> list[Case]:
     """The cases this plugin registers."""
-    return list(CASES)
+    from .gauge_case import GaugeInvarianceKL
+    from .plate_modes import SimplySupportedPlateModesKL
+
+    return [*CASES, SimplySupportedPlateModesKL(), GaugeInvarianceKL()]

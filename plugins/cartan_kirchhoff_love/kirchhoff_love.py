@@ -41,8 +41,22 @@ Conventions
     * Drill: π_α,3 (in an adapted frame the Levi-Civita connection form, §VII.B) enters neither
       the energy nor an output; the rotation Ω₃ about e₃ is a gauge (zero inertia), so the
       statics hold it at zero: the frame is transported without spin about the normal, from
-      the initial state's e₁ (the coordinate gauge e₁ ∥ ∂_u r for the built-in shapes).  The
-      principal gauge is not built.
+      the initial state's e₁.
+    * Gauge (the parameter ``gauge``): the initial-state builders give the *coordinate* gauge
+      e₁ ∥ ∂_u r (default) or the *principal* gauge (§VII.B): e₁, e₂ along the principal
+      directions, diagonalising the shape operator, e₁ along the larger principal curvature
+      κ₁ ≥ κ₂ (with the sign above: the circumference of a cylinder with the outward normal)
+      and turned from the coordinate e₁ by φ ∈ (−π/2, π/2].  In the frame basis the second
+      fundamental form is B = T⁻¹ b T⁻ᵀ, T_αr = ∂_α r·e_r (on the lattice T_αr = θ_α,r), and
+      φ = ½ atan2(2B₁₂, B₁₁ − B₂₂) (:func:`principal_angle`).  At an umbilic (κ₁ = κ₂: every
+      point of a flat plate or a sphere) the principal frame is undefined: the builders raise a
+      ``ValueError`` naming the node and its material coordinates, or, with
+      ``umbilic="keep"``, leave the frame there unturned (the paper's Ω₃ = 0 at umbilics).  The
+      gauge changes neither the energy density at a point nor the motion of the surface (the
+      lattice's edge strains mix frames turned by O(Δ∂φ), an O(Δ²) difference); in a run the
+      frame is then transported without spin about e₃ (Ω₃ = 0), so the principal gauge is that
+      of the initial state, and :func:`principal_angle` of a later strain gives the turn back
+      to it.
 
 Kinetic data are those of :class:`~cartan_cosserat_surface.surface.CosseratSurface` (ρh, ρh³/12,
 0 about e₃).  :func:`cartan.simulate` runs it with the ``rattle`` integrator, which holds
@@ -59,7 +73,13 @@ from numba import njit
 
 from cartan.medium import MediumKernels
 
-__all__ = ["KirchhoffLove", "koiter_energy", "koiter_stress"]
+__all__ = ["GAUGES", "UMBILIC_TOLERANCE", "KirchhoffLove", "koiter_energy", "koiter_stress", "principal_angle",
+           "principal_curvatures"]
+
+#: the frame gauges of the initial-state builders
+GAUGES = ("coordinate", "principal")
+#: |κ₁ − κ₂| at or below this fraction of the curvature scale marks an umbilic (see :func:`principal_angle`)
+UMBILIC_TOLERANCE = 1e-6
 
 
 # ====================================================================== point kernels
@@ -128,6 +148,71 @@ def _fields_batch(X, X0, p, out):  # pragma: no cover - compiled
         _fields(X[i], X0[i], p, out[i])
 
 
+# ====================================================================== principal gauge
+def _frame_form(T: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """B = T⁻¹ sym(b) T⁻ᵀ ``[..., 2, 2]``: the second fundamental form in the frame basis, from
+    T_αr = ∂_α r·e_r and b_αβ = ∂_α r·∂_β e₃ ``[..., 2, 2]``."""
+    Ti = np.linalg.inv(T)
+    bs = 0.5 * (b + np.swapaxes(b, -1, -2))
+    return Ti @ bs @ np.swapaxes(Ti, -1, -2)
+
+
+def principal_curvatures(X: np.ndarray) -> np.ndarray:
+    """(κ₁, κ₂) ``[..., 2]``, κ₁ ≥ κ₂, of strains X ``[..., 2, 6]`` of an adapted frame
+    (T_αr = θ_α,r, b_αβ = θ_α,1 π_β,2 − θ_α,2 π_β,1): the eigenvalues of B = T⁻¹bT⁻ᵀ."""
+    X = np.asarray(X, dtype=float)
+    T = X[..., :, :2]
+    b = X[..., :, None, 0] * X[..., None, :, 4] - X[..., :, None, 1] * X[..., None, :, 3]
+    return np.linalg.eigvalsh(_frame_form(T, b))[..., ::-1]
+
+
+def principal_angle(T: np.ndarray, b: np.ndarray, *, scale: float | None = None,
+                    tolerance: float = UMBILIC_TOLERANCE, umbilic: str = "error",
+                    where: Any = None) -> np.ndarray:
+    """The angle φ ``[...]`` by which a frame (e₁, e₂) must turn about e₃ to be principal.
+
+    Parameters
+    ----------
+    T : array_like, shape ``[..., 2, 2]``
+        T_αr = ∂_α r·e_r, the tangents in the frame (θ_α,r on the lattice).
+    b : array_like, shape ``[..., 2, 2]``
+        b_αβ = ∂_α r·∂_β e₃ (symmetrised here).
+    scale : float, optional
+        The curvature scale of the umbilic test (default: the largest |κ| over the points; 0,
+        a flat surface, makes every point an umbilic).
+    tolerance : float
+        A point is an umbilic where κ₁ − κ₂ ≤ ``tolerance``·scale.
+    umbilic : {"error", "keep"}
+        At an umbilic: raise ``ValueError`` or return φ = 0 (the frame left unturned).
+    where : callable, optional
+        ``where(index) -> str`` describing a point for the error message (default: the index).
+
+    Returns
+    -------
+    numpy.ndarray ``[...]``
+        φ = ½ atan2(2B₁₂, B₁₁ − B₂₂) ∈ (−π/2, π/2]: e₁' = cos φ e₁ + sin φ e₂ is the principal
+        direction of κ₁ ≥ κ₂ (B = T⁻¹bT⁻ᵀ, the second fundamental form in the frame basis).
+    """
+    if umbilic not in ("error", "keep"):
+        raise ValueError(f"umbilic must be 'error' or 'keep', got {umbilic!r}")
+    B = _frame_form(np.asarray(T, dtype=float), np.asarray(b, dtype=float))
+    d, o = B[..., 0, 0] - B[..., 1, 1], B[..., 0, 1]
+    gap = np.sqrt(d * d + 4.0 * o * o)                      # κ₁ − κ₂
+    mean = 0.5 * (B[..., 0, 0] + B[..., 1, 1])
+    if scale is None:
+        scale = float(np.max(np.abs(mean) + 0.5 * gap, initial=0.0))
+    flat = gap <= tolerance * scale
+    if umbilic == "error" and np.any(flat):
+        idx = tuple(int(i) for i in np.argwhere(flat)[0])
+        at = where(idx) if where is not None else f"point {idx}"
+        detail = (f"κ₁ = κ₂ = {float(mean[idx]):.6g} there, to {tolerance:g} of the largest |κ| = {scale:.6g}"
+                  if scale > 0.0 else "κ₁ = κ₂ = 0 everywhere: a flat surface")
+        raise ValueError(f"gauge='principal': the principal frame is undefined at an umbilic (κ₁ = κ₂), "
+                         f"{int(flat.sum())} point(s), the first at {at} ({detail}); use gauge='coordinate', "
+                         f"or umbilic='keep' to leave the frames unturned there")
+    return np.where(flat, 0.0, 0.5 * np.arctan2(2.0 * o, d))
+
+
 # ====================================================================== medium
 class KirchhoffLove(CosseratSurface):
     """Kirchhoff–Love (Koiter) plate and shell on SE(3), d = 2, adapted to its Gauss map
@@ -147,6 +232,14 @@ class KirchhoffLove(CosseratSurface):
         Constant rest curvatures (k_u, k_v) of the chart axes (a cylinder of radius 1/k): at most
         one may be non-zero.  Other stress-free shapes are given as ``Problem(reference=Φ_ref)``
         with frames adapted to the reference surface (e₃ its normal).
+    gauge : {"coordinate", "principal"}
+        The in-plane frames the initial-state builders give (module docstring): e₁ ∥ ∂_u r
+        (default) or e₁, e₂ along the principal directions (κ₁ ≥ κ₂).
+    umbilic : {"error", "keep"}
+        With ``gauge="principal"``, at an umbilic (κ₁ = κ₂ to ``UMBILIC_TOLERANCE`` of the
+        largest |κ| of the surface, e.g. every node of a plate or a sphere): raise a
+        ``ValueError`` naming the node and its (u, v) (default), or keep the coordinate frame
+        there (the paper's Ω₃ = 0 at umbilics).
 
     Notes
     -----
@@ -158,6 +251,9 @@ class KirchhoffLove(CosseratSurface):
     """
 
     name: ClassVar[str] = "kirchhoff-love"
+    #: the initial-state builders' frame gauge and umbilic rule (defaults of subclasses that do not set them)
+    gauge: str = "coordinate"
+    umbilic: str = "error"
     output_fields: ClassVar[dict[str, tuple[str, str]]] = {
         "normal_x": ("unit normal e3 (Gauss map), x component", "1"),
         "normal_y": ("unit normal e3 (Gauss map), y component", "1"),
@@ -176,15 +272,21 @@ class KirchhoffLove(CosseratSurface):
     }
 
     def __init__(self, E: float = 1.0, poisson: float = 0.3, thickness: float = 0.1, density: float = 1.0,
-                 rest_curvature: Any = (0.0, 0.0)):
+                 rest_curvature: Any = (0.0, 0.0), gauge: str = "coordinate", umbilic: str = "error"):
         super().__init__(E=E, poisson=poisson, thickness=thickness, density=density, shear_correction=1.0,
                          rest_curvature=rest_curvature)
+        if gauge not in GAUGES:
+            raise ValueError(f"gauge must be one of {', '.join(GAUGES)}, got {gauge!r}")
+        if umbilic not in ("error", "keep"):
+            raise ValueError(f"umbilic must be 'error' or 'keep', got {umbilic!r}")
+        self.gauge = gauge
+        self.umbilic = umbilic
 
     # ------------------------------------------------------------------ contract
     def parameters(self) -> dict[str, Any]:
         """Constructor keywords (JSON-serialisable); ``KirchhoffLove(**parameters())`` rebuilds it."""
         return {"E": self.E, "poisson": self.nu, "thickness": self.h, "density": self.rho,
-                "rest_curvature": self.k0.tolist()}
+                "rest_curvature": self.k0.tolist(), "gauge": self.gauge, "umbilic": self.umbilic}
 
     def constrained_strains(self) -> tuple[np.ndarray, np.ndarray]:
         """θ_u,3 = θ_v,3 = 0: component 2 of X (the e₃ component of θ_α) held at 0 on every edge
@@ -200,8 +302,55 @@ class KirchhoffLove(CosseratSurface):
         return None
 
     # ------------------------------------------------------------------ initial states
+    def _principal(self, grid, E: np.ndarray, tangents: tuple, second: tuple) -> np.ndarray:
+        """The frames ``E`` ``[*shape, 3, 3]`` turned about e₃ into the principal gauge, from the
+        tangents (r_u, r_v) and second derivatives (r_uu, r_uv, r_vv) ``[*shape, 3]`` at the nodes."""
+        e = E[..., :, :2]
+        T = np.stack([np.einsum("...i,...ir->...r", t, e) for t in tangents], axis=-2)
+        e3 = E[..., :, 2]
+        ruu, ruv, rvv = (np.sum(r * e3, axis=-1) for r in second)
+        b = -np.stack([np.stack([ruu, ruv], axis=-1), np.stack([ruv, rvv], axis=-1)], axis=-2)  # r_α·∂_βe₃
+        u, v = self._mesh(grid)
+
+        def where(idx):
+            return f"node {idx}, (u, v) = ({u[idx]:.6g}, {v[idx]:.6g})"
+
+        phi = principal_angle(T, b, umbilic=self.umbilic, where=where)
+        c, s = np.cos(phi)[..., None], np.sin(phi)[..., None]
+        out = E.copy()
+        out[..., :, 0] = c * E[..., :, 0] + s * E[..., :, 1]
+        out[..., :, 1] = -s * E[..., :, 0] + c * E[..., :, 1]
+        return out
+
+    def _flat(self, grid, origin=None, rotation=None):
+        pos, E = super()._flat(grid, origin=origin, rotation=rotation)
+        if self.gauge == "principal":  # every node an umbilic
+            z = np.zeros_like(pos)
+            return pos, self._principal(grid, E, (E[..., :, 0], E[..., :, 1]), (z, z, z))
+        return pos, E
+
+    def _cylinder(self, grid, radius=None):
+        pos, E = super()._cylinder(grid, radius=radius)
+        if self.gauge == "principal":  # κ₁ = 1/R along the circumference: the coordinate frame, φ = 0
+            R = float(radius) if radius is not None else grid.length[0] / (2.0 * np.pi)
+            e1, e2, e3 = E[..., :, 0], E[..., :, 1], E[..., :, 2]
+            return pos, self._principal(grid, E, (e1, e2), (-e3 / R, np.zeros_like(e3), np.zeros_like(e3)))
+        return pos, E
+
     def _surface(self, grid, position=None, frames=None):
         pos, E = super()._surface(grid, position=position, frames=frames)
+        if frames is None and self.gauge == "principal":
+            u, v = self._mesh(grid)
+            eps = 1e-6 * max(grid.length)
+            ru = (np.asarray(position(u + eps, v)) - np.asarray(position(u - eps, v))) / (2 * eps)
+            rv = (np.asarray(position(u, v + eps)) - np.asarray(position(u, v - eps))) / (2 * eps)
+            big = 1e-4 * max(grid.length)   # second differences: O(big²) truncation, O(1e-16/big²) round-off
+            r = np.asarray(position(u, v))
+            ruu = (np.asarray(position(u + big, v)) - 2.0 * r + np.asarray(position(u - big, v))) / big ** 2
+            rvv = (np.asarray(position(u, v + big)) - 2.0 * r + np.asarray(position(u, v - big))) / big ** 2
+            ruv = (np.asarray(position(u + big, v + big)) - np.asarray(position(u + big, v - big))
+                   - np.asarray(position(u - big, v + big)) + np.asarray(position(u - big, v - big))) / (4 * big ** 2)
+            E = self._principal(grid, E, (ru, rv), (ruu, ruv, rvv))
         if frames is not None:  # the frames must be adapted: e₃ normal to the surface
             u, v = self._mesh(grid)
             eps = 1e-6 * max(grid.length)
