@@ -1,6 +1,7 @@
 """Verification cases of the Kirchhoff filament (paper §VII.A): static equilibria with the
 strain constraint θ = (1, 0, 0) held by Lagrange multipliers (:func:`cartan.solve_static`,
-:func:`cartan.continuation`), refined in space on the lattice; and the cross-medium limit of
+:func:`cartan.continuation`), refined in space on the lattice; Michell's instability of the
+twisted closed ring on a periodic lattice (:func:`michell_ring`); and the cross-medium limit of
 the Cosserat rod (:func:`cosserat_limit`).
 
 The references are those of the ``cosserat-rod`` cases
@@ -10,6 +11,7 @@ the filament in place of the stiff planar rod.
 
 from __future__ import annotations
 
+import math
 from collections.abc import Mapping
 from typing import TYPE_CHECKING, Any
 
@@ -25,8 +27,8 @@ if TYPE_CHECKING:  # pragma: no cover
 
     from cartan.problem import Problem
 
-__all__ = ["FilamentCantileverElastica", "FilamentEulerBuckling", "KirchhoffAnalogy", "all_cases",
-           "cosserat_limit", "kirchhoff_drifts"]
+__all__ = ["FilamentCantileverElastica", "FilamentEulerBuckling", "KirchhoffAnalogy", "MichellRing", "all_cases",
+           "cosserat_limit", "kirchhoff_drifts", "michell_ring"]
 
 
 def _filament(**params: Any):
@@ -186,6 +188,156 @@ class KirchhoffAnalogy(StaticCase):
         return float(max(self.parts(ds, problem).values()))
 
 
+# ---------------------------------------------------------------------------- closed filaments: Michell
+def _ring_problem(n: int, bending: float, twist: float, rest_twist: float, radius: float) -> Problem:
+    rod = _filament(bending=bending, twist=twist, rest_twist=rest_twist)
+    grid = cartan.Grid(n, length=2.0 * np.pi * radius, periodic=True)
+    return cartan.Problem(rod, grid, rod.initial_state(grid, "ring"), {}, name="filament-michell-ring")
+
+
+def _symmetry_generators(Phi: np.ndarray) -> np.ndarray:
+    """The 7 null directions of a closed isotropic ring ``[7, 6n]`` (body components, translation
+    first): the six rigid motions, V = Rᵀ(v + ω × x), Ω = Rᵀω, and the material rotation about
+    the tangents, Ω = (1, 0, 0) at every node (the energy of B₂ = B₃ does not see it)."""
+    x, R = Phi[:, 1:, 0], Phi[:, 1:, 1:]
+    RT = np.swapaxes(R, -1, -2)
+    rows = []
+    for k in range(3):
+        e = np.eye(3)[k]
+        rows.append(np.concatenate([RT @ e, np.zeros_like(x)], axis=-1).ravel())
+        rows.append(np.concatenate([np.einsum("nij,nj->ni", RT, np.cross(e, x)), RT @ e], axis=-1).ravel())
+    rows.append(np.concatenate([np.zeros_like(x), np.broadcast_to([1.0, 0.0, 0.0], x.shape)], axis=-1).ravel())
+    return np.array(rows)
+
+
+def michell_ring(n: int, twist: float = 1.0, bending: float = 1.0, radius: float = 1.0) -> dict[str, Any]:
+    """The critical twist moment of a closed circular filament on the lattice (Michell 1889).
+
+    A naturally straight, isotropic filament (B₂ = B₃ = B, twist stiffness C) closed into the
+    circle of radius R with the material frame untwisted (π₁ = 0) and the natural twist π₁⁰ = −t
+    carries the twist moment m₁ = C(π₁ − π₁⁰) = Ct: the energy depends on π₁ − π₁⁰ only, so this
+    is Michell's twisted ring (twist density t, total twist Tw = tR) without the integer
+    closure of a twisted frame.  The circle is an equilibrium for every t (the multipliers
+    carry the binormal force n₃ = m₁/R); it is stable until
+
+        m₁R/B = √3        (Michell 1889; Tw = √3 B/C),
+
+    where mode-2 out-of-plane perturbations cost no energy.
+
+    On the lattice the configuration does not change with t and the multipliers are linear in
+    t, so the static Jacobian (:class:`cartan.statics._Equilibrium`, the saddle point matrix of
+    §IV.E) is affine in t: K(t) = K₀ + tK₁ exactly.  Its symmetric force block restricted to
+    the kernel of the constraint rows and of the seven symmetry directions
+    (:func:`_symmetry_generators`) is negative definite at t = 0, and the critical t is the
+    smallest positive t at which it is singular: 1/t_c is the largest eigenvalue of the
+    symmetric-definite pencil (Z ᵀK₁Z, −ZᵀK₀Z) (linear buckling, exact here).
+
+    Parameters
+    ----------
+    n : int
+        Nodes of the periodic grid (≥ 8).
+    twist, bending, radius : float
+        C, B, R > 0.
+
+    Returns
+    -------
+    dict
+        ``"critical"`` (m₁R/B at the instability on the lattice), ``"reference"`` (√3),
+        ``"equilibrium_residual"`` (max |F_int + B_cᵀν| at t = t_c, relative to m₁/R),
+        ``"constraint_residual"`` (max |θ − (1, 0, 0)| of the ring), ``"eig_at_critical"``
+        (the largest eigenvalue of the restricted block at t_c, relative to its scale: zero
+        when K is affine in t), ``"binormal_force"`` (the multiplier n₃ R/m₁ at t_c, 1 in the
+        continuum), ``"wall_time"``.
+    """
+    import time
+
+    import scipy.linalg as sl
+
+    from cartan.statics import _Equilibrium
+
+    if int(n) != n or n < 8:
+        raise ValueError(f"n must be an integer ≥ 8, got {n!r}")
+    for name, v in (("twist", twist), ("bending", bending), ("radius", radius)):
+        if not (np.isfinite(v) and v > 0):
+            raise ValueError(f"{name} must be a finite number > 0, got {v!r}")
+    start = time.perf_counter()
+
+    def block(t: float):
+        eq = _Equilibrium(_ring_problem(int(n), bending, twist, -t, radius), probe_lam=0.0)
+        state = eq.state0
+        F = eq.residual(state, np.zeros(eq.nmult), 0.0)[: eq.nunk]
+        Bc = eq._constraint_matrix(state).toarray()
+        mu = np.linalg.lstsq(Bc.T, -F, rcond=None)[0]  # the multipliers that balance the ring
+        res = eq.residual(state, mu, 0.0)
+        K = eq.jacobian(state, mu, 0.0).toarray()
+        H = 0.5 * (K[: eq.nunk, : eq.nunk] + K[: eq.nunk, : eq.nunk].T)
+        Phi = eq.sch.frames(state).reshape(-1, 4, 4)
+        return eq, state, H, Bc, Phi, res, eq.edge_multipliers(mu)
+
+    eq, state, H0, Bc, Phi, _, _ = block(0.0)
+    _, _, H1, _, _, _, _ = block(1.0)
+    Z = sl.null_space(np.vstack([Bc, _symmetry_generators(Phi)]))
+    A0, A1 = Z.T @ H0 @ Z, Z.T @ (H1 - H0) @ Z
+    mu_inv = sl.eigh(A1, -A0, eigvals_only=True)
+    t_c = 1.0 / float(np.max(mu_inv))
+    _, _, Hc, _, _, res_c, n_e = block(t_c)
+    ev = np.linalg.eigvalsh(Z.T @ Hc @ Z)
+    m1 = twist * t_c
+    out = {"critical": m1 * radius / bending, "reference": math.sqrt(3.0),
+           "equilibrium_residual": float(np.max(np.abs(res_c))) * radius / m1,
+           "constraint_residual": float(np.max(np.abs(eq.constraint_values(state)))),
+           "eig_at_critical": float(np.max(ev)) / float(np.max(np.abs(ev))),
+           "binormal_force": float(np.mean(n_e[:, 2])) * radius / m1,
+           "wall_time": time.perf_counter() - start}
+    return out
+
+
+class MichellRing(StaticCase):
+    """Michell's instability of a twisted closed filament (Michell 1889; paper §VII.A): a
+    naturally straight isotropic filament (B = 1, C = 1) closed into the circle R = 1 on a
+    periodic grid, twist moment m₁ carried through the natural twist (:func:`michell_ring`).
+    The circle is an equilibrium for every m₁ (force residual and constraint rows at
+    round-off) and loses stability at m₁R/B = √3 (C-independent; Tw = √3B/C for a twisted
+    frame).  The error is the relative error of the lattice's critical m₁R/B, from the exact
+    linear buckling problem of the static Jacobian restricted to the constraints' kernel;
+    n = 16·2^level."""
+
+    name = "filament-michell-ring"
+    medium = "filament"
+    description = ("closed twisted ring: Michell's instability at m₁R/B = √3 (smallest eigenvalue of the static "
+                   "Jacobian)")
+    reference = "Michell 1889 (Goriely, J. Elasticity 84, 2006): a twisted ring is stable iff m₁R/B < √3"
+    quantity = "critical twist moment m₁R/B on the lattice"
+    norm = "relative error"
+    space_order = 2.0
+    levels = (0, 1, 2, 3)
+    quick_levels = (0, 1, 2)
+    tolerance = 5e-3
+    tolerance_reason = ("n = 16·2^level; O(h²): 4.7e-2, 1.1e-2, 2.8e-3 at n = 16, 32, 64 (measured); 5e-3 holds "
+                        "from n = 64 on")
+    twist = 1.0
+
+    def problem(self, level: int, scheme: str = "lattice") -> tuple[Problem, dict[str, Any]]:
+        # no solver settings: the critical twist is an eigenvalue problem (:func:`michell_ring`)
+        return _ring_problem(16 * 2**level, 1.0, self.twist, 0.0, 1.0), {}
+
+    def solve(self, problem: Problem, settings: Mapping[str, Any]) -> xr.Dataset:
+        import xarray as xr
+
+        out = michell_ring(n=problem.grid.shape[0], twist=self.twist, bending=1.0, radius=1.0)
+        ds = xr.Dataset({k: ((), float(v)) for k, v in out.items() if k != "wall_time"})
+        ds.attrs["wall_time"] = out["wall_time"]
+        ds.attrs["newton_iterations"] = 0
+        return ds
+
+    def parts(self, ds: xr.Dataset) -> dict[str, float]:
+        return {k: float(ds[k]) for k in ("critical", "equilibrium_residual", "constraint_residual",
+                                          "eig_at_critical", "binormal_force")}
+
+    def error(self, ds: xr.Dataset, problem: Problem) -> float:
+        return abs(float(ds["critical"]) - math.sqrt(3.0)) / math.sqrt(3.0)
+
+
 # ---------------------------------------------------------------------------- cross-medium limit
 def cosserat_limit(ratios=(1e2, 1e3, 1e4, 1e5, 1e6), n: int = 21, alpha: float = 2.0) -> dict[str, Any]:
     """The cosserat-rod with stretch and shear stiffness EA = GA = ratio·B/L² against the
@@ -228,5 +380,5 @@ def cosserat_limit(ratios=(1e2, 1e3, 1e4, 1e5, 1e6), n: int = 21, alpha: float =
 
 
 def all_cases() -> list[StaticCase]:
-    return [FilamentCantileverElastica(), FilamentEulerBuckling(), KirchhoffAnalogy()]
+    return [FilamentCantileverElastica(), FilamentEulerBuckling(), KirchhoffAnalogy(), MichellRing()]
 

@@ -35,8 +35,11 @@ from typing import Any
 
 import numpy as np
 
-__all__ = ["AdaptedFrames", "bishop_frames", "curve_derivatives", "frenet_frames", "relative_angle",
-           "transport_rotation"]
+__all__ = ["GAUGES", "AdaptedFrames", "adapt_frames", "bishop_frames", "curve_derivatives", "frenet_frames",
+           "relative_angle", "transport_rotation", "twist_angle"]
+
+#: the gauges of the ``filament`` medium's ``gauge`` parameter
+GAUGES: tuple[str, ...] = ("material", "bishop", "frenet")
 
 #: curvature below which the Frenet frame is refused, relative to 1/(arclength of the curve)
 KAPPA_MIN = 1e-8
@@ -328,3 +331,147 @@ def relative_angle(a: AdaptedFrames | np.ndarray, b: AdaptedFrames | np.ndarray)
     c = np.sum(Eb[..., 1] * Ea[..., 1], axis=-1)
     s = np.sum(Eb[..., 1] * Ea[..., 2], axis=-1)
     return np.arctan2(s, c)
+
+
+# ---------------------------------------------------------------------------- gauges about given tangents
+def _check_gauge(gauge: str) -> str:
+    if gauge not in GAUGES:
+        raise ValueError(f"gauge must be one of {', '.join(map(repr, GAUGES))}, got {gauge!r}")
+    return gauge
+
+
+def _transported(tangents: np.ndarray, e2_0: np.ndarray) -> np.ndarray:
+    """Frames ``[n, 3, 3]`` whose e₁ are the unit ``tangents`` ``[n, 3]`` and whose e₂ is ``e2_0``
+    at node 0, carried from node to node by the minimal rotations between consecutive tangents
+    (the discrete parallel transport: π₁ = 0 on every edge)."""
+    P = transport_rotation(tangents[:-1], tangents[1:])
+    frames = np.empty((tangents.shape[0], 3, 3))
+    e2 = e2_0
+    for i in range(tangents.shape[0]):
+        if i:
+            e2 = P[i - 1] @ e2
+        e2 = e2 - np.dot(e2, tangents[i]) * tangents[i]
+        e2 /= np.linalg.norm(e2)
+        frames[i] = np.stack([tangents[i], e2, np.cross(tangents[i], e2)], axis=-1)
+    return frames
+
+
+def _frenet_refused(kappa: np.ndarray, kmin: float, s: np.ndarray, where: str) -> None:
+    bad = np.flatnonzero(~(kappa > kmin))
+    if bad.size:
+        i = int(bad[0])
+        raise ValueError(
+            f"gauge 'frenet': the Frenet–Serret frame is undefined where the curvature vanishes ({where}): "
+            f"κ = {kappa[i]:.3g} ≤ kappa_min = {kmin:.3g} at node {i} (arclength s = {s[i]:.6g}); {bad.size} node(s) "
+            "affected. Use gauge = 'bishop', defined on every regular curve")
+
+
+def adapt_frames(positions: Any, frames: Any, gauge: str, spacing: float = 1.0, closed: bool = False,
+                 kappa_min: float | None = None) -> np.ndarray:
+    """Turn adapted frames about their own tangents into a gauge (paper §III.E: the SO(2) gauge).
+
+    Parameters
+    ----------
+    positions : array_like ``[n, 3]``
+        The centreline samples at u_i = i·h.
+    frames : array_like ``[n, 3, 3]``
+        Directors as columns; e₁ (the tangent) is kept, (e₂, e₃) are turned about it.
+    gauge : str
+        ``"material"`` (the frames unchanged), ``"bishop"`` (e₂ of node 0 parallel transported
+        along the tangents; on a closed curve the closure angle spread as a constant twist, as
+        in :func:`bishop_frames`) or ``"frenet"`` (e₂ the principal normal of the sampled
+        curve, second-order differences projected normal to e₁).
+    spacing : float
+        h > 0.
+    closed : bool
+        A closed curve (periodic differences and closure).
+    kappa_min : float, optional
+        ``"frenet"``: smallest curvature accepted (default 1e-8/ℓ, ℓ the polygon length).
+
+    Returns
+    -------
+    ndarray ``[n, 3, 3]``
+
+    Raises
+    ------
+    ValueError
+        An unknown gauge; ``"frenet"`` where κ ≤ ``kappa_min``, naming the first such node and
+        its arclength.
+    """
+    _check_gauge(gauge)
+    E = np.array(frames, dtype=float)
+    if gauge == "material":
+        return E
+    r, h = _check_samples(positions, spacing, closed)
+    if E.shape != (r.shape[0], 3, 3):
+        raise ValueError(f"frames must have shape ({r.shape[0]}, 3, 3), got {E.shape}")
+    t = E[:, :, 0] / np.linalg.norm(E[:, :, 0], axis=-1)[:, None]
+    if gauge == "bishop":
+        out = _transported(t, E[:, :, 1][0])
+        if closed:
+            back = transport_rotation(t[-1], t[0]) @ out[-1][:, 1]
+            alpha = float(np.arctan2(np.dot(back, out[0][:, 2]), np.dot(back, out[0][:, 1])))
+            phi = -alpha * np.arange(r.shape[0]) / r.shape[0]
+            c, s = np.cos(phi), np.sin(phi)
+            e2, e3 = out[:, :, 1].copy(), out[:, :, 2].copy()
+            out[:, :, 1] = c[:, None] * e2 + s[:, None] * e3
+            out[:, :, 2] = -s[:, None] * e2 + c[:, None] * e3
+        return out
+    rp, rpp = curve_derivatives(r, h, closed)
+    speed2 = np.sum(rp * rp, axis=-1)
+    normal = rpp - np.sum(rpp * t, axis=-1)[:, None] * t
+    kappa = np.linalg.norm(normal, axis=-1) / speed2
+    s = _arclength(r, closed)
+    ell = s[-1] + (np.linalg.norm(r[0] - r[-1]) if closed else 0.0)
+    kmin = KAPPA_MIN / ell if kappa_min is None else float(kappa_min)
+    _frenet_refused(kappa, kmin, s, "initial centreline")
+    n2 = normal / np.linalg.norm(normal, axis=-1)[:, None]
+    return np.stack([t, n2, np.cross(t, n2)], axis=-1)
+
+
+def twist_angle(frames: Any, strains: Any, gauge: str, spacing: float = 1.0, kappa_min: float | None = None,
+                length: float | None = None) -> np.ndarray:
+    """The angle φ_i of the material frame relative to the gauge frame at each node,
+    E_material = E_gauge·Rot_{e₁}(φ) (right-handed about the tangent d₁; paper §III.E).
+
+    Parameters
+    ----------
+    frames : array_like ``[n, 3, 3]``
+        The material directors (d₁, d₂, d₃) as columns, d₁ the tangent.
+    strains : array_like ``[n, 6]``
+        Nodal strains (θ; π) (the lattice's means of the edge strains).
+    gauge : str
+        ``"bishop"``: the gauge frame is the material frame of node 0 parallel transported along
+        the material tangents (minimal rotations between consecutive d₁), so φ(0) = 0 and
+        φ′ = π₁ — φ is the accumulated twist ∫π₁ ds, unwrapped along the nodes.
+        ``"frenet"``: the Frenet–Serret frame of the material tangents, whose normal is
+        e₂ = (π₃d₂ − π₂d₃)/κ (∂_s d₁ = π₃d₂ − π₂d₃, §VII.A), so φ = atan2(π₂, π₃) ∈ (−π, π].
+    spacing : float
+        The node spacing h (``"frenet"``: arclengths in the error message).
+    kappa_min : float, optional
+        ``"frenet"``: the smallest curvature accepted (default 1e-8/``length``).
+    length : float, optional
+        The filament's length (default (n − 1)·h).
+
+    Returns
+    -------
+    ndarray ``[n]``
+
+    Raises
+    ------
+    ValueError
+        ``"frenet"`` where κ = √(π₂² + π₃²) ≤ ``kappa_min``, naming the first such node.
+    """
+    _check_gauge(gauge)
+    E = np.asarray(frames, dtype=float)
+    X = np.asarray(strains, dtype=float).reshape(E.shape[0], -1)
+    if gauge == "material":
+        return np.zeros(E.shape[0])
+    if gauge == "bishop":
+        t = E[:, :, 0] / np.linalg.norm(E[:, :, 0], axis=-1)[:, None]
+        return np.unwrap(relative_angle(_transported(t, E[0][:, 1]), E))
+    kappa = np.hypot(X[:, 4], X[:, 5])
+    ell = (E.shape[0] - 1) * spacing if length is None else float(length)
+    kmin = KAPPA_MIN / ell if kappa_min is None else float(kappa_min)
+    _frenet_refused(kappa, kmin, spacing * np.arange(E.shape[0]), "twist_angle output")
+    return np.arctan2(X[:, 4], X[:, 5])
