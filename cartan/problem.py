@@ -139,6 +139,18 @@ class Load(abc.ABC):
     def bind(self, medium: Medium) -> None:  # noqa: B027 - optional hook
         """Called once with the medium before a run (validate shapes against its group)."""
 
+    def attach(self, problem: Problem) -> None:  # noqa: B027 - optional hook
+        """Called by every :class:`Problem` holding the load, once it is built (after :meth:`bind`).
+
+        A load whose data come from the problem — its grid (a pressure differencing the node
+        positions), the initial state and its holonomy, the initial positions it holds — takes
+        them here, so that it can be built from a scene's ``[[loads]]`` table, which knows
+        neither.  Raise ``ValueError`` (naming the parameter) when the load does not fit the
+        problem; ``Problem`` reports it as ``loads[i]: ...``.  The hook may run again for a new
+        problem with the same loads (``solve_static`` from another start): keep what the caller
+        gave explicitly and refresh only what was taken from a problem.  Default: nothing.
+        """
+
     @abc.abstractmethod
     def force(self, Phi: np.ndarray | None, N: np.ndarray, t: float) -> np.ndarray:
         """Generalised force density ``[..., r]``."""
@@ -547,6 +559,11 @@ class Problem:
             if not isinstance(load, Load):
                 raise ValueError(f"loads must be Load instances, got {load!r}")
             load.bind(self.medium)
+        for i, load in enumerate(self.loads):
+            try:
+                load.attach(self)
+            except ValueError as exc:
+                raise ValueError(f"loads[{i}]: {exc}") from None
         if self.reference is not None:
             ref = self.reference if isinstance(self.reference, InitialState) else InitialState(Phi=self.reference)
             Phi_ref = check_finite("reference", ref.Phi, (*shape, g.matrix_size, g.matrix_size))

@@ -43,6 +43,7 @@ Modes
     tol = 1e-10             # residual tolerance (relative to the largest external nodal force)
     max_iterations = 50     # Newton iterations per load step
     load_steps = 1
+    reuse = 1e-3            # optional: keep the factorised Jacobian while Newton contracts this much
     initial_guess = "previous.nc"   # optional: start from the last frame of a run file
     measure = { node = "end", component = "z" }   # optional: a displacement to report
 
@@ -147,7 +148,7 @@ _RUN_KEYS = {
     "integrator_options",
     "scheme_options",
 }
-_STATIC_KEYS = {"tol", "xtol", "max_iterations", "load_steps", "fd_step", "initial_guess", "measure"}
+_STATIC_KEYS = {"tol", "xtol", "max_iterations", "load_steps", "fd_step", "reuse", "initial_guess", "measure"}
 _CONTINUATION_KEYS = {
     "parameter",
     "lambda_max",
@@ -853,7 +854,10 @@ def _static(reader: _Reader, data: Mapping, problem: Problem, path: pathlib.Path
         "max_iter": reader.integer(st, "max_iterations", "static", maximum=MAX_ITERATIONS),
         "load_steps": reader.integer(st, "load_steps", "static", maximum=MAX_LOAD_STEPS),
         "fd_step": reader.number(st, "fd_step", "static"),
+        "reuse": reader.number(st, "reuse", "static", positive=False),
     }
+    if options["reuse"] is not None and not 0.0 <= options["reuse"] < 1.0:
+        raise reader.fail("static.reuse", f"must be in [0, 1), got {options['reuse']!r}")
     out: dict[str, Any] = {"solver_options": {k: v for k, v in options.items() if v is not None}}
     if "measure" in st:
         out["measure"] = _measure(reader, st["measure"], problem, "static.measure")

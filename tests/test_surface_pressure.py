@@ -3,7 +3,9 @@
 from __future__ import annotations
 
 import math
+import pathlib
 
+import cartan_cosserat_surface
 import numpy as np
 import pytest
 from cartan_cosserat_surface.cases_pressure import (
@@ -15,8 +17,11 @@ from cartan_cosserat_surface.cases_pressure import (
     polygon_factor,
 )
 from cartan_cosserat_surface.surface import Pressure
+from click.testing import CliRunner
 
 import cartan
+from cartan.cli import main
+from cartan.scene import SceneError, load_scene
 
 
 @pytest.fixture(scope="module")
@@ -37,9 +42,21 @@ def test_bad_parameters(medium):
         Pressure(1.0, grid, holonomy={0: np.eye(4)})           # axis 0 is open
     with pytest.raises(ValueError, match="holonomy"):
         Pressure(1.0, cartan.Grid((5, 4), periodic=(True, False)), holonomy={0: 2 * np.eye(4)})
-    with pytest.raises(ValueError, match="grid"):
-        medium.make_load("pressure", pressure=1.0)
     assert isinstance(medium.make_load("pressure", pressure=1.0, grid=grid), Pressure)
+    # without a grid: the problem's, attached when a Problem is built (a scene's pressure)
+    free = medium.make_load("pressure", pressure=1.0)
+    with pytest.raises(ValueError, match="no grid"):
+        free.force(np.zeros((5, 4, 4, 4)), None, 0.0)
+    with pytest.raises(ValueError, match="holonomy needs the grid"):
+        Pressure(1.0, holonomy={1: np.eye(4)})
+    prob = cartan.Problem(medium, grid, medium.initial_state(grid, "flat"), loads=[free])
+    assert prob.loads[0].grid is grid and free.holonomy == {}
+    with pytest.raises(ValueError, match=r"loads\[0\]: grid: an open axis needs ≥ 3 nodes"):
+        g2 = cartan.Grid((5, 2))
+        cartan.Problem(medium, g2, medium.initial_state(g2, "flat"), loads=[Pressure(1.0)])
+    with pytest.raises(ValueError, match=r"loads\[0\]: pressure: grid has shape \(5, 4\)"):
+        g3 = cartan.Grid((6, 4))
+        cartan.Problem(medium, g3, medium.initial_state(g3, "flat"), loads=[Pressure(1.0, grid)])
     with pytest.raises(ValueError, match="surface"):
         Pressure(1.0, grid).bind(cartan.medium("cosserat-solid"))
 
@@ -224,3 +241,55 @@ def test_work_is_pressure_times_volume_change():
         errors.append(np.abs(W - p * L * (A - A[0])).max() / W[-1])
     assert errors[0] < 5e-4
     assert 3.0 < errors[0] / errors[1] < 5.0, errors   # O(Δt²)
+
+
+# ---------------------------------------------------------------------------- the scene
+def test_inflation_scene_is_the_registered_case():
+    """``cartan run --scene shell-cylinder-inflation`` is the case shell-cylinder-inflation at level 2: the
+    pressure, the grid and the axial holonomy come from the scene's problem (Load.attach); the same
+    equilibrium to round-off."""
+    sc = cartan.scene("shell-cylinder-inflation")
+    case = next(c for c in CASES if c.name == "shell-cylinder-inflation")
+    problem, settings = case.problem(2)
+    assert sc.problem.loads[0].pressure == problem.loads[0].pressure
+    assert sc.problem.loads[0].holonomy.keys() == {1}
+    assert np.array_equal(sc.problem.loads[0].holonomy[1], problem.loads[0].holonomy[1])
+    assert np.array_equal(sc.problem.loads[1].K, problem.loads[1].K)
+    ours = sc.run()
+    ref = case.run(problem, settings)
+    x, y = ours["position"].values[-1], ref["position"].values[-1]
+    assert np.max(np.abs(x - y)) < 1e-12 * np.max(np.abs(y)), np.max(np.abs(x - y))
+    assert abs(case.error(ours, sc.problem) - case.error(ref, problem)) < 1e-10
+
+
+@pytest.mark.parametrize(
+    ("old", "new", "expected"),
+    [
+        ("pressure = 0.01895868554522401", 'pressure = "high"', "loads[0] (pressure): pressure must be"),
+        ("pressure = 0.01895868554522401", "pressure = [1.0, 2.0]", "loads[0] (pressure): pressure must"),
+        ("pressure = 0.01895868554522401", "p = 0.01", "load 'pressure' takes the parameter 'pressure'"),
+        ("pressure = 0.01895868554522401", "", "load 'pressure' takes the parameter 'pressure'"),
+        ("[8, 0, 2]", "[8, 0, 3]", "loads[1] (node-springs): springs: component must be 0, 1 or 2"),
+        ("[8, 0, 2]", "[32, 0, 2]", "loads[1]: springs: node [32, 0] is not a node of the grid of shape [32, 3]"),
+        ("stiffness = 1296.9111506219235", "stiffness = -1.0", "loads[1] (node-springs): stiffness must be"),
+        ("shape = [32, 3]", "shape = [32, 2]", "loads[0]: grid: an open axis needs ≥ 3 nodes"),
+    ],
+)
+def test_bad_pressure_scenes_are_refused(tmp_path, old, new, expected):
+    """One line ``cartan: error: ...`` naming the load, status 2, nothing written."""
+    text = (pathlib.Path(cartan_cosserat_surface.__file__).parent / "scenes"
+            / "shell-cylinder-inflation.toml").read_text()
+    assert old in text
+    if old == "shape = [32, 3]":  # an open axial direction of 2 nodes
+        text = text.replace("periodic = [true, true]", "periodic = [true, false]")
+    path = tmp_path / "scene.toml"
+    path.write_text(text.replace(old, new))
+    with pytest.raises(SceneError) as info:
+        load_scene(path)
+    msg = str(info.value)
+    assert "\n" not in msg and expected in msg, msg
+    res = CliRunner().invoke(main, ["run", str(path), "-o", str(tmp_path / "out.nc")])
+    assert res.exit_code == 2, res.output
+    assert res.output.startswith("cartan: error: ") and res.output.count("\n") == 1, res.output
+    assert expected in res.output and "Traceback" not in res.output
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["scene.toml"]

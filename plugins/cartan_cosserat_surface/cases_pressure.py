@@ -46,7 +46,7 @@ its error against the continuum is O(φ²) = O(du²): relative to w, (1 − sin 
 from __future__ import annotations
 
 import math
-from collections.abc import Mapping, Sequence
+from collections.abc import Mapping
 from typing import Any
 
 import numpy as np
@@ -54,9 +54,9 @@ import xarray as xr
 from cartan_verification.case import StaticCase
 
 import cartan
-from cartan.problem import InitialState, PotentialLoad, Problem
+from cartan.problem import InitialState, Problem
 
-from .surface import Pressure
+from .surface import NodeSprings, Pressure
 
 __all__ = ["CylinderInflation", "NodeSprings", "all_cases", "closed_cylinder_problem", "inflation_pressure",
            "inflation_stretch", "mean_stretch", "polygon_factor"]
@@ -88,46 +88,6 @@ def polygon_factor(n: int) -> float:
     """sin φ/φ with φ = 2π/n: the lattice's pressure on a uniformly inflated n-gon relative to p."""
     phi = 2.0 * math.pi / n
     return math.sin(phi) / phi
-
-
-class NodeSprings(PotentialLoad):
-    """Springs on chosen spatial position components of chosen nodes: ``U = ½k(x_c − x̄_c)²`` per
-    unit chart area at each listed (node, component), zero elsewhere (x̄ the positions of ``Phi``).
-    A support: not multiplied by the load parameter λ.
-
-    Parameters
-    ----------
-    Phi : array, shape ``(*shape, 4, 4)``
-        The configuration whose positions are held.
-    springs : sequence of (tuple of int, int)
-        (node index, spatial component 0, 1, 2).
-    stiffness : float
-        k > 0 per unit chart area.
-    """
-
-    scaled = False
-
-    def __init__(self, Phi: np.ndarray, springs: Sequence[tuple[tuple[int, ...], int]], stiffness: float):
-        Phi = np.asarray(Phi, dtype=float)
-        if not stiffness > 0:
-            raise ValueError(f"stiffness must be > 0, got {stiffness!r}")
-        self.K = np.zeros((*Phi.shape[:-2], 3))
-        for node, comp in springs:
-            if comp not in (0, 1, 2):
-                raise ValueError(f"springs: component must be 0, 1 or 2, got {comp!r}")
-            self.K[tuple(node)][comp] = float(stiffness)
-        self.held = Phi[..., 1:, 0].copy()
-
-    def potential_energy(self, q: np.ndarray) -> np.ndarray:
-        return 0.5 * np.sum(self.K * (q[..., 1:, 0] - self.held) ** 2, axis=-1)
-
-    def potential_gradient(self, q: np.ndarray) -> np.ndarray:
-        grad = np.zeros(np.shape(q))
-        grad[..., 1:, 0] = self.K * (q[..., 1:, 0] - self.held)
-        return grad
-
-    def to_dict(self) -> dict[str, Any]:
-        return {"kind": "node-springs", "springs": int(np.count_nonzero(self.K))}
 
 
 def closed_cylinder_problem(n: int, pressure: float, *, radius: float = 1.0, length: float = 1.0, n_axial: int = 3,

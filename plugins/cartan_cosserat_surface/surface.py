@@ -50,10 +50,11 @@ from numba import njit
 import cartan
 from cartan.grid import Grid
 from cartan.medium import KernelMedium, MediumKernels, check_finite, check_positive
-from cartan.problem import ConstantFieldPotential, InitialState, Load, UniformForce
+from cartan.problem import ConstantFieldPotential, InitialState, Load, PotentialLoad, UniformForce, axis_holonomies
 from cartan.supports import PenaltySupport, SymmetrySupport  # the core's face supports, d = 2 by default
 
-__all__ = ["CosseratSurface", "PenaltySupport", "Pressure", "SurfaceGravity", "SymmetrySupport", "shell_point",
+__all__ = ["CosseratSurface", "NodeSprings", "PenaltySupport", "Pressure", "SurfaceGravity", "SymmetrySupport",
+           "shell_point",
            "surface_energy", "surface_stress"]
 
 
@@ -273,8 +274,8 @@ class Pressure(Load):
     plain :class:`~cartan.problem.Load`: its power Σ w_i f_i·V_i goes to ``external_work``.
 
     Statics: the force at a node depends on its neighbours (``local = False``), so
-    ``solve_static`` differences it on the lattice's coloured stencil with the internal forces
-    (a load acting at its node alone is differenced node by node): Newton converges
+    ``solve_static`` differences it on the lattice's coloured stencil, the frames displaced
+    directly (a load acting at its node alone is differenced node by node): Newton converges
     quadratically (differenced node by node, as a local load, a closed cylinder inflated by
     30 % took 8–10 linearly converging iterations, by 80 % 31–35).
 
@@ -282,20 +283,34 @@ class Pressure(Load):
     ----------
     pressure : float
         p (finite; force per unit deformed area).
-    grid : Grid
+    grid : Grid, optional
         The d = 2 grid of the problem: spacing, periodic axes, node shape; an open axis needs
-        ≥ 3 nodes (one-sided second-order differences).
+        ≥ 3 nodes (one-sided second-order differences).  Default: the grid of the
+        :class:`~cartan.problem.Problem` the load is given to (:meth:`attach`; a scene's
+        ``[[loads]] kind = "pressure"`` is built so).
     holonomy : dict of int → array ``(4, 4)``, optional
         For a periodic axis whose closing edge is not the identity, the holonomy H of the
         problem's initial state (x(u + L) = H·x(u), e.g. a translation by L along the axis of a
-        periodic tube); identity by default.
+        periodic tube).  Default: with ``grid`` given, the identity; without, the holonomy of
+        the problem's initial state.
     """
 
     needs_structure_field = True
     local = False
 
-    def __init__(self, pressure: float, grid: Grid, holonomy: Any = None):
+    def __init__(self, pressure: float, grid: Grid | None = None, holonomy: Any = None):
         self.pressure = float(check_finite("pressure", pressure, ()))
+        self.grid: Grid | None = None
+        self.holonomy: dict[int, np.ndarray] = {}
+        self._from_problem = grid is None and holonomy is None
+        if grid is None:
+            if holonomy is not None:
+                raise ValueError("holonomy needs the grid it closes; give grid too (or neither, to take both "
+                                 "from the problem)")
+            return
+        self._set_grid(grid, holonomy)
+
+    def _set_grid(self, grid: Any, holonomy: Any) -> None:
         if not isinstance(grid, Grid) or grid.d != 2:
             raise ValueError(f"grid must be a d = 2 Grid, got {grid!r}")
         for axis, (n, p) in enumerate(zip(grid.shape, grid.periodic, strict=True)):
@@ -303,7 +318,7 @@ class Pressure(Load):
                 raise ValueError(f"grid: an open axis needs ≥ 3 nodes for the second-order tangents of a pressure, "
                                  f"axis {axis} has {n}")
         self.grid = grid
-        self.holonomy: dict[int, np.ndarray] = {}
+        self.holonomy = {}
         for axis, H in dict(holonomy or {}).items():
             if axis not in (0, 1) or not grid.periodic[axis]:
                 raise ValueError(f"holonomy: axis must be a periodic axis of the grid (0 or 1), got {axis!r}")
@@ -320,9 +335,21 @@ class Pressure(Load):
         if medium.material_dim != 2:
             raise ValueError(f"Pressure needs a surface (material dimension 2), not {medium.name!r}")
 
+    def attach(self, problem: Any) -> None:
+        """Take the grid and the initial state's holonomy from ``problem`` when none was given
+        (:meth:`cartan.problem.Load.attach`); a given grid must be the problem's node shape."""
+        if self._from_problem:
+            self._set_grid(problem.grid, axis_holonomies(problem.initial, problem.grid.d))
+        elif tuple(self.grid.shape) != tuple(problem.grid.shape):
+            raise ValueError(f"pressure: grid has shape {tuple(self.grid.shape)} but the problem's grid has "
+                             f"{tuple(problem.grid.shape)}")
+
     def tangents(self, Phi: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """(∂_u r, ∂_v r) ``[*shape, 3]`` each, from the node positions of Φ ``[*shape, 4, 4]``."""
         Phi = np.asarray(Phi, dtype=float)
+        if self.grid is None:
+            raise ValueError("Pressure has no grid: give grid=..., or give the load to a Problem (which attaches its "
+                             "grid and holonomy)")
         if Phi.shape != (*self.grid.shape, 4, 4):
             raise ValueError(f"Phi must have shape {(*self.grid.shape, 4, 4)} (the pressure's grid), got {Phi.shape}")
         x = Phi[..., 1:, 0]
@@ -344,6 +371,73 @@ class Pressure(Load):
     def to_dict(self) -> dict[str, Any]:
         return {"kind": "pressure", "pressure": self.pressure,
                 "holonomy": {int(a): H.tolist() for a, H in self.holonomy.items()}}
+
+
+class NodeSprings(PotentialLoad):
+    """Springs on chosen spatial position components of chosen nodes: ``U = ½k(x_c − x̄_c)²`` per
+    unit chart area at each listed (node, component), zero elsewhere, x̄ the held positions.
+    A support: not multiplied by the load parameter λ (:attr:`cartan.problem.Load.scaled` False).
+
+    Parameters
+    ----------
+    Phi : array, shape ``(*shape, 4, 4)``, or None
+        The configuration whose positions are held; None: the initial state of the first
+        :class:`~cartan.problem.Problem` the load is given to (:meth:`attach`; a scene's
+        ``[[loads]] kind = "node-springs"`` is built so).
+    springs : sequence of (tuple of int, int)
+        (node index, spatial component 0, 1 or 2); at least one.
+    stiffness : float
+        k > 0 per unit chart area.
+    """
+
+    scaled = False
+
+    def __init__(self, Phi: np.ndarray | None, springs: Any, stiffness: float):
+        self.stiffness = float(check_positive("stiffness", stiffness, shape=()))
+        try:
+            self.springs = [(tuple(int(i) for i in node), int(comp)) for node, comp in springs]
+        except (TypeError, ValueError):
+            raise ValueError(f"springs must be a list of (node index, component) pairs, got {springs!r}") from None
+        if not self.springs:
+            raise ValueError("springs must list at least one (node index, component) pair")
+        for _, comp in self.springs:
+            if comp not in (0, 1, 2):
+                raise ValueError(f"springs: component must be 0, 1 or 2, got {comp!r}")
+        self.K: np.ndarray | None = None
+        self.held: np.ndarray | None = None
+        self._from_problem = Phi is None
+        if Phi is not None:
+            self._hold(np.asarray(Phi, dtype=float))
+
+    def _hold(self, Phi: np.ndarray) -> None:
+        shape = Phi.shape[:-2]
+        K = np.zeros((*shape, 3))
+        for node, comp in self.springs:
+            if len(node) != len(shape) or any(not 0 <= i < n for i, n in zip(node, shape, strict=True)):
+                raise ValueError(f"springs: node {list(node)} is not a node of the grid of shape {list(shape)}")
+            K[node][comp] = self.stiffness
+        self.K, self.held = K, Phi[..., 1:, 0].copy()
+
+    def attach(self, problem: Any) -> None:
+        """Hold the positions of the first problem's initial state when no ``Phi`` was given (a
+        later problem with the same loads, e.g. ``solve_static`` from another start, keeps them)."""
+        if self._from_problem and self.K is None:
+            self._hold(np.asarray(problem.initial.Phi, dtype=float))
+        elif self.K.shape[:-1] != tuple(problem.grid.shape):
+            raise ValueError(f"node-springs: Phi has the node shape {list(self.K.shape[:-1])}, the problem's grid "
+                             f"{list(problem.grid.shape)}")
+
+    def potential_energy(self, q: np.ndarray) -> np.ndarray:
+        return 0.5 * np.sum(self.K * (q[..., 1:, 0] - self.held) ** 2, axis=-1)
+
+    def potential_gradient(self, q: np.ndarray) -> np.ndarray:
+        grad = np.zeros(np.shape(q))
+        grad[..., 1:, 0] = self.K * (q[..., 1:, 0] - self.held)
+        return grad
+
+    def to_dict(self) -> dict[str, Any]:
+        return {"kind": "node-springs", "springs": [[*node, comp] for node, comp in self.springs],
+                "stiffness": self.stiffness}
 
 
 # ====================================================================== medium
@@ -391,7 +485,7 @@ class CosseratSurface(KernelMedium):
     material_dim: ClassVar[int] = 2
     initial_kinds: ClassVar[tuple[str, ...]] = ("flat", "cylinder", "surface")
     load_kinds: ClassVar[tuple[str, ...]] = ("gravity", "dead-load", "director-pressure", "pressure",
-                                             "simple-support", "symmetry")
+                                             "node-springs", "simple-support", "symmetry")
     output_fields: ClassVar[dict[str, tuple[str, str]]] = {
         "director_x": ("director p = R e3, x component", "1"),
         "director_y": ("director p = R e3, y component", "1"),
@@ -464,8 +558,10 @@ class CosseratSurface(KernelMedium):
     def make_load(self, kind: str, **params: Any):
         """``"gravity"`` (``g``, 3 components; mass ρh), ``"director-pressure"`` (``pressure``:
         a force ``pressure`` per unit chart area along the director, a follower load),
-        ``"pressure"`` (:class:`Pressure`: ``pressure``, ``grid``, optional ``holonomy``: p per
-        unit deformed area normal to the deformed surface, positive along e₃),
+        ``"pressure"`` (:class:`Pressure`: ``pressure``, optional ``grid`` and ``holonomy``,
+        by default the problem's: p per unit deformed area normal to the deformed surface,
+        positive along e₃), ``"node-springs"`` (:class:`NodeSprings` on the initial positions:
+        ``springs`` a list of ``[i, j, component]``, ``stiffness``),
         ``"dead-load"`` (``force``: a spatially fixed force (3,) per unit chart area) or
         ``"simple-support"`` (:class:`PenaltySupport`: ``edges``, ``position_stiffness``,
         ``director_stiffness``) or ``"symmetry"`` (:class:`SymmetrySupport`: ``edges``, ``normal``,
@@ -483,10 +579,21 @@ class CosseratSurface(KernelMedium):
         if kind == "symmetry":
             return SymmetrySupport(**params)
         if kind == "pressure":
-            if not {"pressure", "grid"} <= set(params) <= {"pressure", "grid", "holonomy"}:
-                raise ValueError("load 'pressure' takes the parameters 'pressure' and 'grid' (the problem's Grid) and "
-                                 f"optionally 'holonomy', got {sorted(params)}")
+            if not {"pressure"} <= set(params) <= {"pressure", "grid", "holonomy"}:
+                raise ValueError("load 'pressure' takes the parameter 'pressure' and optionally 'grid' and 'holonomy' "
+                                 f"(default: the problem's), got {sorted(params)}")
             return Pressure(**params)
+        if kind == "node-springs":
+            if set(params) != {"springs", "stiffness"}:
+                raise ValueError("load 'node-springs' takes exactly the parameters 'springs' (a list of [i, j, "
+                                 f"component]) and 'stiffness', got {sorted(params)}")
+            springs = params["springs"]
+            if not isinstance(springs, list | tuple) or not all(
+                    isinstance(s, list | tuple) and len(s) == 3 and all(isinstance(x, int | np.integer)
+                                                                         and not isinstance(x, bool) for x in s)
+                    for s in springs):
+                raise ValueError(f"springs must be a list of [i, j, component] integer triples, got {springs!r}")
+            return NodeSprings(None, [((s[0], s[1]), s[2]) for s in springs], params["stiffness"])
         if kind == "director-pressure":
             if set(params) != {"pressure"}:
                 raise ValueError(
@@ -507,6 +614,8 @@ class CosseratSurface(KernelMedium):
             ``"flat"``: r = origin + (u, v, 0), frames = rotation (default identity).
             ``"cylinder"``: r = (R sin(u/R), v, R cos(u/R) − R), axis along y, e₁ along the
             circumference, e₃ the outward normal; ``radius`` R (default: L_u/(2π) on a periodic u).
+            On a periodic v axis the tube repeats after L_v: the state's holonomy is the
+            translation by L_v along y (a long tube's plane strain).
             ``"surface"``: r = ``position(u, v)`` (a callable on node arrays returning ``[..., 3]``),
             frames from ``frames(u, v)`` (``[..., 3, 3]``, columns e₁ e₂ e₃) or, if not given, the
             coordinate gauge e₁ ∥ r_u, e₃ ∥ r_u × r_v (tangents by central differences).
@@ -534,7 +643,13 @@ class CosseratSurface(KernelMedium):
             xi = check_finite("twist", twist, (6,))
             N = np.einsum("...ij,j->...i", self.group.Ad(self.group.inverse(Phi)), xi)
             N[..., 5] = 0.0
-        return InitialState(Phi=Phi, N=N)
+        holonomy = None
+        if kind == "cylinder" and grid.periodic[1]:
+            # a periodic axial direction: the tube repeats after L_v along its axis, Φ(v + L) = HΦ(v)
+            H = np.eye(4)
+            H[2, 0] = grid.length[1]
+            holonomy = {1: H}
+        return InitialState(Phi=Phi, N=N, holonomy=holonomy)
 
     def _mesh(self, grid) -> tuple[np.ndarray, np.ndarray]:
         return np.meshgrid(grid.coordinates(0), grid.coordinates(1), indexing="ij")
@@ -603,6 +718,21 @@ class CosseratSurface(KernelMedium):
         out = np.empty((Xf.shape[0], 10))
         _resultants_batch(Xf, X0f, np.array([self.E, self.nu, self.h, self.ks]), out)
         return out.reshape(*lead, 10)
+
+    def held_strain_twins(self) -> tuple:
+        """The Kirchhoff–Love (Koiter) surface, ``kirchhoff-love`` with the same E, ν, h, ρ and
+        rest curvature: the transverse shear θ_α·e₃ = 0 held on both axes (paper §VII.B); none
+        for a medium that holds strains of its own (see
+        :meth:`cartan.medium.Medium.held_strain_twins`)."""
+        from cartan.medium import HeldStrainTwin
+
+        if self.constrained_strains() is not None:
+            return ()
+
+        def parameters(p: dict[str, Any]) -> dict[str, Any]:
+            return {key: p[key] for key in ("E", "poisson", "thickness", "density", "rest_curvature")}
+
+        return (HeldStrainTwin("kirchhoff-love", (2,), (0.0,), parameters, "transverse shear"),)
 
     def outputs(self, q: np.ndarray, X: np.ndarray, N: np.ndarray, grid: Any) -> dict[str, np.ndarray]:
         """Director, resultants (relative to the medium's rest strain) and curvatures at the nodes."""
