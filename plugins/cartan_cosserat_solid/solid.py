@@ -45,6 +45,23 @@ variables ``(time, u, v, w, row, axis)`` and ``(time, u, v, w, row, normal)``
 (:data:`STRESS_OUTPUTS`); for small strains P_{iα} → t_{αi}, C_{iα} → m_{αi}, Eringen's
 tensors transposed.
 
+Charts
+------
+The energy above is per unit reference volume of an orthonormal chart (θ₀_α = e_α).  A
+stress-free reference Φ_ref = (x_ref, R_ref) of a general chart (``Problem(..., reference=Φ_ref)``,
+e.g. a disk charted by a square) has the rest strain θ₀_α = R_refᵀ∂_αx_ref: the rows of
+Θ₀[α, k] = θ₀_αk, whose pull-back metric is g = Θ₀Θ₀ᵀ.  Since ∂_α = Σ_j Θ₀[α, j] ∂_j (∂_j the
+derivative along the reference director j), the strains in the orthonormal frame of the
+reference directors are Θ₀⁻¹E and Θ₀⁻¹K, and the reference volume is det Θ₀ per unit chart
+volume, so the energy per unit chart volume is
+
+    U_chart(X; X₀) = det Θ₀ · U(Θ₀⁻¹(X − X₀)),   Q[α] = det Θ₀ Σ_j (Θ₀⁻¹)_{jα} Q_phys[j],
+
+(:meth:`CosseratSolid.potential_at`, the point kernels), which is U itself when Θ₀ = I; det Θ₀ > 0
+(a right-handed chart) is required.  The inertia, the face loads and the outputs (displacement
+x − (u, v, w), stresses per unit chart area) stay those of the orthonormal chart: a general
+chart is for statics, its results read off the configuration (docs/design.md, "Charts of a disk").
+
 Positive definiteness (Eringen, *Microcontinuum Field Theories I*, §5.3): with E split into its
 deviatoric, spherical and skew parts, U = ½(λ + (2μ+κ)/3)(tr E)² + ½(2μ+κ)|dev sym E|² +
 ½κ|skw E|² + ½(α + (β+γ)/3)(tr K)² + ½(β+γ)|dev sym K|² + ½(γ−β)|skw K|², so U > 0 for every
@@ -107,8 +124,8 @@ _STRESS_SETS = ("body", "nominal", "cauchy")
 
 
 @njit(cache=True)
-def micropolar_energy_point(X, X0, p):  # pragma: no cover - compiled
-    """U at one point (module docstring), ``p = (λ, μ, κ, α, β, γ)``; X, X0 ``(3, 6)``."""
+def _orthonormal_energy(X, X0, p):  # pragma: no cover - compiled
+    """U of an orthonormal chart (module docstring), ``p = (λ, μ, κ, α, β, γ)``; X, X0 ``(3, 6)``."""
     lam, mu, kap, al, be, ga = p[0], p[1], p[2], p[3], p[4], p[5]
     trE = 0.0
     trK = 0.0
@@ -131,9 +148,8 @@ def micropolar_energy_point(X, X0, p):  # pragma: no cover - compiled
 
 
 @njit(cache=True)
-def micropolar_stress_point(X, X0, p, Q):  # pragma: no cover - compiled
-    """``Q = ∂U/∂X`` at one point: F^α_k = λ trE δ_αk + (μ+κ)E_αk + μE_kα,
-    M^α_k = α trK δ_αk + γK_αk + βK_kα (module docstring)."""
+def _orthonormal_stress(X, X0, p, Q):  # pragma: no cover - compiled
+    """``Q = ∂U/∂X`` of :func:`_orthonormal_energy`, written into Q ``(3, 6)``."""
     lam, mu, kap, al, be, ga = p[0], p[1], p[2], p[3], p[4], p[5]
     trE = 0.0
     trK = 0.0
@@ -146,6 +162,76 @@ def micropolar_stress_point(X, X0, p, Q):  # pragma: no cover - compiled
             Q[a, 3 + k] = ga * (X[a, 3 + k] - X0[a, 3 + k]) + be * (X[k, 3 + a] - X0[k, 3 + a])
         Q[a, a] += lam * trE
         Q[a, 3 + a] += al * trK
+
+
+@njit(cache=True)
+def _identity_chart(X0):  # pragma: no cover - compiled
+    """Whether θ₀_α = e_α (Θ₀ = I): the orthonormal chart, U itself."""
+    for a in range(3):
+        for k in range(3):
+            if X0[a, k] != (1.0 if a == k else 0.0):
+                return False
+    return True
+
+
+@njit(cache=True)
+def _chart(X, X0, D, T):  # pragma: no cover - compiled
+    """``D = Θ₀⁻¹(X − X₀)`` and ``T = Θ₀⁻¹`` (Θ₀ = X0[:, :3], module docstring "Charts");
+    returns det Θ₀."""
+    t = X0
+    det = (t[0, 0] * (t[1, 1] * t[2, 2] - t[1, 2] * t[2, 1]) - t[0, 1] * (t[1, 0] * t[2, 2] - t[1, 2] * t[2, 0])
+           + t[0, 2] * (t[1, 0] * t[2, 1] - t[1, 1] * t[2, 0]))
+    inv = 1.0 / det
+    T[0, 0] = (t[1, 1] * t[2, 2] - t[1, 2] * t[2, 1]) * inv
+    T[0, 1] = (t[0, 2] * t[2, 1] - t[0, 1] * t[2, 2]) * inv
+    T[0, 2] = (t[0, 1] * t[1, 2] - t[0, 2] * t[1, 1]) * inv
+    T[1, 0] = (t[1, 2] * t[2, 0] - t[1, 0] * t[2, 2]) * inv
+    T[1, 1] = (t[0, 0] * t[2, 2] - t[0, 2] * t[2, 0]) * inv
+    T[1, 2] = (t[0, 2] * t[1, 0] - t[0, 0] * t[1, 2]) * inv
+    T[2, 0] = (t[1, 0] * t[2, 1] - t[1, 1] * t[2, 0]) * inv
+    T[2, 1] = (t[0, 1] * t[2, 0] - t[0, 0] * t[2, 1]) * inv
+    T[2, 2] = (t[0, 0] * t[1, 1] - t[0, 1] * t[1, 0]) * inv
+    for j in range(3):
+        for k in range(6):
+            s = 0.0
+            for a in range(3):
+                s += T[j, a] * (X[a, k] - X0[a, k])
+            D[j, k] = s
+    return det
+
+
+@njit(cache=True)
+def micropolar_energy_point(X, X0, p):  # pragma: no cover - compiled
+    """U per unit chart volume at one point, ``det Θ₀ · U(Θ₀⁻¹(X − X₀))`` (module docstring,
+    "Charts"; U itself for the orthonormal chart Θ₀ = I, the fast path), ``p = (λ, μ, κ, α, β, γ)``;
+    X, X0 ``(3, 6)``."""
+    if _identity_chart(X0):
+        return _orthonormal_energy(X, X0, p)
+    D = np.empty((3, 6))
+    T = np.empty((3, 3))
+    det = _chart(X, X0, D, T)
+    return det * _orthonormal_energy(D, np.zeros((3, 6)), p)
+
+
+@njit(cache=True)
+def micropolar_stress_point(X, X0, p, Q):  # pragma: no cover - compiled
+    """``Q = ∂U/∂X`` at one point: F^α_k = λ trE δ_αk + (μ+κ)E_αk + μE_kα,
+    M^α_k = α trK δ_αk + γK_αk + βK_kα in the orthonormal chart (the fast path), and
+    ``Q[α] = det Θ₀ Σ_j (Θ₀⁻¹)_{jα} Q_phys[j]`` in a general one (module docstring, "Charts")."""
+    if _identity_chart(X0):
+        _orthonormal_stress(X, X0, p, Q)
+        return
+    D = np.empty((3, 6))
+    T = np.empty((3, 3))
+    det = _chart(X, X0, D, T)
+    Qp = np.empty((3, 6))
+    _orthonormal_stress(D, np.zeros((3, 6)), p, Qp)
+    for a in range(3):
+        for k in range(6):
+            s = 0.0
+            for j in range(3):
+                s += T[j, a] * Qp[j, k]
+            Q[a, k] = det * s
 
 
 def micropolar_stiffness(lam: float, mu: float, kappa: float, alpha: float, beta: float,
@@ -434,6 +520,48 @@ class CosseratSolid(QuadraticMedium):
         """Constructor keywords (JSON-serialisable); ``CosseratSolid(**parameters())`` rebuilds it."""
         return {**self.constants, "density": self.rho, "micro_inertia": self.j,
                 "output_stresses": self.output_stresses}
+
+    def potential_at(self, X: np.ndarray, X0: np.ndarray) -> np.ndarray:
+        """U per unit *chart* volume at a rest strain ``X0`` that varies over the body
+        (``Problem(..., reference=Φ_ref)``), by the pull-back metric of the reference chart
+        (module docstring, "Charts"): ``det Θ₀ · U(Θ₀⁻¹E, Θ₀⁻¹K)`` with ``Θ₀[α, k] = θ₀_αk``,
+        evaluated by the point kernels (:func:`micropolar_energy_point`).
+
+        Parameters
+        ----------
+        X, X0 : arrays, shape ``[..., 3, 6]`` (broadcast together); every det Θ₀ > 0
+
+        Returns
+        -------
+        numpy.ndarray, shape ``[...]``
+        """
+        return self._kernel_batch("energy", X, X0)
+
+    def stress_at(self, X: np.ndarray, X0: np.ndarray) -> np.ndarray:
+        """``Q = ∂U/∂X`` of :meth:`potential_at`, ``det Θ₀ · Θ₀⁻ᵀ Q_phys(Θ₀⁻¹(X − X₀))``
+        (row α: ``Σ_j (Θ₀⁻¹)_{jα} Q_phys[j]``), shape ``[..., 3, 6]``."""
+        return self._kernel_batch("stress", X, X0)
+
+    def _kernel_batch(self, which: str, X: np.ndarray, X0: np.ndarray) -> np.ndarray:
+        from cartan.compiled.kernels import medium_batch
+
+        X = np.asarray(X, dtype=float)
+        lead = np.broadcast_shapes(X.shape[:-2], np.shape(X0)[:-2])
+        X0f = np.ascontiguousarray(np.broadcast_to(np.asarray(X0, dtype=float), (*lead, 3, 6))).reshape(-1, 3, 6)
+        det = np.linalg.det(X0f[:, :, :3]) if X0f.shape[0] else np.ones(0)
+        if np.any(~(det > 0)):
+            raise ValueError(f"the rest strain's rows θ₀_α must form a right-handed basis (det Θ₀ > 0), got "
+                             f"min det Θ₀ = {float(np.min(det)):.3g}")
+        Xf = np.ascontiguousarray(np.broadcast_to(X, (*lead, 3, 6))).reshape(-1, 3, 6)
+        kernels = self.point_kernels()
+        module = medium_batch(kernels)
+        if which == "energy":
+            out = np.empty(Xf.shape[0])
+            module.energy_batch(Xf, X0f, kernels.params, out)
+            return out.reshape(lead)
+        Q = np.empty_like(Xf)
+        module.stress_batch(Xf, X0f, kernels.params, Q)
+        return Q.reshape(*lead, 3, 6)
 
     def inertia(self) -> np.ndarray:
         """Kinetic metric ``(ρ, ρ, ρ, ρj, ρj, ρj)`` per unit reference volume, shape ``(6,)``."""
