@@ -6,32 +6,16 @@ ring, the ring pulled by diametral forces, a spinning ring in time (``rattle``),
 from __future__ import annotations
 
 import math
-import pathlib
-import sys
 
 import numpy as np
 import pytest
+from cartan_verification.case import observed_orders, run_case
+
+# the filament registered for these tests as for test_filament.py (its module fixture)
+from test_filament import registered  # noqa: F401
 
 import cartan
 from cartan.statics import _Equilibrium
-
-try:
-    import cartan_filament.plugin as filament_plugin
-except ModuleNotFoundError:  # not installed yet: the package beside the others
-    sys.path.insert(0, str(pathlib.Path(__file__).resolve().parents[1] / "plugins"))
-    import cartan_filament.plugin as filament_plugin
-
-from cartan_verification.case import observed_orders, run_case  # noqa: E402
-
-
-@pytest.fixture(scope="module", autouse=True)
-def registered():
-    """The filament registered (through its entry point when installed, else in-process)."""
-    from cartan.plugins import reset_registry
-
-    if "filament" not in cartan.registry("media"):
-        reset_registry([("filament", filament_plugin)])
-    yield
 
 
 def _ring(n: int, **params):
