@@ -838,8 +838,9 @@ def _resolve_run(
     integ_obj: Integrator = integ(**iopts) if isinstance(integ, type) else integ
     if not isinstance(integ, type):
         integ_obj.reset()
-    if held:  # rattle's step runs in Python: compiling the operator set for the guard's energies and the
-        # CFL estimate alone would cost tens of seconds per medium on a fresh cache (kirchhoff-love: 25–30 s)
+    if held:  # the CFL estimate and the guard's energies on numpy: rattle's compiled loop (d = 1) takes the
+        # steps, but compiling the operator set's diagnostics as well would cost tens of seconds per medium on a
+        # fresh cache (kirchhoff-love, whose steps run in Python: 25–30 s) for work of milliseconds per save
         scheme_obj.compiled_diagnostics = False
     if held and not integ_obj.constrained:
         raise ValueError(

@@ -22,7 +22,8 @@ __all__ = ["LOOP_SOURCES", "OperatorSet"]
 #: the modules whose ``loop_fragment()`` joins every generated module, by name (the loops and
 #: the diagnostics that run over an operator set); the functions of a generated module compile
 #: on first call only, so one module serves every loop and the operators compile once
-LOOP_SOURCES = ("cartan.integrators.loops", "cartan.integrators.newton", "cartan.compiled.diagnostics")
+LOOP_SOURCES = ("cartan.integrators.loops", "cartan.integrators.newton", "cartan.integrators.rattle_loop",
+                "cartan.compiled.diagnostics")
 
 
 @dataclass

@@ -31,8 +31,15 @@ they remove.  The state a step starts from is first brought onto the manifold if
 (a configuration projection along M⁺Bᵀ, then the velocity projection): a sampled initial
 shape need not satisfy the constraints to round-off.
 
-Runs on the ``lattice`` scheme (whose edges carry the exact strains) in Python; a medium
-without constrained strains gets lie-verlet's steps unchanged.
+Runs on the ``lattice`` scheme (whose edges carry the exact strains); a medium without
+constrained strains gets lie-verlet's steps unchanged.  On an open chain of nodes (d = 1, not
+periodic) whose operator set compiles (group and medium point kernels, the loads of the
+generated loops), the steps run in the generated ``rattle_loop``
+(:mod:`cartan.integrators.rattle_loop`): the same formulas, with the multiplier systems
+block-tridiagonal and solved in O(n) (:mod:`cartan.compiled.banded`); its steps agree with
+the Python step to round-off.  Everything else (d ≥ 2, a periodic chain, loads or media the
+operator set declines) runs the Python step below, with sparse LU solves;
+:meth:`Rattle.compiled_reason` says why.
 """
 
 from __future__ import annotations
@@ -71,10 +78,83 @@ class Rattle(LieVerlet):
         self._metrics: dict = {}
         self._matrix_at: tuple | None = None  # (state key, B_c at the state the last step ended on)
         self._closing_B = None
+        self._failure: tuple | None = None
+        #: why the last :meth:`compiled_loop` left the steps to Python (None: it did not)
+        self.compiled_declined: str | None = None
+
+    # ------------------------------------------------------------------ compiled loop
+    def compiled_reason(self, scheme: Scheme) -> str | None:
+        """Why the compiled loop (:mod:`cartan.integrators.rattle_loop`) does not take this
+        problem's steps, or None when it does (the medium's rows on an open chain of nodes:
+        d = 1, not periodic, every edge with an unknown; the operator set's own conditions —
+        group and medium point kernels, data-like loads — are checked by
+        :meth:`~cartan.integrators.base.Integrator.run_compiled_loop`)."""
+        if not hasattr(scheme, "edge_nodes") or not hasattr(scheme, "edge_strains"):
+            return f"scheme {scheme.name!r} has no edge strains (the Python step says so)"
+        grid = scheme.grid
+        if grid.d != 1:
+            return (f"d = {grid.d}: the multiplier systems are block-tridiagonal for a chain of nodes only "
+                    "(d = 1); a banded solve for d ≥ 2 is not written")
+        if grid.periodic[0]:
+            return "a periodic axis closes the chain (the multiplier systems are not block-tridiagonal)"
+        n = int(grid.shape[0])
+        tails, heads = scheme.edge_nodes()
+        if n < 2 or not (np.array_equal(tails[0], np.arange(n - 1)) and np.array_equal(heads[0], np.arange(1, n))):
+            return "the edges do not form a chain of nodes"
+        return None
 
     def compiled_loop(self, scheme: Scheme, state: State, dt: float):
-        """None: the constrained step runs in Python (its multipliers need a sparse solve)."""
-        return None
+        """``rattle_loop`` (:mod:`cartan.integrators.rattle_loop`) when :meth:`compiled_reason`
+        is None; lie-verlet's loop when the medium holds nothing fixed; otherwise None (the
+        Python step), the reason in ``self.compiled_declined``."""
+        self.compiled_declined = None
+        if scheme.medium.constrained_strains() is None:
+            return super().compiled_loop(scheme, state, dt)
+        reason = self.compiled_reason(scheme)
+        if reason is None:
+            con, unknown, nodes, scale = self._constraints(scheme, state)
+            if not con.ncon:
+                return super().compiled_loop(scheme, state, dt)
+            if not all(bool(a.all()) for a in con.active):
+                reason = "an edge joins two fixed nodes (no row there: the chain of rows is broken)"
+        if reason is not None:
+            self.compiled_declined = reason
+            return None
+        name, (W, have, velocity_free, pieces, fracs, closing) = super().compiled_loop(scheme, state, dt)
+        status = np.zeros(2, dtype=np.int64)
+        info = np.zeros(1)
+        comp = np.ascontiguousarray(con.comp, dtype=np.int64)
+        value = np.ascontiguousarray(con.value, dtype=float)
+        return "rattle_loop", (W, have, velocity_free, pieces, fracs, closing, comp, value, float(scale), status, info)
+
+    def compiled_loop_done(self, state: State, args: tuple) -> None:
+        super().compiled_loop_done(state, args)
+        self._matrix_at = None
+        if len(args) > 6:  # rattle_loop (not lie-verlet's, for a medium without constraints)
+            status, info = args[-2], args[-1]
+            self.niter += int(status[1])
+            self._failure = (int(status[0]), float(info[0]), state.t)
+
+    def run_compiled_loop(self, scheme: Scheme, state: State, dt: float, nsteps: int,
+                          kinetic_limit: float = float("inf")) -> bool:
+        """The base class' generated loop, then the Python step's errors for a step that failed
+        (the state is the one that step started from): :class:`~cartan.statics.ConvergenceError`
+        when the multipliers' iteration did not converge, ``ValueError`` when the initial
+        configuration could not be brought onto the constraints."""
+        self._failure = None
+        ran = super().run_compiled_loop(scheme, state, dt, nsteps, kinetic_limit)
+        failure, self._failure = self._failure, None
+        if ran and failure is not None and failure[0]:
+            code, err, t = failure
+            if code == 2:
+                raise ValueError(f"rattle: the initial configuration is too far from the constrained strains (max "
+                                 f"|X_e[k] − value_k| = {err:.3e} after {_MAX_ITERATIONS} projection steps)")
+            from ..statics import ConvergenceError
+
+            raise ConvergenceError(
+                f"rattle: the constrained strains were not met at t = {t:.6g} (max |X_e[k] − value_k| = {err:.3e} "
+                f"after at most {_MAX_ITERATIONS} iterations); reduce dt", _MAX_ITERATIONS, err, [err])
+        return ran
 
     # ------------------------------------------------------------------ setup
     def _constraints(self, scheme: Scheme, state: State):

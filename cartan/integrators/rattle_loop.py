@@ -1,0 +1,536 @@
+"""The compiled ``rattle`` loop: lie-verlet with constrained edge strains held by multipliers.
+
+:func:`rattle_loop` takes :class:`~cartan.integrators.constrained.Rattle`'s steps as its Python
+``_step`` takes them (same formulas, round-off apart; the module docstring of
+:mod:`cartan.integrators.constrained` states them), inside the generated module of a
+lattice's operator set (:mod:`cartan.compiled.operators`, :data:`LOOP_SOURCES`), where
+``op_*`` are the lattice's operators (:mod:`cartan.schemes._lattice_ops`), ``g_*`` the group's
+point kernels and ``D`` the lattice as data.
+
+The constraint rows are ``c_{e,a} = X_e[comp_a] − value_a`` on every edge e (``X_e = log(G_e)/h``);
+their Jacobian along the drift, ``B_c δ = [dexp⁻¹(−hX_e)δ_j − dexp⁻¹(hX_e)δ_i]_comp / h``, is kept
+per edge as its two ``(c, r)`` blocks: ``Bt[e]`` on the tail node i and ``Bh[e]`` on the head
+node j (``[E, c, r]``, columns of every component; the node operators ``P`` ``[n, r, r]`` are
+zero on the gauge components and at clamped nodes, so only the unknowns enter).  On a chain of
+nodes (d = 1, open; edge e from node e to node e + 1) the multiplier matrices
+``L P Rᵀ`` couple an edge with its neighbours only: block-tridiagonal, ``[E, c, c]`` blocks,
+factored and solved in O(E c³) (:mod:`cartan.compiled.banded`).
+
+Per step: the rows at the start (the previous step's closing rows), the start's velocity
+projection (skipped when tangent), the force (first-same-as-last when no force depends on N),
+the predicted multiplier, about four trial flows of the quasi-Newton iteration (one
+factorization, at the first trial), the rows at the end and the closing kick with its velocity
+projection (one factorization, reused by the next step's start when no load depends on N).
+``status`` ``[2]`` int64 returns the outcome (0: steps done, 1: the multipliers' iteration
+failed, 2: the initial configuration could not be projected; the state is then the one the
+failing step started from) and the iterations summed over the steps; ``info`` ``[1]`` the
+residual of a failure.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ..compiled.banded import bt_factor, bt_solve, small_inverse
+from ..compiled.codegen import Fragment, njit_source
+from .constrained import _MAX_ITERATIONS as MAX_ITERATIONS
+
+__all__ = ["loop_fragment"]
+
+
+# ---------------------------------------------------------------------------- the rows
+def rattle_values(D, C, comp, value, out):
+    """``out[e, a] = log(G_e)[comp_a]/h − value_a`` ``[E, c]``; returns max |out| (NaN if any is NaN)."""
+    G = C[0]
+    xi = np.empty(R_)  # noqa: F821
+    big = 0.0
+    finite = True
+    for e in range(G.shape[0]):
+        g_log(G[e], xi)  # noqa: F821
+        for a in range(comp.shape[0]):
+            v = xi[comp[a]] * D.einvh[e] - value[a]
+            out[e, a] = v
+            if not np.isfinite(v):
+                finite = False
+            elif abs(v) > big:
+                big = abs(v)
+    return big if finite else np.nan
+
+
+def rattle_rows(D, C, comp, Bt, Bh):
+    """The rows of B_c at C: ``Bt[e] = −dexp⁻¹(hX_e)[comp]/h``, ``Bh[e] = dexp⁻¹(−hX_e)[comp]/h``
+    ``[E, c, r]``; returns the largest entry on the unknowns (live components, free nodes)."""
+    G = C[0]
+    xi = np.empty(R_)  # noqa: F821
+    A = np.empty((R_, R_))  # noqa: F821
+    big = 0.0
+    for e in range(G.shape[0]):
+        g_log(G[e], xi)  # noqa: F821
+        ih = D.einvh[e]
+        i, j = D.tail[e], D.head[e]
+        free_i = not (D.any_clamped and D.clamped[i])
+        free_j = not (D.any_clamped and D.clamped[j])
+        g_dexp_inv(xi, A)  # noqa: F821
+        for a in range(comp.shape[0]):
+            for k in range(R_):  # noqa: F821
+                v = -A[comp[a], k] * ih
+                Bt[e, a, k] = v
+                if free_i and D.live[k] and abs(v) > big:
+                    big = abs(v)
+        for k in range(R_):  # noqa: F821
+            xi[k] = -xi[k]
+        g_dexp_inv(xi, A)  # noqa: F821
+        for a in range(comp.shape[0]):
+            for k in range(R_):  # noqa: F821
+                v = A[comp[a], k] * ih
+                Bh[e, a, k] = v
+                if free_j and D.live[k] and abs(v) > big:
+                    big = abs(v)
+    return big
+
+
+def rattle_metric(D, closing, P):
+    """``P[i] = (M⁺·closing)`` on the live block ``/ w_i`` (zero elsewhere and at clamped
+    nodes) ``[n, r, r]``: the velocity change of a nodal impulse (closing: the damped kick's
+    ``(I + ½ΔtΓM⁺)⁻¹``, or I)."""
+    T = np.empty((R_, R_))  # noqa: F821
+    for k in range(R_):  # noqa: F821
+        for j in range(R_):  # noqa: F821
+            s = 0.0
+            if D.live[k] and D.live[j]:
+                for m in range(R_):  # noqa: F821
+                    s += D.inv_metric[k, m] * closing[m, j]
+            T[k, j] = s
+    for i in range(P.shape[0]):
+        zero = D.any_clamped and D.clamped[i]
+        for k in range(R_):  # noqa: F821
+            for j in range(R_):  # noqa: F821
+                P[i, k, j] = 0.0 if zero else T[k, j] * D.winv[i]
+
+
+def _rattle_flow_jacobian(D, N, dt, P):
+    """``P[i] = Δt·dexp(−ΔtN_i)·M⁺`` on the live block ``/ w_i`` (zero elsewhere and at clamped
+    nodes): the drift at the flow's end of a change of the nodal impulse (dexp(−ΔtN) as the
+    inverse of ``g_dexp_inv(−ΔtN)``: the kernel the rows use already)."""
+    Ei = np.empty((R_, R_))  # noqa: F821
+    E = np.empty((R_, R_))  # noqa: F821
+    M = np.empty((R_, 2 * R_))  # noqa: F821
+    xi = np.empty(R_)  # noqa: F821
+    for i in range(P.shape[0]):
+        zero = D.any_clamped and D.clamped[i]
+        if not zero:
+            for k in range(R_):  # noqa: F821
+                xi[k] = -dt * N[i, k]
+            g_dexp_inv(xi, Ei)  # noqa: F821
+            if not small_inverse(Ei, E, M):
+                for k in range(R_):  # noqa: F821
+                    for j in range(R_):  # noqa: F821
+                        E[k, j] = np.nan
+        for k in range(R_):  # noqa: F821
+            for j in range(R_):  # noqa: F821
+                s = 0.0
+                if not zero and D.live[k] and D.live[j]:
+                    for m in range(R_):  # noqa: F821
+                        if D.live[m]:
+                            s += E[k, m] * D.inv_metric[m, j]
+                P[i, k, j] = dt * s * D.winv[i]
+
+
+def _rattle_block(L, P, R, out, add, T):
+    """``out (+)= L P Rᵀ`` for ``L``, ``R`` ``(c, r)``, ``P`` ``(r, r)``, out ``(c, c)`` (T scratch ``(r, c)``)."""
+    c = L.shape[0]
+    for k in range(R_):  # noqa: F821
+        for b in range(c):
+            s = 0.0
+            for j in range(R_):  # noqa: F821
+                s += P[k, j] * R[b, j]
+            T[k, b] = s
+    for a in range(c):
+        for b in range(c):
+            s = 0.0
+            for k in range(R_):  # noqa: F821
+                s += L[a, k] * T[k, b]
+            out[a, b] = out[a, b] + s if add else s
+
+
+def rattle_factor(D, Lt, Lh, P, Rt, Rh, F):
+    """Assemble and factor ``L P Rᵀ`` on the chain (``F = (sub, diag, sup, inv, mult)``, each
+    ``[E, c, c]``): diagonal ``Lt_e P_i Rt_eᵀ + Lh_e P_j Rh_eᵀ``, below ``Lt_e P_i Rh_{e−1}ᵀ``
+    (node i = tail of e = head of e − 1), above ``Lh_e P_j Rt_{e+1}ᵀ``; returns False when it
+    is singular."""
+    sub, dia, sup, inv, mult = F
+    ne = Lt.shape[0]
+    T = np.empty((R_, Lt.shape[1]))  # noqa: F821
+    for e in range(ne):
+        i, j = D.tail[e], D.head[e]
+        _rattle_block(Lt[e], P[i], Rt[e], dia[e], False, T)
+        _rattle_block(Lh[e], P[j], Rh[e], dia[e], True, T)
+        if e > 0:
+            _rattle_block(Lt[e], P[i], Rh[e - 1], sub[e], False, T)
+        if e < ne - 1:
+            _rattle_block(Lh[e], P[j], Rt[e + 1], sup[e], False, T)
+    return bt_factor(sub, dia, sup, inv, mult)
+
+
+def rattle_apply(D, Bt, Bh, V, out):
+    """``out[e] = Bt_e V_i + Bh_e V_j`` ``[E, c]`` (B_c applied to a nodal field ``V`` ``[n, r]``)."""
+    for e in range(Bt.shape[0]):
+        i, j = D.tail[e], D.head[e]
+        for a in range(Bt.shape[1]):
+            s = 0.0
+            for k in range(R_):  # noqa: F821
+                s += Bt[e, a, k] * V[i, k] + Bh[e, a, k] * V[j, k]
+            out[e, a] = s
+
+
+def rattle_impulse(D, Bt, Bh, nu, out):
+    """``out[i] = (B_cᵀν)_i / w_i`` ``[n, r]``: the force density of the nodal impulse B_cᵀν."""
+    for i in range(out.shape[0]):
+        for k in range(R_):  # noqa: F821
+            out[i, k] = 0.0
+    for e in range(Bt.shape[0]):
+        i, j = D.tail[e], D.head[e]
+        for k in range(R_):  # noqa: F821
+            si = 0.0
+            sj = 0.0
+            for a in range(Bt.shape[1]):
+                si += Bt[e, a, k] * nu[e, a]
+                sj += Bh[e, a, k] * nu[e, a]
+            out[i, k] += si
+            out[j, k] += sj
+    for i in range(out.shape[0]):
+        for k in range(R_):  # noqa: F821
+            out[i, k] *= D.winv[i]
+
+
+def rattle_project_velocity(D, S, N, Bt, Bh, bmax, F, factored, P, closing, use_closing, half, skip, res, mu,
+                            imp):
+    """Add the impulse ``½Δt·closing·B_cᵀμ/w`` that makes ``B_c N = 0``: ``(B P Bᵀ)μ = −B N/(½Δt)``
+    with ``F`` the factors of ``B P Bᵀ`` (built here unless ``factored``); with ``skip``, nothing
+    when ``max|B N| ≤ 1e-13·max|B|·max|N|`` (tangent to round-off).  ``N`` is the velocity of
+    ``S`` on entry.  Returns ``(projected, factored, ok)``."""
+    rattle_apply(D, Bt, Bh, N, res)
+    if skip:
+        rmax = 0.0
+        for e in range(res.shape[0]):
+            for a in range(res.shape[1]):
+                rmax = max(rmax, abs(res[e, a]))
+        nmax = 0.0
+        for i in range(N.shape[0]):
+            for k in range(R_):  # noqa: F821
+                nmax = max(nmax, abs(N[i, k]))
+        if rmax <= 1e-13 * bmax * nmax:
+            return False, factored, True
+    if not factored:
+        if not rattle_factor(D, Bt, Bh, P, Bt, Bh, F):
+            return False, False, False
+        factored = True
+    bt_solve(F[2], F[3], F[4], res, mu)
+    for e in range(mu.shape[0]):
+        for a in range(mu.shape[1]):
+            mu[e, a] = -mu[e, a] / half
+    rattle_impulse(D, Bt, Bh, mu, imp)
+    row = np.empty(R_)  # noqa: F821
+    for i in range(S.shape[0]):
+        if use_closing:
+            for k in range(R_):  # noqa: F821
+                s = 0.0
+                for j in range(R_):  # noqa: F821
+                    s += closing[k, j] * imp[i, j]
+                row[k] = s
+        else:
+            for k in range(R_):  # noqa: F821
+                row[k] = imp[i, k]
+        for k in range(R_):  # noqa: F821
+            S[i, k] += half * row[k]
+    op_constrain(D, S)  # noqa: F821
+    return True, factored, True
+
+
+def _rattle_project_config(D, C, comp, value, scale, Bt, Bh, P, F, cres, y, delta, K):
+    """Bring C onto c = 0 by Gauss–Newton steps ``δ = −P Bᵀ(B P Bᵀ)⁻¹c`` along the drift (the
+    Python step's ``_project_configuration``); returns the residual, or −1 when it did not
+    converge in ``MAX_ITERATIONS_`` steps (the Python step's limit)."""
+    row = np.empty(R_)  # noqa: F821
+    err = rattle_values(D, C, comp, value, cres)
+    for _ in range(MAX_ITERATIONS_):  # noqa: F821
+        if err <= 1e-13 * scale:
+            return err
+        rattle_rows(D, C, comp, Bt, Bh)
+        if not rattle_factor(D, Bt, Bh, P, Bt, Bh, F):
+            return -1.0
+        bt_solve(F[2], F[3], F[4], cres, y)
+        rattle_impulse(D, Bt, Bh, y, delta)  # (B_cᵀy)_i / w_i
+        for i in range(delta.shape[0]):  # δ_i = −w_i P_i (B_cᵀy)_i / w_i (P carries the 1/w)
+            for k in range(R_):  # noqa: F821
+                s = 0.0
+                for j in range(R_):  # noqa: F821
+                    s += P[i, k, j] * delta[i, j]
+                row[k] = -s * D.w[i]
+            for k in range(R_):  # noqa: F821
+                delta[i, k] = row[k]
+        op_drift(D, C, 1.0, delta, K)  # noqa: F821
+        nxt = rattle_values(D, C, comp, value, cres)
+        if nxt > 0.5 * err and nxt <= 1e-10 * scale:
+            return nxt
+        err = nxt
+    return err if err <= 1e-13 * scale else -1.0
+
+
+def _rattle_predict(D, C, Ct, S, N, W, Bt, Bh, F, c0, comp, value, work, acc, nu, K):
+    """The force-level multiplier at the step's start (the Python step's ``_predict``):
+    ``(B P Bᵀ)λ = −B[M⁺(ad_NᵀS + W)] − Ḃ_c N``, ``Ḃ_c N`` by a central second difference of the
+    rows along exp(±εN) (ε = 1e-4/max|N|), ``F`` the factors of ``B P Bᵀ``; λ into ``nu``."""
+    n = S.shape[0]
+    size = 0.0
+    for i in range(n):
+        for k in range(R_):  # noqa: F821
+            size = max(size, abs(N[i, k]))
+    _lie_poisson(N, S, W, work)  # noqa: F821 - W + ad_NᵀS (cartan.integrators.loops)
+    for i in range(n):
+        for k in range(R_):  # noqa: F821
+            s = 0.0
+            for j in range(R_):  # noqa: F821
+                s += D.inv_metric[k, j] * work[i, j]
+            acc[i, k] = 0.0 if (D.any_clamped and D.clamped[i]) or not D.live[k] else s
+    rattle_apply(D, Bt, Bh, acc, nu)
+    if size > 0.0:
+        eps = 1e-4 / size
+        cp = np.empty((c0.shape[0], c0.shape[1]))
+        cm = np.empty((c0.shape[0], c0.shape[1]))
+        _rattle_copy(C, Ct)
+        op_drift(D, Ct, eps, N, K)  # noqa: F821
+        rattle_values(D, Ct, comp, value, cp)
+        _rattle_copy(C, Ct)
+        op_drift(D, Ct, -eps, N, K)  # noqa: F821
+        rattle_values(D, Ct, comp, value, cm)
+        for e in range(nu.shape[0]):
+            for a in range(nu.shape[1]):
+                nu[e, a] += (cp[e, a] - 2.0 * c0[e, a] + cm[e, a]) / (eps * eps)
+    bt_solve(F[2], F[3], F[4], nu, nu)
+    for e in range(nu.shape[0]):
+        for a in range(nu.shape[1]):
+            nu[e, a] = -nu[e, a]
+
+
+def _rattle_copy(src, dst):
+    """``dst ← src`` for configurations of 3-D arrays (the lattice's ``(G, Phi)``)."""
+    for a in range(len(src)):
+        x = src[a]
+        y = dst[a]
+        for i in range(x.shape[0]):
+            for j in range(x.shape[1]):
+                for k in range(x.shape[2]):
+                    y[i, j, k] = x[i, j, k]
+
+
+def _rattle_factors(ne, c):
+    return (np.zeros((ne, c, c)), np.zeros((ne, c, c)), np.zeros((ne, c, c)), np.zeros((ne, c, c)),
+            np.zeros((ne, c, c)))
+
+
+# ---------------------------------------------------------------------------- the loop
+def rattle_loop(D, C, S, W, have_w, velocity_free, pieces, fracs, closing, comp, value, scale, status, info, t, dt,
+                nsteps, diss, ext, check, limit):
+    """``rattle`` (see the module docstring): ``W`` ``[n, r]`` carries the force between steps
+    (first-same-as-last when ``velocity_free``), ``pieces``/``fracs`` lie-verlet's split free flow,
+    ``closing`` ``(I + ½ΔtΓM⁺)⁻¹`` ``[r, r]``, ``comp``/``value`` ``[c]`` the held components and
+    their values, ``scale`` max(1, max|value|) (the tolerances' unit)."""
+    K = op_work(D)  # noqa: F821
+    n = S.shape[0]
+    ne = D.tail.shape[0]
+    nc = comp.shape[0]
+    half = 0.5 * dt
+    N = np.empty((n, R_))  # noqa: F821
+    Dn = np.empty((n, M_, M_))  # noqa: F821
+    rhs = np.empty(R_)  # noqa: F821
+    work = np.empty((n, R_))  # noqa: F821
+    acc = np.empty((n, R_))  # noqa: F821
+    imp = np.empty((n, R_))  # noqa: F821
+    S0 = S.copy()
+    C0 = op_new_config(C)  # noqa: F821
+    Ct = op_new_config(C)  # noqa: F821
+    Bt0 = np.zeros((ne, nc, R_))  # noqa: F821 - rows at the step's start (the last step's closing rows)
+    Bh0 = np.zeros((ne, nc, R_))  # noqa: F821
+    Bt1 = np.zeros((ne, nc, R_))  # noqa: F821 - rows at the first trial
+    Bh1 = np.zeros((ne, nc, R_))  # noqa: F821
+    c0 = np.empty((ne, nc))
+    cres = np.empty((ne, nc))  # the rows' values at the trial (at the end of a step: at C)
+    pres = np.empty((ne, nc))
+    nu = np.empty((ne, nc))
+    mu = np.empty((ne, nc))
+    dnu = np.empty((ne, nc))
+    eye = np.zeros((R_, R_))  # noqa: F821
+    for k in range(R_):  # noqa: F821
+        eye[k, k] = 1.0
+    Pm = np.empty((n, R_, R_))  # noqa: F821
+    Pc = np.empty((n, R_, R_))  # noqa: F821
+    Pj = np.empty((n, R_, R_))  # noqa: F821
+    rattle_metric(D, eye, Pm)
+    rattle_metric(D, closing, Pc)
+    Fs = _rattle_factors(ne, nc)  # B₀ P B₀ᵀ (start)
+    Fc = _rattle_factors(ne, nc)  # B⁺ P_closing B⁺ᵀ (closing kick)
+    Fq = _rattle_factors(ne, nc)  # B₁ J B₀ᵀ (quasi-Newton)
+    # run-time booleans (not literals: a literal argument would compile the callee once per value)
+    yes = nsteps >= 0
+    no = not yes
+    have_b = False  # Bt0/Bh0 hold the rows at C
+    have_fs = False  # Fs factors B₀ Pm B₀ᵀ
+    bmax = 0.0
+    nforce = 0
+    niter = 0
+    op_velocity(D, S, N)  # noqa: F821
+    p0d, p0e = op_powers(D, C, N, t, K)  # noqa: F821
+    done = 0
+    for _ in range(nsteps):
+        # the step starts on the manifold ...
+        if have_b:  # the values at the end of the last step's iteration: the same configuration
+            err0 = 0.0
+            for e in range(ne):
+                for a in range(nc):
+                    c0[e, a] = cres[e, a]
+                    err0 = max(err0, abs(cres[e, a]))
+        else:
+            err0 = rattle_values(D, C, comp, value, c0)
+        if err0 > 1e-10 * scale:
+            err0 = _rattle_project_config(D, C, comp, value, scale, Bt0, Bh0, Pm, Fs, cres, dnu, imp, K)
+            if err0 < 0.0:
+                status[0] = 2
+                info[0] = rattle_values(D, C, comp, value, c0)
+                break
+            rattle_values(D, C, comp, value, c0)
+            have_w = False
+            have_b = False
+            have_fs = False
+        if not have_b:
+            bmax = rattle_rows(D, C, comp, Bt0, Bh0)
+            have_fs = False
+        # ... with a tangent velocity
+        op_velocity(D, S, N)  # noqa: F821
+        projected, have_fs, ok = rattle_project_velocity(D, S, N, Bt0, Bh0, bmax, Fs, have_fs, Pm, eye, no, half,
+                                                         yes, pres, mu, imp)
+        if not ok:
+            status[0] = 1
+            info[0] = np.nan
+            break
+        if projected:
+            have_w = False
+            op_velocity(D, S, N)  # noqa: F821
+        if not (have_w and velocity_free):
+            op_force(D, C, t, N, W, K)  # noqa: F821
+            nforce += 1
+        for i in range(n):
+            for k in range(R_):  # noqa: F821
+                S0[i, k] = S[i, k]
+        _rattle_copy(C, C0)
+        if not have_fs:
+            if not rattle_factor(D, Bt0, Bh0, Pm, Bt0, Bh0, Fs):
+                status[0] = 1
+                info[0] = np.nan
+                break
+            have_fs = True
+        _rattle_predict(D, C, Ct, S, N, W, Bt0, Bh0, Fs, c0, comp, value, work, acc, nu, K)
+        # the position multipliers: c(Φₙ₊₁(ν)) = 0 by quasi-Newton steps
+        prev = np.inf
+        factored = False
+        failed = False
+        it = 0
+        while True:
+            rattle_impulse(D, Bt0, Bh0, nu, imp)
+            for i in range(n):
+                for k in range(R_):  # noqa: F821
+                    S[i, k] = S0[i, k] + half * (W[i, k] + imp[i, k])
+            op_constrain(D, S)  # noqa: F821
+            _rattle_copy(C0, C)
+            op_free_flow(D, C, S, pieces, fracs, dt, Dn, K)  # noqa: F821
+            op_constrain(D, S)  # noqa: F821
+            err = rattle_values(D, C, comp, value, cres)
+            if err <= 1e-13 * scale or (err <= 1e-10 * scale and err > 0.5 * prev):
+                break
+            if not np.isfinite(err) or it == MAX_ITERATIONS_:  # noqa: F821
+                failed = True
+                info[0] = err
+                break
+            if not factored:
+                rattle_rows(D, C, comp, Bt1, Bh1)
+                op_velocity(D, S, N)  # noqa: F821
+                _rattle_flow_jacobian(D, N, dt, Pj)
+                if not rattle_factor(D, Bt1, Bh1, Pj, Bt0, Bh0, Fq):
+                    failed = True
+                    info[0] = err
+                    break
+                factored = True
+            bt_solve(Fq[2], Fq[3], Fq[4], cres, dnu)
+            for e in range(ne):
+                for a in range(nc):
+                    nu[e, a] -= dnu[e, a] / half
+            prev = err
+            it += 1
+        if failed:
+            for i in range(n):
+                for k in range(R_):  # noqa: F821
+                    S[i, k] = S0[i, k]
+            _rattle_copy(C0, C)
+            status[0] = 1
+            break
+        niter += it
+        # the closing kick and its velocity multiplier
+        t1 = t + dt
+        bmax = rattle_rows(D, C, comp, Bt0, Bh0)
+        have_b = True
+        if velocity_free:
+            op_velocity(D, S, N)  # noqa: F821
+            op_force(D, C, t1, N, W, K)  # noqa: F821
+            for i in range(n):
+                for k in range(R_):  # noqa: F821
+                    S[i, k] += half * W[i, k]
+            op_constrain(D, S)  # noqa: F821
+            op_velocity(D, S, N)  # noqa: F821
+            _, have_fs, ok = rattle_project_velocity(D, S, N, Bt0, Bh0, bmax, Fs, no, Pm, eye, no, half, no, pres,
+                                                     mu, imp)
+        else:
+            for i in range(n):
+                for k in range(R_):  # noqa: F821
+                    N[i, k] = 0.0
+            op_force(D, C, t1, N, W, K)  # noqa: F821
+            for i in range(n):
+                for k in range(R_):  # noqa: F821
+                    rhs[k] = S[i, k] + half * W[i, k]
+                for k in range(R_):  # noqa: F821
+                    v = 0.0
+                    for j in range(R_):  # noqa: F821
+                        v += closing[k, j] * rhs[j]
+                    S[i, k] = v
+            op_constrain(D, S)  # noqa: F821
+            op_velocity(D, S, N)  # noqa: F821
+            _, _, ok = rattle_project_velocity(D, S, N, Bt0, Bh0, bmax, Fc, no, Pc, closing, yes, half, no, pres,
+                                               mu, imp)
+            have_fs = False
+        if not ok:
+            status[0] = 1
+            info[0] = np.nan
+            break
+        nforce += 1
+        have_w = True
+        op_velocity(D, S, N)  # noqa: F821
+        if not velocity_free:  # the force at the new state: W(N = 0) − ΓN
+            for i in range(n):
+                for k in range(R_):  # noqa: F821
+                    W[i, k] -= D.damp[k] * N[i, k]
+        t = t1
+        done += 1
+        p0d, p0e, diss, ext, blown = _book(D, C, S, N, t, dt, p0d, p0e, diss, ext, K, check, limit)  # noqa: F821
+        if blown:
+            break
+    status[1] = niter
+    return done, nforce, t, diss, ext
+
+
+def loop_fragment() -> Fragment:
+    """The rattle loop, its helpers and the block-tridiagonal solver as one fragment of a
+    generated module (it uses ``_lie_poisson`` and ``_book`` of :mod:`cartan.integrators.loops`)."""
+    return Fragment(constants={"MAX_ITERATIONS_": MAX_ITERATIONS},
+                    source=njit_source(small_inverse, bt_factor, bt_solve, rattle_values, rattle_rows, rattle_metric,
+                                       _rattle_flow_jacobian, _rattle_block, rattle_factor, rattle_apply,
+                                       rattle_impulse, rattle_project_velocity, _rattle_project_config,
+                                       _rattle_predict, _rattle_copy, _rattle_factors, rattle_loop))
