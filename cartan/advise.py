@@ -15,15 +15,19 @@ is faster (measured, or :func:`cartan.reduction.reduction_pays` for dynamic runs
 
 The reductions
 --------------
-``held stretch and shear (filament)`` (approximate; paper §III.E, §VII.A)
-    A rod (d = 1, quadratic energy, on SE(3) or SE(2)) whose stretch and shear θ hardly move
-    is its inextensible, unshearable twin, :class:`HeldStrainMedium`: θ = θ₀ held by
-    constraint, the rest of the energy unchanged — for the Cosserat rod on SE(3) the Kirchhoff
-    filament with the rod's 𝔹 and π₀, for the planar rod the planar elastica.
-    *Indicator*: ``max |θ − θ₀|`` over the edges (and the saved frames of a pilot, or the
-    points of a path), the stretch and shear strains relative to the unit rest stretch.
-    *Error estimate*: the centreline of the rod is ``r(s) = r(0) + ∫₀ˢ R θ dσ``, that of the
-    constrained twin ``r_f(s) = r(0) + ∫₀ˢ R_f θ₀ dσ``, so
+``held strains (twin)`` (approximate; paper §III.E, §VII.A, §VII.B)
+    The twin the scene's medium declares (:meth:`cartan.medium.Medium.held_strain_twins`, a
+    :class:`~cartan.medium.HeldStrainTwin`: the registered twin medium, the held components
+    and values, the map of parameters), built by :func:`held_strain_twin` and checked to hold
+    what is declared; this module names no medium.  ``cosserat-rod`` declares the Kirchhoff
+    filament (θ = (1, 0, 0) held), ``planar-cosserat-rod`` the core's generic twin
+    :class:`HeldStrainMedium` (the planar elastica), ``cosserat-surface`` the Kirchhoff–Love
+    surface (transverse shear θ_α·e₃ = 0 held).
+    *Indicator*: ``max |X − X_held|`` of the held components over the edges or nodes (and the
+    saved frames of a pilot, or the points of a path).
+    *Error estimate*, a rod (d = 1, every translation strain held): the centreline of the rod
+    is ``r(s) = r(0) + ∫₀ˢ R θ dσ``, that of the constrained twin
+    ``r_f(s) = r(0) + ∫₀ˢ R_f θ₀ dσ``, so
 
         r(s) − r_f(s) = ∫₀ˢ R (θ − θ₀) dσ + ∫₀ˢ (R − R_f) θ₀ dσ.
 
@@ -35,11 +39,17 @@ The reductions
     ``|∫ R(θ − θ₀) dσ|`` over the nodes, integrated from a held end (clamped, or its position
     pinned by a continuation: from s = 0 when the start is, from s = L when only the end is),
     or relative to the centroid of the nodes when no end is held; ``∫|θ − θ₀| dσ`` bounds it.
+    A surface (d = 2, translation strains held): the same first term, the displacement x with
+    ``∂_α x = R (X_α − X_held)`` on the held components (for a shell ``R e₃ γ_α``, the
+    transverse shear γ_α = θ_α·e₃), integrated by least squares over the lattice's edges and
+    taken relative to the nodes the scene holds (those whose displacement stays within 10⁻³ of
+    the largest; the centroid when none does).  The report also gives the held strains against
+    the others' change (membrane ``|θ − θ₀|``, bending ``L·|π − π₀|``).
     The relative error is this displacement divided by the largest displacement of the scene
     (or the length L when nothing moves); the twin is recommended when it is at most
     ``rtol``.  On a continuation path the indicator is the largest over the path points, the
     estimate that of the path's end.  *Speed-up*: the ratio of the explicit integrator's CFL
-    estimates of the twin and of the rod (axial and shear waves against bending waves): what a
+    estimates of the twin and of the medium (the waves the constraint removes): what a
     dynamic run would gain.  In time the twin runs with the ``rattle`` integrator (which holds
     :meth:`~cartan.medium.Medium.constrained_strains`) at its own CFL step; a constrained step
     costs more than a free one, so for a dynamic scene the twin is recommended only when a
@@ -91,7 +101,7 @@ from typing import TYPE_CHECKING, Any, ClassVar
 
 import numpy as np
 
-from .medium import Medium, QuadraticMedium
+from .medium import HeldStrainTwin, Medium, QuadraticMedium
 
 if TYPE_CHECKING:  # pragma: no cover
     import xarray as xr
@@ -99,7 +109,7 @@ from .problem import Clamped, Damping, Free, InitialState, Problem
 
 __all__ = ["HELD_STRAINS", "LARGE_RADIUS", "PILOT_STEPS", "PLANAR", "Advice", "HeldStrainMedium", "ReductionAdvice",
            "MethodAdvice", "MethodCandidate", "ResolutionAdvice", "ResolutionCandidate", "advise", "advise_method",
-           "advise_resolution", "held_strain_problem", "plane_limit_problem"]
+           "advise_resolution", "held_strain_problem", "held_strain_twin", "plane_limit_problem"]
 
 #: time steps of the pilot run of a dynamic scene (fewer when the scene's run is shorter)
 PILOT_STEPS = 200
@@ -108,8 +118,9 @@ STATIC_REPEATS = 2
 #: default relative error accepted for an approximate reduction
 DEFAULT_RTOL = 1e-3
 
-#: the approximate reduction that holds stretch and shear by constraint (the Kirchhoff filament)
-HELD_STRAINS = "held stretch and shear (filament)"
+#: the approximate reduction that holds strain components by constraint: the twin the medium declares
+#: (:meth:`~cartan.medium.Medium.held_strain_twins`), e.g. a rod's Kirchhoff filament
+HELD_STRAINS = "held strains (twin)"
 #: the exact reduction of planar SE(3) problems (:mod:`cartan.reduction`)
 PLANAR = "SE(3) planar -> SE(2)"
 #: the approximate reduction of a rod on a sphere of large radius to the plane
@@ -137,8 +148,8 @@ class ReductionAdvice:
     indicator : float
         The measured indicator (NaN when not admitted).
     error_estimate : float
-        Estimated difference of the reduced model (absolute; length units for the filament,
-        strain units for the sphere rod; 0 for exact reductions).
+        Estimated difference of the reduced model (absolute; length units for a held-strain
+        twin, strain units for the sphere rod; 0 for exact reductions).
     error_scale : float
         The scale ``error_estimate`` is compared with (``rtol·error_scale``).
     speedup_estimate : float
@@ -524,30 +535,71 @@ class HeldStrainMedium(QuadraticMedium):
         return self.base.initial_state(grid, kind, **params)
 
 
-def held_strain_problem(problem: Problem) -> Problem:
-    """``problem`` with its medium's translation strains held (:class:`HeldStrainMedium`).
+def _twin_medium(medium: Medium, twin: HeldStrainTwin) -> Medium:
+    """The medium of a :class:`~cartan.medium.HeldStrainTwin` declaration, checked: it holds
+    exactly the declared components, at the declared values."""
+    from .plugins import get_registry
+
+    comps = tuple(int(c) for c in twin.components)
+    if twin.medium is None:
+        out: Medium = HeldStrainMedium(medium)
+    else:
+        if twin.parameters is None:
+            raise ValueError(f"the twin {twin.medium!r} is declared without its parameter map")
+        cls = get_registry().get("media", twin.medium)
+        out = cls(**twin.parameters(medium.parameters()))
+    held = out.constrained_strains()
+    if held is None or tuple(int(c) for c in held[0]) != comps:
+        raise ValueError(f"the twin {out.name!r} does not hold the declared components {list(comps)}")
+    if twin.values is not None and not np.allclose(np.asarray(held[1], dtype=float), twin.values, rtol=0, atol=0):
+        raise ValueError(f"the twin {out.name!r} holds {list(held[1])}, not the declared values {list(twin.values)}")
+    if out.group.name != medium.group.name or out.material_dim != medium.material_dim:
+        raise ValueError(f"the twin {out.name!r} is not on the medium's group and material dimension")
+    return out
+
+
+def held_strain_twin(problem: Problem) -> tuple[Problem, HeldStrainTwin]:
+    """``problem`` on the first held-strain twin its medium declares
+    (:meth:`~cartan.medium.Medium.held_strain_twins`), and the declaration.
 
     Parameters
     ----------
     problem : Problem
-        d = 1 on SE(2) or SE(3), a quadratic medium, no reference state.
+        Its medium declares a twin; no reference state.
 
     Returns
     -------
-    Problem
-        Same grid, initial state, boundaries, loads and name.
+    (Problem, HeldStrainTwin)
+        The twin's problem (same grid, initial state, boundaries, loads and name) and what the
+        medium declared.
 
     Raises
     ------
     ValueError
-        When the medium does not qualify (see :class:`HeldStrainMedium`) or the problem has a
-        reference state.
+        When the medium declares no twin, the twin cannot be built or does not hold what is
+        declared, or the problem has a reference state.
     """
+    twins = tuple(problem.medium.held_strain_twins())
+    if not twins:
+        raise ValueError(f"the medium {problem.medium.name!r} declares no held-strain twin")
     if problem.reference is not None:
         raise ValueError("the problem has a reference state (a varying rest strain)")
-    twin = HeldStrainMedium(problem.medium)
-    return Problem(twin, problem.grid, problem.initial, dict(problem.boundaries), list(problem.loads),
-                   name=problem.name)
+    twin = twins[0]
+    med = _twin_medium(problem.medium, twin)
+    return Problem(med, problem.grid, problem.initial, dict(problem.boundaries), list(problem.loads),
+                   name=problem.name), twin
+
+
+def held_strain_problem(problem: Problem) -> Problem:
+    """``problem`` on its medium's held-strain twin (:func:`held_strain_twin`): for a Cosserat
+    rod the Kirchhoff filament, for a Cosserat surface the Kirchhoff–Love surface.
+
+    Raises
+    ------
+    ValueError
+        As :func:`held_strain_twin`.
+    """
+    return held_strain_twin(problem)[0]
 
 
 def _strain_frames(ds: Any, k: int, theta0: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -635,37 +687,126 @@ def _cfl_ratio(full: Problem, reduced: Problem, settings: Mapping[str, Any]) -> 
     return values[1] / values[0] if values[0] > 0 else math.nan
 
 
-def _advise_filament(subject: _Subject, full_ds: Any, rtol: float, check: bool, full_time: float,
-                     pilot_t: float | None) -> ReductionAdvice:
-    out = ReductionAdvice(HELD_STRAINS, "approximate", indicator_name="max |θ − θ₀| (stretch and shear)")
+def _held_nodes(ds: Any, problem: Problem, k: int) -> np.ndarray:
+    """The nodes the scene holds: those whose displacement stays within 10⁻³ of the largest over
+    every frame of ``ds`` (supports, clamps); all nodes (the centroid) when none does."""
+    pos = np.asarray(ds["position"].values, dtype=float).reshape(ds.sizes["time"], -1, k)
+    pos0 = np.asarray(problem.initial.Phi, dtype=float)[..., 1:, 0].reshape(1, -1, k)
+    disp = np.max(np.linalg.norm(pos - pos0, axis=-1), axis=0)
+    held = np.flatnonzero(disp <= 1e-3 * np.max(disp))
+    return held if len(held) else np.arange(pos.shape[1])
+
+
+def _held_surface_estimate(ds: Any, problem: Problem, comps: Sequence[int], values: np.ndarray,
+                           k: int) -> tuple[float, np.ndarray, float]:
+    """A medium of d ≥ 2 with held translation strains: (indicator max|X_held − value| over the
+    nodes, axes and frames, the estimated position difference per frame ``[T]``, the ratio of the
+    indicator to the other strains' change — membrane ``|θ − θ₀|`` and bending ``L·|π − π₀|``).
+
+    The displacement the constraint removes, x with ∂_α x = R (X_α − X_α,held) on the held
+    components, is integrated by least squares over the lattice's edges (the field need not be
+    a gradient), relative to its mean over the nodes the scene holds (:func:`_held_nodes`)."""
+    import scipy.sparse as sp
+    from scipy.sparse.linalg import factorized
+
+    grid = problem.grid
+    shape = tuple(int(n) for n in grid.shape)
+    d, nn = len(shape), int(np.prod(shape))
+    X = np.asarray(ds["X"].values, dtype=float)
+    T = X.shape[0]
+    if X.shape[1:1 + d] != shape:
+        raise ValueError("the strains of this output are not nodal")
+    X = X.reshape(T, nn, d, -1)
+    E = np.asarray(ds["frame"].values, dtype=float).reshape(T, nn, k, k)
+    comps = [int(c) for c in comps]
+    dev = X[..., comps] - values  # [T, n, d, c]
+    w = np.einsum("tnic,tnac->tnai", E[..., comps], dev)  # R (X_α − X_held) on the held components [T, n, d, k]
+    idx = np.arange(nn).reshape(shape)
+    rows, cols, vals, incr = [], [], [], []
+    for a in range(d):
+        other = np.roll(idx, -1, axis=a) if grid.periodic[a] else np.take(idx, range(1, shape[a]), axis=a)
+        this = idx if grid.periodic[a] else np.take(idx, range(shape[a] - 1), axis=a)
+        i, j = this.reshape(-1), other.reshape(-1)
+        e0 = sum(x.shape[1] for x in incr)
+        e = np.arange(e0, e0 + len(i))
+        rows += [e, e]
+        cols += [i, j]
+        vals += [-np.ones(len(i)), np.ones(len(i))]
+        incr.append(0.5 * float(grid.spacing[a]) * (w[:, i, a] + w[:, j, a]))
+    b = np.concatenate(incr, axis=1)  # [T, edges, k]
+    D = sp.csc_matrix((np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols))), shape=(b.shape[1], nn))
+    Dr = D[:, 1:]  # node 0 pinned (the gauge), then the mean over the held nodes removed
+    anchor = _held_nodes(ds, problem, k)
+    solve = factorized((Dr.T @ Dr).tocsc())
+    est = np.empty(T)
+    for t in range(T):
+        x = np.zeros((nn, k))
+        for c in range(k):
+            x[1:, c] = solve(Dr.T @ b[t, :, c])
+        est[t] = float(np.max(np.linalg.norm(x - x[anchor].mean(axis=0), axis=-1)))
+    X0 = np.asarray(problem.medium.rest_strain(), dtype=float).reshape(d, -1)
+    free = [c for c in range(k) if c not in comps]
+    membrane = float(np.max(np.abs(X[..., free] - X0[:, free]))) if free else 0.0
+    bending = float(np.max(np.abs(X[..., k:] - X0[:, k:]))) * float(max(grid.length))
+    indicator = float(np.max(np.abs(dev)))
+    deform = max(membrane, bending)
+    return indicator, est, indicator / deform if deform > 0 else math.nan
+
+
+def _advise_held(subject: _Subject, full_ds: Any, rtol: float, check: bool, full_time: float,
+                 pilot_t: float | None) -> ReductionAdvice:
+    """The held-strain twin the scene's medium declares (:meth:`~cartan.medium.Medium.held_strain_twins`)."""
+    out = ReductionAdvice(HELD_STRAINS, "approximate", indicator_name="max |X − X_held| (held strains)")
     problem = subject.problem
-    if problem.grid.d != 1 or problem.grid.periodic[0]:
-        out.note = "compared on open rods (d = 1, not periodic) only"
-        return out
     try:
-        held = held_strain_problem(problem)
-    except ValueError as exc:
-        out.note = f"no held-strain twin: {exc}"
+        held, twin = held_strain_twin(problem)
+    except (ValueError, TypeError, KeyError) as exc:
+        out.note = f"no held-strain twin: {' '.join(str(exc).split())[:200]}"
         return out
-    out.admitted = True
+    label = f"{twin.label or 'held strains'}; twin {held.medium.name!r}"
+    out.indicator_name = f"max |X − X_held| ({label})"
     k = problem.medium.group.matrix_size - 1
-    theta0 = held.medium.constrained_strains()[1]
+    comps, values = (np.asarray(a) for a in held.medium.constrained_strains())
+    if any(int(c) >= k for c in comps):
+        out.note = f"twin {held.medium.name!r}: the estimate covers held translation strains only"
+        return out
     path = subject.mode == "continuation"
-    anchor = _anchor(subject)
-    ind, est, bound, _ = _filament_estimate(full_ds, problem, k, theta0, anchor, last=path)
+    at_end = ("at the path's end (λ = {:.4g}): ".format(float(full_ds["load_factor"].values[-1])) if path else "")
+    if problem.grid.d == 1:
+        if problem.grid.periodic[0] or [int(c) for c in comps] != list(range(k)):
+            out.note = (f"twin {held.medium.name!r}: compared on open rods (d = 1, not periodic) holding every "
+                        "translation strain only")
+            return out
+        anchor = _anchor(subject)
+        ind, est, bound, _ = _filament_estimate(full_ds, problem, k, values.astype(float), anchor, last=path)
+        out.error_scale = _displacement_scale(full_ds, problem, k, anchor)
+        what = (f"twin {held.medium.name!r} ({twin.label}): {at_end}end-position difference |∫R(θ − θ₀)ds| = "
+                f"{est:.5g} (bound ∫|θ − θ₀|ds = {bound:.5g}) against the largest displacement "
+                f"{out.error_scale:.3g}")
+    else:
+        try:
+            ind, per_frame, ratio = _held_surface_estimate(full_ds, problem, comps, values.astype(float), k)
+        except ValueError as exc:
+            out.note = f"twin {held.medium.name!r}: {exc}"
+            return out
+        est = float(per_frame[-1] if path else np.nanmax(per_frame))
+        nodes = _held_nodes(full_ds, problem, k)
+        centroid = len(nodes) == int(np.prod(problem.grid.shape))
+        out.error_scale = _displacement_scale(full_ds, problem, k, None if centroid else "held")
+        what = (f"twin {held.medium.name!r} ({twin.label}): held strains {ratio:.3g} of the membrane and bending "
+                f"strains (L·|π − π₀|); {at_end}the displacement they carry, ∂_α x = R(X_α − X_held) integrated by "
+                f"least squares, {est:.5g} against the largest displacement {out.error_scale:.3g} (both "
+                + ("about the centroid)" if centroid else f"from the {len(nodes)} nodes the scene holds)"))
+    out.admitted = True
     out.indicator, out.error_estimate = ind, est
-    out.error_scale = _displacement_scale(full_ds, problem, k, anchor)
     try:
         out.speedup_estimate = _cfl_ratio(problem, held, subject.run_settings)
-    except (ValueError, TypeError, KeyError):
+    except (ValueError, TypeError, KeyError, NotImplementedError, AttributeError):
         out.speedup_estimate = math.nan
     within = math.isfinite(out.relative_error) and out.relative_error <= rtol
-    what = (("at the path's end (λ = {:.4g}): ".format(float(full_ds["load_factor"].values[-1])) if path else "")
-            + f"end-position difference |∫R(θ − θ₀)ds| = {est:.5g} (bound ∫|θ − θ₀|ds = {bound:.5g}) against the "
-            f"largest displacement {out.error_scale:.3g}; speed-up = ratio of the explicit CFL estimates (what a "
-            "dynamic run would gain)")
+    what += "; speed-up = ratio of the explicit CFL estimates (what a dynamic run would gain)"
     if subject.mode == "dynamic":
-        return _advise_filament_dynamic(out, subject, held, full_ds, full_time, pilot_t, within, what, rtol, check, k)
+        return _advise_held_dynamic(out, subject, held, full_ds, full_time, pilot_t, within, what, rtol, check, k)
     out.recommended = within
     out.note = what + ("" if within else f"; relative error {out.relative_error:.3g} > rtol = {rtol:g}")
     if check:
@@ -693,7 +834,7 @@ def _measured(out: ReductionAdvice, full_ds: Any, held_ds: Any, full_time: float
     out.time_ratio = full_time / held_time if held_time > 0 else math.nan
 
 
-def _advise_filament_dynamic(out: ReductionAdvice, subject: _Subject, held: Problem, full_ds: Any, full_time: float,
+def _advise_held_dynamic(out: ReductionAdvice, subject: _Subject, held: Problem, full_ds: Any, full_time: float,
                              pilot_t: float | None, within: bool, what: str, rtol: float, check: bool,
                              k: int) -> ReductionAdvice:
     """The held-strain twin of a dynamic scene: it runs with ``rattle`` (the integrator that holds
@@ -1017,7 +1158,7 @@ def advise(problem_or_scene: Any, check: bool = False, *, rtol: float = DEFAULT_
         pilot = (f"a pilot run to t = {pilot_t:g} ({round(pilot_t / dt)} steps of Δt = {dt:.3g}, {full_time:.3g} s; "
                  f"the scene runs to t = {float(run.info['run']['t_end']):g})")
     reductions = [
-        _advise_filament(subject, full_ds, float(rtol), bool(check), full_time, pilot_t),
+        _advise_held(subject, full_ds, float(rtol), bool(check), full_time, pilot_t),
         _advise_planar(subject, full_ds, full_time, run, pilot_t, bool(check)),
         _advise_sphere(subject, full_ds, full_time, float(rtol), pilot_t, bool(check)),
     ]

@@ -35,6 +35,7 @@ from numba import njit
 from .groups.base import SymmetryGroup
 
 __all__ = [
+    "HeldStrainTwin",
     "KernelMedium",
     "Medium",
     "MediumKernels",
@@ -145,6 +146,12 @@ def pullback_gradient(group: SymmetryGroup, space, Phi: np.ndarray, grad: np.nda
     numpy.ndarray, shape ``[..., r]``
     """
     basis = group._basis  # [r, m, m]
+    q_r = np.asarray(space.q_r, dtype=float)
+    if q_r.ndim == 2 and Phi.shape[-1] == q_r.shape[0]:
+        # matrix points q = Φ q_r (frame bundles): ⟨∂U/∂q, Φ b_i q_r⟩ = ⟨Φᵀ (∂U/∂q) q_rᵀ, b_i⟩,
+        # one product per node instead of one per generator
+        M = np.swapaxes(Phi, -1, -2) @ np.asarray(grad, dtype=float) @ q_r.T
+        return -(M.reshape(*M.shape[:-2], -1) @ basis.reshape(basis.shape[0], -1).T)
     Phib = Phi[..., None, :, :] @ basis  # [..., r, m, m]
     tang = _linear_act(space, Phib)  # [..., r, *point_shape]
     g = np.expand_dims(np.asarray(grad, dtype=float), axis=Phi.ndim - 2)
@@ -231,6 +238,41 @@ def quadratic_stress_point(X, X0, p, Q):  # pragma: no cover - compiled
                         s += p[col + j] * (X[b, j] - X0[b, j])
             Q[a, k] = s
             row += 1
+
+
+@dataclass(frozen=True)
+class HeldStrainTwin:
+    """A medium's approximate twin with some strain components held by constraint (paper §III.E).
+
+    Declared by :meth:`Medium.held_strain_twins`; ``cartan advise`` (:mod:`cartan.advise`)
+    builds the twin, measures how far the held components move in a scene and runs the twin
+    beside the medium.  The twin keeps the medium's group, space, grid, loads, boundaries and
+    initial state; it must hold exactly ``components`` (its own
+    :meth:`Medium.constrained_strains`), at ``values``.
+
+    Attributes
+    ----------
+    medium : str or None
+        Registry name of the twin medium (e.g. ``"filament"``), or None for the core's generic
+        twin (:class:`cartan.advise.HeldStrainMedium`: this medium's quadratic energy without
+        the held components; d = 1 translation strains only).
+    components : tuple of int
+        Indices ``k < r`` into the group's basis, held on every material axis.
+    values : tuple of float or None
+        The held values, one per component (the same on every axis); None: this medium's rest
+        values (:meth:`Medium.rest_strain`).
+    parameters : callable or None
+        ``parameters(this.parameters()) -> dict``: the twin's constructor keywords from this
+        medium's parameters (None with ``medium=None``).
+    label : str
+        What is held, in words (``"stretch and shear"``, ``"transverse shear"``).
+    """
+
+    medium: str | None
+    components: tuple[int, ...]
+    values: tuple[float, ...] | None = None
+    parameters: Callable[[dict[str, Any]], dict[str, Any]] | None = None
+    label: str = ""
 
 
 class Medium(abc.ABC):
@@ -408,6 +450,22 @@ class Medium(abc.ABC):
         None, or (components, values) : int array ``(c,)`` and float array ``(c,)``
         """
         return None
+
+    def held_strain_twins(self) -> tuple[HeldStrainTwin, ...]:
+        """Approximate twins that hold some of this medium's strains by constraint (default: none).
+
+        A medium whose strain components may be held at fixed values when they hardly move
+        (the stretch and shear of a stiff rod, the transverse shear of a thin shell; paper
+        §III.E, §VII) declares, for each such reduction, a :class:`HeldStrainTwin`: the
+        registered twin medium, the held components and values, and the map of parameters.
+        The medium declares data only; :mod:`cartan.advise` builds, measures and runs the twin.
+
+        Returns
+        -------
+        tuple of HeldStrainTwin
+            Empty when the medium has no such twin (or cannot have one with these parameters).
+        """
+        return ()
 
     #: names accepted by :meth:`make_load` and :meth:`initial_state` (for error messages and docs)
     load_kinds: ClassVar[tuple[str, ...]] = ()

@@ -596,6 +596,28 @@ class CosseratRod(_Rod):
         except ValueError:
             return None
 
+    def held_strain_twins(self) -> tuple:
+        """The Kirchhoff filament (``filament``: θ = (1, 0, 0) held, paper §III.E, §VII.A) with
+        this rod's 𝔹 = diag(GJ, EI₂, EI₃), π₀, ρA and inertia; none for a rod with a rest
+        stretch or shear, a non-diagonal 𝔹, or constrained strains of its own (see
+        :meth:`cartan.medium.Medium.held_strain_twins`)."""
+        from cartan.medium import HeldStrainTwin
+
+        X0, C = self.quadratic_energy()
+        X0, C = np.asarray(X0, dtype=float).reshape(-1), np.asarray(C, dtype=float)
+        B = C[3:, 3:]
+        if self.constrained_strains() is not None or not np.array_equal(X0[:3], [1.0, 0.0, 0.0]) or \
+                np.any(B != np.diag(np.diag(B))):
+            return ()
+        m = self.inertia()
+
+        def parameters(_: dict[str, Any]) -> dict[str, Any]:
+            return {"bending": [float(B[1, 1]), float(B[2, 2])], "twist": float(B[0, 0]),
+                    "rest_curvature": [float(X0[4]), float(X0[5])], "rest_twist": float(X0[3]),
+                    "mass": float(m[0]), "rotational_inertia": [float(v) for v in m[3:]]}
+
+        return (HeldStrainTwin("filament", (0, 1, 2), (1.0, 0.0, 0.0), parameters, "stretch and shear"),)
+
 
 # ====================================================================== SE(2) rod
 class PlanarCosseratRod(_Rod):
@@ -689,6 +711,15 @@ class PlanarCosseratRod(_Rod):
         Phi[:, 1:, 0] = pos[:, :2]
         Phi[:, 1:, 1:] = frames[:, :2, :2]
         return Phi
+
+    def held_strain_twins(self) -> tuple:
+        """The planar elastica: θ = θ₀ held, the core's generic twin (no registered medium;
+        :class:`cartan.advise.HeldStrainMedium`), see :meth:`cartan.medium.Medium.held_strain_twins`."""
+        from cartan.medium import HeldStrainTwin
+
+        if self.constrained_strains() is not None:
+            return ()
+        return (HeldStrainTwin(None, (0, 1), label="stretch and shear"),)
 
     def _rigid_body_velocity(self, Phi, twist, center):
         pos, R = Phi[:, 1:, 0], Phi[:, 1:, 1:]
