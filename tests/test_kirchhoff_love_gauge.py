@@ -27,16 +27,31 @@ def _saddle_tangents(u, v):
     return ru, rv
 
 
+MEDIA = ("kirchhoff-love", "helfrich-membrane")
+
+
+@pytest.mark.parametrize("medium", MEDIA)
 @pytest.mark.parametrize("params, word", [({"gauge": "natural"}, "gauge"), ({"umbilic": "zero"}, "umbilic")])
-def test_bad_gauge_parameters(params, word):
+def test_bad_gauge_parameters(medium, params, word):
     with pytest.raises(ValueError, match=word):
-        cartan.medium("kirchhoff-love", **params)
+        cartan.medium(medium, **params)
 
 
-def test_parameters_round_trip():
-    kl = cartan.medium("kirchhoff-love", gauge="principal", umbilic="keep")
-    again = cartan.medium("kirchhoff-love", **kl.parameters())
+@pytest.mark.parametrize("medium", MEDIA)
+def test_parameters_round_trip(medium):
+    kl = cartan.medium(medium, gauge="principal", umbilic="keep")
+    again = cartan.medium(medium, **kl.parameters())
     assert (again.gauge, again.umbilic) == ("principal", "keep")
+
+
+def test_membrane_frames_in_the_principal_gauge():
+    """The Helfrich membrane builds its initial frames as the Kirchhoff–Love surface does, in either
+    gauge (the same builders; the energy does not read the gauge)."""
+    grid = cartan.Grid((7, 7), length=(1.0, 1.0))
+    for gauge in ("coordinate", "principal"):
+        kl = cartan.medium("kirchhoff-love", gauge=gauge).initial_state(grid, "surface", position=_saddle).Phi
+        hm = cartan.medium("helfrich-membrane", gauge=gauge).initial_state(grid, "surface", position=_saddle).Phi
+        np.testing.assert_array_equal(hm, kl)
 
 
 def test_principal_frames_diagonalise_the_shape_operator():

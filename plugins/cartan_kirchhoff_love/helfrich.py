@@ -66,7 +66,7 @@ from numba import njit
 import cartan
 from cartan.medium import MediumKernels, check_finite, check_positive
 
-from .kirchhoff_love import KirchhoffLove
+from .kirchhoff_love import KirchhoffLove, checked_gauge
 
 __all__ = ["HelfrichMembrane", "helfrich_energy", "helfrich_stress"]
 
@@ -210,6 +210,11 @@ class HelfrichMembrane(KirchhoffLove):
         Membrane thickness δ (> 0), default 0.01, only in the rotary inertia ρδ²/12 of the
         kinetic metric.
 
+    gauge, umbilic : str
+        The initial frames' gauge about the normal and the rule at umbilics, as for
+        ``kirchhoff-love`` (``"coordinate"``, ``"error"`` by default); the energy does not
+        depend on the gauge.
+
     Notes
     -----
     ``X``, ``Q`` have shape ``[..., 2, 6]``, components ``(θ_α; π_α)``.  Energy, stress and
@@ -235,7 +240,8 @@ class HelfrichMembrane(KirchhoffLove):
 
     def __init__(self, bending_modulus: float = 1.0, gaussian_modulus: float = 0.0,
                  spontaneous_curvature: float = 0.0, tension: float = 0.0, area_modulus: float = 10.0,
-                 shear_modulus: float = 0.01, density: float = 1.0, thickness: float = 0.01):
+                 shear_modulus: float = 0.01, density: float = 1.0, thickness: float = 0.01,
+                 gauge: str = "coordinate", umbilic: str = "error"):
         self.group = cartan.group("SE3")
         self.space = cartan.space("frame-E3")
         self.kb = float(check_positive("bending_modulus", bending_modulus, shape=()))
@@ -247,13 +253,14 @@ class HelfrichMembrane(KirchhoffLove):
         self.rho = float(check_positive("density", density, shape=()))
         self.h = float(check_positive("thickness", thickness, shape=()))
         self.k0 = np.zeros(2)  # no rest curvature: the Helfrich energy is absolute in the curvature
+        self.gauge, self.umbilic = checked_gauge(gauge, umbilic)
 
     # ------------------------------------------------------------------ contract
     def parameters(self) -> dict[str, Any]:
         """Constructor keywords (JSON-serialisable); ``HelfrichMembrane(**parameters())`` rebuilds it."""
         return {"bending_modulus": self.kb, "gaussian_modulus": self.kg, "spontaneous_curvature": self.c0,
                 "tension": self.sigma, "area_modulus": self.ka, "shear_modulus": self.mu, "density": self.rho,
-                "thickness": self.h}
+                "thickness": self.h, "gauge": self.gauge, "umbilic": self.umbilic}
 
     @property
     def kernel_params(self) -> np.ndarray:

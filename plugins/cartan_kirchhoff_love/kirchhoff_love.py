@@ -149,6 +149,15 @@ def _fields_batch(X, X0, p, out):  # pragma: no cover - compiled
 
 
 # ====================================================================== principal gauge
+def checked_gauge(gauge: Any, umbilic: Any) -> tuple[str, str]:
+    """``(gauge, umbilic)`` validated: ``ValueError`` naming the parameter and the allowed values."""
+    if gauge not in GAUGES:
+        raise ValueError(f"gauge must be one of {', '.join(GAUGES)}, got {gauge!r}")
+    if umbilic not in ("error", "keep"):
+        raise ValueError(f"umbilic must be 'error' or 'keep', got {umbilic!r}")
+    return gauge, umbilic
+
+
 def _frame_form(T: np.ndarray, b: np.ndarray) -> np.ndarray:
     """B = T⁻¹ sym(b) T⁻ᵀ ``[..., 2, 2]``: the second fundamental form in the frame basis, from
     T_αr = ∂_α r·e_r and b_αβ = ∂_α r·∂_β e₃ ``[..., 2, 2]``."""
@@ -275,12 +284,7 @@ class KirchhoffLove(CosseratSurface):
                  rest_curvature: Any = (0.0, 0.0), gauge: str = "coordinate", umbilic: str = "error"):
         super().__init__(E=E, poisson=poisson, thickness=thickness, density=density, shear_correction=1.0,
                          rest_curvature=rest_curvature)
-        if gauge not in GAUGES:
-            raise ValueError(f"gauge must be one of {', '.join(GAUGES)}, got {gauge!r}")
-        if umbilic not in ("error", "keep"):
-            raise ValueError(f"umbilic must be 'error' or 'keep', got {umbilic!r}")
-        self.gauge = gauge
-        self.umbilic = umbilic
+        self.gauge, self.umbilic = checked_gauge(gauge, umbilic)
 
     # ------------------------------------------------------------------ contract
     def parameters(self) -> dict[str, Any]:
