@@ -198,6 +198,7 @@ def test_dynamic_scene_reports_the_filament_without_recommending_it():
     assert math.isnan(fil.measured_difference)  # no check asked
 
 
+@pytest.mark.slow  # compiles the filament's rattle loop (≈ 100 s on a fresh cache)
 def test_dynamic_check_runs_the_held_strain_twin_with_rattle():
     """With check, the twin of a dynamic scene runs (rattle, its own step) over the pilot's time:
     a measured difference of the order of the estimate and a measured time ratio; recommended

@@ -16,7 +16,9 @@ BLOCK = re.compile(r"^```python\n(.*?)^```", re.S | re.M)
 
 
 #: pages whose examples compile several loops of their own (a minute or more on a fresh cache)
-SLOW_PAGES = {"integrators.md", "plugins.md", "relativistic-rod.md", "verification.md"}
+#: pages whose examples compile loops of their own for minutes on a fresh cache (filament.md: the
+#: compiled rattle loop of its dynamics example)
+SLOW_PAGES = {"integrators.md", "plugins.md", "relativistic-rod.md", "verification.md", "filament.md"}
 
 
 @pytest.mark.parametrize("path", [pytest.param(p, marks=[pytest.mark.slow] if p.name in SLOW_PAGES else [])

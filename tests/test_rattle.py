@@ -4,6 +4,10 @@ The inextensible, unshearable filament (θ = (1, 0, 0) on every lattice edge) ru
 constraints held to round-off, the velocities tangent to them, the energy balance closing to
 the method's second order, the observed order in Δt, exact restarts, and the statics'
 equilibrium reached by a damped run.  Without constraints the step is lie-verlet's.
+
+The fast tests run the Python step (``compiled=False``), the reference of the compiled loop,
+which compiles for minutes on a fresh cache: its agreement with the Python step, its restarts
+and the long runs are in ``make test-slow`` (and ``tests/test_rattle_compiled.py``).
 """
 
 from __future__ import annotations
@@ -31,7 +35,8 @@ def _filament(n: int = 11, load=TIP, loads=(), initial=None):
 def run():
     """200 steps of Δt = 5e-3 (the bending waves' limit at n = 11 is ≈ 1e-2)."""
     integ = Rattle()
-    ds = cartan.simulate(_filament(), integrator=integ, dt=5e-3, t_end=1.0, save_every=20, progress=False)
+    ds = cartan.simulate(_filament(), integrator=integ, dt=5e-3, t_end=1.0, save_every=20, progress=False,
+                         compiled=False)
     return ds, integ
 
 
@@ -53,7 +58,8 @@ def test_energy_balance_is_second_order(run):
     balance = ds["kinetic_energy"] + ds["potential_energy"] - ds["external_work"]
     err_coarse = float(np.max(np.abs(balance)))
     assert err_coarse < 2e-3 * float(ds["external_work"].max())
-    fine = cartan.simulate(_filament(), integrator="rattle", dt=2.5e-3, t_end=1.0, save_every=40, progress=False)
+    fine = cartan.simulate(_filament(), integrator="rattle", dt=2.5e-3, t_end=1.0, save_every=40, progress=False,
+                           compiled=False)
     err_fine = float(np.max(np.abs(fine["kinetic_energy"] + fine["potential_energy"] - fine["external_work"])))
     assert 2.8 < err_coarse / err_fine < 5.7  # 4 = 2², within the spread of a max over 50 saves
 
@@ -64,7 +70,7 @@ def test_observed_order_is_two():
     tips = []
     for dt in (8e-3, 4e-3, 2e-3):
         ds = cartan.simulate(_filament(n=9), integrator="rattle", dt=dt, t_end=0.4, save_every=int(round(0.4 / dt)),
-                             progress=False)
+                             progress=False, compiled=False)
         tips.append(ds["position"].values[-1, -1])
     d1, d2 = np.linalg.norm(tips[0] - tips[1]), np.linalg.norm(tips[1] - tips[2])
     order = np.log2(d1 / d2)
@@ -112,7 +118,7 @@ def test_simulate_picks_rattle_and_refuses_the_others():
     """A medium with constrained strains runs with ``rattle`` by default; an integrator that does
     not hold the constraints, or a scheme without edge strains, is refused with a clear error."""
     prob = _filament(n=5)
-    ds = cartan.simulate(prob, dt=5e-3, t_end=0.01, progress=False)
+    ds = cartan.simulate(prob, dt=5e-3, t_end=0.01, progress=False, compiled=False)
     assert "constraint_residual" in ds and float(ds["constraint_residual"].max()) < 1e-12
     with pytest.raises(ValueError, match="integrator='rattle'"):
         cartan.simulate(prob, integrator="lie-verlet", dt=5e-3, t_end=0.01, progress=False)
@@ -120,14 +126,16 @@ def test_simulate_picks_rattle_and_refuses_the_others():
         cartan.simulate(prob, scheme="collocation", dt=5e-3, t_end=0.01, progress=False)
 
 
-def test_restart_is_bit_for_bit(tmp_path):
+@pytest.mark.parametrize("compiled", [False, pytest.param(True, marks=pytest.mark.slow)])
+def test_restart_is_bit_for_bit(tmp_path, compiled):
     """A run continued from its checkpoint is the uninterrupted run, bit for bit (the
-    multipliers' iteration starts from the state alone)."""
+    multipliers' iteration starts from the state alone), in the Python step and the compiled
+    loop (which compiles for minutes on a fresh cache: ``make test-slow``)."""
     prob = _filament(n=7)
-    kw = dict(integrator="rattle", dt=4e-3, save_every=5, checkpoint_every=1, progress=False)
+    kw = dict(integrator="rattle", dt=4e-3, save_every=5, checkpoint_every=1, progress=False, compiled=compiled)
     whole = cartan.simulate(prob, t_end=0.08, output=tmp_path / "whole.nc", **kw)
     cartan.simulate(prob, t_end=0.04, output=tmp_path / "part.nc", **kw)
-    cont = cartan.simulate(prob, restart=tmp_path / "part.nc", t_end=0.08, progress=False)
+    cont = cartan.simulate(prob, restart=tmp_path / "part.nc", t_end=0.08, progress=False, compiled=compiled)
     for name in ("position", "frame", "S", "X", "kinetic_energy", "external_work", "constraint_residual"):
         assert np.array_equal(whole[name].values, cont[name].values), name
 
@@ -217,7 +225,7 @@ def test_swing_scene_runs_with_rattle():
     short run holds the constraints and closes the energy balance E + D − W."""
     sc = cartan.scene("filament-swing")
     assert sc.run_settings()["integrator"] == "rattle"
-    ds = cartan.simulate(sc, t_end=0.4, progress=False)
+    ds = cartan.simulate(sc, t_end=0.4, progress=False, compiled=False)
     assert float(ds["constraint_residual"].max()) < 1e-12
     assert float(ds["kinetic_energy"][-1]) > 0.1  # it is swinging
     E = ds["kinetic_energy"] + ds["potential_energy"] + ds["dissipated_energy"] - ds["external_work"]

@@ -34,6 +34,7 @@ def _python_steps_forbidden(monkeypatch):
     monkeypatch.setattr(Rattle, "_step", refuse)
 
 
+@pytest.mark.slow  # compiles the rattle loop (minutes on a fresh cache)
 def test_compiled_run_matches_the_python_step(monkeypatch):
     """120 steps of Δt = 5e-3 under a 3-D tip wrench (the filament bends by tenths of its
     length): the compiled loop and the Python step agree to round-off.  Both converge the
@@ -58,6 +59,7 @@ def test_compiled_run_matches_the_python_step(monkeypatch):
     assert float(ds["constraint_residual"].max()) < 1e-12
 
 
+@pytest.mark.slow  # compiles the rattle loop (minutes on a fresh cache)
 def test_compiled_initial_projection_matches_python():
     """A sampled shape off the constraints (nodes on y = ½x² at equal x steps, the edges
     stretch and shear) is projected by the compiled loop's first step as by the Python step:
@@ -91,6 +93,7 @@ def test_compiled_initial_projection_matches_python():
     assert np.max(np.abs(a.S - b.S)) < 1e-11
 
 
+@pytest.mark.slow  # compiles the rattle loop (minutes on a fresh cache)
 def test_failed_iteration_raises_and_keeps_the_last_state():
     """A time step far beyond the bending waves' limit: the multipliers' iteration fails at
     the first step, the loop raises the Python step's ConvergenceError and the state is the

@@ -115,6 +115,7 @@ def test_quarter_period_is_the_frequency_shift(rows):
         assert abs(r["quarter"] / (math.pi / 8 * b * b) - 1.0) <= b * b, r
 
 
+@pytest.mark.slow  # the periodic string with a translation holonomy compiles its own loop (≈ 80 s)
 def test_the_difference_is_seen(case):
     """The error is not vacuous: a node moved across the string by 1e-3 A shows."""
     problem, settings = case.problem(3)

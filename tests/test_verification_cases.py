@@ -42,7 +42,10 @@ RUNS = [(name, integ, scheme) for name, case in sorted(CASES.items()) if case.ki
 SLOW_ALL_LEVELS = {"rod-euler-buckling", "rod-cantilever-elastica", "plate-buckling-column",
                    "plate-buckling-wide-column", "plate-navier-thick", "plate-navier-thin", "solid-uniaxial-stress",
                    "plate-buckling-column-kl", "shell-scordelis-lo", "shell-pinched-cylinder", "solid-cylinder-torsion",
-                   "relativistic-newtonian-limit", "plate-modes-kl", "principal-gauge-kl"}
+                   "relativistic-newtonian-limit"}
+#: cases whose every level runs in their own test file already (tests/test_kirchhoff_love_modes.py,
+#: tests/test_kirchhoff_love_gauge.py: the same runs, minutes each in Python rattle on 2D grids)
+OWN_ALL_LEVELS = {"plate-modes-kl", "principal-gauge-kl"}
 #: cases whose quick levels alone take tens of seconds (the shells' grids of 33² – 65² nodes):
 #: their coarse levels run in the fast suite in their own files (tests/test_cosserat_surface_shells.py)
 SLOW_QUICK = {"shell-scordelis-lo", "shell-pinched-cylinder",
@@ -64,7 +67,7 @@ def _slow_poincare(run: tuple) -> bool:
 QUICK_RUNS = [pytest.param(*run, marks=pytest.mark.slow) if _slow_poincare(run) or run[0] in SLOW_QUICK else run
               for run in RUNS]
 ALL_LEVEL_RUNS = [pytest.param(*run, marks=pytest.mark.slow) if run[0] in SLOW_ALL_LEVELS or _slow_poincare(run)
-                  else run for run in RUNS]
+                  else run for run in RUNS if run[0] not in OWN_ALL_LEVELS]
 
 
 # ---------------------------------------------------------------------------- registry and metadata

@@ -48,6 +48,14 @@ def _blown(D, C, S, check, limit):
     return not op_finite_config(C)  # noqa: F821
 
 
+def _damped(D, W, N):
+    """W ← W − ΓN at every node: the force at a new state from its velocity-free part W(N = 0)
+    (the linear ``Damping`` of the closing kick)."""
+    for i in range(W.shape[0]):
+        for k in range(R_):  # noqa: F821
+            W[i, k] -= D.damp[k] * N[i, k]
+
+
 def _book(D, C, S, N, t, dt, p0d, p0e, diss, ext, K, check, limit):
     """After a step: the loads' powers at its end (velocity ``N``), their trapezoidal
     integrals, and the blow-up test; returns ``(p1d, p1e, dissipated, external, blown)``."""
@@ -103,10 +111,8 @@ def lie_verlet_loop(D, C, S, W, have_w, velocity_free, pieces, fracs, closing, t
         have_w = True
         op_constrain(D, S)  # noqa: F821
         op_velocity(D, S, N)  # noqa: F821
-        if not velocity_free:  # the force at the new state: W(N = 0) − ΓN
-            for i in range(n):
-                for k in range(R_):  # noqa: F821
-                    W[i, k] -= D.damp[k] * N[i, k]
+        if not velocity_free:
+            _damped(D, W, N)
         t = t1
         done += 1
         p0d, p0e, diss, ext, blown = _book(D, C, S, N, t, dt, p0d, p0e, diss, ext, K, check, limit)
@@ -328,7 +334,7 @@ def loop_fragment() -> Fragment:
     """The loops and their helpers as one fragment of a generated module (``KINEMATIC_`` False:
     :func:`kinematic_fragment` sets it in the modules that carry a prescribed velocity)."""
     return Fragment(constants={"KINEMATIC_": False},
-                    source=njit_source(_coad_exp, _blown, _book, lie_verlet_loop, _lie_poisson, euler_loop,
+                    source=njit_source(_coad_exp, _blown, _damped, _book, lie_verlet_loop, _lie_poisson, euler_loop,
                                        _kinematic_velocity, _stage_velocity, rkmk_loop))
 
 

@@ -513,10 +513,8 @@ def rattle_loop(D, C, S, W, have_w, velocity_free, pieces, fracs, closing, comp,
         nforce += 1
         have_w = True
         op_velocity(D, S, N)  # noqa: F821
-        if not velocity_free:  # the force at the new state: W(N = 0) − ΓN
-            for i in range(n):
-                for k in range(R_):  # noqa: F821
-                    W[i, k] -= D.damp[k] * N[i, k]
+        if not velocity_free:
+            _damped(D, W, N)  # noqa: F821
         t = t1
         done += 1
         p0d, p0e, diss, ext, blown = _book(D, C, S, N, t, dt, p0d, p0e, diss, ext, K, check, limit)  # noqa: F821
@@ -528,7 +526,7 @@ def rattle_loop(D, C, S, W, have_w, velocity_free, pieces, fracs, closing, comp,
 
 def loop_fragment() -> Fragment:
     """The rattle loop, its helpers and the block-tridiagonal solver as one fragment of a
-    generated module (it uses ``_lie_poisson`` and ``_book`` of :mod:`cartan.integrators.loops`)."""
+    generated module (it uses ``_lie_poisson``, ``_damped`` and ``_book`` of :mod:`cartan.integrators.loops`)."""
     return Fragment(constants={"MAX_ITERATIONS_": MAX_ITERATIONS},
                     source=njit_source(small_inverse, bt_factor, bt_solve, rattle_values, rattle_rows, rattle_metric,
                                        _rattle_flow_jacobian, _rattle_block, rattle_factor, rattle_apply,
