@@ -23,7 +23,7 @@ from cartan_kirchhoff_love.cases import (
     quarter_period_frequency,
 )
 from cartan_kirchhoff_love.kirchhoff_love import KirchhoffLove, koiter_energy
-from cartan_verification.case import observed_orders, run_case
+from cartan_verification.case import observed_orders, run_levels
 
 import cartan
 
@@ -34,12 +34,7 @@ CASE = cartan.registry("cases")["plate-flexural-wave-kl"]
 def levels():
     """Every level of the case (n = 8, 16, 32, 64; 372 rattle steps in all, ≈ 8 s):
     ``[(error, ds, problem, settings)]``."""
-    out = []
-    for level in CASE.levels:
-        problem, settings = CASE.problem(level)
-        err, ds = run_case(CASE, level)
-        out.append((err, ds, problem, settings))
-    return out
+    return run_levels(CASE)
 
 
 def _discrete(problem, settings) -> float:

@@ -24,7 +24,7 @@ from cartan_kirchhoff_love.plate_modes import (
     plate_modes_problem,
     plate_modes_settings,
 )
-from cartan_verification.case import observed_orders, run_case
+from cartan_verification.case import observed_orders, run_levels
 
 import cartan
 
@@ -92,12 +92,7 @@ def test_bad_parameters(kwargs, word):
 def levels():
     """Every level of the case (M = 4, 8, 16, 32; 25 + 49 + 98 + 196 rattle steps on up to 64²
     nodes): ``[(error, ds, problem, settings)]``."""
-    out = []
-    for level in CASE.levels:
-        problem, settings = CASE.problem(level)
-        err, ds = run_case(CASE, level)
-        out.append((err, ds, problem, settings))
-    return out
+    return run_levels(CASE)
 
 
 def _predicted(problem, settings, mn) -> float:

@@ -140,12 +140,9 @@ def test_restart_is_bit_for_bit(tmp_path, compiled):
         assert np.array_equal(whole[name].values, cont[name].values), name
 
 
-def test_initial_configuration_is_projected():
-    """A sampled shape that misses θ = (1, 0, 0) (nodes on the parabola y = ½x² at equal x
-    steps, frames along its tangent: the edges stretch and shear) is brought onto the
-    constraints before the first step."""
-    rod = cartan.medium("filament")
-    n = 9
+def parabola_problem(rod, n: int, end_load=None) -> cartan.Problem:
+    """``rod`` clamped at x = 0, sampled on the parabola y = ½x² at n equal x steps with frames
+    along its tangent: the edges stretch and shear (the arclength is not x), off the constraints."""
     grid = cartan.Grid(n, length=1.0)
     x = grid.coordinates(0)
     angle = np.arctan(x)  # the tangent of y = ½x²
@@ -155,8 +152,17 @@ def test_initial_configuration_is_projected():
     Phi[:, 1, 0], Phi[:, 2, 0] = x, 0.5 * x**2
     Phi[:, 1:, 1:] = np.stack([np.stack([c, -sn, 0 * x], -1), np.stack([sn, c, 0 * x], -1),
                                np.stack([0 * x, 0 * x, 1 + 0 * x], -1)], axis=-2)
-    prob = cartan.Problem(rod, grid, cartan.InitialState(Phi, np.zeros((n, 6))),
-                          {"start": cartan.Clamped(), "end": cartan.Free()})
+    end = cartan.Free() if end_load is None else cartan.Free(load=list(end_load))
+    return cartan.Problem(rod, grid, cartan.InitialState(Phi, np.zeros((n, 6))),
+                          {"start": cartan.Clamped(), "end": end})
+
+
+def test_initial_configuration_is_projected():
+    """A sampled shape that misses θ = (1, 0, 0) (nodes on the parabola y = ½x² at equal x
+    steps, frames along its tangent: the edges stretch and shear) is brought onto the
+    constraints before the first step."""
+    n = 9
+    prob = parabola_problem(cartan.medium("filament"), n)
     sch = Lattice(prob)
     state = sch.initial_state()
     unknown = np.broadcast_to(sch.live, (n, 6)).copy()

@@ -12,19 +12,12 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+# the filament, its tip wrench and the parabola off the constraints, as in the Python step's tests
+from test_rattle import TIP, _filament, parabola_problem
+
 import cartan
 from cartan.integrators import Rattle
 from cartan.schemes import Lattice
-
-#: a 3-D tip wrench: bending about both axes and twist (as tests/test_rattle.py)
-TIP = [0.0, -2.0, 0.5, 0.2, 0.0, 0.0]
-
-
-def _filament(n: int = 11, load=TIP, loads=(), initial=None, periodic: bool = False):
-    rod = cartan.medium("filament", bending=(1.0, 1.5), twist=0.8, rotational_inertia=0.01)
-    grid = cartan.Grid(n, length=1.0)
-    return cartan.Problem(rod, grid, initial or rod.initial_state(grid, "straight"),
-                          {"start": cartan.Clamped(), "end": cartan.Free(load=list(load))}, loads=list(loads))
 
 
 def _python_steps_forbidden(monkeypatch):
@@ -65,18 +58,7 @@ def test_compiled_initial_projection_matches_python():
     stretch and shear) is projected by the compiled loop's first step as by the Python step:
     residual at round-off and the same state to round-off."""
     rod = cartan.medium("filament", bending=(1.0, 1.5), twist=0.8, rotational_inertia=0.01)
-    n = 9
-    grid = cartan.Grid(n, length=1.0)
-    x = grid.coordinates(0)
-    angle = np.arctan(x)
-    c, sn = np.cos(angle), np.sin(angle)
-    Phi = np.zeros((n, 4, 4))
-    Phi[:, 0, 0] = 1.0
-    Phi[:, 1, 0], Phi[:, 2, 0] = x, 0.5 * x**2
-    Phi[:, 1:, 1:] = np.stack([np.stack([c, -sn, 0 * x], -1), np.stack([sn, c, 0 * x], -1),
-                               np.stack([0 * x, 0 * x, 1 + 0 * x], -1)], axis=-2)
-    prob = cartan.Problem(rod, grid, cartan.InitialState(Phi, np.zeros((n, 6))),
-                          {"start": cartan.Clamped(), "end": cartan.Free(load=TIP)})
+    prob = parabola_problem(rod, 9, end_load=TIP)
     sch = Lattice(prob)
     a, b = sch.initial_state(), sch.initial_state()
     a.scalars["nstep"] = b.scalars["nstep"] = 0

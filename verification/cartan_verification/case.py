@@ -277,3 +277,15 @@ def run_case(case: Case, level: int, integrator: str | None = None, scheme: str 
     settings = {**settings, **overrides}
     ds = case.run(problem, settings, integrator or case.default_integrators[0], scheme)
     return float(case.error(ds, problem)), ds
+
+
+def run_levels(case: Case, levels: Iterable[int] | None = None, integrator: str | None = None,
+               scheme: str = "lattice") -> list[tuple[float, xr.Dataset, Any, dict[str, Any]]]:
+    """:func:`run_case` at every level of ``levels`` (default: all of ``case.levels``), keeping
+    what each run started from: ``[(error, dataset, problem, settings)]``."""
+    out = []
+    for level in case.levels if levels is None else levels:
+        problem, settings = case.problem(level, scheme)
+        err, ds = run_case(case, level, integrator, scheme)
+        out.append((err, ds, problem, settings))
+    return out
