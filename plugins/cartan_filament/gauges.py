@@ -208,13 +208,7 @@ def frenet_frames(positions: Any, spacing: float = 1.0, closed: bool = False,
     kmin = KAPPA_MIN / ell if kappa_min is None else float(kappa_min)
     if not (np.isfinite(kmin) and kmin >= 0):
         raise ValueError(f"kappa_min must be a finite number ≥ 0, got {kappa_min!r}")
-    bad = np.flatnonzero(~(kappa > kmin))
-    if bad.size:
-        i = int(bad[0])
-        raise ValueError(
-            f"the Frenet–Serret frame is undefined where the curvature vanishes: κ = {kappa[i]:.3g} ≤ kappa_min = "
-            f"{kmin:.3g} at node {i} (arclength s = {s[i]:.6g}); {bad.size} node(s) affected. Use the Bishop gauge "
-            "(bishop_frames), defined on every regular curve")
+    _frenet_refused(kappa, kmin, s, None)
     n2 = normal / np.linalg.norm(normal, axis=-1)[:, None]
     frames = np.stack([t, n2, np.cross(t, n2)], axis=-1)
     return AdaptedFrames(r, frames, "frenet", h, closed, kappa)
@@ -356,14 +350,20 @@ def _transported(tangents: np.ndarray, e2_0: np.ndarray) -> np.ndarray:
     return frames
 
 
-def _frenet_refused(kappa: np.ndarray, kmin: float, s: np.ndarray, where: str) -> None:
+def _frenet_refused(kappa: np.ndarray, kmin: float, s: np.ndarray, where: str | None) -> None:
+    """``ValueError`` naming the first node where κ ≤ ``kmin`` (its arclength, how many): for
+    :func:`frenet_frames` (``where`` None) or the medium's ``gauge = "frenet"`` (``where`` says
+    what was being adapted)."""
     bad = np.flatnonzero(~(kappa > kmin))
     if bad.size:
         i = int(bad[0])
+        head, advice = (("", "the Bishop gauge (bishop_frames)") if where is None else
+                        ("gauge 'frenet': ", "gauge = 'bishop'"))
+        context = "" if where is None else f" ({where})"
         raise ValueError(
-            f"gauge 'frenet': the Frenet–Serret frame is undefined where the curvature vanishes ({where}): "
-            f"κ = {kappa[i]:.3g} ≤ kappa_min = {kmin:.3g} at node {i} (arclength s = {s[i]:.6g}); {bad.size} node(s) "
-            "affected. Use gauge = 'bishop', defined on every regular curve")
+            f"{head}the Frenet–Serret frame is undefined where the curvature vanishes{context}: κ = {kappa[i]:.3g} ≤ "
+            f"kappa_min = {kmin:.3g} at node {i} (arclength s = {s[i]:.6g}); {bad.size} node(s) affected. Use "
+            f"{advice}, defined on every regular curve")
 
 
 def adapt_frames(positions: Any, frames: Any, gauge: str, spacing: float = 1.0, closed: bool = False,
