@@ -709,6 +709,8 @@ def _held_surface_estimate(ds: Any, problem: Problem, comps: Sequence[int], valu
     import scipy.sparse as sp
     from scipy.sparse.linalg import factorized
 
+    from .schemes.lattice import Lattice
+
     grid = problem.grid
     shape = tuple(int(n) for n in grid.shape)
     d, nn = len(shape), int(np.prod(shape))
@@ -721,12 +723,10 @@ def _held_surface_estimate(ds: Any, problem: Problem, comps: Sequence[int], valu
     comps = [int(c) for c in comps]
     dev = X[..., comps] - values  # [T, n, d, c]
     w = np.einsum("tnic,tnac->tnai", E[..., comps], dev)  # R (X_α − X_held) on the held components [T, n, d, k]
-    idx = np.arange(nn).reshape(shape)
+    tails, heads = Lattice(problem).edge_nodes()
     rows, cols, vals, incr = [], [], [], []
     for a in range(d):
-        other = np.roll(idx, -1, axis=a) if grid.periodic[a] else np.take(idx, range(1, shape[a]), axis=a)
-        this = idx if grid.periodic[a] else np.take(idx, range(shape[a] - 1), axis=a)
-        i, j = this.reshape(-1), other.reshape(-1)
+        i, j = tails[a], heads[a]
         e0 = sum(x.shape[1] for x in incr)
         e = np.arange(e0, e0 + len(i))
         rows += [e, e]
