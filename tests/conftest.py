@@ -59,3 +59,49 @@ def generated_runs(monkeypatch) -> list:
 
     monkeypatch.setattr(Integrator, "run_compiled_loop", spy)
     return calls
+
+
+# ---------------------------------------------------------------------------- compile profile
+# CARTAN_COMPILE_LOG=path: every numba compilation (top level: a function with the functions it
+# compiles inline) is written to ``path.<worker>`` as a JSON line ``{test, function, args,
+# seconds}``, to find which tests of the fast suite pay for which compiled loops.
+_CURRENT_TEST = {"id": "<collection>"}
+
+
+def _install_compile_log(path: str) -> None:
+    import json
+    import time
+
+    from numba.core import event
+
+    worker = os.environ.get("PYTEST_XDIST_WORKER", "main")
+    out = open(f"{path}.{worker}", "a", buffering=1)  # noqa: SIM115 - open for the session
+
+    class _Log(event.Listener):
+        depth = 0
+
+        def on_start(self, ev):
+            if self.depth == 0:
+                self.t0 = time.perf_counter()
+            self.depth += 1
+
+        def on_end(self, ev):
+            self.depth -= 1
+            if self.depth == 0:
+                func = ev.data["dispatcher"].py_func
+                out.write(json.dumps({"test": _CURRENT_TEST["id"],
+                                      "function": f"{func.__module__}.{func.__qualname__}",
+                                      "args": str(ev.data["args"])[:300],
+                                      "seconds": round(time.perf_counter() - self.t0, 3)}) + "\n")
+
+    event.register("numba:compile", _Log())
+
+
+if os.environ.get("CARTAN_COMPILE_LOG"):
+    _install_compile_log(os.environ["CARTAN_COMPILE_LOG"])
+
+
+@pytest.hookimpl(hookwrapper=True)
+def pytest_runtest_protocol(item, nextitem):
+    _CURRENT_TEST["id"] = item.nodeid
+    yield

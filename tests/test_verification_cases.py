@@ -1,7 +1,8 @@
 """The registered verification cases (VERIFICATION.md §4) and the invariant checks (§1).
 
 Every registered case runs at its two finest quick levels with each default integrator and
-scheme (a static case's "integrator" is ``newton``): the error at the finest meets the case's
+scheme (a static case's "integrator" is ``newton``; in ``make test`` with the first of each, the
+others in ``make test-slow``): the error at the finest meets the case's
 tolerance and, where the case states an expected order, the observed order
 log₂(e_coarse/e_fine) lies in [p − 0.2, p + 0.3].
 """
@@ -64,9 +65,19 @@ def _slow_poincare(run: tuple) -> bool:
     return run[0].startswith("relativistic-") and run[1:] != ("lie-verlet", "lattice")
 
 
-QUICK_RUNS = [pytest.param(*run, marks=pytest.mark.slow) if _slow_poincare(run) or run[0] in SLOW_QUICK else run
-              for run in RUNS]
-ALL_LEVEL_RUNS = [pytest.param(*run, marks=pytest.mark.slow) if run[0] in SLOW_ALL_LEVELS or _slow_poincare(run)
+def _other_method(run: tuple) -> bool:
+    """Runs with a method other than the case's first default integrator and scheme: each
+    compiles a loop of its own (10-70 s on a fresh cache: the rigid body's RKMK4, the ring's
+    collocation loops), and the methods themselves are verified by their own cases in the fast
+    suite; they run in ``make test-slow``."""
+    case = CASES[run[0]]
+    return run[1:] != (case.default_integrators[0], case.default_schemes[0])
+
+
+QUICK_RUNS = [pytest.param(*run, marks=pytest.mark.slow)
+              if _slow_poincare(run) or _other_method(run) or run[0] in SLOW_QUICK else run for run in RUNS]
+ALL_LEVEL_RUNS = [pytest.param(*run, marks=pytest.mark.slow)
+                  if run[0] in SLOW_ALL_LEVELS or _slow_poincare(run) or _other_method(run)
                   else run for run in RUNS if run[0] not in OWN_ALL_LEVELS]
 
 
