@@ -30,10 +30,11 @@ Branch switching
     At the first bifurcation the path leaves along the null vector φ of K (the eigenvector of
     the eigenvalue nearest zero): predictor ``x_c + Δs·(φ, 0)``, corrector orthogonal to it.
 Pins
-    ``pins`` holds spatial position components of chosen end nodes at their initial values (a
-    pinned end: position held, rotation free; a roller: one component held) by Lagrange
-    multipliers — spatial reaction forces added at the node as dead point loads — without a new
-    boundary kind: give such ends as :class:`cartan.Free` in the problem.
+    ``pins`` holds spatial position components of chosen nodes (the ends of a rod, any node of a
+    lattice) at their initial values (a pinned end: position held, rotation free; a roller: one
+    component held) by Lagrange multipliers — spatial reaction forces added at the node as dead
+    point loads — without a new boundary kind: give such ends as :class:`cartan.Free` in the
+    problem.
 """
 
 from __future__ import annotations
@@ -148,8 +149,12 @@ def continuation(
         Load factors at which path points are placed exactly (λ held fixed in the corrector
         of the step that would pass them), e.g. to read the path at tabulated loads.
     pins : dict, optional
-        ``{end: components}`` spatial position components held at their initial values, end
-        ``"start"``/``"end"`` (d = 1) or a node index; e.g. a pinned–pinned column along x:
+        ``{node: components}`` spatial position components held at their initial values, node
+        ``"start"``/``"end"`` (d = 1), a flat node index, or on a lattice of d ≥ 2 one entry per
+        axis — ``"start"``, ``"middle"``, ``"end"`` or an index — as a tuple or a text
+        (``("end", "middle")``, ``"start,start"``; :func:`cartan.statics.pin_node`); a node held
+        by a clamped boundary or a component pinned twice is a ValueError.  E.g. a pinned–pinned
+        column along x:
         ``{"start": (0, 1), "end": (1,)}`` (the end slides along x).  Components from m − 1 on
         (m the matrix size: 3, 4, 5 on SE(3)) hold the node's rotation about a spatial axis, e.g.
         the spin of a three-dimensional column about its axis: ``{"start": (0, 1, 2, 3), ...}``.

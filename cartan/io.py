@@ -216,7 +216,11 @@ def frame_record(scheme: Scheme, integrator: Integrator, state: State) -> dict[s
             labels = output_coordinate_labels(med)
             sp = _space(scheme)
             q = sp.act(Phi, sp.q_r) if sp is not None else Phi
-            extra = med.outputs(q, np.asarray(scheme.nodal_strains(state)), np.asarray(N), scheme.grid)
+            X = np.asarray(scheme.nodal_strains(state))
+            if getattr(med, "outputs_read_reference", False):
+                extra = med.outputs(q, X, np.asarray(N), scheme.grid, reference=_nodal_reference(scheme))
+            else:
+                extra = med.outputs(q, X, np.asarray(N), scheme.grid)
             missing = sorted(set(specs) - set(extra))
             if missing:
                 raise ValueError(f"medium {med.name!r}: outputs() did not return {missing}")
@@ -224,6 +228,18 @@ def frame_record(scheme: Scheme, integrator: Integrator, state: State) -> dict[s
             for name, (_, _, dims) in specs.items():
                 rec[name] = check_output_value(med, name, extra[name], shape, dims, labels)
     return rec
+
+
+def _nodal_reference(scheme: Scheme) -> dict[str, np.ndarray] | None:
+    """The problem's reference at the nodes for :meth:`~cartan.medium.Medium.outputs` (media
+    with ``outputs_read_reference``): ``{"q": q_ref, "X0": nodal rest strains}``, or None."""
+    ref = scheme.problem.reference
+    rest = getattr(scheme, "nodal_rest_strains", None)
+    if ref is None or rest is None:
+        return None
+    sp = _space(scheme)
+    q = sp.act(ref.Phi, sp.q_r) if sp is not None else ref.Phi
+    return {"q": np.asarray(q), "X0": np.asarray(rest())}
 
 
 def _meta(scheme: Scheme) -> dict[str, tuple[str, str]]:

@@ -345,6 +345,23 @@ class Medium(abc.ABC):
         """``∂U/∂X`` at X with the local rest strain X0 (see :meth:`potential_at`)."""
         return self.stress(np.asarray(X) - X0 + self.rest_strain())
 
+    def reference_volume(self, X0: np.ndarray) -> np.ndarray | None:
+        """The reference volume per unit chart volume at the rest strains ``X0 [..., d, r]`` →
+        ``[...]``, or None (the default) when the chart is the reference's own measure.
+
+        A medium whose energy reads a general chart from the rest strain (a solid on a
+        non-orthonormal chart: det Θ₀) returns it; the lattice then weighs the node's mass,
+        its body loads and its kinetic energy by the node's reference volume ``w_i·J_i``
+        (``Lattice.weights``), while the energy keeps the chart's quadrature weights.
+        """
+        return None
+
+    def reference_area(self, X0: np.ndarray, axis: int) -> np.ndarray | None:
+        """The reference area of the face ⊥ ``axis`` per unit chart area at the rest strains
+        ``X0 [..., d, r]`` → ``[...]``, or None (the default: the chart's own face measure);
+        the lattice integrates face loads (``Free(load=...)``, per unit reference area) with it."""
+        return None
+
     # ------------------------------------------------------------------ derived
     def parameters(self) -> dict[str, Any]:
         """The constructor parameters, JSON-serialisable (recorded in output attributes)."""
@@ -498,6 +515,10 @@ class Medium(abc.ABC):
     #: ``{dim: (long_name, labels)}``, ``labels`` a sequence of distinct strings, one per index
     #: (``{"row": ["x", "y", "z"]}``); they become the dimension's coordinate in the Dataset
     output_coords: ClassVar[dict[str, Any]] = {}
+    #: whether :meth:`outputs` takes the keyword ``reference``: the problem's stress-free
+    #: reference at the nodes, ``{"q": q_ref [*shape, *point_shape], "X0": [*shape, d, r]}``
+    #: (the nodal rest strains, averaged as the strains are), or None without one
+    outputs_read_reference: ClassVar[bool] = False
 
     def outputs(self, q: np.ndarray, X: np.ndarray, N: np.ndarray, grid: Any) -> dict[str, np.ndarray]:
         """Medium-specific diagnostics recorded in every saved frame (default: none).

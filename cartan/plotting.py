@@ -10,7 +10,10 @@ Newton residuals) or :func:`plot_continuation` (the load–displacement chart of
 :func:`plot_load_displacement`, bifurcations and folds marked, branches coloured, beside
 shapes along the path).  3-D curves lying in a coordinate plane are drawn in that plane.
 A surface (d = 2 in space) is drawn in 3D coloured by a node field; a solid (d = 3) as the
-outer faces of its deformed lattice, optionally with a coordinate slice through it.  A medium
+outer faces of its deformed lattice, optionally with a coordinate slice through it.  Periodic
+axes are drawn closed (:func:`_close_seams`): one more layer of nodes, the first moved by the
+axis's holonomy recorded in the run configuration, so that a tube, a periodic strip or a closed
+rod has no gap at its seam.  A medium
 may draw its own picture instead: :func:`plot_run` first calls the ``draw(ds, fig)``
 classmethod of the medium that wrote the file (:meth:`cartan.medium.Medium.draw`), found by
 the name the file records (:func:`medium_name`).
@@ -59,7 +62,7 @@ def _draw_configuration(fig: Figure, ax_slot: int, ds: xr.Dataset, pts: np.ndarr
     ax = fig.add_subplot(1, 2, ax_slot, projection="3d" if k == 3 else None)
     curve = pts.ndim == 3  # d = 1: [time, node, k]
     for i in _snapshot_indices(len(t), snapshots):
-        p = pts[i].reshape(-1, k)
+        p = _closed(ds, pts[i])[0] if curve else pts[i].reshape(-1, k)  # a closed rod drawn closed
         c = cmap(norm(t[i]))
         if curve:
             ax.plot(*p.T, color=c, lw=1.5)
@@ -187,6 +190,81 @@ def _node_values(ds: xr.Dataset, pts: np.ndarray, field: str | None, index: int)
     return np.linalg.norm(pts[index] - pts[0], axis=-1), "|displacement|" + (f" [{units}]" if units else "")
 
 
+# ---------------------------------------------------------------------------- periodic seams
+def _seams(ds: xr.Dataset) -> tuple[tuple[bool, ...], dict[int, np.ndarray]]:
+    """The periodic flags of the node axes and the holonomies ``{axis: H}`` of the problem that
+    wrote ``ds`` (``problem.grid.periodic`` and ``problem.holonomy`` of ``cartan_config``, the
+    latter ``(m, m)`` group elements with Φ(u_α + L_α) = H_α Φ(u_α)); ``((), {})`` when the file
+    records no grid."""
+    import json
+
+    try:
+        config = json.loads(str(ds.attrs.get("cartan_config", "")))
+    except ValueError:
+        return (), {}
+    problem = config.get("problem", {}) if isinstance(config, dict) else {}
+    grid = problem.get("grid", {}) if isinstance(problem, dict) else {}
+    periodic = grid.get("periodic") if isinstance(grid, dict) else None
+    if not isinstance(periodic, list) or not all(isinstance(p, bool) for p in periodic):
+        return (), {}
+    holonomy: dict[int, np.ndarray] = {}
+    recorded = problem.get("holonomy")
+    for axis, H in (recorded.items() if isinstance(recorded, dict) else ()):
+        try:
+            holonomy[int(axis)] = np.asarray(H, dtype=float)
+        except (TypeError, ValueError):
+            continue
+    return tuple(periodic), holonomy
+
+
+def _close_seams(points: np.ndarray, values: np.ndarray | None, periodic: tuple[bool, ...],
+                 holonomy: dict[int, np.ndarray], affine: bool = True) -> tuple[np.ndarray, np.ndarray | None]:
+    """Points ``[*nodes, k]`` (and nodal ``values`` ``[*nodes]``) with one more layer of nodes
+    on each periodic axis α: the image of the first layer under the axis's holonomy,
+    x(u_α + L_α) = R_H x(u_α) + t_H (H = [[1, 0], [t_H, R_H]], the identity for a closed axis),
+    so that a tube, a ring or a periodic strip is drawn without a gap between its last and
+    first nodes (the values repeat the first layer's).
+
+    An axis is left open when its holonomy does not act on the points (``affine`` False: the
+    points are not positions, or H is not ``(k + 1, k + 1)``), or when, with no holonomy
+    recorded, the first layer is not next to the last one (a gap longer than 1.5 times the
+    longest step between neighbours along the axis: an open chart whose holonomy the file does not
+    hold, e.g. one written before the holonomy was recorded).
+    """
+    nodes = points.shape[:-1]
+    k = points.shape[-1]
+    for axis, is_periodic in enumerate(periodic[: len(nodes)]):
+        n = points.shape[axis]
+        if not is_periodic or n < 2:
+            continue
+        first = np.take(points, [0], axis=axis)
+        H = holonomy.get(axis)
+        if H is not None:
+            if not affine or H.shape != (k + 1, k + 1):
+                continue
+            wrap = first @ H[1:, 1:].T + H[1:, 0]
+        else:
+            steps = np.linalg.norm(np.diff(points, axis=axis), axis=-1)
+            gap = np.linalg.norm(np.take(points, [-1], axis=axis) - first, axis=-1)
+            if np.nanmax(gap) > 1.5 * max(float(np.nanmax(steps)), 1e-300):
+                continue
+            wrap = first
+        points = np.concatenate([points, wrap], axis=axis)
+        if values is not None:
+            values = np.concatenate([values, np.take(values, [0], axis=axis)], axis=axis)
+    return points, values
+
+
+def _closed(ds: xr.Dataset, points: np.ndarray,
+            values: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray | None]:
+    """:func:`_close_seams` with the periodic axes and holonomies of the run that wrote ``ds``
+    (points ``[*nodes, k]``: positions when the file holds ``position``)."""
+    periodic, holonomy = _seams(ds)
+    if not periodic or len(periodic) != points.ndim - 1:
+        return points, values
+    return _close_seams(points, values, periodic, holonomy, affine="position" in ds)
+
+
 def _draw_surface(ax: Axes, surface: np.ndarray, values: np.ndarray, norm, cmap, alpha: float = 1.0) -> None:
     """A deformed surface ``[n_u, n_v, 3]`` as faces coloured by nodal ``values`` ``[n_u, n_v]``
     (each face takes the mean of its four corners)."""
@@ -220,11 +298,14 @@ def _draw_surface_panel(fig: Figure, slot: tuple[int, int, int], ds: xr.Dataset,
     lo, hi = float(np.nanmin(values)), float(np.nanmax(values))
     norm = colors.Normalize(vmin=lo, vmax=hi if hi > lo else lo + 1.0)
     cmap = cm.viridis
+    last, values = _closed(ds, pts[-1], values)
+    shown = [last]
     if pts.shape[0] > 1:
-        first = pts[0]
+        first, _ = _closed(ds, pts[0])
         ax.plot_wireframe(first[..., 0], first[..., 1], first[..., 2], color="0.6", linewidth=0.4)
-    _draw_surface(ax, pts[-1], values, norm, cmap)
-    _cube(ax, pts.reshape(-1, 3))
+        shown.append(first)
+    _draw_surface(ax, last, values, norm, cmap)
+    _cube(ax, np.concatenate([p.reshape(-1, 3) for p in shown]))
     ax.set_title(title)
     sm = cm.ScalarMappable(norm=norm, cmap=cmap)
     sm.set_array([])
@@ -288,14 +369,19 @@ def _edges(block: np.ndarray) -> list[np.ndarray]:
     return out
 
 
-def _draw_block(ax: Axes, block: np.ndarray, values: np.ndarray, norm, cmap) -> None:
+def _draw_block(ax: Axes, block: np.ndarray, values: np.ndarray, norm, cmap,
+                inner: tuple[int, ...] = ()) -> None:
     """The outer faces of a deformed solid ``[n_u, n_v, n_w, 3]`` as quadrilaterals coloured by
     the nodal ``values`` ``[n_u, n_v, n_w]`` (the mean of each face's four corners), in one
-    collection so that the faces of all six sides are depth-sorted together."""
+    collection so that the faces of all six sides are depth-sorted together; the two faces
+    normal to each axis in ``inner`` (a periodic axis, closed by :func:`_close_seams`) are
+    inside the body and left out."""
     from mpl_toolkits.mplot3d.art3d import Poly3DCollection
 
     quads, colours = [], []
-    for surface, vals in zip(_faces(block), _faces(values)):
+    for side, (surface, vals) in enumerate(zip(_faces(block), _faces(values))):
+        if side // 2 in inner:
+            continue
         corners = np.stack([surface[:-1, :-1], surface[1:, :-1], surface[1:, 1:], surface[:-1, 1:]], axis=-2)
         quads.append(corners.reshape(-1, 4, 3))
         colours.append((0.25 * (vals[:-1, :-1] + vals[1:, :-1] + vals[:-1, 1:] + vals[1:, 1:])).ravel())
@@ -316,13 +402,17 @@ def _draw_solid_panels(fig: Figure, slots: list[tuple[int, int, int]], ds: xr.Da
     lo, hi = float(np.nanmin(values)), float(np.nanmax(values))
     norm = colors.Normalize(vmin=lo, vmax=hi if hi > lo else lo + 1.0)
     cmap = cm.viridis
-    last = pts[-1]
+    last, values = _closed(ds, pts[-1], values)
+    inner = tuple(a for a in range(3) if last.shape[a] > pts.shape[1 + a])  # the closed periodic axes
     ax = fig.add_subplot(*slots[0], projection="3d")
+    shown = [last]
     if pts.shape[0] > 1:
-        for e in _edges(pts[0]):
+        first, _ = _closed(ds, pts[0])
+        for e in _edges(first):
             ax.plot(*e.T, "--", color="0.55", lw=0.8)
-    _draw_block(ax, last, values, norm, cmap)
-    _cube(ax, pts.reshape(-1, 3))
+        shown.append(first)
+    _draw_block(ax, last, values, norm, cmap, inner)
+    _cube(ax, np.concatenate([p.reshape(-1, 3) for p in shown]))
     ax.set_title(title)
     sm = cm.ScalarMappable(norm=norm, cmap=cmap)
     sm.set_array([])
@@ -337,7 +427,7 @@ def _draw_solid_panels(fig: Figure, slots: list[tuple[int, int, int]], ds: xr.Da
     _draw_surface(ax, np.take(last, index, axis=axis), np.take(values, index, axis=axis), norm, cmap)
     _cube(ax, last.reshape(-1, 3))
     where = f"{dims[axis]} node {index}"
-    if dims[axis] in ds.coords and ds[dims[axis]].size == last.shape[axis]:
+    if dims[axis] in ds.coords and ds[dims[axis]].size == pts.shape[1 + axis]:
         where = f"{dims[axis]} = {float(ds[dims[axis]].values[index]):.4g} (node {index})"
     ax.set_title(f"slice {where}")
     fig.colorbar(sm, ax=ax, shrink=0.7, pad=0.1, label=label)
@@ -529,11 +619,18 @@ def _node_lines(surface: np.ndarray) -> list[np.ndarray]:
 
 
 def _draw_shapes(fig: Figure, slot: tuple[int, int, int], curves: list[np.ndarray], values: np.ndarray | None,
-                 label: str, reference: np.ndarray | None = None, title: str = "shape") -> None:
+                 label: str, reference: np.ndarray | None = None, title: str = "shape",
+                 ds: xr.Dataset | None = None) -> None:
     """Curves ``[nodes, k]`` (for a surface ``[nu, nv, k]``, its lines along u and v; a scatter
-    for d ≥ 3 arrays) coloured by ``values``, the reference configuration dashed."""
+    for d ≥ 3 arrays) coloured by ``values``, the reference configuration dashed; given the
+    Dataset ``ds`` they wrote, a closed rod's or a tube's node lines run across its periodic
+    seams (:func:`_closed`)."""
     from matplotlib import cm, colors
 
+    if ds is not None:
+        curves = [_closed(ds, c)[0] if c.ndim <= 3 else c for c in curves]
+        if reference is not None and reference.ndim <= 3:
+            reference = _closed(ds, reference)[0]
     every = curves + ([reference] if reference is not None else [])
     axes, names = _in_plane(every)
     three_d = len(axes) == 3
@@ -703,7 +800,7 @@ def plot_continuation(
         if ref is not None and ref.ndim == 2 and pos.ndim == 4:
             ref = ref.reshape(pos.shape[1:])
         _draw_shapes(fig, (1, ncols, 2), [pos[i] for i in idx], lam[idx], "load factor λ", ref,
-                     title="shapes along the path")
+                     title="shapes along the path", ds=ds)
     fig.suptitle(title if title is not None else str(ds.attrs.get("title", "")))
     if path is not None:
         fig.savefig(pathlib.Path(path), dpi=120)
@@ -756,7 +853,7 @@ def plot_static(ds: xr.Dataset, path: str | os.PathLike | None = None, title: st
         _draw_surface_panel(fig, (1, panels, slot), ds, both, field, "equilibrium")
         slot += 1
     elif pts is not None:
-        _draw_shapes(fig, (1, panels, slot), [pts[-1]], None, "", ref, title="equilibrium")
+        _draw_shapes(fig, (1, panels, slot), [pts[-1]], None, "", ref, title="equilibrium", ds=ds)
         slot += 1
     if curve and ref is not None:
         ax = fig.add_subplot(1, panels, slot)

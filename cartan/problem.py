@@ -497,11 +497,16 @@ class InitialState:
         for a helix.  d = 1: one array; any d: ``{axis: H_α}`` for the periodic axes that have
         one (a box of a solid periodic up to a translation along each axis: H_α the
         translation by L_α).
+    reference : InitialState or array, optional
+        The stress-free reference configuration the state comes with (an initial kind that
+        charts a body, e.g. a disk by a square, returns it): a :class:`Problem` given no
+        ``reference`` takes this one, so that a scene's ``[initial]`` table can set it.
     """
 
     Phi: Any
     N: Any = None
     holonomy: Any = None
+    reference: Any = None
 
 
 @dataclass
@@ -538,6 +543,8 @@ class Problem:
         N = np.zeros((*shape, g.dim)) if self.initial.N is None else self.initial.N
         N = check_finite("initial.N", _numeric("initial.N", N), (*shape, g.dim))
         H = _check_holonomy("initial.holonomy", self.initial.holonomy, g, self.grid)
+        if self.reference is None and self.initial.reference is not None:
+            self.reference = self.initial.reference
         self.initial = InitialState(Phi=Phi, N=N, holonomy=H)
         valid = self.boundary_names()
         for key, b in self.boundaries.items():
@@ -629,7 +636,7 @@ class Problem:
                     or any(load.velocity_dependent for load in self.loads))
 
     def to_dict(self) -> dict[str, Any]:
-        return {
+        out = {
             "name": self.name,
             "medium": self.medium.name,
             "parameters": self.medium.parameters(),
@@ -637,3 +644,7 @@ class Problem:
             "boundaries": {k: b.to_dict() for k, b in self.boundaries.items()},
             "loads": [load.to_dict() for load in self.loads],
         }
+        holonomies = axis_holonomies(self.initial, self.grid.d)
+        if holonomies:  # the periodic axes' closing elements (a picture closes its seams with them)
+            out["holonomy"] = {str(a): np.asarray(H, dtype=float).tolist() for a, H in sorted(holonomies.items())}
+        return out

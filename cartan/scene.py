@@ -60,6 +60,10 @@ Modes
     pins = { start = ["x", "y"], end = ["y"] }      # position components held (free ends only)
     branch_switch = true    # leave the path at the first bifurcation
 
+On a lattice of d ≥ 2 the keys of ``pins`` name nodes per axis — ``start``, ``middle``,
+``end`` or an index, comma-separated: ``pins = { "start,start" = ["x", "y", "z"], "end,middle" =
+["z"] }`` (:func:`cartan.statics.pin_node`).
+
 Static and continuation scenes have no ``[run]`` table; :meth:`Scene.run` runs any mode and
 writes the result (CF attributes, ``history``, ``cartan_config``) atomically.
 
@@ -148,7 +152,8 @@ _RUN_KEYS = {
     "integrator_options",
     "scheme_options",
 }
-_STATIC_KEYS = {"tol", "xtol", "max_iterations", "load_steps", "fd_step", "reuse", "initial_guess", "measure"}
+_STATIC_KEYS = {"tol", "xtol", "max_iterations", "load_steps", "fd_step", "reuse", "initial_guess", "measure",
+                "pins"}
 _CONTINUATION_KEYS = {
     "parameter",
     "lambda_max",
@@ -861,6 +866,8 @@ def _static(reader: _Reader, data: Mapping, problem: Problem, path: pathlib.Path
     out: dict[str, Any] = {"solver_options": {k: v for k, v in options.items() if v is not None}}
     if "measure" in st:
         out["measure"] = _measure(reader, st["measure"], problem, "static.measure")
+    if "pins" in st:
+        out["solver_options"]["pins"] = _pins(reader, st["pins"], problem, "static.pins")
     if "initial_guess" in st:
         out["initial_guess"] = _initial_guess(reader, st, problem, path)
     return out
@@ -966,12 +973,15 @@ def _continuation(reader: _Reader, data: Mapping, problem: Problem) -> dict[str,
     return out
 
 
-def _pins(reader: _Reader, spec: Any, problem: Problem) -> dict[str, tuple[int, ...]]:
-    key = "continuation.pins"
+def _pins(reader: _Reader, spec: Any, problem: Problem, key: str = "continuation.pins") -> dict[str, tuple[int, ...]]:
     if not isinstance(spec, Mapping):
-        raise reader.fail(key, f'must be a table such as {{ start = ["x", "y"], end = ["y"] }}, got {spec!r}')
+        example = '{ start = ["x", "y"], end = ["y"] }' if problem.grid.d == 1 else \
+            '{ "start,start" = ["x", "y", "z"], "end,middle" = ["z"] }'
+        raise reader.fail(key, f"must be a table such as {example}, got {spec!r}")
     k = _affine_problem(reader, problem, key)
-    if problem.grid.d != 1 or problem.grid.periodic[0]:
+    if problem.grid.d > 1:
+        return _lattice_pins(reader, spec, problem, k, key)
+    if problem.grid.periodic[0]:
         raise reader.fail(key, "pins hold the ends of an open rod (d = 1, not periodic)")
     out = {}
     for end, comps in spec.items():
@@ -988,6 +998,42 @@ def _pins(reader: _Reader, spec: Any, problem: Problem) -> dict[str, tuple[int, 
         out[end] = idx
     return out
 
+
+
+def _lattice_pins(reader: _Reader, spec: Mapping, problem: Problem, k: int, key: str) -> dict[str, tuple[int, ...]]:
+    """``pins`` (of ``[continuation]`` or ``[static]``, named by ``key``) on a d ≥ 2 lattice:
+    ``{ "A,B" = [components] }``, each node named per axis by ``start``, ``middle``, ``end`` or
+    an index (:func:`cartan.statics.pin_node`); a node on a clamped face, a node named twice or a
+    repeated component is refused."""
+    from .statics import pin_node
+
+    grid = problem.grid
+    names = tuple(grid.axis_names)
+    out: dict[str, tuple[int, ...]] = {}
+    seen: dict[int, str] = {}
+    for node, comps in spec.items():
+        where = f"{key}.{node}"
+        try:
+            flat = pin_node(str(node), tuple(grid.shape), names)
+        except ValueError as exc:
+            raise reader.fail(where, str(exc).removeprefix("pins: ")) from None
+        if flat in seen:
+            raise reader.fail(where, f"the node of {seen[flat]!r} again (one entry per node)")
+        seen[flat] = str(node)
+        index = [int(i) for i in np.unravel_index(flat, tuple(grid.shape))]
+        for axis, (i, n, name) in enumerate(zip(index, grid.shape, names, strict=True)):
+            for side, at in (("start", 0), ("end", n - 1)):
+                face = f"{name}-{side}"
+                if i == at and not grid.periodic[axis] and isinstance(problem.boundaries.get(face), Clamped):
+                    raise reader.fail(where, f"the node {tuple(index)} is on the clamped face {face}; pins hold "
+                                             "free nodes")
+        if not isinstance(comps, list) or not comps:
+            raise reader.fail(where, f'must be a non-empty list of components such as ["x", "y"], got {comps!r}')
+        idx = tuple(_component(reader, c, k, where, magnitude=False) for c in comps)
+        if len(set(idx)) != len(idx):
+            raise reader.fail(where, f"repeated component in {comps!r}")
+        out[str(node)] = idx
+    return out
 
 # ---------------------------------------------------------------------------- running static modes
 _REFERENCES = "Kikuchi & Adhikari, Cartan media: geometric continuum mechanics in homogeneous spaces"
@@ -1016,6 +1062,19 @@ def _finish(ds: Any, sc: Scene, config: dict[str, Any], command: str | None) -> 
     ds.attrs["cartan_config"] = io.to_json(config)
 
 
+def _label_pins(sc: Scene, ds: Any) -> None:
+    """Label the reactions of the scene's pins (coordinate ``pin``: the node and the component)."""
+    import numpy as np
+
+    pins = sc.solver_options.get("pins")
+    if "reaction" not in ds or not pins:
+        return
+    k = sc.problem.medium.group.matrix_size - 1
+    axes = list(_AXIS_LABELS[:k]) if k <= 3 else [f"x{i}" for i in range(k)]
+    labels = [f"{node} {axes[c]}" for node, comps in pins.items() for c in comps]
+    ds.coords["pin"] = ("pin", np.array(labels, dtype=object), {"long_name": "pinned node, component"})
+
+
 def _solve_static(sc: Scene, command: str | None) -> Any:
     """``solve_static`` of the scene's problem with its ``[static]`` settings, annotated."""
     import json
@@ -1025,6 +1084,7 @@ def _solve_static(sc: Scene, command: str | None) -> Any:
 
     initial = io.open_dataset(sc.initial_guess) if sc.initial_guess is not None else None
     ds = solve_static(sc.problem, initial=initial, **sc.solver_options)
+    _label_pins(sc, ds)
     config = json.loads(ds.attrs["cartan_config"])
     config["run"]["initial_guess"] = str(sc.initial_guess) if sc.initial_guess is not None else None
     pos0 = _initial_positions(sc.problem)
@@ -1073,6 +1133,7 @@ def _follow_path(sc: Scene, command: str | None) -> Any:
             return measure(snapshot["position"].values[0], flat0)
 
     ds = continuation(problem, monitor=monitor, **sc.solver_options)
+    _label_pins(sc, ds)
     if flat0 is not None:
         k = flat0.shape[1]
         labels = list(_AXIS_LABELS[:k]) if k <= 3 else [f"x{i}" for i in range(k)]

@@ -280,6 +280,70 @@ class _Singular(RuntimeError):
     """The Jacobian could not be factorised (or its solve is not finite)."""
 
 
+PIN_PLACES = ("start", "middle", "end")
+
+
+def pin_node(where: Any, shape: tuple[int, ...], axis_names: tuple[str, ...] | None = None) -> int:
+    """The flat node index (C order over ``shape``) of a pinned node named by ``where``.
+
+    Parameters
+    ----------
+    where : str, int or sequence
+        ``"start"`` or ``"end"`` of a rod (d = 1); a flat node index
+        ``−N ≤ i < N`` (N the number of nodes); or one entry per axis — a sequence, or a text
+        ``"A,B"`` (``"A,B,C"`` for d = 3) — each ``"start"`` (node 0), ``"middle"`` (node n // 2),
+        ``"end"`` (node n − 1) or an index ``−n ≤ i < n`` along that axis: ``("end", "middle")`` or
+        ``"end,middle"`` is the midpoint of the u = end edge of a surface, ``"start,start"`` its
+        corner at the origin, ``(3, 0)`` the node with grid index (3, 0).
+    shape : tuple of int
+        The grid's node shape ``(n_u, ...)``.
+    axis_names : tuple of str, optional
+        The axes' names, for the messages (default u, v, w).
+
+    Returns
+    -------
+    int
+
+    Raises
+    ------
+    ValueError
+        Naming ``pins``, the node and the allowed values.
+    """
+    d = len(shape)
+    names = axis_names or ("u", "v", "w")[:d]
+    nnode = int(np.prod(shape))
+    ranges = ", ".join(f"{-n}..{n - 1} along {a}" for n, a in zip(shape, names, strict=False))
+    flat = "" if isinstance(where, str) else f", or a flat node index {-nnode}..{nnode - 1}"
+    allowed = (f"'start', 'end' or a node index {-nnode}..{nnode - 1}" if d == 1 else
+               f"{d} entries (a sequence, or a text such as 'end,middle'), each 'start', 'middle', 'end' or an "
+               f"index ({ranges}){flat}")
+    if isinstance(where, str):
+        parts: list[Any] = [p.strip() for p in where.split(",")]
+        parts = [int(p) if p.lstrip("+-").isdigit() else p for p in parts]
+        if len(parts) == 1 and isinstance(parts[0], int) and d > 1:
+            parts = []  # a bare number of a d ≥ 2 grid in text is ambiguous: refused
+    elif isinstance(where, int | np.integer) and not isinstance(where, bool):
+        if not -nnode <= int(where) < nnode:
+            raise ValueError(f"pins: node {where!r} out of range; allowed: {allowed}")
+        return int(where) % nnode
+    elif isinstance(where, list | tuple | np.ndarray):
+        parts = list(where)
+    else:
+        parts = []
+    if len(parts) != d:
+        raise ValueError(f"pins: unknown node {where!r}; allowed: {allowed}")
+    idx = []
+    places = PIN_PLACES if d > 1 else ("start", "end")  # a rod is pinned at its ends (or by index)
+    for p, n in zip(parts, shape, strict=True):
+        if isinstance(p, str) and p in places:
+            idx.append({"start": 0, "middle": n // 2, "end": n - 1}[p])
+        elif isinstance(p, int | np.integer) and not isinstance(p, bool) and -n <= int(p) < n:
+            idx.append(int(p) % n)
+        else:
+            raise ValueError(f"pins: unknown node {where!r}; allowed: {allowed}")
+    return int(np.ravel_multi_index(tuple(idx), shape))
+
+
 class _Equilibrium:
     """The static residual of a lattice problem on its unknowns, its Jacobian, and the edge
     strains and stresses of the mixed Newton iteration.
@@ -352,7 +416,11 @@ class _Equilibrium:
         self.pins: list[tuple[int, int]] = []
         for where, comps in (pins or {}).items():
             node = self._node(where)
+            if not self.unknown_flat[node].any():
+                raise ValueError(f"pins: node {where!r} is held by a clamped boundary; pins hold free nodes")
             for k in np.atleast_1d(comps):
+                if (node, int(k)) in self.pins:
+                    raise ValueError(f"pins: component {int(k)} of node {where!r} is pinned twice")
                 self.pins.append((node, int(k)))
         if self.pins and not getattr(g, "affine", False):
             raise ValueError("pins need a medium on an affine group (positions)")
@@ -452,12 +520,7 @@ class _Equilibrium:
 
     # ------------------------------------------------------------------ layout
     def _node(self, where: Any) -> int:
-        if isinstance(where, str):
-            if self.sch.grid.d != 1 or where not in ("start", "end"):
-                raise ValueError(f"pins: unknown end {where!r} (use 'start', 'end' or a node index)")
-            return 0 if where == "start" else self.nnode - 1
-        idx = np.ravel_multi_index(np.atleast_1d(where), self.shape) if np.ndim(where) else int(where) % self.nnode
-        return int(idx)
+        return pin_node(where, self.shape, tuple(self.sch.grid.axis_names))
 
     def _pin_value(self, Phi: np.ndarray, n: int, k: int) -> np.ndarray:
         """The pinned quantity of node ``n``, component ``k``, at the frames ``Phi`` ``[..., m, m]``:
@@ -881,9 +944,9 @@ class _Equilibrium:
         T = self.problem.medium.body_force(Phi, self.zero, t)
         if T is not None:
             W += lam * T
-        for idx, b in sch._end_loads:
+        for k, (idx, b) in enumerate(sch._end_loads):
             P = b.load if b.follower else dead_to_body(self.g, Phi[idx], b.load)
-            W[idx] += lam * P / (0.5 * sch.h[sch._end_axis(idx)])
+            W[idx] += sch.end_load_density(k, lam * P)
         return W * self.w
 
     def _neighbour_loads(self, state: Any, lam: float) -> np.ndarray:
@@ -1341,6 +1404,7 @@ def solve_static(
     mixed: bool = True,
     reuse: float = 0.0,
     t: float = 0.0,
+    pins: dict | None = None,
 ):
     """An equilibrium of ``problem`` by Newton's method on the group.
 
@@ -1394,6 +1458,12 @@ def solve_static(
         problem (e.g. 1e-3).  0 (default): a new Jacobian at every step (quadratic convergence).
     t : float
         Time at which time-dependent loads are evaluated.
+    pins : dict, optional
+        ``{node: components}``: spatial position components (from m − 1 on: rotations) of
+        chosen nodes held at their values in the starting configuration by Lagrange
+        multipliers, as in :func:`cartan.continuation.continuation` (the node names:
+        :func:`pin_node`); a load step has converged when the pins hold to ``tol·max(1, L)``
+        too.  Their multipliers, the reactions, are returned as ``reaction`` along ``pin``.
 
     Returns
     -------
@@ -1444,9 +1514,10 @@ def solve_static(
         problem = Problem(problem.medium, problem.grid, InitialState(Phi=init.Phi, holonomy=problem.initial.holonomy),
                           problem.boundaries, problem.loads, problem.name, reference=problem.reference)
     nsteps = int(load_steps)
-    eq = _Equilibrium(problem, jacobian=jacobian, fd_step=fd_step, t=t, probe_lam=1.0 / nsteps)
+    eq = _Equilibrium(problem, jacobian=jacobian, fd_step=fd_step, t=t, probe_lam=1.0 / nsteps, pins=pins)
     sch, g, nunk = eq.sch, eq.g, eq.nunk
-    mu0 = np.zeros(eq.nmult)  # the strain-constraint multipliers (no pins here)
+    mu0 = np.zeros(eq.nmult)  # the pins' multipliers, then the strain constraints'
+    pin_tol = tol * eq.length
     x_tol = xtol * eq.length
     delta_scale = np.concatenate([eq.delta_scale, np.zeros(eq.nmult)])  # multipliers: not in the norm
 
@@ -1494,7 +1565,8 @@ def solve_static(
 
         def converged(pt: _Point, r: np.ndarray, atol: float = atol) -> bool:
             # the increments' round-off floor, xtol, ends the iteration in any case
-            return nunk == 0 or (float(np.max(np.abs(r[:nunk]), initial=0.0)) <= atol and eq.constraints_met(r, tol))
+            return nunk == 0 or (float(np.max(np.abs(r[:nunk]), initial=0.0)) <= atol and eq.constraints_met(r, tol)
+                                 and float(np.max(np.abs(r[nunk: nunk + eq.npin]), initial=0.0)) <= pin_tol)
 
         out = _newton(eq, _Point(state, mu, lam_try), residual=residual, factorise=factorise, move=move,
                       converged=converged, scale=delta_scale, max_iter=max_iter, max_halvings=max_halvings,
@@ -1546,6 +1618,7 @@ def solve_static(
             "mixed": bool(mixed),
             "reuse": reuse,
             "t": float(t),
+            **({"pins": pins} if pins else {}),
         },
         "counters": {"newton_iterations": len(alphas), "load_steps": len(attempts), "wall_time": wall},
     }
@@ -1607,6 +1680,9 @@ def solve_static(
     ds.attrs["newton_converged"] = 1
     if eq.ncon:
         _constraint_outputs(ds, eq, state, mu)
+    if eq.npin:  # the pins' multipliers: spatial reactions at the pinned nodes
+        ds["reaction"] = ("pin", np.asarray(mu[: eq.npin], dtype=float),
+                          {"long_name": "reaction at the pin (spatial component)", "units": "force"})
     return ds
 
 

@@ -425,6 +425,10 @@ class Collocation(Scheme):
         """The stored nodal strains ``[*shape, d, r]`` (the scheme's unknowns)."""
         return state.arrays["X"]
 
+    def nodal_rest_strains(self) -> np.ndarray | None:
+        """The rest strains of the ``reference`` at the nodes ``[*shape, d, r]``, or None."""
+        return self.rest
+
     # ------------------------------------------------------------------ forces
     def _end_load(self, Phi: np.ndarray | None, b: Free, idx: tuple) -> np.ndarray:
         """Body components of the load P of a free end (dead loads rotated by Φ there)."""

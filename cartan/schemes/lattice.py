@@ -36,6 +36,14 @@ Rest strains
     A problem with a stress-free ``reference`` configuration Φ_ref has the rest strain
     ``X₀_e = log(Φ_ref,i⁻¹Φ_ref,j)/h`` on each edge (exactly stress-free on the lattice);
     otherwise the medium's constant ``rest_strain()``.
+Charts
+    The grid is a chart of the body; the energy is summed with the chart's quadrature weights
+    (:attr:`chart_weights`, the grid's).  When the medium measures the reference volume of a
+    general chart (:meth:`~cartan.medium.Medium.reference_volume` at the nodal rest strains,
+    J_i), a node's mass, body loads and kinetic energy are those of its reference volume
+    ``weights = w_i J_i``, and a face load (per unit reference area) is integrated with the
+    face's reference area element (:meth:`~cartan.medium.Medium.reference_area`); media that
+    return None (the default) keep ``weights = w_i`` and the chart's face areas.
 
 Compiled loops
     :meth:`Lattice.compiled_advance` runs whole blocks of steps in numba
@@ -74,6 +82,10 @@ class Lattice(Scheme):
         #: True when the potential is evaluated at the corners (d ≥ 2, axes coupled)
         self.coupled = d > 1 and not getattr(self.medium, "separable_axes", False)
         self.h = self.grid.spacing
+        #: the energy's quadrature weights (the grid's, per unit chart volume); :attr:`weights`
+        #: are the nodes' reference volumes (mass, body loads), equal to them unless the medium
+        #: measures a general chart (module docstring, "Charts")
+        self.chart_weights = self.weights
         self._end_loads = []  # (index tuple, Free)
         for axis in range(d):
             if self.grid.periodic[axis]:
@@ -84,6 +96,38 @@ class Lattice(Scheme):
                     sl = [slice(None)] * d
                     sl[axis] = idx
                     self._end_loads.append((tuple(sl), b))
+        #: per loaded face: None, or its nodes' reference area per unit chart area over their
+        #: reference volume per unit chart volume (a face load's density is P·factor/(h_α/2))
+        self._end_factors: list[np.ndarray | None] = [None] * len(self._end_loads)
+        self._chart_measures()
+
+    def _chart_measures(self) -> None:
+        """Node reference volumes and face-load factors of a general chart (module docstring)."""
+        if self.problem.reference is None:
+            return
+        X0 = self.nodal_rest_strains()
+        J = self.medium.reference_volume(X0)
+        if J is None:
+            return
+        J = np.asarray(J, dtype=float)
+        if J.shape != tuple(self.grid.shape) or not np.all(np.isfinite(J) & (J > 0)):
+            raise ValueError(f"medium {self.medium.name!r}: reference_volume must be finite and > 0 at every node, "
+                             f"shape {tuple(self.grid.shape)}")
+        if not np.all(J == 1.0):  # the chart's own measure (an orthonormal chart) keeps the weights to the bit
+            self.weights = self.chart_weights * J
+        for k, (idx, _) in enumerate(self._end_loads):
+            A = self.medium.reference_area(X0[idx], self._end_axis(idx))
+            factor = (np.ones(J[idx].shape) if A is None else np.asarray(A, dtype=float)) / J[idx]
+            self._end_factors[k] = None if np.all(factor == 1.0) else factor
+
+    def end_load_density(self, k: int, P: np.ndarray) -> np.ndarray:
+        """The force density of the loaded face ``k`` (of ``_end_loads``) under the load P per
+        unit reference area (body components ``[*face, r]``): ``P/(h_α/2)`` on the chart's own
+        measure, times the face's chart factor otherwise."""
+        idx, _ = self._end_loads[k]
+        half = 0.5 * self.h[self._end_axis(idx)]
+        factor = self._end_factors[k]
+        return P / half if factor is None else P * factor[..., None] / half
 
     def options(self) -> dict[str, Any]:
         return {"track_frames": self.track}
@@ -119,6 +163,12 @@ class Lattice(Scheme):
         body-frame uniform forces, free (loaded) and clamped ends or faces."""
         ops = self.__dict__.get("_operators")
         if ops is None:
+            if any(f is not None for f in self._end_factors):
+                from ..compiled.operators import OperatorSet
+
+                ops = self._operators = OperatorSet.declined(
+                    "face loads on a general chart (reference areas per node) run on the numpy path")
+                return ops
             from ._lattice_ops import lattice_operators
 
             ops = self._operators = lattice_operators(self, Lattice)
@@ -187,14 +237,28 @@ class Lattice(Scheme):
         """Edge strains averaged onto the nodes (one-sided at the ends of open axes)."""
         out = np.empty((*self.grid.shape, self.grid.d, self.group.dim))
         for axis, X in enumerate(self.edge_strains(state)):
-            if self.grid.periodic[axis]:
-                out[..., axis, :] = 0.5 * (X + np.roll(X, 1, axis=axis))
-                continue
-            Xm = np.moveaxis(X, axis, 0)
-            nodal = np.empty((Xm.shape[0] + 1, *Xm.shape[1:]))
-            nodal[1:-1] = 0.5 * (Xm[1:] + Xm[:-1])
-            nodal[0], nodal[-1] = Xm[0], Xm[-1]
-            out[..., axis, :] = np.moveaxis(nodal, 0, axis)
+            out[..., axis, :] = self._to_nodes(X, axis)
+        return out
+
+    def _to_nodes(self, X: np.ndarray, axis: int) -> np.ndarray:
+        """Edge values along ``axis`` ``[*edge_shape, r]`` averaged onto the nodes (one-sided at
+        the ends of an open axis)."""
+        if self.grid.periodic[axis]:
+            return 0.5 * (X + np.roll(X, 1, axis=axis))
+        Xm = np.moveaxis(X, axis, 0)
+        nodal = np.empty((Xm.shape[0] + 1, *Xm.shape[1:]))
+        nodal[1:-1] = 0.5 * (Xm[1:] + Xm[:-1])
+        nodal[0], nodal[-1] = Xm[0], Xm[-1]
+        return np.moveaxis(nodal, 0, axis)
+
+    def nodal_rest_strains(self) -> np.ndarray | None:
+        """The rest strains of the ``reference`` averaged onto the nodes as :meth:`nodal_strains`
+        averages the strains, ``[*shape, d, r]``; None without a reference configuration."""
+        if self.problem.reference is None:
+            return None
+        out = np.empty((*self.grid.shape, self.grid.d, self.group.dim))
+        for axis in range(self.grid.d):
+            out[..., axis, :] = self._to_nodes(self.edge_rest_strains(axis)[..., axis, :], axis)
         return out
 
     def edge_rest_strains(self, axis: int) -> np.ndarray | None:
@@ -266,7 +330,7 @@ class Lattice(Scheme):
         count = np.ones(n)
         for a in range(d):
             count *= (after[a] >= 0).astype(float) + (before[a] >= 0)
-        w = np.asarray(self.weights, dtype=float).reshape(n)
+        w = np.asarray(self.chart_weights, dtype=float).reshape(n)
         nodes, edges = [], []
         for combo in range(1 << d):
             idx = [after[a] if (combo >> a) & 1 else before[a] for a in range(d)]
@@ -332,21 +396,24 @@ class Lattice(Scheme):
         T = self.medium.body_force(Phi, N, t)
         if T is not None:
             W += T
-        for idx, b in self._end_loads:
+        for k, (idx, b) in enumerate(self._end_loads):
             P = b.load if b.follower else dead_to_body(self.group, Phi[idx], b.load)
             # P is a load per unit face area (a point load for d = 1): the end node's share of the
-            # face is weight/(h_α/2), so its force density is P/(h_α/2)
-            W[idx] += P / (0.5 * self.h[self._end_axis(idx)])
+            # face is weight/(h_α/2), so its force density is P/(h_α/2) (times the chart's factor)
+            W[idx] += self.end_load_density(k, P)
         W[self._clamped] = 0.0
         W[..., ~self.live] = 0.0
         return W
 
     def _boundary_power(self, state, N, Phi):
         p = 0.0
-        for idx, b in self._end_loads:
+        for k, (idx, b) in enumerate(self._end_loads):
             P = b.load if b.follower else dead_to_body(self.group, Phi[idx], b.load)
-            face = self.weights[idx] / (0.5 * self.h[self._end_axis(idx)])
-            p += float(np.sum(face[..., None] * P * N[idx]))
+            if self._end_factors[k] is None:
+                face = self.weights[idx] / (0.5 * self.h[self._end_axis(idx)])
+                p += float(np.sum(face[..., None] * P * N[idx]))
+            else:
+                p += float(np.sum(self.weights[idx][..., None] * self.end_load_density(k, P) * N[idx]))
         return p
 
     def end_load_entries(self) -> list[tuple[int, Any, int]]:

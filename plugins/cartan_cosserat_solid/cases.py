@@ -94,8 +94,10 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 import cartan
-from cartan.problem import Free, PotentialLoad
+from cartan.problem import Free
 from cartan.supports import SymmetrySupport
+
+from .solid import CentreSupport, disk_chart
 
 try:  # the verification package is optional for users of the medium
     from cartan_verification.case import Case, StaticCase
@@ -411,57 +413,6 @@ def uniaxial_stress(p: float, lam: float, mu: float, kappa: float) -> tuple[floa
     return 1.0 - p / E, 1.0 + nu * p / E, E, nu
 
 
-class CentreSupport(PotentialLoad):
-    """Springs holding the position and the frame of one node, removing the rigid motions of a
-    free body: ``U = ½k|x − x̄|² + ½k_R|R − R̄|²_F`` per unit reference volume at the node,
-    zero elsewhere (x̄, R̄ the held values).  A support: not multiplied by the load parameter λ
-    (:attr:`cartan.problem.Load.scaled` False).
-
-    Parameters
-    ----------
-    Phi : array, shape ``(*shape, 4, 4)``
-        The configuration whose node ``node`` is held.
-    node : tuple of int
-        The held node's index (d entries).
-    stiffness : float
-        k > 0 (force per unit length per unit volume).
-    rotation_stiffness : float
-        k_R > 0 (per unit volume); |R − R̄|²_F = 4(1 − cos φ) + … for a rotation by φ.
-    """
-
-    scaled = False  # a support: acts at every load level
-
-    def __init__(self, Phi: np.ndarray, node: tuple[int, ...], stiffness: float, rotation_stiffness: float):
-        Phi = np.asarray(Phi, dtype=float)
-        shape = Phi.shape[:-2]
-        if len(node) != len(shape) or not all(0 <= i < n for i, n in zip(node, shape, strict=True)):
-            raise ValueError(f"node must be an index into the node shape {shape}, got {node!r}")
-        for name, value in (("stiffness", stiffness), ("rotation_stiffness", rotation_stiffness)):
-            if not value > 0:
-                raise ValueError(f"{name} must be > 0, got {value!r}")
-        self.node = tuple(int(i) for i in node)
-        self.k, self.kr = float(stiffness), float(rotation_stiffness)
-        self.mask = np.zeros(shape)
-        self.mask[self.node] = 1.0
-        self.held = Phi[self.node].copy()
-
-    def potential_energy(self, q: np.ndarray) -> np.ndarray:
-        d = q - self.held
-        return self.mask * 0.5 * (self.k * np.sum(d[..., 1:, 0] ** 2, axis=-1)
-                                  + self.kr * np.sum(d[..., 1:, 1:] ** 2, axis=(-2, -1)))
-
-    def potential_gradient(self, q: np.ndarray) -> np.ndarray:
-        d = q - self.held
-        grad = np.zeros(np.shape(q))
-        grad[..., 1:, 0] = self.mask[..., None] * self.k * d[..., 1:, 0]
-        grad[..., 1:, 1:] = self.mask[..., None, None] * self.kr * d[..., 1:, 1:]
-        return grad
-
-    def to_dict(self) -> dict[str, Any]:
-        return {"kind": "centre-support", "node": list(self.node), "stiffness": self.k,
-                "rotation_stiffness": self.kr}
-
-
 class UniaxialStressBlock(StaticCase):
     """Uniaxial compression of a free micropolar block at finite strain (module docstring):
     default solid (λ = μ = 1, κ = 0.5: E = 3.0556, ν = 0.2222), block 1 × 0.6 × 0.8, nominal
@@ -592,31 +543,6 @@ class UniaxialStressOctant(UniaxialStressBlock):
         k, _ = self.stiffness(grid, E)
         delta = -2.0 * self.load / (k * grid.spacing[0])
         return np.array([s1, s2, s2]) * X + np.array([delta, 0.0, 0.0])
-
-
-def disk_chart(xi: Any, eta: Any) -> tuple[np.ndarray, np.ndarray]:
-    """The elliptical map of the square [−1, 1]² onto the unit disk,
-    ``x = ξ√(1 − η²/2)``, ``y = η√(1 − ξ²/2)``.
-
-    Smooth, it takes the sides ξ = ±1, η = ±1 onto the circle (x² + y² = 1 there) and has
-    ``det J = (1 − (ξ² + η²)/2)/√((1 − ξ²/2)(1 − η²/2)) > 0`` except at the four corners of the
-    square, where it vanishes (a right angle cannot open to a straight one smoothly otherwise).
-
-    Parameters
-    ----------
-    xi, eta : array_like
-        Chart coordinates in [−1, 1] (broadcast together).
-
-    Returns
-    -------
-    (x, y) : arrays
-        Points of the closed unit disk.
-    """
-    xi = np.asarray(xi, dtype=float)
-    eta = np.asarray(eta, dtype=float)
-    if np.any(np.abs(xi) > 1) or np.any(np.abs(eta) > 1):
-        raise ValueError("xi and eta must lie in [-1, 1]")
-    return xi * np.sqrt(1 - 0.5 * eta**2), eta * np.sqrt(1 - 0.5 * xi**2)
 
 
 def cylinder_torsion_problem(radius: float, n: int, twist: float = 1e-3, **constants: float) -> Problem:

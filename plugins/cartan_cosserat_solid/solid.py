@@ -58,9 +58,25 @@ volume, so the energy per unit chart volume is
     U_chart(X; X₀) = det Θ₀ · U(Θ₀⁻¹(X − X₀)),   Q[α] = det Θ₀ Σ_j (Θ₀⁻¹)_{jα} Q_phys[j],
 
 (:meth:`CosseratSolid.potential_at`, the point kernels), which is U itself when Θ₀ = I; det Θ₀ > 0
-(a right-handed chart) is required.  The inertia, the face loads and the outputs (displacement
-x − (u, v, w), stresses per unit chart area) stay those of the orthonormal chart: a general
-chart is for statics, its results read off the configuration (docs/design.md, "Charts of a disk").
+(a right-handed chart) is required.  The rest of the solid reads the chart too (docs/design.md,
+"Charts of a disk"):
+
+* mass — the reference volume per unit chart volume is J = det Θ₀
+  (:meth:`CosseratSolid.reference_volume`), so the lattice gives a node the mass ρJw and the
+  micro-inertia ρjJw (w the chart's quadrature weight), and its body loads per unit reference
+  volume the same weight;
+* face loads — a traction (couple) per unit reference area on the face ⊥ α is integrated with
+  the face's reference area element det Θ₀ |Θ₀⁻¹e_α| per unit chart area
+  (:meth:`CosseratSolid.reference_area`; the area of the face spanned by θ₀_β × θ₀_γ);
+* outputs (:meth:`CosseratSolid.outputs` with the reference) — the displacement x − x_ref and the
+  micro-rotation log(R R_refᵀ) relative to the rest configuration, and the stresses of the
+  physical strains in the orthonormal frame of the reference directors, Θ₀⁻¹X: the body tensors
+  Q_phys[j] (row j the face ⊥ the reference director j, per unit reference area), the nominal
+  P = R F_physᵀ R_refᵀ (per unit reference area, column J the face of reference normal e_J, so
+  that the traction on a face of outer reference normal N is P N) and the Cauchy σ = P F_refᵀ/J_ref
+  with F_ref = ∂x/∂x_ref = R (Θ₀⁻¹Θ)ᵀ R_refᵀ the deformation gradient from the rest
+  configuration (per unit current area).  At nodes of the identity chart (X₀ = (e_α, 0) and
+  R_ref = I exactly) they are the formulas above, to the bit.
 
 Positive definiteness (Eringen, *Microcontinuum Field Theories I*, §5.3): with E split into its
 deviatoric, spherical and skew parts, U = ½(λ + (2μ+κ)/3)(tr E)² + ½(2μ+κ)|dev sym E|² +
@@ -84,11 +100,13 @@ from cartan.medium import (
     check_keywords,
     check_positive,
 )
-from cartan.problem import ConstantFieldPotential, InitialState
+from cartan.problem import ConstantFieldPotential, InitialState, PotentialLoad
 from cartan.supports import PenaltySupport, SymmetrySupport
 
 __all__ = [
     "translation_holonomies",
+    "CentreSupport",
+    "disk_chart",
     "CosseratSolid",
     "STRESS_OUTPUTS",
     "stress_tensor",
@@ -427,6 +445,105 @@ class Gravity(ConstantFieldPotential):
         return {"kind": "gravity", "g": self.g.tolist(), "density": self.density}
 
 
+class CentreSupport(PotentialLoad):
+    """Springs holding the position and the frame of one node, removing the rigid motions of a
+    free body: ``U = ½k|x − x̄|² + ½k_R|R − R̄|²_F`` per unit reference volume at the node,
+    zero elsewhere (x̄, R̄ the held values).  A support: not multiplied by the load parameter λ
+    (:attr:`cartan.problem.Load.scaled` False).  Scene load kind ``"centre-support"``
+    (:meth:`CosseratSolid.make_load`: ``stiffness``, ``rotation_stiffness``, optional ``node``).
+
+    Parameters
+    ----------
+    Phi : array, shape ``(*shape, 4, 4)``, optional
+        The configuration whose node ``node`` is held; None: the initial state of the problem
+        the support is attached to.
+    node : tuple of int, optional
+        The held node's index (d entries); None: the centre node ``shape // 2`` of the problem.
+    stiffness : float
+        k > 0 (force per unit length per unit volume).
+    rotation_stiffness : float
+        k_R > 0 (per unit volume); |R − R̄|²_F = 4(1 − cos φ) + … for a rotation by φ.
+    """
+
+    scaled = False  # a support: acts at every load level
+
+    def __init__(self, Phi: np.ndarray | None = None, node: tuple[int, ...] | None = None, stiffness: float = 1.0,
+                 rotation_stiffness: float = 1.0):
+        for name, value in (("stiffness", stiffness), ("rotation_stiffness", rotation_stiffness)):
+            if not (isinstance(value, int | float | np.floating | np.integer) and not isinstance(value, bool)
+                    and math.isfinite(value) and value > 0):
+                raise ValueError(f"{name} must be > 0 (a finite number), got {value!r}")
+        self.k, self.kr = float(stiffness), float(rotation_stiffness)
+        self._given_node = None if node is None else tuple(int(i) for i in node)
+        self._given_held = Phi is not None
+        self.node: tuple[int, ...] | None = None
+        if Phi is not None:
+            self._hold(np.asarray(Phi, dtype=float), self._given_node)
+
+    def _hold(self, Phi: np.ndarray, node: tuple[int, ...] | None) -> None:
+        shape = Phi.shape[:-2]
+        if node is None:
+            node = tuple(n // 2 for n in shape)
+        if len(node) != len(shape) or not all(0 <= i < n for i, n in zip(node, shape, strict=True)):
+            raise ValueError(f"node must be an index into the node shape {shape}, got {node!r}")
+        self.node = tuple(int(i) for i in node)
+        self.mask = np.zeros(shape)
+        self.mask[self.node] = 1.0
+        self.held = Phi[self.node].copy()
+
+    def attach(self, problem: Any) -> None:
+        """Hold the problem's initial state at the node (when no ``Phi`` was given)."""
+        if not self._given_held:
+            self._hold(np.asarray(problem.initial.Phi, dtype=float), self._given_node)
+
+    def _check_held(self) -> None:
+        if self.node is None:
+            raise ValueError("CentreSupport holds nothing yet: give Phi, or attach it to a Problem")
+
+    def potential_energy(self, q: np.ndarray) -> np.ndarray:
+        self._check_held()
+        d = q - self.held
+        return self.mask * 0.5 * (self.k * np.sum(d[..., 1:, 0] ** 2, axis=-1)
+                                  + self.kr * np.sum(d[..., 1:, 1:] ** 2, axis=(-2, -1)))
+
+    def potential_gradient(self, q: np.ndarray) -> np.ndarray:
+        self._check_held()
+        d = q - self.held
+        grad = np.zeros(np.shape(q))
+        grad[..., 1:, 0] = self.mask[..., None] * self.k * d[..., 1:, 0]
+        grad[..., 1:, 1:] = self.mask[..., None, None] * self.kr * d[..., 1:, 1:]
+        return grad
+
+    def to_dict(self) -> dict[str, Any]:
+        return {"kind": "centre-support", "node": None if self.node is None else list(self.node),
+                "stiffness": self.k, "rotation_stiffness": self.kr}
+
+
+def disk_chart(xi: Any, eta: Any) -> tuple[np.ndarray, np.ndarray]:
+    """The elliptical map of the square [−1, 1]² onto the unit disk,
+    ``x = ξ√(1 − η²/2)``, ``y = η√(1 − ξ²/2)``.
+
+    Smooth, it takes the sides ξ = ±1, η = ±1 onto the circle (x² + y² = 1 there) and has
+    ``det J = (1 − (ξ² + η²)/2)/√((1 − ξ²/2)(1 − η²/2)) > 0`` except at the four corners of the
+    square, where it vanishes (a right angle cannot open to a straight one smoothly otherwise).
+
+    Parameters
+    ----------
+    xi, eta : array_like
+        Chart coordinates in [−1, 1] (broadcast together).
+
+    Returns
+    -------
+    (x, y) : arrays
+        Points of the closed unit disk.
+    """
+    xi = np.asarray(xi, dtype=float)
+    eta = np.asarray(eta, dtype=float)
+    if np.any(np.abs(xi) > 1) or np.any(np.abs(eta) > 1):
+        raise ValueError("xi and eta must lie in [-1, 1]")
+    return xi * np.sqrt(1 - 0.5 * eta**2), eta * np.sqrt(1 - 0.5 * xi**2)
+
+
 # ====================================================================== the medium
 class CosseratSolid(QuadraticMedium):
     """Isotropic micropolar (Cosserat) solid on SE(3), d = 3 (paper §VI.A).
@@ -466,7 +583,8 @@ class CosseratSolid(QuadraticMedium):
     -----
     ``X``, ``Q`` have shape ``[..., 3, 6]`` (axis α = u, v, w; components (θ; π)), ``N``,
     ``S`` ``[..., 6]``; rest strain ``X₀[α] = (e_α, 0)``.  The material coordinates (u, v, w)
-    are the reference position: the displacement output is ``x − (u, v, w)``.
+    are the reference position: the displacement output is ``x − (u, v, w)`` (``x − x_ref``
+    with a ``reference`` configuration, module docstring "Charts").
     """
 
     name: ClassVar[str] = "cosserat-solid"
@@ -474,8 +592,9 @@ class CosseratSolid(QuadraticMedium):
     #: labels of the solid's own tensor dimension (``row``, ``axis`` and ``col`` are the core's)
     output_coords: ClassVar[dict[str, Any]] = {
         "normal": ("spatial direction of the face normal", ["x", "y", "z"])}
-    load_kinds: ClassVar[tuple[str, ...]] = ("gravity", "symmetry", "simple-support")
-    initial_kinds: ClassVar[tuple[str, ...]] = ("undeformed", "stretch", "deformation", "twist", "arrays")
+    load_kinds: ClassVar[tuple[str, ...]] = ("gravity", "symmetry", "simple-support", "centre-support")
+    initial_kinds: ClassVar[tuple[str, ...]] = ("undeformed", "stretch", "deformation", "twist", "cylinder",
+                                                "arrays")
 
     def __init__(self, lam: float = 1.0, mu: float = 1.0, kappa: float = 0.5, alpha: float = 0.1,
                  beta: float = 0.05, gamma: float = 0.1, density: float = 1.0, micro_inertia: float = 0.1,
@@ -507,9 +626,10 @@ class CosseratSolid(QuadraticMedium):
         X0 = np.zeros((3, 6))
         X0[:, :3] = np.eye(3)
         self._set_energy(X0, micropolar_stiffness(**c))
-        fields = {f"displacement_{x}": (f"displacement x_{x} − {_AXES['xyz'.index(x)]}", "length")
-                  for x in "xyz"}
-        fields |= {f"microrotation_{x}": (f"micro-rotation vector component {x} (log R)", "1") for x in "xyz"}
+        fields = {f"displacement_{x}": (f"displacement x_{x} − {_AXES['xyz'.index(x)]} (x_{x} − x_ref,{x} with a "
+                                        f"reference configuration)", "length") for x in "xyz"}
+        fields |= {f"microrotation_{x}": (f"micro-rotation vector component {x} (log R; log(R R_refᵀ) with a "
+                                          f"reference configuration)", "1") for x in "xyz"}
         for name, (dims, long_name, units, which) in STRESS_OUTPUTS.items():
             if which in self.stress_outputs:
                 fields[name] = (long_name, units, dims)
@@ -564,8 +684,33 @@ class CosseratSolid(QuadraticMedium):
         return Q.reshape(*lead, 3, 6)
 
     def inertia(self) -> np.ndarray:
-        """Kinetic metric ``(ρ, ρ, ρ, ρj, ρj, ρj)`` per unit reference volume, shape ``(6,)``."""
+        """Kinetic metric ``(ρ, ρ, ρ, ρj, ρj, ρj)`` per unit reference volume, shape ``(6,)``
+        (per unit chart volume it is J = :meth:`reference_volume` times this)."""
         return np.array([self.rho] * 3 + [self.rho * self.j] * 3)
+
+    def reference_volume(self, X0: np.ndarray) -> np.ndarray:
+        """The reference volume per unit chart volume, J = det Θ₀ (module docstring, "Charts").
+
+        Parameters
+        ----------
+        X0 : array, shape ``[..., 3, 6]``
+            Rest strains (rows θ₀_α; Θ₀ = X0[..., :3]).
+
+        Returns
+        -------
+        numpy.ndarray, shape ``[...]``
+            1 exactly for the identity chart.
+        """
+        return np.linalg.det(np.asarray(X0, dtype=float)[..., :3])
+
+    def reference_area(self, X0: np.ndarray, axis: int) -> np.ndarray:
+        """The reference area of the face ⊥ ``axis`` per unit chart area,
+        ``|θ₀_β × θ₀_γ| = det Θ₀ |Θ₀⁻¹e_axis|`` (β, γ the other axes; Θ₀⁻¹e_α is the dual
+        vector of θ₀_α), shape ``[...]`` for X0 ``[..., 3, 6]``; 1 for the identity chart."""
+        if axis not in (0, 1, 2):
+            raise ValueError(f"axis must be 0, 1 or 2, got {axis!r}")
+        T = np.asarray(X0, dtype=float)[..., :3]
+        return np.linalg.det(T) * np.linalg.norm(np.linalg.inv(T)[..., :, axis], axis=-1)
 
     def point_kernels(self) -> MediumKernels:
         """Closed-form isotropic kernels (:func:`micropolar_energy_point`,
@@ -663,9 +808,17 @@ class CosseratSolid(QuadraticMedium):
     # ------------------------------------------------------------------ loads
     def make_load(self, kind: str, **params: Any):
         """``"gravity"``: :class:`Gravity` with ``g`` (3,) and this solid's density;
+        ``"centre-support"``: :class:`CentreSupport` holding the initial state's ``node``
+        (default the centre node) with ``stiffness`` and ``rotation_stiffness`` (per unit volume);
         ``"symmetry"`` (:class:`cartan.supports.SymmetrySupport`: ``edges`` (faces), ``normal``,
         ``position_stiffness``, ``director_stiffness``, per unit volume) and ``"simple-support"``
         (:class:`cartan.supports.PenaltySupport`) on the faces of the block (d = 3)."""
+        if kind == "centre-support":
+            unknown = sorted(set(params) - {"node", "stiffness", "rotation_stiffness"})
+            if unknown or not {"stiffness", "rotation_stiffness"} <= set(params):
+                raise ValueError(f"load 'centre-support' takes 'stiffness', 'rotation_stiffness' and optionally 'node' "
+                                 f"(it holds the problem's initial state), got {sorted(params)}")
+            return CentreSupport(**params)
         if kind == "gravity":
             if set(params) != {"g"}:
                 raise ValueError(f"load 'gravity' takes exactly the parameter 'g', got {sorted(params)}")
@@ -678,23 +831,86 @@ class CosseratSolid(QuadraticMedium):
         return super().make_load(kind, **params)
 
     # ------------------------------------------------------------------ outputs
-    def outputs(self, q: np.ndarray, X: np.ndarray, N: np.ndarray, grid: Any) -> dict[str, np.ndarray]:
-        """Displacement ``x − (u, v, w)`` and micro-rotation vector log R (node fields of shape
-        ``grid.shape``), and the stress tensors of ``output_stresses`` at the nodal strains
-        (:data:`STRESS_OUTPUTS`; the frames R are the nodes'), of shape ``(*grid.shape, 3, 3)``."""
-        coords = np.stack(np.meshgrid(*[grid.coordinates(a) for a in range(3)], indexing="ij"), axis=-1)
-        disp = q[..., 1:, 0] - coords
+    #: :meth:`outputs` reads the problem's reference configuration (the core passes it)
+    outputs_read_reference: ClassVar[bool] = True
+
+    def outputs(self, q: np.ndarray, X: np.ndarray, N: np.ndarray, grid: Any,
+                reference: dict[str, np.ndarray] | None = None) -> dict[str, np.ndarray]:
+        """Displacement and micro-rotation vector (node fields of shape ``grid.shape``), and the
+        stress tensors of ``output_stresses`` at the nodal strains (:data:`STRESS_OUTPUTS`; the
+        frames R are the nodes'), of shape ``(*grid.shape, 3, 3)``.
+
+        Parameters
+        ----------
+        q : array, shape ``(*grid.shape, 4, 4)``
+            The configuration.
+        X : array, shape ``(*grid.shape, 3, 6)``
+            Nodal strains.
+        N : array, shape ``(*grid.shape, 6)``
+            Velocities (not read).
+        grid : cartan.grid.Grid
+        reference : dict, optional
+            The problem's rest configuration at the nodes, ``{"q": (*shape, 4, 4), "X0":
+            (*shape, 3, 6)}`` (the core passes it for a problem with a ``reference``).  Without
+            it the material coordinates are the rest placement: displacement ``x − (u, v, w)``,
+            micro-rotation log R, stresses of X.  With it (module docstring, "Charts"):
+            displacement ``x − x_ref``, micro-rotation log(R R_refᵀ), and the stresses of the
+            chart's physical strains Θ₀⁻¹X — nominal per unit reference area (columns: the
+            reference normals e_x, e_y, e_z of the rest placement), Cauchy per unit current area.
+        """
         R = q[..., 1:, 1:]
-        phi = rotation_vector(R)
+        if reference is None:
+            coords = np.stack(np.meshgrid(*[grid.coordinates(a) for a in range(3)], indexing="ij"), axis=-1)
+            disp = q[..., 1:, 0] - coords
+            phi = rotation_vector(R)
+        else:
+            q_ref = np.asarray(reference["q"], dtype=float)
+            disp = q[..., 1:, 0] - q_ref[..., 1:, 0]
+            phi = rotation_vector(R @ np.swapaxes(q_ref[..., 1:, 1:], -1, -2))
         out = {f"displacement_{x}": disp[..., i] for i, x in enumerate("xyz")}
         out |= {f"microrotation_{x}": phi[..., i] for i, x in enumerate("xyz")}
-        if "body" in self.stress_outputs:
-            out["force_stress"], out["couple_stress"] = self.stress_tensors(X)
-        if "nominal" in self.stress_outputs:
-            out["nominal_force_stress"], out["nominal_couple_stress"] = self.nominal_stress_tensors(R, X)
-        if "cauchy" in self.stress_outputs:
-            out["cauchy_force_stress"], out["cauchy_couple_stress"] = self.cauchy_stress_tensors(R, X)
+        if not self.stress_outputs:
+            return out
+        if reference is None:
+            body = self.stress_tensors(X) if "body" in self.stress_outputs else None
+            nominal = self.nominal_stress_tensors(R, X) if "nominal" in self.stress_outputs else None
+            cauchy = self.cauchy_stress_tensors(R, X) if "cauchy" in self.stress_outputs else None
+        else:
+            body, nominal, cauchy = self._chart_stresses(R, X, reference)
+        if body is not None:
+            out["force_stress"], out["couple_stress"] = body
+        if nominal is not None:
+            out["nominal_force_stress"], out["nominal_couple_stress"] = nominal
+        if cauchy is not None:
+            out["cauchy_force_stress"], out["cauchy_couple_stress"] = cauchy
         return out
+
+    def _chart_stresses(self, R: np.ndarray, X: np.ndarray, reference: dict[str, np.ndarray]) -> tuple:
+        """(body, nominal, cauchy) tensor pairs (None for a set not recorded) of the physical
+        strains of a general chart (module docstring, "Charts"); the identity chart's nodes by
+        the formulas without a chart, to the bit."""
+        X = np.asarray(X, dtype=float)
+        X0 = np.asarray(reference["X0"], dtype=float)
+        R_ref = np.asarray(reference["q"], dtype=float)[..., 1:, 1:]
+        T = np.linalg.inv(X0[..., :3])                        # Θ₀⁻¹
+        Xp = T @ X                                            # Θ₀⁻¹X: θ-part Θ₀⁻¹Θ
+        Q = self.stress(T @ (X - X0) + self._X0)              # Q_phys of D = Θ₀⁻¹(X − X₀)
+        F = self.deformation_gradient(R, Xp)                  # R (Θ₀⁻¹Θ)ᵀ = F_ref R_ref
+        P = R @ np.swapaxes(Q[..., :3], -1, -2)               # columns: the reference directors
+        C = R @ np.swapaxes(Q[..., 3:], -1, -2)
+        Ft_J = np.swapaxes(F, -1, -2) / np.linalg.det(F)[..., None, None]
+        R_ref_t = np.swapaxes(R_ref, -1, -2)
+        sets = {"body": (Q[..., :3], Q[..., 3:]), "nominal": (P @ R_ref_t, C @ R_ref_t),
+                "cauchy": (P @ Ft_J, C @ Ft_J)}
+        identity = np.all(X0 == self._X0, axis=(-2, -1)) & np.all(R_ref == np.eye(3), axis=(-2, -1))
+        if identity.any():
+            Xi, Ri = X[identity], R[identity]
+            plain = {"body": self.stress_tensors(Xi), "nominal": self.nominal_stress_tensors(Ri, Xi),
+                     "cauchy": self.cauchy_stress_tensors(Ri, Xi)}
+            for key, pair in plain.items():
+                for full, part in zip(sets[key], pair, strict=True):
+                    full[identity] = part
+        return tuple(sets[k] if k in self.stress_outputs else None for k in _STRESS_SETS)
 
     # ------------------------------------------------------------------ initial states
     def initial_state(self, grid, kind: str, **params: Any) -> InitialState:
@@ -717,6 +933,14 @@ class CosseratSolid(QuadraticMedium):
             the centre of the cross-section) along e₁: every cross-section u = const rotated
             rigidly, with its frames, by the angle ``rate``·u about e₁ (Saint-Venant's
             kinematics without warping: π_u = (rate, 0, 0));
+            ``"cylinder"`` — a circular cylinder of ``radius`` a (default L_u/2) about the line
+            through the centre of the section along w, the section (u, v) charted onto the disk by
+            the elliptical map (:func:`disk_chart` of ξ = 2u/L_u − 1, η = 2v/L_v − 1), twisted
+            by ``twist`` τ (rad per unit length): x = R_z(τw)(a x(ξ, η), a y(ξ, η), w), frames
+            R_z(τw).  It comes with its stress-free ``reference`` (the untwisted cylinder, frames
+            I: the chart of the energy, module docstring "Charts"), which a Problem takes; a
+            periodic w axis gets the screw holonomy (L_w e_z, R_z(τL_w)) (the reference the
+            translation L_w e_z): uniform torsion of an infinite cylinder;
             ``"arrays"`` — ``positions`` ``(*shape, 3)`` and ``frames`` ``(*shape, 3, 3)``.
         **params
             Shape parameters, plus ``velocity`` (body components N, ``(6,)`` or
@@ -733,12 +957,17 @@ class CosseratSolid(QuadraticMedium):
         rigid = params.pop("rigid_velocity", None)
         center = params.pop("center", None)
         builders = {"undeformed": self._undeformed, "stretch": self._stretch, "deformation": self._deformation,
-                    "twist": self._twist, "arrays": self._arrays}
+                    "twist": self._twist, "cylinder": self._cylinder, "arrays": self._arrays}
         if kind not in builders:
             return super().initial_state(grid, kind, **params)
         build = builders[kind]
         check_keywords(kind, build, params, ("velocity", "rigid_velocity", "center"))
-        pos, frames = build(grid, **params)
+        built = build(grid, **params)
+        if kind == "cylinder":
+            pos, frames, holonomy, reference = built
+        else:
+            (pos, frames), reference = built, None
+            holonomy = translation_holonomies(grid, pos, kind)
         Phi = np.zeros((*grid.shape, 4, 4))
         Phi[..., 0, 0] = 1.0
         Phi[..., 1:, 0] = pos
@@ -758,7 +987,7 @@ class CosseratSolid(QuadraticMedium):
                                     np.einsum("...ij,j->...i", Rt, twist[3:])], axis=-1)
         elif center is not None:
             raise ValueError("'center' is only used with 'rigid_velocity'")
-        return InitialState(Phi=Phi, N=N, holonomy=translation_holonomies(grid, pos, kind))
+        return InitialState(Phi=Phi, N=N, holonomy=holonomy, reference=reference)
 
     @staticmethod
     def _coords(grid) -> np.ndarray:
@@ -802,6 +1031,31 @@ class CosseratSolid(QuadraticMedium):
         pos[..., 0] += X[..., 0]
         pos[..., 1:] += c
         return pos, R
+
+    def _cylinder(self, grid, radius=None, twist=0.0):
+        if grid.periodic[0] or grid.periodic[1]:
+            raise ValueError("initial kind 'cylinder' charts the section (u, v) by a square: axes u and v must not be "
+                             "periodic")
+        a = 0.5 * grid.length[0] if radius is None else float(check_positive("radius", radius, shape=()))
+        tau = float(check_finite("twist", twist, ()))
+        X = self._coords(grid)
+        xi, eta = disk_chart(2.0 * X[..., 0] / grid.length[0] - 1.0, 2.0 * X[..., 1] / grid.length[1] - 1.0)
+        ref = np.stack([a * xi, a * eta, X[..., 2]], axis=-1)
+        SO3 = cartan.group("SO3")
+        R = SO3.exp((tau * X[..., 2])[..., None] * np.array([0.0, 0.0, 1.0]))
+        pos = np.einsum("...ij,...j->...i", R, ref)
+        Phi_ref = np.zeros((*grid.shape, 4, 4))
+        Phi_ref[..., 0, 0] = 1.0
+        Phi_ref[..., 1:, 0] = ref
+        Phi_ref[..., 1:, 1:] = np.eye(3)
+        holonomy = ref_holonomy = None
+        if grid.periodic[2]:
+            shift = np.eye(4)
+            shift[3, 0] = grid.length[2]
+            screw = shift.copy()
+            screw[1:, 1:] = SO3.exp(np.array([0.0, 0.0, tau * grid.length[2]]))
+            holonomy, ref_holonomy = {2: screw}, {2: shift}
+        return pos, R, holonomy, InitialState(Phi=Phi_ref, holonomy=ref_holonomy)
 
     def _arrays(self, grid, positions=None, frames=None):
         if positions is None or frames is None:

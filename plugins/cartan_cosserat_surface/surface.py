@@ -221,6 +221,13 @@ class SurfaceGravity(ConstantFieldPotential):
         return {"kind": "gravity", "g": self.field.tolist(), "mass": self.density}
 
 
+def _translation(t: np.ndarray) -> np.ndarray:
+    """The SE(3) element ``(4, 4)`` of the translation by ``t`` ``(3,)`` (no rotation)."""
+    H = np.eye(4)
+    H[1:, 0] = t
+    return H
+
+
 def _axis_derivative(x: np.ndarray, axis: int, h: float, periodic: bool, shift: np.ndarray | None) -> np.ndarray:
     """Second-order difference ∂x/∂u_axis of node positions x ``[nu, nv, 3]``.
 
@@ -611,7 +618,11 @@ class CosseratSurface(KernelMedium):
         grid : cartan.grid.Grid
             d = 2, axes (u, v).
         kind : str
-            ``"flat"``: r = origin + (u, v, 0), frames = rotation (default identity).
+            ``"flat"``: r = origin + rotation·(u, v, 0), frames = rotation (default identity).
+            On a periodic axis α the plate is a periodic strip (a sheet when both are): it
+            repeats after L_α along the axis's direction in space, the state's holonomy on
+            that axis the translation by L_α·rotation·e_α (the closing edge carries the strain of
+            every other edge, no seam force), as a periodic v axis of the ``"cylinder"``.
             ``"cylinder"``: r = (R sin(u/R), v, R cos(u/R) − R), axis along y, e₁ along the
             circumference, e₃ the outward normal; ``radius`` R (default: L_u/(2π) on a periodic u).
             On a periodic v axis the tube repeats after L_v: the state's holonomy is the
@@ -646,9 +657,12 @@ class CosseratSurface(KernelMedium):
         holonomy = None
         if kind == "cylinder" and grid.periodic[1]:
             # a periodic axial direction: the tube repeats after L_v along its axis, Φ(v + L) = HΦ(v)
-            H = np.eye(4)
-            H[2, 0] = grid.length[1]
-            holonomy = {1: H}
+            holonomy = {1: _translation(np.array([0.0, grid.length[1], 0.0]))}
+        elif kind == "flat" and any(grid.periodic):
+            # a periodic strip (or sheet): it repeats after L_α along the axis's direction in
+            # space, Φ(u_α + L_α) = H_α Φ(u_α) with H_α the translation by L_α·rotation·e_α
+            Rm = np.eye(3) if params.get("rotation") is None else np.asarray(params["rotation"], dtype=float)
+            holonomy = {a: _translation(grid.length[a] * Rm[:, a]) for a in range(2) if grid.periodic[a]}
         return InitialState(Phi=Phi, N=N, holonomy=holonomy)
 
     def _mesh(self, grid) -> tuple[np.ndarray, np.ndarray]:
