@@ -39,8 +39,10 @@ copy taken at the start of the save block, as before.  Each step depends only on
 so the result does not depend on the sub-blocks and a restart is bit for bit (with the same
 path on both sides: the compiled and Python paths agree to round-off, not bit for bit).
 
-The work around the steps uses compiled kernels too when the scheme has them
-(``scheme.compiled_diagnostics``, cleared by ``compiled=False``): the CFL estimate
+The work around the steps uses compiled kernels too when the scheme has them and the problem
+is large enough for them to pay for their compilation (``scheme.uses_compiled_diagnostics()``:
+``scheme.compiled_diagnostics``, cleared by ``compiled=False``, and at least
+``scheme.compiled_diagnostics_from`` unknowns): the CFL estimate
 (:meth:`~cartan.schemes.base.Scheme.dt_max`, whose stiffness products use the lattice's
 compiled force and drift) and the guard's energies (the compiled plan's quadratic energy);
 saved frames always use the scheme's reference methods, with the frames rebuilt once per
@@ -361,7 +363,8 @@ def _make_guard(scheme: Scheme, integrator: Integrator, growth: float | None, e0
     At k = 1, 2, 4, 8, …: the energy-balance test of :func:`_balance` on K and V (two
     energy evaluations; with ``scheme.compiled_diagnostics`` set, from the hand-written plan's
     quadratic energy when the lattice has one, ``cartan.schemes._lattice_diagnostics.guard_energies``,
-    else, when the operator set's loops take the steps, from the operator set,
+    else, when the operator set's loops take the steps and ``scheme.uses_compiled_diagnostics()``,
+    from the operator set,
     :func:`cartan.compiled.diagnostics.guard_energies`),
     which also raises the energy scale ``scale[0]`` and marks it established (``scale[1] ≥ 1``).
     At the other steps, once the scale is established: the kinetic energy ½Σ w S²/m against
@@ -376,7 +379,8 @@ def _make_guard(scheme: Scheme, integrator: Integrator, growth: float | None, e0
         from .compiled.diagnostics import guard_energies as generated_energies
         from .schemes._lattice_diagnostics import guard_energies as plan_energies
 
-        generated = not scheme.has_hand_written_loops()
+        # the plan's energies are numpy sums; the operator set's compile (large problems only)
+        generated = not scheme.has_hand_written_loops() and scheme.uses_compiled_diagnostics()
 
         def guard_energies(scheme: Scheme, state: State) -> tuple[float, float] | None:
             fast = plan_energies(scheme, state)

@@ -101,6 +101,22 @@ if os.environ.get("CARTAN_COMPILE_LOG"):
     _install_compile_log(os.environ["CARTAN_COMPILE_LOG"])
 
 
+# ---------------------------------------------------------------------------- the fast suite's loops
+# ``make test`` compiles a few loops only: on an empty numba cache every compiled loop costs
+# 10-100 s, far more than the tests that run it.  A test module may define
+# ``slow_when(item) -> bool``; the items it names are marked ``slow`` (``make test-slow``), so the
+# rule that picks them stays beside the tests.  The loops ``make test`` compiles: the demo's
+# (the hand-written SE(3) lie-verlet loop of the lattice, and its generic twin for the other
+# groups), the generated ``lie-verlet`` loop of the lattice and the generated RKMK loop of
+# collocation on the SE(3) rod, and one implicit-midpoint loop (collocation, SE(2)).
+@pytest.hookimpl(tryfirst=True)
+def pytest_collection_modifyitems(config, items):
+    for item in items:
+        rule = getattr(getattr(item, "module", None), "slow_when", None)
+        if rule is not None and rule(item):
+            item.add_marker(pytest.mark.slow)
+
+
 @pytest.hookimpl(hookwrapper=True)
 def pytest_runtest_protocol(item, nextitem):
     _CURRENT_TEST["id"] = item.nodeid

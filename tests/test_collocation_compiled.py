@@ -31,7 +31,7 @@ import functools
 import numpy as np
 import pytest
 import toys
-from toys import QuadraticMedium
+from toys import QuadraticMedium, params_of
 
 import cartan
 from cartan.api import simulate
@@ -84,6 +84,14 @@ CASES = [("ring", "fd2"), ("ring", "fd4"), ("ring", "fourier"), ("clamped", "fd2
 CASE_IDS = [f"{k}-{d}" for k, d in CASES]
 #: SO(2) shares its module with tests/test_generated_collocation.py; the others compile their own
 GROUPS = ["SO2", pytest.param("SE2", marks=SLOW), pytest.param("SO3", marks=SLOW), pytest.param("SE3", marks=SLOW)]
+
+def slow_when(item) -> bool:
+    """``make test`` runs the generated ``lie-verlet`` loop of the toy rods; the other integrators'
+    loops and the d = 2 sigma models' in ``make test-slow`` (tests/conftest.py)."""
+    return params_of(item).get("name", "lie-verlet") != "lie-verlet" or item.originalname in {
+        "test_grids_agree_with_python", "test_grid_blocks_and_caches_match_the_step_loop",
+        "test_simulate_sigma_model_d2_runs_compiled"}
+
 
 run_both = functools.partial(toys.run_both, Collocation)
 _rel = toys.rel_error
@@ -523,9 +531,12 @@ def _numpy_probe(scheme, state):
 
 @pytest.fixture
 def compiled_products(monkeypatch) -> list:
-    """One entry per stiffness product taken on the compiled operators."""
+    """One entry per stiffness product taken on the compiled operators (on the tests' small
+    problems too: ``Scheme.compiled_diagnostics_from`` set to 0)."""
     from cartan.compiled import diagnostics
+    from cartan.schemes.base import Scheme
 
+    monkeypatch.setattr(Scheme, "compiled_diagnostics_from", 0)
     calls = []
     real = diagnostics.compiled_stiffness_probe
 

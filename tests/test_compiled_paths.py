@@ -34,7 +34,7 @@ import textwrap
 
 import numpy as np
 import pytest
-from toys import QuadraticMedium, arc_problem, moving_rod, rel_error
+from toys import QuadraticMedium, arc_problem, moving_rod, params_of, rel_error
 
 import cartan
 from cartan.api import InstabilityError, StabilityWarning, simulate
@@ -51,6 +51,15 @@ TOL = 1e-12
 #: order 1e-15 of the value's size; 1e-13 leaves about two digits of margin
 FORCE_TOL = 1e-13
 SCHEMES = {"lattice": Lattice, "collocation": Collocation}
+
+
+def slow_when(item) -> bool:
+    """``make test`` runs the generated ``lie-verlet`` loops of the SE(3) rod on both schemes; the
+    RKMK loop (rkmk4, overdamped, lie-euler, forward-euler) and the d = 2 sigma model's loops run in
+    ``make test-slow`` (tests/conftest.py)."""
+    p = params_of(item)
+    integrator = p.get("name", p.get("integrator", "lie-verlet"))
+    return integrator != "lie-verlet" or "order" in p or "sigma_model_d2" in item.originalname
 #: the configuration arrays of each scheme beside the frames
 CONFIG = {"lattice": {"G_u"}, "collocation": {"X"}}
 #: (integrator factory, Δt, steps) inside each method's stable range for the 11-node rods
@@ -559,12 +568,14 @@ PRODUCT_TOL = 1e-8
 DT_TOL = 1e-7
 
 
-@pytest.mark.parametrize("scheme", sorted(SCHEMES))
+@pytest.mark.parametrize("scheme", [pytest.param(s, marks=[pytest.mark.slow] if s == "lattice" else [])
+                                    for s in sorted(SCHEMES)])  # the lattice plan's probe: ≈ 76 s to compile
 def test_cfl_estimate_with_compiled_diagnostics_matches_numpy(scheme, monkeypatch):
     """``dt_max`` (a power iteration on the stiffness products) with compiled diagnostics
     against the numpy products: equal to the probe's round-off, without calling the numpy
     force, and the linearisation point left as it was."""
     sch = SCHEMES[scheme](rod("dead", gravity=scheme == "collocation", n=14))
+    sch.compiled_diagnostics_from = 0  # a small rod
     state = sch.initial_state()
     before = state.copy()
     numpy_forces = []

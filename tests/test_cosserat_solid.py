@@ -335,6 +335,7 @@ def test_gravity_is_pulled_back_to_a_body_force(solid):
         solid.make_load("gravity", g=[0, 0, -1], mass=2.0)
 
 
+@pytest.mark.slow  # the micropolar RKMK loop: ≈ 25 s to compile on a fresh cache
 def test_optical_cutoff_small_amplitude(solid):
     """A uniform micro-rotation of amplitude 1e-3 oscillates at ρjω² = 2κ (error O(φ₀²) + O(Δt²))."""
     c = solid.constants

@@ -39,6 +39,7 @@ import cartan.compiled.diagnostics as diagnostics
 from cartan.grid import Grid
 from cartan.integrators import RKMK4, ForwardEuler, LieEuler, LieVerlet, Overdamped
 from cartan.problem import Clamped, ConstantFieldPotential, Damping, Free, InitialState, Problem, UniformForce
+from cartan.schemes.base import Scheme
 from cartan.schemes.lattice import Lattice
 
 TOL = 1e-12
@@ -279,6 +280,7 @@ def test_energies_and_nodal_strains_match_the_reference(name):
     assert np.array_equal(ops.data.coords, coords.reshape(n, d))
 
 
+@pytest.mark.slow  # the SO(1,3) operator set's energies: ≈ 12 s to compile on a fresh cache
 def test_kinetic_energy_of_a_nondiagonal_metric_is_the_reference():
     """½Σ w S·M⁺S, not the diagonal's ½Σ w S²/|m|: the two differ for the indefinite toy."""
     scheme = Lattice(indefinite())
@@ -295,6 +297,7 @@ def test_stiffness_probe_matches_the_numpy_probe(name, monkeypatch):
     """``Scheme.stiffness_probe`` takes the generated probe (no numpy force or drift call) and
     agrees with the numpy probe to its round-off (:func:`_probe_bound`); the state is untouched."""
     scheme = Lattice((CASES | SLOW_CASES)[name]())
+    scheme.compiled_diagnostics_from = 0  # the compiled probe on a small problem too
     state = _moved(scheme)
     before = state.copy()
     v = np.random.default_rng(2).standard_normal(state.S.shape)
@@ -352,6 +355,7 @@ def test_simulate_guard_uses_the_generated_energies(monkeypatch):
     results = []
     real = diagnostics.guard_energies
     monkeypatch.setattr(diagnostics, "guard_energies", lambda *a: results.append(real(*a)) or results[-1])
+    monkeypatch.setattr(Scheme, "compiled_diagnostics_from", 0)  # a small sheet
     problem = coupled_sheet()
     assert not Lattice(problem).has_hand_written_loops()
     cartan.simulate(problem, integrator="lie-verlet", dt=1e-4, t_end=8e-4, save_every=4, progress=False)

@@ -18,6 +18,11 @@ from cartan.simulate import InstabilityError, StabilityWarning
 from cartan.statics import ConvergenceError
 from cartan.study import observed_order
 
+#: the integrator's physics through its Python driver: its compiled loop (≈ 1 min to compile on a
+#: fresh cache) is checked against that driver in tests/test_implicit_compiled.py and
+#: tests/test_implicit_loop.py
+COMPILED = False
+
 
 def _arc_rod(n: int = 9, free: bool = True) -> cartan.Problem:
     """The smooth rod of docs/integrators.md: a soft bent rod, spinning and translating."""
@@ -142,7 +147,7 @@ def test_energy_balance_of_a_damped_linear_problem_closes():
     dt = 1000 * LieVerlet().dt_max(Lattice(undamped), Lattice(undamped).initial_state())
     problem = cartan.Problem(med, grid, InitialState(Phi=Phi, N=N), loads=[Damping([100 / dt])])
     ds = cartan.simulate(problem, integrator="implicit-midpoint", integrator_options={"tol": 1e-12}, dt=dt,
-                         t_end=100 * dt, save_every=10, progress=False)
+                         t_end=100 * dt, save_every=10, progress=False, compiled=COMPILED)
     e = _energy(ds)
     assert ds["dissipated_energy"].values[-1] > 0.3 * e[0]  # a good part of the energy was dissipated
     balance = e + ds["dissipated_energy"].values - ds["external_work"].values
@@ -177,7 +182,7 @@ def test_stiff_rod_far_beyond_the_explicit_limit(stiff, factor, tmp_path):
     with warnings.catch_warnings():
         warnings.simplefilter("error")  # no StabilityWarning for an A-stable integrator
         ds = cartan.simulate(problem, integrator="implicit-midpoint", dt=dt, t_end=steps * dt, save_every=5,
-                             progress=False)
+                             progress=False, compiled=COMPILED)
     assert int(ds["step"].values[-1]) == steps
     assert float(ds["group_defect"].max()) < 1e-12
     assert float(ds["integrability_residual"].max()) < 1e-12
@@ -217,10 +222,10 @@ def test_restart_is_bit_for_bit(stiff, tmp_path):
     problem, limit = stiff
     dt = 10 * limit
     full = cartan.simulate(problem, integrator="implicit-midpoint", dt=dt, t_end=40 * dt, save_every=5,
-                           output=tmp_path / "full.nc", progress=False)
+                           output=tmp_path / "full.nc", progress=False, compiled=COMPILED)
     cartan.simulate(problem, integrator="implicit-midpoint", dt=dt, t_end=20 * dt, save_every=5,
-                    output=tmp_path / "part.nc", progress=False)
-    cont = cartan.simulate(problem, restart=tmp_path / "part.nc", t_end=40 * dt, progress=False)
+                    output=tmp_path / "part.nc", progress=False, compiled=COMPILED)
+    cont = cartan.simulate(problem, restart=tmp_path / "part.nc", t_end=40 * dt, progress=False, compiled=COMPILED)
     for name in ("S", "X", "position", "kinetic_energy", "potential_energy", "time"):
         assert np.array_equal(full[name].values, cont[name].values), name
 

@@ -22,7 +22,7 @@ import textwrap
 import numpy as np
 import pytest
 import toys
-from toys import QuadraticMedium, arc_problem, moving_rod, rod_problem
+from toys import QuadraticMedium, arc_problem, moving_rod, params_of, rod_problem
 
 import cartan
 from cartan import _threads
@@ -49,6 +49,22 @@ INTEGRATORS = {
     "overdamped-1": (lambda: Overdamped(order=1), 2e-6, 40),
     "overdamped-2": (lambda: Overdamped(order=2), 2e-6, 30),
 }
+
+
+#: tests whose loops ``make test`` does not compile (tests/conftest.py): the d ≥ 2 loops, the
+#: vectorised overdamped SE(3) loop and the force kernel alone
+SLOW_TESTS = {"test_sigma_model_d2_agrees_with_python", "test_d2_clamped_and_loaded_faces",
+              "test_every_group_on_a_d2_grid", "test_force_matches_lattice_force",
+              "test_force_matches_lattice_force_d2", "test_simulate_sigma_model_d2_compiled_agrees_with_reference",
+              "test_overdamped_se3_runs_the_vectorised_loop",
+              "test_overdamped_se3_stops_after_the_first_non_finite_step", "test_overdamped_se3_with_root_frame_only"}
+
+
+def slow_when(item) -> bool:
+    """``make test`` runs the lie-verlet loops of rods (d = 1: the SE(3) loop of the demo and the
+    generic loop of the other groups); the other integrators' loops in ``make test-slow``."""
+    name = params_of(item).get("name", "lie-verlet")
+    return item.originalname in SLOW_TESTS or name != "lie-verlet"
 
 
 def assert_close_states(a, b, tol=TOL):

@@ -192,6 +192,7 @@ def _inlined_rows(kernel, nout):
     return rows
 
 
+@pytest.mark.slow  # a loop of its own per group: 10-40 s each to compile on a fresh cache
 @pytest.mark.parametrize("group, prefix", [(SO3(), "so3"), (SE3(), "se3"), (son.SO(4), "so4")])
 def test_kernels_inlined_into_a_loop(group, prefix):
     """Inlined, the kernels compile without numba IR warnings and give the results of the

@@ -142,6 +142,7 @@ def test_ring_reduced_equals_full(ring_runs):
     assert float(np.max(np.abs(full.N.values[..., IN_PLANE[2]]))) > 0.1  # it spins
 
 
+@pytest.mark.slow  # the implicit loop of the planar rod: ≈ 70 s to compile on a fresh cache
 def test_reduced_only_where_it_pays():
     """The lattice's hand-written compiled loops run SE(3) rods faster than SE(2) ones: no reduction
     there; the Python loop and implicit midpoint are reduced."""

@@ -18,7 +18,7 @@ import warnings
 import netCDF4
 import numpy as np
 import pytest
-from toys import advance_compiled, wave
+from toys import advance_compiled, params_of, wave
 
 import cartan
 from cartan import io
@@ -86,6 +86,16 @@ INTEGRATORS = {
     "kinematic": ("kinematic", {"velocity": wave, "order": 2}, 1e-3),
 }
 SCHEMES = ["lattice", "collocation"]
+
+
+def slow_when(item) -> bool:
+    """``make test`` runs the Python paths and the ``lie-verlet`` loops of the rod; the other
+    compiled loops (and the d = 2 sigma model's) in ``make test-slow`` (tests/conftest.py)."""
+    p = params_of(item)
+    if item.originalname == "test_compiled_steps_do_not_depend_on_the_blocks":
+        return p["key"] != "lie-verlet" or p["problem"] != "rod"
+    compiled = p.get("compiled", False)
+    return compiled and (p.get("key") != "lie-verlet" or item.originalname != "test_restart_is_bit_for_bit")
 #: counters that legitimately differ between an uninterrupted and a restarted run
 VOLATILE_COUNTERS = ("nforce", "wall_time")
 

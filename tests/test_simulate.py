@@ -289,6 +289,20 @@ def test_cfl_estimate_against_the_exact_eigenvalue(kind):
         assert 1.0 <= scheme.dt_max(state, rate="overdamped") / exact <= 1.02
 
 
+def test_compiled_diagnostics_only_for_large_problems():
+    """Small problems keep the numpy CFL estimate (its compiled kernels would compile for longer
+    than the estimate takes); from ``compiled_diagnostics_from`` unknowns on, the compiled one."""
+    scheme = Lattice(_t1_rod(40))
+    state = scheme.initial_state()
+    assert not scheme.uses_compiled_diagnostics()
+    assert scheme.stiffness_probe(state).__module__ == "cartan.schemes.base"
+    scheme.compiled_diagnostics_from = 40 * 6
+    assert scheme.uses_compiled_diagnostics()
+    scheme.compiled_diagnostics = False
+    assert not scheme.uses_compiled_diagnostics()
+
+
+@pytest.mark.slow  # the probe's compiled drift and force: ≈ 76 s on a fresh cache
 @pytest.mark.parametrize("kind", ["straight", "dead", "follower", "ring", "planar"])
 def test_compiled_cfl_estimate_matches_the_numpy_one(kind):
     """The compiled stiffness probe (lattice with a compiled plan) gives the numpy estimate: the
@@ -300,6 +314,7 @@ def test_compiled_cfl_estimate_matches_the_numpy_one(kind):
     problem = {"straight": lambda: _t1_rod(40), "planar": lambda: rod_problem("dead", planar=True)}.get(
         kind, lambda: rod_problem(kind))()
     scheme = Lattice(problem)
+    scheme.compiled_diagnostics_from = 0  # the small rods of the tests run it too
     state = scheme.initial_state()
     before = state.copy()
     assert scheme.stiffness_probe(state).__module__ == "cartan.schemes._lattice_diagnostics"

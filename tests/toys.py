@@ -308,3 +308,10 @@ def wave(t, u, X):  # pragma: no cover - compiled
         for k in range(r):
             N[i, k] = 0.3 * np.sin(2.0 * uf[i, 0] + t + k) + 0.2 * Xf[i, 0, k]
     return N.reshape(u.shape[:-1] + (r,))
+
+
+def params_of(item) -> dict:
+    """The parameters of a collected test (empty when it has none), for the test modules'
+    ``slow_when`` rules (tests/conftest.py)."""
+    spec = getattr(item, "callspec", None)
+    return dict(spec.params) if spec is not None else {}

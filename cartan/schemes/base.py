@@ -18,7 +18,8 @@ integrators need.  Integrators see only this interface:
     energies, residuals and the output fields.
 
 The momentum S is a *density* (per unit reference volume), like the paper's S; node masses
-are the grid's quadrature weights times the medium's inertia.
+are the scheme's :attr:`Scheme.weights` (the grid's quadrature weights; on the lattice, the
+nodes' reference volumes when the medium measures a general chart) times the medium's inertia.
 """
 
 from __future__ import annotations
@@ -108,6 +109,12 @@ class Scheme(abc.ABC):
     #: guard's energies in :func:`cartan.simulate`) may use compiled kernels when the scheme
     #: has them; ``cartan.simulate(..., compiled=False)`` clears it on its scheme
     compiled_diagnostics: bool = True
+    #: the smallest problem (nodes × algebra dimension) whose diagnostics use compiled kernels
+    #: (:meth:`uses_compiled_diagnostics`; docs/performance.md, "Work around the steps"): the
+    #: CFL estimate of an SE(3) rod costs the same in numpy and compiled at 10⁴ nodes
+    #: (0.26–0.68 s against 0.23–0.29 s), and below that the compiled kernels save milliseconds
+    #: per run but compile for ≈ 76 s on a fresh cache
+    compiled_diagnostics_from: int = 60_000
 
     def __init__(self, problem: Problem, **options: Any):
         if options:
@@ -123,6 +130,13 @@ class Scheme(abc.ABC):
         self.diagonal_metric = not np.any(self.inverse_metric - np.diag(np.diag(self.inverse_metric)))
         self.weights = self.grid.node_weights()  # [*shape]
         self._clamped = self._clamp_mask()
+
+    def uses_compiled_diagnostics(self) -> bool:
+        """Whether the CFL estimate (:meth:`stiffness_probe`) and the blow-up guard's energies
+        run on compiled kernels: :attr:`compiled_diagnostics` is set and the problem has at
+        least :attr:`compiled_diagnostics_from` unknowns (nodes × dim 𝔤)."""
+        return bool(self.compiled_diagnostics) and (
+            int(np.prod(self.grid.shape)) * self.group.dim >= self.compiled_diagnostics_from)
 
     # ------------------------------------------------------------------ contract
     @abc.abstractmethod
@@ -311,14 +325,14 @@ class Scheme(abc.ABC):
         -------
         callable
             ``probe(v)`` for v ``[*shape, r]`` → K v ``[*shape, r]`` (a new array).  When
-            :attr:`compiled_diagnostics` is set and the lattice scheme has a hand-written
+            :meth:`uses_compiled_diagnostics` and the lattice scheme has a hand-written
             compiled plan for the problem (``docs/performance.md``), its compiled kernels; else,
             when the scheme's compiled operator set (:meth:`compiled_operators`) covers the
             problem and the state, its compiled operators
             (:func:`cartan.compiled.diagnostics.compiled_stiffness_probe`); otherwise
             :meth:`drift` and :meth:`force`.  All evaluate the same formulas (round-off apart).
         """
-        if self.compiled_diagnostics:
+        if self.uses_compiled_diagnostics():
             from ..compiled.diagnostics import compiled_stiffness_probe as generated_probe
             from ._lattice_diagnostics import compiled_stiffness_probe as lattice_probe
 
