@@ -24,14 +24,18 @@ Relaxation to the elastica
     CFL estimate.  The error is the relative tip error ``|x_tip − x*|/|x* − x_tip,0|``, x* the
     filament's static equilibrium on the same lattice (``cartan.solve_static``; the stiff rod's
     own equilibrium differs from it by O(P/EA) = 2e-6).  A first, untimed run records the
-    error every ``CHECK`` time units and finds the step count after which it stays below 1e-4; a
-    second run, timed, takes exactly that many steps in one compiled call (warm cache, no
-    saves, no guard: the wall time of the steps alone).
+    error every ``CHECK`` time units and finds the step count after which it stays below 1e-4;
+    then timed runs, ``--repeat`` of each medium taken in turn (filament, rod, filament, …), take
+    exactly that many steps in one compiled call (warm cache, no saves, no guard): the wall
+    time and the process CPU time of the steps alone, their medians, and the ratios of the
+    medians.  On a shared machine the CPU time is the steadier measure (a process waiting for
+    a core accrues none); the load average (``os.getloadavg``) is printed with the table.
 """
 
 from __future__ import annotations
 
 import argparse
+import os
 import time
 
 import numpy as np
@@ -113,7 +117,8 @@ def _tip(sch, state) -> np.ndarray:
     return np.asarray(sch.frames(state))[-1, 1:4, 0]
 
 
-def relaxation(damping=(7.0, 7.0, 7.0, 0.07, 0.07, 0.07), tol: float = 1e-4, t_max: float = 15.0) -> list[dict]:
+def relaxation(damping=(7.0, 7.0, 7.0, 0.07, 0.07, 0.07), tol: float = 1e-4, t_max: float = 15.0,
+               repeat: int = 3) -> list[dict]:
     sc = cartan.scene("filament-elastica")
     base = sc.problem
     load = np.asarray(base.boundary(0, "end").load, dtype=float)
@@ -124,7 +129,7 @@ def relaxation(damping=(7.0, 7.0, 7.0, 0.07, 0.07, 0.07), tol: float = 1e-4, t_m
     x0 = np.array([1.0, 0.0, 0.0])
     scale = float(np.linalg.norm(x_ref - x0))
     rod = _stiff_rod(bending=fil.parameters()["bending"], twist=fil.parameters()["twist"])
-    rows = []
+    cases = []
     for name, medium, integ_cls in (("filament, rattle", fil, Rattle),
                                     ("cosserat-rod EA=GA=1e6·B, lie-verlet", rod, LieVerlet)):
         prob = _problem(medium, n, load, loads=[cartan.Damping(list(damping))])
@@ -144,41 +149,65 @@ def relaxation(damping=(7.0, 7.0, 7.0, 0.07, 0.07, 0.07), tol: float = 1e-4, t_m
         final_err = err
         if final_err > tol or last_bad >= nmax:
             raise RuntimeError(f"{name}: the tip error is {final_err:.2e} at t = {t_max} (not settled)")
-        steps = last_bad + every
-        # timed: exactly `steps` steps in one compiled call, from a fresh state (warm cache)
-        integ = integ_cls()
-        sch, state, dt = _setup(prob, integ)
-        t0 = time.perf_counter()
-        _advance(sch, integ, state, dt, steps)
-        wall = time.perf_counter() - t0
-        err = float(np.linalg.norm(_tip(sch, state) - x_ref)) / scale
-        rows.append({"case": name, "dt": dt, "steps": steps, "t": steps * dt, "wall_s": wall, "tip_error": err,
-                     "us_per_step": 1e6 * wall / steps})
-    rows.append({"case": "speed-up (rod wall / filament wall)", "ratio": rows[1]["wall_s"] / rows[0]["wall_s"]})
+        cases.append((name, prob, integ_cls, last_bad + every))
+    # timed: exactly `steps` steps in one compiled call, from a fresh state (warm cache), the
+    # media in turn, `repeat` times
+    walls: dict = {name: [] for name, *_ in cases}
+    cpus: dict = {name: [] for name, *_ in cases}
+    errs: dict = {}
+    for _ in range(max(1, repeat)):
+        for name, prob, integ_cls, steps in cases:
+            integ = integ_cls()
+            sch, state, dt = _setup(prob, integ)
+            t0, c0 = time.perf_counter(), time.process_time()
+            _advance(sch, integ, state, dt, steps)
+            walls[name].append(time.perf_counter() - t0)
+            cpus[name].append(time.process_time() - c0)
+            errs[name] = (dt, float(np.linalg.norm(_tip(sch, state) - x_ref)) / scale)
+    rows = []
+    for name, _, _, steps in cases:
+        dt, err = errs[name]
+        wall, cpu = float(np.median(walls[name])), float(np.median(cpus[name]))
+        rows.append({"case": name, "dt": dt, "steps": steps, "t": steps * dt, "wall_s": wall, "cpu_s": cpu,
+                     "tip_error": err, "us_per_step": 1e6 * wall / steps, "walls": walls[name]})
+    rows.append({"case": "speed-up (rod / filament), wall", "ratio": rows[1]["wall_s"] / rows[0]["wall_s"]})
+    rows.append({"case": "speed-up (rod / filament), CPU", "ratio": rows[1]["cpu_s"] / rows[0]["cpu_s"]})
     return rows
+
+
+def _load() -> str:
+    return " ".join(f"{v:.2f}" for v in os.getloadavg())
 
 
 def main(argv=None) -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--quick", action="store_true", help="n = 11, 21 only for the step costs")
+    ap.add_argument("--repeat", type=int, default=3, help="timed relaxation runs of each medium (medians)")
+    ap.add_argument("--relaxation-only", action="store_true", help="skip the step-cost table")
     args = ap.parse_args(argv)
     sizes = (11, 21) if args.quick else (11, 21, 41, 81)
-    print("step cost (µs per step; Δt = half the CFL estimate)")
-    print(f"{'n':>4} {'rattle compiled':>16} {'rattle Python':>14} {'speed-up':>9} {'rod lie-verlet':>15} "
-          f"{'Δt filament':>12} {'Δt rod':>10} {'Δt ratio':>9}")
-    for r in step_costs(sizes):
-        print(f"{r['n']:>4} {r['rattle_compiled_us']:>16.1f} {r['rattle_python_us']:>14.0f} {r['speedup']:>9.0f} "
-              f"{r['rod_lie_verlet_us']:>15.2f} {r['dt_filament']:>12.3e} {r['dt_rod']:>10.3e} {r['dt_ratio']:>9.1f}")
-    print()
-    print("damped relaxation to the elastica (filament-elastica, n = 41), relative tip error 1e-4")
-    print(f"{'case':<38} {'Δt':>10} {'steps':>8} {'t':>7} {'wall [s]':>9} {'µs/step':>8} {'tip error':>10}")
-    for r in relaxation():
+    if args.relaxation_only:
+        sizes = ()
+    if sizes:
+        print(f"step cost (µs per step; Δt = half the CFL estimate); load average {_load()}")
+        print(f"{'n':>4} {'rattle compiled':>16} {'rattle Python':>14} {'speed-up':>9} {'rod lie-verlet':>15} "
+              f"{'Δt filament':>12} {'Δt rod':>10} {'Δt ratio':>9}")
+        for r in step_costs(sizes):
+            print(f"{r['n']:>4} {r['rattle_compiled_us']:>16.1f} {r['rattle_python_us']:>14.0f} "
+                  f"{r['speedup']:>9.0f} {r['rod_lie_verlet_us']:>15.2f} {r['dt_filament']:>12.3e} "
+                  f"{r['dt_rod']:>10.3e} {r['dt_ratio']:>9.1f}")
+        print()
+    print("damped relaxation to the elastica (filament-elastica, n = 41), relative tip error 1e-4; "
+          f"medians of {args.repeat} timed runs each; load average {_load()}")
+    print(f"{'case':<38} {'Δt':>10} {'steps':>8} {'t':>7} {'wall [s]':>9} {'CPU [s]':>8} {'µs/step':>8} "
+          f"{'tip error':>10}")
+    for r in relaxation(repeat=args.repeat):
         if "ratio" in r:
             print(f"{r['case']:<38} {r['ratio']:>10.1f}")
             continue
         print(f"{r['case']:<38} {r['dt']:>10.3e} {r['steps']:>8d} {r['t']:>7.2f} {r['wall_s']:>9.4f} "
-              f"{r['us_per_step']:>8.2f} {r['tip_error']:>10.2e}")
-
+              f"{r['cpu_s']:>8.4f} {r['us_per_step']:>8.2f} {r['tip_error']:>10.2e}")
+    print(f"load average after: {_load()}")
 
 if __name__ == "__main__":
     main()

@@ -59,10 +59,13 @@ def rattle_values(D, C, comp, value, out):
 
 def rattle_rows(D, C, comp, Bt, Bh):
     """The rows of B_c at C: ``Bt[e] = −dexp⁻¹(hX_e)[comp]/h``, ``Bh[e] = dexp⁻¹(−hX_e)[comp]/h``
-    ``[E, c, r]``; returns the largest entry on the unknowns (live components, free nodes)."""
+    ``[E, c, r]``; returns the largest entry on the unknowns (live components, free nodes).
+    ``dexp⁻¹(−ξ)`` is ``dexp⁻¹(ξ) + ad_ξ`` (``x/(eˣ − 1)`` at −x is ``x/(eˣ − 1) + x``): one
+    ``g_dexp_inv`` per edge."""
     G = C[0]
     xi = np.empty(R_)  # noqa: F821
     A = np.empty((R_, R_))  # noqa: F821
+    ad = np.empty((R_, R_))  # noqa: F821
     big = 0.0
     for e in range(G.shape[0]):
         g_log(G[e], xi)  # noqa: F821
@@ -77,12 +80,10 @@ def rattle_rows(D, C, comp, Bt, Bh):
                 Bt[e, a, k] = v
                 if free_i and D.live[k] and abs(v) > big:
                     big = abs(v)
-        for k in range(R_):  # noqa: F821
-            xi[k] = -xi[k]
-        g_dexp_inv(xi, A)  # noqa: F821
+        g_ad(xi, ad)  # noqa: F821
         for a in range(comp.shape[0]):
             for k in range(R_):  # noqa: F821
-                v = A[comp[a], k] * ih
+                v = (A[comp[a], k] + ad[comp[a], k]) * ih
                 Bh[e, a, k] = v
                 if free_j and D.live[k] and abs(v) > big:
                     big = abs(v)
@@ -110,65 +111,86 @@ def rattle_metric(D, closing, P):
 
 def _rattle_flow_jacobian(D, N, dt, P):
     """``P[i] = Δt·dexp(−ΔtN_i)·M⁺`` on the live block ``/ w_i`` (zero elsewhere and at clamped
-    nodes): the drift at the flow's end of a change of the nodal impulse (dexp(−ΔtN) as the
-    inverse of ``g_dexp_inv(−ΔtN)``: the kernel the rows use already)."""
-    Ei = np.empty((R_, R_))  # noqa: F821
+    nodes): the drift at the flow's end of a change of the nodal impulse (``Δt·dexp(−ΔtN)`` is
+    the group's ``g_E(Δt, −N)``, what the Python step takes as ``Δt·group.dexp(−ΔtN)``)."""
     E = np.empty((R_, R_))  # noqa: F821
-    M = np.empty((R_, 2 * R_))  # noqa: F821
     xi = np.empty(R_)  # noqa: F821
     for i in range(P.shape[0]):
-        zero = D.any_clamped and D.clamped[i]
-        if not zero:
+        if D.any_clamped and D.clamped[i]:
             for k in range(R_):  # noqa: F821
-                xi[k] = -dt * N[i, k]
-            g_dexp_inv(xi, Ei)  # noqa: F821
-            if not small_inverse(Ei, E, M):
-                for k in range(R_):  # noqa: F821
-                    for j in range(R_):  # noqa: F821
-                        E[k, j] = np.nan
+                for j in range(R_):  # noqa: F821
+                    P[i, k, j] = 0.0
+            continue
+        for k in range(R_):  # noqa: F821
+            xi[k] = -N[i, k]
+        g_E(dt, xi, E)  # noqa: F821
         for k in range(R_):  # noqa: F821
             for j in range(R_):  # noqa: F821
                 s = 0.0
-                if not zero and D.live[k] and D.live[j]:
-                    for m in range(R_):  # noqa: F821
-                        if D.live[m]:
-                            s += E[k, m] * D.inv_metric[m, j]
-                P[i, k, j] = dt * s * D.winv[i]
+                if D.live[k] and D.live[j]:
+                    if D.diagonal:
+                        s = E[k, j] * D.inv_metric[j, j]
+                    else:
+                        for m in range(R_):  # noqa: F821
+                            if D.live[m]:
+                                s += E[k, m] * D.inv_metric[m, j]
+                P[i, k, j] = s * D.winv[i]
 
 
-def _rattle_block(L, P, R, out, add, T):
-    """``out (+)= L P Rᵀ`` for ``L``, ``R`` ``(c, r)``, ``P`` ``(r, r)``, out ``(c, c)`` (T scratch ``(r, c)``)."""
-    c = L.shape[0]
+def _rattle_right(P, i, R, e, T):
+    """``T = P_i R_eᵀ`` ``(r, c)`` for ``P`` ``[n, r, r]`` and ``R`` ``[E, c, r]``; a diagonal
+    ``P_i`` (the blocks of a diagonal metric) takes its diagonal only (the same sums: the other
+    terms are exact zeros).  Indices rather than views of the blocks: no array views in the
+    assembly's inner loops."""
+    c = R.shape[1]
+    diagonal = True
+    for k in range(R_):  # noqa: F821
+        for j in range(R_):  # noqa: F821
+            if j != k and P[i, k, j] != 0.0:
+                diagonal = False
     for k in range(R_):  # noqa: F821
         for b in range(c):
-            s = 0.0
-            for j in range(R_):  # noqa: F821
-                s += P[k, j] * R[b, j]
+            if diagonal:
+                s = P[i, k, k] * R[e, b, k]
+            else:
+                s = 0.0
+                for j in range(R_):  # noqa: F821
+                    s += P[i, k, j] * R[e, b, j]
             T[k, b] = s
+
+
+def _rattle_left(L, e, T, out, f, add):
+    """``out_f (+)= L_e T`` for ``L`` ``[E, c, r]``, ``T`` ``(r, c)``, ``out`` ``[E, c, c]``."""
+    c = L.shape[1]
     for a in range(c):
         for b in range(c):
             s = 0.0
             for k in range(R_):  # noqa: F821
-                s += L[a, k] * T[k, b]
-            out[a, b] = out[a, b] + s if add else s
+                s += L[e, a, k] * T[k, b]
+            out[f, a, b] = out[f, a, b] + s if add else s
 
 
 def rattle_factor(D, Lt, Lh, P, Rt, Rh, F):
     """Assemble and factor ``L P Rᵀ`` on the chain (``F = (sub, diag, sup, inv, mult)``, each
     ``[E, c, c]``): diagonal ``Lt_e P_i Rt_eᵀ + Lh_e P_j Rh_eᵀ``, below ``Lt_e P_i Rh_{e−1}ᵀ``
     (node i = tail of e = head of e − 1), above ``Lh_e P_j Rt_{e+1}ᵀ``; returns False when it
-    is singular."""
+    is singular.  Each node's products ``P_i Rt_eᵀ``, ``P_j Rh_eᵀ`` are formed once and serve
+    two blocks: ``P_i Rt_eᵀ`` the diagonal of e and the block above it in row e − 1,
+    ``P_j Rh_eᵀ`` the diagonal of e and the block below it in row e + 1."""
     sub, dia, sup, inv, mult = F
     ne = Lt.shape[0]
-    T = np.empty((R_, Lt.shape[1]))  # noqa: F821
+    Tt = np.empty((R_, Lt.shape[1]))  # noqa: F821
+    Th = np.empty((R_, Lt.shape[1]))  # noqa: F821
     for e in range(ne):
         i, j = D.tail[e], D.head[e]
-        _rattle_block(Lt[e], P[i], Rt[e], dia[e], False, T)
-        _rattle_block(Lh[e], P[j], Rh[e], dia[e], True, T)
+        _rattle_right(P, i, Rt, e, Tt)
+        _rattle_right(P, j, Rh, e, Th)
+        _rattle_left(Lt, e, Tt, dia, e, False)
+        _rattle_left(Lh, e, Th, dia, e, True)
         if e > 0:
-            _rattle_block(Lt[e], P[i], Rh[e - 1], sub[e], False, T)
+            _rattle_left(Lh, e - 1, Tt, sup, e - 1, False)
         if e < ne - 1:
-            _rattle_block(Lh[e], P[j], Rt[e + 1], sup[e], False, T)
+            _rattle_left(Lt, e + 1, Th, sub, e + 1, False)
     return bt_factor(sub, dia, sup, inv, mult)
 
 
@@ -529,6 +551,6 @@ def loop_fragment() -> Fragment:
     generated module (it uses ``_lie_poisson``, ``_damped`` and ``_book`` of :mod:`cartan.integrators.loops`)."""
     return Fragment(constants={"MAX_ITERATIONS_": MAX_ITERATIONS},
                     source=njit_source(small_inverse, bt_factor, bt_solve, rattle_values, rattle_rows, rattle_metric,
-                                       _rattle_flow_jacobian, _rattle_block, rattle_factor, rattle_apply,
+                                       _rattle_flow_jacobian, _rattle_right, _rattle_left, rattle_factor, rattle_apply,
                                        rattle_impulse, rattle_project_velocity, _rattle_project_config,
                                        _rattle_predict, _rattle_copy, _rattle_factors, rattle_loop))

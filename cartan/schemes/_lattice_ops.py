@@ -266,54 +266,67 @@ def op_free_flow(D, C, S, pieces, fracs, dt, Dn, K):
     ``τ = fracs[p]·Δt``; returns whether anything moved and leaves each node's total motion
     ``Π_p exp(τN_p)`` in ``Dn``; the free flow is node-local, so the edges and frames then follow
     in one :func:`op_move` by ``Dn``.  ``N_p = P_p S`` runs over the nonzero entries of each row
-    of ``P_p`` only (a piece of a diagonal metric is one direction or one commuting block)."""
+    of ``P_p`` only (a piece of a diagonal metric is one direction or one commuting block).
+    Each node's momentum row and motion are held in local arrays through its pieces, and each
+    piece calls ``g_exp`` and ``g_Ad_T`` directly (the kernels of ``g_coad_exp``, the same
+    arithmetic, without an out-of-line call and array views per piece)."""
     npieces = pieces.shape[0]
     cnt = np.zeros((npieces, R_), dtype=np.int64)  # noqa: F821
     col = np.empty((npieces, R_, R_), dtype=np.int64)  # noqa: F821
+    tau = np.empty(npieces)
     for p in range(npieces):
+        tau[p] = fracs[p] * dt
         for k in range(R_):  # noqa: F821
             for j in range(R_):  # noqa: F821
                 if pieces[p, k, j] != 0.0:
                     col[p, k, cnt[p, k]] = j
                     cnt[p, k] += 1
-    xi = np.empty(R_)  # noqa: F821
+    xi = np.zeros(R_)  # noqa: F821
+    s = np.empty(R_)  # noqa: F821
+    out = np.empty(R_)  # noqa: F821
     E = np.empty((M_, M_))  # noqa: F821
+    acc = np.empty((M_, M_))  # noqa: F821
     tmp = np.empty((M_, M_))  # noqa: F821
-    wk = g_work()  # noqa: F821
+    eye = np.empty((M_, M_))  # noqa: F821
+    g_exp(xi, eye)  # noqa: F821 - the identity (a node that does not move)
     moved = False
     for i in range(S.shape[0]):
         first = True
-        clamped = D.any_clamped and D.clamped[i]
-        for p in range(npieces):
-            moving = False
+        if not (D.any_clamped and D.clamped[i]):
             for k in range(R_):  # noqa: F821
-                v = 0.0
-                if not clamped:
+                s[k] = S[i, k]
+            for p in range(npieces):
+                moving = False
+                for k in range(R_):  # noqa: F821
+                    v = 0.0
                     for c in range(cnt[p, k]):
                         j = col[p, k, c]
-                        v += pieces[p, k, j] * S[i, j]
-                xi[k] = fracs[p] * dt * v
-                if v != 0.0:
-                    moving = True
-            if not moving:
-                continue
-            moved = True
-            g_coad_exp(xi, S[i], E, wk)  # noqa: F821
-            if first:
-                for a in range(M_):  # noqa: F821
-                    for b in range(M_):  # noqa: F821
-                        Dn[i, a, b] = E[a, b]
-                first = False
-            else:
-                g_compose(Dn[i], E, tmp)  # noqa: F821
-                for a in range(M_):  # noqa: F821
-                    for b in range(M_):  # noqa: F821
-                        Dn[i, a, b] = tmp[a, b]
-        if first:
-            g_exp(np.zeros(R_), E)  # noqa: F821
-            for a in range(M_):  # noqa: F821
-                for b in range(M_):  # noqa: F821
-                    Dn[i, a, b] = E[a, b]
+                        v += pieces[p, k, j] * s[j]
+                    xi[k] = tau[p] * v
+                    if v != 0.0:
+                        moving = True
+                if not moving:
+                    continue
+                moved = True
+                g_exp(xi, E)  # noqa: F821
+                g_Ad_T(E, s, out)  # noqa: F821
+                for k in range(R_):  # noqa: F821
+                    s[k] = out[k]
+                if first:
+                    for a in range(M_):  # noqa: F821
+                        for b in range(M_):  # noqa: F821
+                            acc[a, b] = E[a, b]
+                    first = False
+                else:
+                    g_compose(acc, E, tmp)  # noqa: F821
+                    acc, tmp = tmp, acc
+            if not first:
+                for k in range(R_):  # noqa: F821
+                    S[i, k] = s[k]
+        src = eye if first else acc
+        for a in range(M_):  # noqa: F821
+            for b in range(M_):  # noqa: F821
+                Dn[i, a, b] = src[a, b]
     if moved:
         op_move(D, C, Dn, K)
     return moved
