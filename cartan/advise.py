@@ -47,13 +47,19 @@ The reductions
     the others' change (membrane ``|θ − θ₀|``, bending ``L·|π − π₀|``).
     The relative error is this displacement divided by the largest displacement of the scene
     (or the length L when nothing moves); the twin is recommended when it is at most
-    ``rtol``.  On a continuation path the indicator is the largest over the path points, the
-    estimate that of the path's end.  *Speed-up*: the ratio of the explicit integrator's CFL
-    estimates of the twin and of the medium (the waves the constraint removes): what a
-    dynamic run would gain.  In time the twin runs with the ``rattle`` integrator (which holds
-    :meth:`~cartan.medium.Medium.constrained_strains`) at its own CFL step; a constrained step
-    costs more than a free one, so for a dynamic scene the twin is recommended only when a
-    measured pilot (``check=True``) is faster over the same simulated time.
+    ``rtol``.  A static or continuation scene that declares a ``measure`` (one displacement
+    component at one node, :class:`cartan.scene.Measure`) is compared on it instead: the
+    estimate is ``|m(x) − m(x − x_held)|``, x_held the estimated field above, relative to
+    ``|m|``, and the check measures ``|m_full − m_twin|``.  On a continuation path the
+    indicator is the largest over the path points, the estimate that of the path's end.
+    *Speed-up estimate*: the ratio of the explicit integrator's CFL estimates of the twin
+    and of the medium (the waves the constraint removes): the ratio of the time steps, an
+    upper bound on the gain.  In time the twin runs with the ``rattle`` integrator (which
+    holds :meth:`~cartan.medium.Medium.constrained_strains`) at its own CFL step; a
+    constrained step costs more than a free one, so for a dynamic scene the twin is
+    recommended only when a measured pilot (``check=True``, each model warmed up untimed) is
+    faster over the same simulated time, and the report states the measured ratios (whole
+    runs, and steps alone), not the CFL ratio.
 ``SE(3) planar → SE(2)`` (exact; :mod:`cartan.reduction`)
     Detected by :func:`cartan.reduction.planar_reduction` (planar data, planar loads, a medium
     with an exact planar twin): the reduced run changes nothing but the cost, so the error
@@ -77,10 +83,13 @@ The reductions
 A method for a tolerance
 ------------------------
 ``advise(scene, tol=...)``: for a dynamic scene the cheapest (integrator, Δt) whose final
-positions are within ``tol`` of a fine reference run (:func:`advise_method`); for a static
-scene the coarsest grid whose equilibrium positions are within ``tol`` (relative) by
-Richardson extrapolation over three refinement levels, and for a continuation scene the same
-at its path's final point (:func:`advise_resolution`).
+positions are within ``tol`` of a fine reference run (:func:`advise_method`), and the cheaper
+scheme (lattice or collocation, those that apply) to reach ``tol`` with the scene's
+integrator, from three runs each with h and Δt refined together, Richardson's estimates at the
+observed order and measured costs (:func:`advise_schemes`); for a static scene the coarsest
+grid whose equilibrium — the scene's ``measure`` when it declares one, else the node positions
+— is within ``tol`` (relative) by Richardson extrapolation over three refinement levels, and
+for a continuation scene the same at its path's final point (:func:`advise_resolution`).
 
 Timings are wall-clock times of the runs after a warm-up run of each model (the numba
 compilation is not counted; a static solve's time is the fastest of :data:`STATIC_REPEATS`);
@@ -107,9 +116,10 @@ if TYPE_CHECKING:  # pragma: no cover
     import xarray as xr
 from .problem import Clamped, Damping, Free, InitialState, Problem
 
-__all__ = ["HELD_STRAINS", "LARGE_RADIUS", "PILOT_STEPS", "PLANAR", "Advice", "HeldStrainMedium", "ReductionAdvice",
-           "MethodAdvice", "MethodCandidate", "ResolutionAdvice", "ResolutionCandidate", "advise", "advise_method",
-           "advise_resolution", "held_strain_problem", "held_strain_twin", "plane_limit_problem"]
+__all__ = ["HELD_STRAINS", "LARGE_RADIUS", "PILOT_STEPS", "PLANAR", "TOL_SCHEMES", "Advice", "HeldStrainMedium",
+           "MethodAdvice", "MethodCandidate", "ReductionAdvice", "ResolutionAdvice", "ResolutionCandidate",
+           "SchemeCandidate", "advise", "advise_method", "advise_resolution", "advise_schemes", "held_strain_problem",
+           "held_strain_twin", "plane_limit_problem", "scheme_table"]
 
 #: time steps of the pilot run of a dynamic scene (fewer when the scene's run is shorter)
 PILOT_STEPS = 200
@@ -637,10 +647,12 @@ def _anchor(subject: _Subject) -> str | None:
 
 
 def _filament_estimate(ds: Any, problem: Problem, k: int, theta0: np.ndarray, anchor: str | None,
-                       last: bool = False) -> tuple[float, float, float, int]:
+                       last: bool = False, with_field: bool = False) -> tuple[Any, ...]:
     """(indicator max|θ − θ₀| over the frames, estimated position difference, the bound
     ∫|θ − θ₀|, its frame) from a run, static solve or path ``ds`` of a rod: the frame of the
-    largest estimate, or the last frame (a path's end) with ``last``."""
+    largest estimate, or the last frame (a path's end) with ``last``.  With ``with_field`` also
+    the estimated displacement field of the last frame, ``x − x_twin ≈ ∫₀ˢ R(θ − θ₀) dσ``
+    ``[n, k]`` (from the anchor)."""
     th, R, _ = _strain_frames(ds, k, theta0)
     h = float(problem.grid.spacing[0])
     d = np.einsum("teij,tej->tei", R, th) * h  # R(θ − θ₀) dσ per edge
@@ -655,7 +667,8 @@ def _filament_estimate(ds: Any, problem: Problem, k: int, theta0: np.ndarray, an
     per_frame = np.max(np.linalg.norm(cum, axis=-1), axis=1)
     i = len(per_frame) - 1 if last else int(np.nanargmax(per_frame))
     bound = float(np.sum(np.linalg.norm(th[i], axis=-1)) * h)
-    return float(np.nanmax(np.abs(th))), float(per_frame[i]), bound, i
+    out = (float(np.nanmax(np.abs(th))), float(per_frame[i]), bound, i)
+    return (*out, cum[-1]) if with_field else out
 
 
 def _displacement_scale(ds: Any, problem: Problem, k: int, anchor: str | None) -> float:
@@ -698,10 +711,12 @@ def _held_nodes(ds: Any, problem: Problem, k: int) -> np.ndarray:
 
 
 def _held_surface_estimate(ds: Any, problem: Problem, comps: Sequence[int], values: np.ndarray,
-                           k: int) -> tuple[float, np.ndarray, float]:
+                           k: int, with_field: bool = False) -> tuple[Any, ...]:
     """A medium of d ≥ 2 with held translation strains: (indicator max|X_held − value| over the
     nodes, axes and frames, the estimated position difference per frame ``[T]``, the ratio of the
-    indicator to the other strains' change — membrane ``|θ − θ₀|`` and bending ``L·|π − π₀|``).
+    indicator to the other strains' change — membrane ``|θ − θ₀|`` and bending ``L·|π − π₀|``),
+    and with ``with_field`` the estimated displacement field ``x − x_twin`` of the last frame
+    ``[nodes, k]``.
 
     The displacement the constraint removes, x with ∂_α x = R (X_α − X_α,held) on the held
     components, is integrated by least squares over the lattice's edges (the field need not be
@@ -743,14 +758,16 @@ def _held_surface_estimate(ds: Any, problem: Problem, comps: Sequence[int], valu
         x = np.zeros((nn, k))
         for c in range(k):
             x[1:, c] = solve(Dr.T @ b[t, :, c])
-        est[t] = float(np.max(np.linalg.norm(x - x[anchor].mean(axis=0), axis=-1)))
+        x = x - x[anchor].mean(axis=0)
+        est[t] = float(np.max(np.linalg.norm(x, axis=-1)))
     X0 = np.asarray(problem.medium.rest_strain(), dtype=float).reshape(d, -1)
     free = [c for c in range(k) if c not in comps]
     membrane = float(np.max(np.abs(X[..., free] - X0[:, free]))) if free else 0.0
     bending = float(np.max(np.abs(X[..., k:] - X0[:, k:]))) * float(max(grid.length))
     indicator = float(np.max(np.abs(dev)))
     deform = max(membrane, bending)
-    return indicator, est, indicator / deform if deform > 0 else math.nan
+    out = (indicator, est, indicator / deform if deform > 0 else math.nan)
+    return (*out, x) if with_field else out
 
 
 def _advise_held(subject: _Subject, full_ds: Any, rtol: float, check: bool, full_time: float,
@@ -778,14 +795,16 @@ def _advise_held(subject: _Subject, full_ds: Any, rtol: float, check: bool, full
                         "translation strain only")
             return out
         anchor = _anchor(subject)
-        ind, est, bound, _ = _filament_estimate(full_ds, problem, k, values.astype(float), anchor, last=path)
+        ind, est, bound, _, field = _filament_estimate(full_ds, problem, k, values.astype(float), anchor,
+                                                       last=path, with_field=True)
         out.error_scale = _displacement_scale(full_ds, problem, k, anchor)
         what = (f"twin {held.medium.name!r} ({twin.label}): {at_end}end-position difference |∫R(θ − θ₀)ds| = "
                 f"{est:.5g} (bound ∫|θ − θ₀|ds = {bound:.5g}) against the largest displacement "
                 f"{out.error_scale:.3g}")
     else:
         try:
-            ind, per_frame, ratio = _held_surface_estimate(full_ds, problem, comps, values.astype(float), k)
+            ind, per_frame, ratio, field = _held_surface_estimate(full_ds, problem, comps, values.astype(float), k,
+                                                                  with_field=True)
         except ValueError as exc:
             out.note = f"twin {held.medium.name!r}: {exc}"
             return out
@@ -799,12 +818,28 @@ def _advise_held(subject: _Subject, full_ds: Any, rtol: float, check: bool, full
                 + ("about the centroid)" if centroid else f"from the {len(nodes)} nodes the scene holds)"))
     out.admitted = True
     out.indicator, out.error_estimate = ind, est
+    measure = subject.measure if subject.mode != "dynamic" else None
+    if measure is not None:  # the quantity the scene measures: its change, full − twin ≈ the field there
+        pos = np.asarray(full_ds["position"].values[-1], dtype=float).reshape(-1, k)
+        pos0 = _initial_positions(problem)
+        value = float(measure(pos, pos0))
+        out.error_estimate = abs(value - float(measure(pos - field, pos0)))
+        length = float(max(problem.grid.length))
+        if abs(value) > TOL_ROUNDOFF * length:
+            out.error_scale = abs(value)
+        what = (f"on the scene's measure, {measure.describe()} = {value:.6g}{' ' + at_end.rstrip(': ') if path else ''}"
+                f": the twin changes it by {out.error_estimate:.5g} (estimated from the displacement field the held "
+                f"strains carry, relative to |{value:.4g}|"
+                + ("" if abs(value) > TOL_ROUNDOFF * length else ": it does not move, so to the largest displacement")
+                + f"); over every node: {what}")
     try:
         out.speedup_estimate = _cfl_ratio(problem, held, subject.run_settings)
     except (ValueError, TypeError, KeyError, NotImplementedError, AttributeError):
         out.speedup_estimate = math.nan
     within = math.isfinite(out.relative_error) and out.relative_error <= rtol
-    what += "; speed-up = ratio of the explicit CFL estimates (what a dynamic run would gain)"
+    what += ("; estimated speed-up = ratio of the explicit CFL estimates, twin / medium (the ratio of the time "
+             "steps, an upper bound: a constrained step costs more than a free one" + (
+                 "; measured with check)" if subject.mode == "dynamic" else "; a static solve does not gain it)"))
     if subject.mode == "dynamic":
         return _advise_held_dynamic(out, subject, held, full_ds, full_time, pilot_t, within, what, rtol, check, k)
     out.recommended = within
@@ -817,20 +852,27 @@ def _advise_held(subject: _Subject, full_ds: Any, rtol: float, check: bool, full
         except ConvergenceError as exc:
             out.check_note = f"the held-strain {subject.mode} solve failed: {' '.join(str(exc).split())[:200]}"
             return out
-        _measured(out, full_ds, fds, full_time, ftime, k)
+        _measured(out, full_ds, fds, full_time, ftime, k, measure, _initial_positions(problem))
         what = "static solves" if subject.mode == "static" else "continuation paths"
+        of = (f"|{measure.describe()}: full − held|" if measure is not None else
+              "largest |x_full − x_held| over the nodes")
         out.check_note = (f"{what}: full {full_time:.3g} s ({full_ds.attrs.get('newton_iterations')} Newton "
                           f"iterations), held {ftime:.3g} s ({fds.attrs.get('newton_iterations')}); difference "
-                          "= largest |x_full − x_held| over the nodes" + (" at the path's end" if path else ""))
+                          f"= {of}" + (" at the path's end" if path else ""))
     return out
 
 
-def _measured(out: ReductionAdvice, full_ds: Any, held_ds: Any, full_time: float, held_time: float, k: int) -> None:
+def _measured(out: ReductionAdvice, full_ds: Any, held_ds: Any, full_time: float, held_time: float, k: int,
+              measure: Any = None, pos0: np.ndarray | None = None) -> None:
     """The check's measurements: the largest distance between the two runs' nodes at their
-    last frame, and the time ratio full/held."""
+    last frame (or, with the scene's ``measure`` and the initial positions ``pos0`` ``[nodes, k]``,
+    the difference of the measured quantity), and the time ratio full/held."""
     p_full = np.asarray(full_ds["position"].values[-1], dtype=float).reshape(-1, k)
     p_held = np.asarray(held_ds["position"].values[-1], dtype=float).reshape(-1, k)
-    out.measured_difference = float(np.max(np.linalg.norm(p_full - p_held, axis=-1)))
+    if measure is not None:
+        out.measured_difference = abs(float(measure(p_full, pos0)) - float(measure(p_held, pos0)))
+    else:
+        out.measured_difference = float(np.max(np.linalg.norm(p_full - p_held, axis=-1)))
     out.time_ratio = full_time / held_time if held_time > 0 else math.nan
 
 
@@ -843,26 +885,45 @@ def _advise_held_dynamic(out: ReductionAdvice, subject: _Subject, held: Problem,
     does not, since a constrained step costs more than a free one."""
     out.note = what
     if not check:
-        out.note += (". In time the twin runs with rattle at its own step; not recommended unmeasured: run with "
-                     "check to time it" + (" (its strains allow it)" if within else ""))
+        out.note += (". In time the twin runs with rattle at its own step; not recommended unmeasured: the time "
+                     "ratio is measured with check" + (" (its strains allow it)" if within else ""))
         return out
     settings = {key: v for key, v in subject.run_settings.items() if key not in ("integrator_options", "dt")}
     settings["integrator"] = "rattle"
-    from .simulate import InstabilityError
+    from .simulate import InstabilityError, StabilityWarning, _resolve_run
     from .statics import ConvergenceError
 
     try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", StabilityWarning)
+            twin_run = _resolve_run(held, "rattle", settings.get("scheme"), None, float(pilot_t), None, None, None,
+                                    None, None, settings.get("scheme_options"), False, 1e3, compiled=True, command="",
+                                    max_steps=None)
+        settings["dt"] = float(twin_run.dt)  # its own step: half its CFL estimate, as simulate picks it
+        with contextlib.suppress(InstabilityError):  # the warm-up compiles (or loads) its loop: not timed
+            _simulate(held, settings, 2.0 * settings["dt"])
         fds, ftime = _timed(_simulate, held, settings, float(pilot_t))
     except (ConvergenceError, InstabilityError, ValueError) as exc:
         out.check_note = f"the held-strain pilot (rattle) failed: {' '.join(str(exc).split())[:200]}"
         return out
     _measured(out, full_ds, fds, full_time, ftime, k)
-    steps = int(fds["step"].values[-1])
-    out.check_note = (f"pilot runs to t = {float(pilot_t):g}: full {full_time:.3g} s, held (rattle, {steps} steps) "
-                      f"{ftime:.3g} s; difference = largest |x_full − x_held| over the nodes at the pilot's end")
+    steps, full_steps = int(fds["step"].values[-1]), int(full_ds["step"].values[-1])
+    stepping = _step_time(full_ds, full_time) / max(_step_time(fds, ftime), 1e-300)
+    out.check_note = (f"pilot runs to t = {float(pilot_t):g} after an untimed warm-up of each: full "
+                      f"{full_time:.3g} s ({full_steps} steps of Δt = {float(subject.run_settings['dt']):.3g}"
+                      f"), held (rattle, {steps} steps of Δt = {settings['dt']:.3g}) {ftime:.3g} s; time ratio of the "
+                      f"whole runs {out.time_ratio:.3g}×, of their steps alone {stepping:.3g}×; difference = largest "
+                      "|x_full − x_held| over the nodes at the pilot's end (it includes the two runs' different "
+                      "time-step errors)")
     out.recommended = within and out.time_ratio > 1.0
+    r = out.time_ratio
+    pace = (f"{r:.3g}× faster than" if r >= 1.0 else f"{1.0 / r:.3g}× slower than" if r > 0 else "no faster than")
+    measured = (f"; measured: the twin runs the pilot {pace} the medium ({ftime:.3g} s against {full_time:.3g} s "
+                f"for the whole runs, {stepping:.3g}× for their steps alone; the CFL ratio is "
+                f"{out.speedup_estimate:.3g})")
+    out.note += measured
     if within and not out.recommended:
-        out.note += f"; its strains allow it but the pilot is not faster (time ratio {out.time_ratio:.3g})"
+        out.note += "; its strains allow it but the pilot is not faster"
     elif not within:
         out.note += f"; relative error {out.relative_error:.3g} > rtol = {rtol:g}"
     return out
@@ -1086,7 +1147,8 @@ def _advise_sphere(subject: _Subject, full_ds: Any, full_time: float, rtol: floa
 
 # ---------------------------------------------------------------------------- the entry point
 def advise(problem_or_scene: Any, check: bool = False, *, rtol: float = DEFAULT_RTOL,
-           pilot_steps: int = PILOT_STEPS, tol: float | None = None) -> Advice | MethodAdvice | ResolutionAdvice:
+           pilot_steps: int = PILOT_STEPS, tol: float | None = None, quantity: str = "auto",
+           schemes: Sequence[str] | None = None) -> Advice | MethodAdvice | ResolutionAdvice:
     """Which reductions a scene admits, measured on the scene (see the module docstring).
 
     With ``tol``: a method for the accuracy ``tol`` instead (``check`` and ``rtol`` do not
@@ -1108,12 +1170,21 @@ def advise(problem_or_scene: Any, check: bool = False, *, rtol: float = DEFAULT_
         Relative error accepted for an approximate reduction, in (0, 1].
     pilot_steps : int, default 200
         Time steps of the pilot of a dynamic scene (fewer when its run is shorter), ≥ 2.
+    tol : float, optional
+        Advise a method for this accuracy instead (see above).
+    quantity : {"auto", "measure", "positions"}, default "auto"
+        With ``tol`` on a static or continuation scene: what the error is measured on
+        (:func:`advise_resolution`).
+    schemes : sequence of str, optional
+        With ``tol`` on a dynamic scene: the schemes compared (:func:`advise_schemes`; default
+        :data:`TOL_SCHEMES`, ``()`` skips the comparison).
 
     Returns
     -------
-    Advice
-        One :class:`ReductionAdvice` per reduction (``Advice.to_dataset()`` for an xarray table,
-        ``Advice.to_dict()``, ``str(advice)`` for the text report).
+    Advice, MethodAdvice or ResolutionAdvice
+        Without ``tol``: one :class:`ReductionAdvice` per reduction (``Advice.to_dataset()`` for
+        an xarray table, ``Advice.to_dict()``, ``str(advice)`` for the text report); with
+        ``tol``: the method (dynamic) or resolution (static, continuation) advice.
 
     Raises
     ------
@@ -1132,8 +1203,8 @@ def advise(problem_or_scene: Any, check: bool = False, *, rtol: float = DEFAULT_
         _check_tol(tol)
         obj = _load(problem_or_scene)
         if isinstance(obj, Problem) or getattr(obj, "mode", None) in ("static", "continuation"):
-            return advise_resolution(obj, tol)
-        return advise_method(obj, tol, pilot_steps=pilot_steps)
+            return advise_resolution(obj, tol, quantity=quantity)
+        return advise_method(obj, tol, pilot_steps=pilot_steps, **({} if schemes is None else {"schemes": schemes}))
     start = time.perf_counter()
     if not isinstance(check, bool | np.bool_):
         raise ValueError(f"check must be True or False, got {check!r}")
@@ -1168,6 +1239,8 @@ def advise(problem_or_scene: Any, check: bool = False, *, rtol: float = DEFAULT_
 
 
 # ---------------------------------------------------------------------------- a method for a tolerance
+#: the schemes the dynamic advice for a tolerance compares (those that apply)
+TOL_SCHEMES = ("lattice", "collocation")
 #: integrators a dynamic scene is advised among (those that do not apply to the medium are skipped)
 TOL_INTEGRATORS = ("lie-verlet", "rkmk4", "implicit-midpoint", "lie-euler")
 #: the candidate time steps are Δt_scene·2^k for these k
@@ -1257,6 +1330,15 @@ class MethodAdvice:
         Max norm of the final positions of the reference run on the scene's grid against the same
         run on the refined grid, at the shared nodes: the size of the spatial discretisation error
         the time-step advice does not cover (NaN when not measured).
+    schemes : list of SchemeCandidate
+        The scheme study (:func:`advise_schemes`): each scheme of ``schemes`` that applies to the
+        medium and the scene's integrator, on three grids with Δt refined with h (empty when
+        not made).
+    scheme_recommended : SchemeCandidate or None
+        The scheme whose cost to reach ``tol`` (measured, or extrapolated from the observed
+        order) is the smallest; None when none reaches it or fewer than two apply.
+    scheme_note : str
+        Why: the two schemes' grids and costs at ``tol``.
     """
 
     scene: str
@@ -1274,6 +1356,9 @@ class MethodAdvice:
     wall_time: float = 0.0
     spatial_n: int = 0
     spatial_difference: float = math.nan
+    schemes: list[SchemeCandidate] = dataclasses.field(default_factory=list)
+    scheme_recommended: SchemeCandidate | None = None
+    scheme_note: str = ""
 
     @property
     def within_2x_of_fastest(self) -> bool:
@@ -1297,6 +1382,9 @@ class MethodAdvice:
         out["recommended"] = row(self.recommended)
         out["fastest"] = row(self.fastest)
         out["within_2x_of_fastest"] = self.within_2x_of_fastest
+        out["schemes"] = [c.to_dict() for c in self.schemes]
+        out["scheme_recommended"] = None if self.scheme_recommended is None else self.scheme_recommended.scheme
+        out["scheme_note"] = self.scheme_note
         return out
 
     def __str__(self) -> str:
@@ -1335,11 +1423,20 @@ class MethodAdvice:
         if math.isfinite(self.reference_error) and self.tol < 10.0 * self.reference_error:
             lines.append(f"warning: tol is below 10× the reference's estimated error ({self.reference_error:.3g}); "
                          "the errors near tol are not resolved")
+        if self.schemes:
+            lines += ["", scheme_table(self.schemes, self.scheme_recommended)]
+            lines.append(("scheme recommended: " + self.scheme_recommended.scheme if self.scheme_recommended
+                          else "scheme recommended: none") + f" — {self.scheme_note}")
+        elif self.scheme_note:
+            lines += ["", self.scheme_note]
         return "\n".join(lines)
 
     def plot(self, path: str | os.PathLike) -> pathlib.Path:
         """Work-precision chart: error against wall time per integrator (log–log), the tol line,
-        the recommendation circled; written with matplotlib (Agg).  Returns the path."""
+        the recommendation circled; with a scheme study (:attr:`schemes`), each scheme's three
+        levels too (squares, dashed: Richardson's estimate of the whole discretisation error,
+        h and Δt refined together), the recommended scheme's level circled; written with
+        matplotlib (Agg).  Returns the path."""
         from .study import _figure, finish_chart
 
         plt, fig, ax = _figure()
@@ -1347,13 +1444,22 @@ class MethodAdvice:
             pts = [(c.wall_time, c.error) for c in sorted(self.candidates, key=lambda c: c.dt)
                    if c.integrator == name and c.ok and c.error > 0 and c.wall_time > 0]  # joined in Δt order
             if pts:
-                ax.loglog(*zip(*pts, strict=True), "o-", label=name)
+                ax.loglog(*zip(*pts, strict=True), "o-", label=f"{name} (time error, n = {self.n})")
+        for c in self.schemes:
+            pts = [(t, e) for t, e in zip(c.wall_time, c.errors, strict=True) if t > 0 and math.isfinite(e) and e > 0]
+            if c.status == "ok" and pts:
+                ax.loglog(*zip(*pts, strict=True), "s--", label=f"{c.scheme}, {c.integrator} (h, Δt refined; est.)")
         ax.axhline(self.tol, color="k", ls="--", lw=0.8, label=f"tol = {self.tol:g}")
         if self.recommended is not None and self.recommended.error > 0:
             ax.loglog([self.recommended.wall_time], [self.recommended.error], "o", ms=14, mfc="none", color="r",
                       label="recommended")
+        chosen = self.scheme_recommended
+        if chosen is not None and not chosen.extrapolated and chosen.chosen_n in chosen.n:
+            i = chosen.n.index(chosen.chosen_n)
+            ax.loglog([chosen.wall_time[i]], [chosen.errors[i]], "s", ms=14, mfc="none", color="m",
+                      label=f"scheme recommended ({chosen.scheme}, n = {chosen.chosen_n})")
         ax.set_xlabel("wall time of the steps [s] (after compilation)")
-        ax.set_ylabel("max |position − reference|")
+        ax.set_ylabel("max |position − reference| (schemes: estimated error)")
         return finish_chart(fig, ax, path, f"work-precision: {self.scene}, t = {self.t_end:g}")
 
 
@@ -1379,7 +1485,8 @@ def _step_time(ds: Any, total: float) -> float:
 
 
 def _try_resolve(problem: Problem, integrator: str, settings: Mapping[str, Any], dt: float) -> float | None:
-    """The CFL estimate of ``integrator`` on the scene, or None when it does not apply to the medium."""
+    """The CFL estimate of ``integrator`` on the scene (with the settings' ``scheme``,
+    ``scheme_options`` and ``compiled``), or None when it does not apply to the medium."""
     from .simulate import StabilityWarning, _resolve_run
 
     opts = settings.get("integrator_options") if integrator == settings.get("integrator") else None
@@ -1387,15 +1494,17 @@ def _try_resolve(problem: Problem, integrator: str, settings: Mapping[str, Any],
         warnings.simplefilter("ignore", StabilityWarning)
         try:
             run = _resolve_run(problem, integrator, settings.get("scheme"), dt, 2 * dt, 1, None, None, None, opts,
-                               settings.get("scheme_options"), False, 1e3, compiled=True, command="", max_steps=None)
-        except (ValueError, TypeError):
+                               settings.get("scheme_options"), False, 1e3,
+                               compiled=bool(settings.get("compiled", True)), command="", max_steps=None)
+        except (ValueError, TypeError, NotImplementedError):
             return None
     return float(run.dt_max)
 
 
 def advise_method(problem_or_scene: Any, tol: float, *, pilot_steps: int = PILOT_STEPS,
                   integrators: tuple[str, ...] = TOL_INTEGRATORS,
-                  dt_powers: tuple[int, ...] = TOL_DT_POWERS, spatial: bool = True) -> MethodAdvice:
+                  dt_powers: tuple[int, ...] = TOL_DT_POWERS, spatial: bool = True,
+                  schemes: Sequence[str] = TOL_SCHEMES) -> MethodAdvice:
     """The cheapest (integrator, Δt) that reaches ``tol`` on a dynamic scene, from a sweep on the scene.
 
     The output of interest is the scene's final node positions ``[nodes, k]`` at the study's end
@@ -1433,6 +1542,10 @@ def advise_method(problem_or_scene: Any, tol: float, *, pilot_steps: int = PILOT
         one-dimensional grid, ``2n`` of a periodic one: the scene's nodes are every other node)
         and report the difference at the shared nodes separately (``spatial_difference``);
         skipped for grids of dimension > 1 and for scenes without a source table.
+    schemes : sequence of str, default :data:`TOL_SCHEMES`
+        The schemes compared for ``tol`` with the scene's integrator (:func:`advise_schemes`;
+        ``()`` skips the study).  A scheme that does not apply to the medium or the integrator
+        is listed as such.
 
     Returns
     -------
@@ -1451,6 +1564,8 @@ def advise_method(problem_or_scene: Any, tol: float, *, pilot_steps: int = PILOT
     tol = _check_tol(tol)
     if isinstance(pilot_steps, bool) or not isinstance(pilot_steps, int | np.integer) or pilot_steps < 2:
         raise ValueError(f"pilot_steps must be an integer ≥ 2, got {pilot_steps!r}")
+    if schemes:
+        _check_schemes(schemes)
     subject = _subject(problem_or_scene)
     if subject.mode != "dynamic" or not subject.run_settings:
         raise ValueError(f"scene {subject.name!r}: advice for a tolerance needs a dynamic scene, got mode "
@@ -1525,9 +1640,15 @@ def advise_method(problem_or_scene: Any, tol: float, *, pilot_steps: int = PILOT
             spatial_diff = _max_distance(_shared_nodes(_final_positions(fine_ds), 1, ref.shape[:-1]),
                                          ref.reshape(-1, ref.shape[-1]))
     recommended, fastest = choose_method(candidates, tol)
+    study, chosen, why = [], None, ""
+    if schemes:
+        try:
+            study, chosen, why = advise_schemes(problem_or_scene, tol, pilot_steps=pilot_steps, schemes=schemes)
+        except ValueError as exc:  # e.g. a grid the study cannot refine: the method advice stands
+            why = f"the scheme comparison was not made: {' '.join(str(exc).split())[:200]}"
     return MethodAdvice(subject.name, problem.medium.name, scheme, int(np.prod(problem.grid.shape)), tol, t_end,
                         dt0, f"{ref_name} at dt = {ref_dt:.4g}", ref_err, candidates, recommended, fastest,
-                        time.perf_counter() - start, spatial_n, spatial_diff)
+                        time.perf_counter() - start, spatial_n, spatial_diff, study, chosen, why)
 
 
 def choose_method(candidates: Sequence[Any], tol: float, *, cost: Any = None, error: Any = None
@@ -1544,6 +1665,261 @@ def choose_method(candidates: Sequence[Any], tol: float, *, cost: Any = None, er
     done = [c for c in candidates if c.ok]
     good = [c for c in done if error(c) <= tol]
     return (min(good, key=cost) if good else None, min(done, key=cost) if done else None)
+
+
+# ---------------------------------------------------------------------------- the scheme for a tolerance
+@dataclasses.dataclass
+class SchemeCandidate:
+    """One scheme of the study of :func:`advise_schemes`: three runs of the scene's integrator
+    on the grids n, 2n − 1, 4n − 3 (periodic n, 2n, 4n) with Δt, Δt/2, Δt/4.
+
+    Attributes
+    ----------
+    scheme : str
+    status : str
+        ``"ok"``, ``"not applicable: ..."`` (the medium or integrator does not run on it) or
+        ``"failed: ..."`` / ``"unstable: ..."`` (a run did not finish).
+    integrator : str
+    n : tuple of int
+        Nodes of the three levels.
+    dt : tuple of float
+        Their time steps (the coarsest: the scene's Δt, or half the scheme's CFL estimate when
+        that is smaller; then halved with h).
+    wall_time : tuple of float
+        Seconds spent stepping on each level (the run's own count, the faster of
+        :data:`TOL_REPEATS` runs after a warm-up run; machine- and load-dependent).
+    errors : tuple of float
+        Richardson's estimate of each level's error (max over the scene's nodes of
+        ``|x − x(h → 0)|`` at the study's end time, length units).
+    order : float
+        The observed order ``log₂(d₀/d₁)`` (space and time refined together).
+    differences : tuple of float
+        ``d₀ = max|x(n) − x(2n − 1)|``, ``d₁ = max|x(2n − 1) − x(4n − 3)|`` at the scene's nodes.
+    chosen_n : int
+        The coarsest level within ``tol``, or the grid extrapolated from the finest level with
+        the observed order (``extrapolated``); 0 when there is none.
+    extrapolated : bool
+    predicted_error : float
+        The estimated error at ``chosen_n``.
+    cost : float
+        Seconds of stepping to reach ``tol``: measured on the chosen level, or the finest
+        level's time scaled by ``(f/4)^(d + 1)`` for an extrapolated grid f times finer than the
+        scene's (nodes × steps); inf when ``tol`` is not reached.
+    """
+
+    scheme: str
+    status: str
+    integrator: str = ""
+    n: tuple[int, ...] = ()
+    dt: tuple[float, ...] = ()
+    wall_time: tuple[float, ...] = ()
+    errors: tuple[float, ...] = ()
+    order: float = math.nan
+    differences: tuple[float, ...] = ()
+    chosen_n: int = 0
+    extrapolated: bool = False
+    predicted_error: float = math.nan
+    cost: float = math.inf
+
+    @property
+    def ok(self) -> bool:
+        """The three runs finished and ``tol`` is reached (measured or extrapolated)."""
+        return self.status == "ok" and math.isfinite(self.cost)
+
+    def to_dict(self) -> dict[str, Any]:
+        """Plain Python (NaN and inf as ``None``)."""
+        def clean(v: Any) -> Any:
+            return [clean(x) for x in v] if isinstance(v, tuple | list) else _json_value(v)
+
+        return {k: clean(v) for k, v in dataclasses.asdict(self).items()}
+
+
+def scheme_table(study: Sequence[SchemeCandidate], chosen: SchemeCandidate | None = None) -> str:
+    """The scheme study as a text table: per scheme and level n, Δt, estimated error, stepping time."""
+    def f(x: float, spec: str = ".3g") -> str:
+        return "—" if not math.isfinite(x) else format(x, spec)
+
+    lines = [f"{'scheme':<13} {'n':>6} {'dt':>10} {'est. error':>11} {'order':>6} {'time [s]':>9}  to reach tol"]
+    for c in study:
+        if c.status != "ok":
+            lines.append(f"{c.scheme:<13} {c.status}")
+            continue
+        for i, (n, dt, t, e) in enumerate(zip(c.n, c.dt, c.wall_time, c.errors, strict=True)):
+            reach = ""
+            if i == 0:
+                reach = ("not reached" if c.chosen_n == 0 else
+                         f"n = {c.chosen_n}{' (extrapolated)' if c.extrapolated else ''}, est. "
+                         f"{f(c.predicted_error)}, {f(c.cost)} s" + ("  <- recommended" if c is chosen else ""))
+            lines.append(f"{c.scheme if i == 0 else '':<13} {n:>6} {dt:>10.4g} {f(e):>11} "
+                         f"{f(c.order, '.2f') if i == 0 else '':>6} {f(t):>9}  {reach}")
+    return "\n".join(lines)
+
+
+def _check_schemes(schemes: Any) -> None:
+    """``schemes``: a non-empty sequence of registered scheme names (``ValueError`` otherwise)."""
+    from .plugins import get_registry
+
+    if isinstance(schemes, str) or not schemes or not all(isinstance(x, str) for x in schemes):
+        raise ValueError(f"schemes must be a non-empty sequence of scheme names, got {schemes!r}")
+    known = sorted(get_registry().table("schemes"))
+    unknown = [x for x in schemes if x not in known]
+    if unknown:
+        raise ValueError(f"schemes: unknown scheme {unknown[0]!r}; allowed: {', '.join(known)}")
+
+
+def advise_schemes(problem_or_scene: Any, tol: float, *, pilot_steps: int = PILOT_STEPS,
+                   schemes: Sequence[str] = TOL_SCHEMES, compiled: bool = True
+                   ) -> tuple[list[SchemeCandidate], SchemeCandidate | None, str]:
+    """Which scheme reaches ``tol`` on a dynamic scene at the smaller cost, measured on the scene.
+
+    For each scheme of ``schemes`` on which the scene's medium and integrator run (the scene's
+    ``scheme_options`` for its own scheme, the defaults for the others): the scene's integrator
+    on the grids of :func:`_refined_scene`, n → 2n − 1 → 4n − 3 (periodic n → 2n → 4n), with
+    Δt → Δt/2 → Δt/4, to the study's end time ``T = min(t_end, pilot_steps·Δt_scene)``.  Δt is the
+    scene's, or half the scheme's CFL estimate when that is smaller, adjusted so that T is a
+    whole number of steps.  Space and time are refined together, so the estimate covers the
+    whole discretisation error of the scene's output (the final node positions at the scene's
+    nodes): with ``d₀ = max|x(n) − x(2n − 1)|`` and ``d₁ = max|x(2n − 1) − x(4n − 3)|``, the
+    observed order ``p = log₂(d₀/d₁)`` and Richardson's estimates of :func:`_richardson`,
+    ``e(n) = d₀·2ᵖ/(2ᵖ − 1)`` and ``e(2n − 1) = d₀/(2ᵖ − 1)`` from the two coarse runs.  The
+    level that reaches ``tol`` (absolute, length units) is the coarsest whose estimate is
+    within it, else the grid f times finer than the scene's extrapolated from the finest
+    (``e ∝ h^p``, f ≥ 5) — its cost the finest level's stepping time times ``(f/4)^(d + 1)``.
+    The scheme recommended is the one with the smaller cost to reach ``tol``.
+
+    Parameters
+    ----------
+    problem_or_scene : Scene, path, str or dict
+        A dynamic scene with a ``[grid]`` table (``n``, or ``shape``).
+    tol : float
+        Accepted error, > 0 (length units).
+    pilot_steps : int, default 200
+    schemes : sequence of str, default :data:`TOL_SCHEMES`
+        Registered scheme names, at least one.
+    compiled : bool, default True
+        ``False`` runs the Python stepping loops (``simulate(compiled=False)``).
+
+    Returns
+    -------
+    (list of SchemeCandidate, SchemeCandidate or None, str)
+        The study, the scheme recommended (the cheaper of those that reach ``tol``; a single
+        scheme that applies is recommended when it reaches ``tol``; None when none does) and
+        the reason, in words.
+
+    Raises
+    ------
+    ValueError
+        Bad ``tol``, ``pilot_steps`` or ``schemes``; not a dynamic scene; a grid that cannot be
+        refined.
+    """
+    from .simulate import InstabilityError
+
+    tol = _check_tol(tol)
+    _check_schemes(schemes)
+    if isinstance(pilot_steps, bool) or not isinstance(pilot_steps, int | np.integer) or pilot_steps < 2:
+        raise ValueError(f"pilot_steps must be an integer ≥ 2, got {pilot_steps!r}")
+    subject = _subject(problem_or_scene)
+    if subject.mode != "dynamic" or not subject.run_settings:
+        raise ValueError(f"scene {subject.name!r}: the scheme advice needs a dynamic scene, got mode {subject.mode!r}")
+    dt0, t_end, run0 = _dynamic_settings(subject, int(pilot_steps))
+    base = dict(subject.run_settings)
+    integrator = str(run0.integrator.name)
+    own = str(run0.scheme.name)
+    scenes = [_load(problem_or_scene)]
+    for _ in range(2):
+        fine = _refined_scene(scenes[-1])
+        if fine is None:
+            raise ValueError(f"scene {subject.name!r}: the scheme advice needs a [grid] table with n (d = 1) or shape")
+        scenes.append(fine)
+    problem = subject.problem
+    shape0 = tuple(int(n) for n in problem.grid.shape)
+    d = len(shape0)
+    explicit = bool(getattr(_registered_integrator(integrator), "explicit", True))
+    study: list[SchemeCandidate] = []
+    for name in dict.fromkeys(schemes):
+        c = SchemeCandidate(name, "ok", integrator)
+        opts = base.get("scheme_options") if name == own else None
+        settings = {k: v for k, v in base.items() if k not in ("scheme", "scheme_options", "dt")}
+        settings |= {"scheme": name, "integrator": integrator, "compiled": bool(compiled)}
+        if opts:
+            settings["scheme_options"] = dict(opts)
+        dt_max = _try_resolve(problem, integrator, settings, dt0)
+        if dt_max is None:
+            c.status = f"not applicable: the {integrator} runs of {problem.medium.name!r} do not take this scheme"
+            study.append(c)
+            continue
+        dt = dt0 if not (explicit and 0.0 < dt_max < math.inf) else min(dt0, 0.5 * dt_max)
+        dt = t_end / max(1, math.ceil(t_end / dt * (1.0 - 1e-12)))
+        pos, ns, dts, times = [], [], [], []
+        try:
+            for k, sc in enumerate(scenes):
+                s = settings | {"dt": dt / 2 ** k}
+                if k == 0:
+                    with contextlib.suppress(InstabilityError):  # compiles the loop once: not timed
+                        _simulate(sc.problem, s, 2.0 * s["dt"])
+                runs = [_timed(_simulate, sc.problem, s, t_end) for _ in range(TOL_REPEATS)]
+                final = _final_positions(runs[-1][0])
+                if not np.all(np.isfinite(final)):
+                    raise InstabilityError(f"non-finite positions on n = {int(np.prod(sc.problem.grid.shape))}")
+                pos.append(_shared_nodes(final, k, shape0))
+                ns.append(int(np.prod(sc.problem.grid.shape)))
+                dts.append(float(s["dt"]))
+                times.append(min(_step_time(ds, t) for ds, t in runs))
+        except InstabilityError as exc:
+            c.status = "unstable: " + " ".join(str(exc).split())[:160]
+        except (ValueError, ArithmeticError, NotImplementedError) as exc:
+            c.status = "failed: " + (" ".join(str(exc).split())[:160] or type(exc).__name__)
+        if c.status != "ok":
+            study.append(c)
+            continue
+        d0, d1 = _max_distance(pos[0], pos[1]), _max_distance(pos[1], pos[2])
+        p, errors = _richardson(d0, d1, TOL_ROUNDOFF * float(max(problem.grid.length)))
+        c.n, c.dt, c.wall_time, c.errors = tuple(ns), tuple(dts), tuple(times), tuple(errors)
+        c.order, c.differences = p, (d0, d1)
+        within = [i for i, e in enumerate(errors) if math.isfinite(e) and e <= tol]
+        if within:
+            i = within[0]
+            c.chosen_n, c.predicted_error, c.cost = ns[i], errors[i], times[i]
+        elif math.isfinite(errors[2]) and math.isfinite(p) and p > 0:
+            ends = [0 if per else 1 for per in problem.grid.periodic]
+            f = max(5, math.ceil(4.0 * (errors[2] / tol) ** (1.0 / p) * (1.0 - 1e-12)))
+            c.chosen_n = int(np.prod([f * (n - e) + e for n, e in zip(shape0, ends, strict=True)]))
+            c.extrapolated, c.predicted_error = True, errors[2] * (4.0 / f) ** p
+            c.cost = times[2] * (f / 4.0) ** (d + 1)
+        study.append(c)
+    chosen, why = choose_scheme(study, tol)
+    return study, chosen, why
+
+
+def choose_scheme(study: Sequence[SchemeCandidate], tol: float) -> tuple[SchemeCandidate | None, str]:
+    """(the scheme of ``study`` with the smallest cost to reach ``tol``, why in words); None when
+    no scheme reaches it.  Costs are measured or extrapolated (:class:`SchemeCandidate`)."""
+    reach = [c for c in study if c.ok]
+    if not reach:
+        why = (f"no scheme reaches tol = {tol:g} within the study" if any(c.status == "ok" for c in study)
+               else "no scheme of " + ", ".join(c.scheme for c in study) + " ran")
+        return None, why
+    chosen = min(reach, key=lambda c: c.cost)
+    integrator = chosen.integrator
+
+    def where(c: SchemeCandidate) -> str:
+        how = "extrapolated" if c.extrapolated else "measured"
+        order = f"observed order {c.order:.2f}" if math.isfinite(c.order) else "the finer levels agree to round-off"
+        return (f"{c.scheme} reaches it at n = {c.chosen_n} (estimated error {c.predicted_error:.3g}, {order}) in "
+                f"{c.cost:.3g} s of stepping ({how})")
+
+    others = [c for c in study if c is not chosen]
+    why = f"the cheaper to reach tol = {tol:g} with {integrator}: " + where(chosen)
+    for c in others:
+        if c.ok:
+            why += f"; {where(c)}, {c.cost / chosen.cost:.2g}× the cost"
+        elif c.status == "ok":
+            why += f"; {c.scheme} does not reach it (observed order {c.order:.3g})"
+        else:
+            why += f"; {c.scheme}: {c.status}"
+    if len(reach) == 1 and len(study) > 1:
+        why += "; the only scheme that reaches it"
+    return chosen, why
 
 
 def _refined_scene(obj: Any) -> Any:
@@ -1657,6 +2033,10 @@ class ResolutionCandidate:
     newton_iterations : int
     shape : tuple of int
         The grid's nodes along each axis (n is their product).
+    value : float
+        The scene's measured quantity on this grid (its ``[static] measure``, or
+        ``[continuation] measure`` at the path's final point) when the advice is on it
+        (:attr:`ResolutionAdvice.quantity` ``"measure"``); NaN otherwise.
     """
 
     n: int
@@ -1668,6 +2048,7 @@ class ResolutionCandidate:
     wall_time: float = math.nan
     newton_iterations: int = 0
     shape: tuple[int, ...] = ()
+    value: float = math.nan
 
     @property
     def ok(self) -> bool:
@@ -1715,6 +2096,14 @@ class ResolutionAdvice:
         How the recommendation was reached.
     wall_time : float
         Seconds spent in :func:`advise_resolution`.
+    recommended_shape : tuple of int
+        The recommended grid's nodes along each axis.
+    quantity : str
+        ``"measure"`` (the error is that of the scene's measured quantity, ``output`` names it)
+        or ``"positions"`` (the node positions).
+    extrapolated_value : float
+        With ``"measure"``: Richardson's extrapolation of the measured quantity to h → 0,
+        ``m(4n−3) + (m(4n−3) − m(2n−1))/(2^p − 1)`` (NaN without an order).
     """
 
     scene: str
@@ -1735,6 +2124,8 @@ class ResolutionAdvice:
     note: str = ""
     wall_time: float = 0.0
     recommended_shape: tuple[int, ...] = ()
+    quantity: str = "positions"
+    extrapolated_value: float = math.nan
 
     def to_dict(self) -> dict[str, Any]:
         """The report as plain Python (JSON-serialisable, NaN and inf as ``None``)."""
@@ -1742,7 +2133,7 @@ class ResolutionAdvice:
         out = {k: clean(getattr(self, k)) for k in ("scene", "medium", "scheme", "mode", "output", "tol", "scale",
                                                      "observed_order", "recommended_n", "extrapolated", "capped",
                                                      "predicted_error", "max_n", "note", "wall_time",
-                                                     "recommended_shape")}
+                                                     "recommended_shape", "quantity", "extrapolated_value")}
         out["levels"] = [row(c) for c in self.levels]
         out["recommended"] = row(self.recommended)
         return out
@@ -1753,10 +2144,13 @@ class ResolutionAdvice:
         def f(x: float, spec: str = ".3g") -> str:
             return "—" if not math.isfinite(x) else format(x, spec)
 
-        lines = [f"{'n':>9} {'est. error':>11} {'relative':>10} {'order':>6} {'diff. next':>11} {'time [s]':>9}"]
+        on_measure = self.quantity == "measure"
+        lines = [f"{'n':>9} " + (f"{'value':>13} " if on_measure else "")
+                 + f"{'est. error':>11} {'relative':>10} {'order':>6} {'diff. next':>11} {'time [s]':>9}"]
         for c in self.levels:
             mark = "  <- recommended" if c is self.recommended else ""
-            lines.append(f"{_grid_label(c.shape, c.n):>9} {f(c.error):>11} {f(c.relative_error):>10} "
+            lines.append(f"{_grid_label(c.shape, c.n):>9} " + (f"{f(c.value, '.7g'):>13} " if on_measure else "")
+                         + f"{f(c.error):>11} {f(c.relative_error):>10} "
                          f"{f(c.order, '.2f'):>6} {f(c.difference):>11} {f(c.wall_time):>9}{mark}")
         return "\n".join(lines)
 
@@ -1765,7 +2159,10 @@ class ResolutionAdvice:
         p = "—" if not math.isfinite(self.observed_order) else format(self.observed_order, ".3f")
         lines = [f"scene {self.scene!r} ({self.medium}, {self.scheme}, {self.mode}): resolution for tol = {self.tol:g}",
                  f"error: {self.output}, relative to the scale {self.scale:.4g}",
-                 f"Richardson from n = {ns}; observed order {p}", "", self.table(), ""]
+                 f"Richardson from n = {ns}; observed order {p}"
+                 + (f"; extrapolated value {self.extrapolated_value:.7g}"
+                    if self.quantity == "measure" and math.isfinite(self.extrapolated_value) else ""),
+                 "", self.table(), ""]
         if self.recommended_n == 0:
             lines.append(f"recommended: none — {self.note}")
         elif self.extrapolated:
@@ -1793,11 +2190,16 @@ class ResolutionAdvice:
             ax.loglog([self.recommended_n], [self.predicted_error], "o", ms=14, mfc="none", color="r",
                       label="recommended" + (" (extrapolated)" if self.extrapolated else ""))
         ax.set_xlabel("nodes n")
-        ax.set_ylabel("estimated relative error of the positions")
+        ax.set_ylabel("estimated relative error of the " + ("measure" if self.quantity == "measure" else "positions"))
         return finish_chart(fig, ax, path, f"resolution: {self.scene}")
 
 
-def advise_resolution(scene: Any, tol: float, *, max_n: int = TOL_MAX_N) -> ResolutionAdvice:
+#: what :func:`advise_resolution` measures the error on
+TOL_QUANTITIES = ("auto", "measure", "positions")
+
+
+def advise_resolution(scene: Any, tol: float, *, max_n: int = TOL_MAX_N, quantity: str = "auto"
+                      ) -> ResolutionAdvice:
     """The coarsest grid of a static scene whose equilibrium is within ``tol``, from three levels.
 
     The scene is solved (:func:`cartan.statics.solve_static` with its ``[static]`` settings; the
@@ -1815,7 +2217,18 @@ def advise_resolution(scene: Any, tol: float, *, max_n: int = TOL_MAX_N) -> Reso
         e(n) = d₀·2^p/(2^p − 1),   e(2n−1) = d₀/(2^p − 1),   e(4n−3) = d₁/(2^p − 1),
 
     compared with ``tol·scale``, the scale the largest displacement of those nodes (the grid
-    length when nothing moves).  The recommendation is the coarsest level within ``tol``
+    length when nothing moves).
+
+    When the scene declares what it measures (``[static] measure = {node, component}``, or
+    ``[continuation] measure``: :class:`cartan.scene.Measure`, one displacement component — or
+    its length — at one node, the quantity whose accuracy the user cares about, e.g. a tip
+    deflection) the output is that quantity instead (``quantity="auto"`` or ``"measure"``):
+    ``m(n)``, the measured node the same material point on every level; ``d₀ = |m(n) − m(2n−1)|``,
+    ``d₁ = |m(2n−1) − m(4n−3)|`` in the same formulas, the scale ``|m(4n−3)|`` (the largest
+    displacement when the measured value is round-off), and Richardson's value
+    ``m(4n−3) + (m(4n−3) − m(2n−1))/(2^p − 1)`` is reported.  When the two differences have
+    opposite signs (the quantity does not converge monotonically on these grids) there is no
+    order and nothing is recommended.  The recommendation is the coarsest level within ``tol``
     (:func:`choose_method` with the number of nodes as the cost).  When none is, the grid is
     extrapolated from the finest level, ``e ∝ h^p``: the scene's intervals along every axis
     multiplied by ``f = ⌈4·(e(4n−3)/tol)^{1/p}⌉`` (at least 5, beyond the finest level; an integer,
@@ -1833,6 +2246,10 @@ def advise_resolution(scene: Any, tol: float, *, max_n: int = TOL_MAX_N) -> Reso
         Accepted relative error, > 0.
     max_n : int, default :data:`TOL_MAX_N`
         The most nodes along any axis an extrapolation recommends, ≥ 3.
+    quantity : {"auto", "measure", "positions"}, default "auto"
+        What the error is measured on: the scene's measured quantity (``"measure"``; ``"auto"``:
+        when the scene declares one) or the node positions at the scene's nodes
+        (``"positions"``; ``"auto"`` without a measure).
 
     Returns
     -------
@@ -1841,7 +2258,8 @@ def advise_resolution(scene: Any, tol: float, *, max_n: int = TOL_MAX_N) -> Reso
     Raises
     ------
     ValueError
-        Bad ``tol`` or ``max_n``; not a static or continuation scene (a
+        Bad ``tol``, ``max_n`` or ``quantity`` (``"measure"`` of a scene that declares none); not a
+        static or continuation scene (a
         :class:`~cartan.Problem` has no grid table to refine); a grid that cannot be refined;
         a medium without node positions; paths that end at different load factors.
     cartan.statics.ConvergenceError
@@ -1854,10 +2272,16 @@ def advise_resolution(scene: Any, tol: float, *, max_n: int = TOL_MAX_N) -> Reso
     if isinstance(scene, Problem):
         raise ValueError("the advice for a tolerance needs a scene (file, registered name or dict), not a Problem: it "
                          "refines the grid of a static or continuation scene and sweeps the time step of a dynamic one")
+    if quantity not in TOL_QUANTITIES:
+        raise ValueError(f"quantity must be one of {', '.join(repr(q) for q in TOL_QUANTITIES)}, got {quantity!r}")
     subject = _subject(scene)
     if subject.mode not in ("static", "continuation"):
         raise ValueError(f"scene {subject.name!r}: the resolution advice needs a static or continuation scene, got "
                          f"mode {subject.mode!r}")
+    if quantity == "measure" and subject.measure is None:
+        raise ValueError(f"quantity='measure': scene {subject.name!r} declares no measure (its [{subject.mode}] "
+                         "measure = { node, component })")
+    on_measure = quantity != "positions" and subject.measure is not None
     scenes = [_load(scene)]
     for _ in range(2):
         fine = _refined_scene(scenes[-1])
@@ -1868,13 +2292,17 @@ def advise_resolution(scene: Any, tol: float, *, max_n: int = TOL_MAX_N) -> Reso
     problem = subject.problem
     shape0 = tuple(int(n) for n in problem.grid.shape)
     scheme = str(subject.solver_options.get("scheme", "lattice"))
-    levels, pos, lam = [], [], []
+    levels, pos, lam, values = [], [], [], []
     for k, sc in enumerate(scenes):  # each level with its own subject: a measure reads its own grid
-        ds, seconds = _run(subject if k == 0 else _subject(sc), sc.problem, None, warm=k == 0)
+        level = subject if k == 0 else _subject(sc)
+        ds, seconds = _run(level, sc.problem, None, warm=k == 0)
         if "position" not in ds:
             raise ValueError(f"scene {subject.name!r}: medium {problem.medium.name!r} has no node positions to "
                              "measure the resolution on")
-        pos.append(_shared_nodes(_final_positions(ds), k, shape0))
+        final = _final_positions(ds)
+        pos.append(_shared_nodes(final, k, shape0))
+        if on_measure:
+            values.append(float(level.measure(final.reshape(-1, final.shape[-1]), _initial_positions(sc.problem))))
         if subject.mode == "continuation":
             lam.append(float(ds["load_factor"].values[-1]))
         shape = tuple(int(n) for n in sc.problem.grid.shape)
@@ -1883,17 +2311,30 @@ def advise_resolution(scene: Any, tol: float, *, max_n: int = TOL_MAX_N) -> Reso
     if lam and not math.isclose(min(lam), max(lam), rel_tol=1e-9, abs_tol=1e-12):
         raise ValueError(f"scene {subject.name!r}: the paths on n = {levels[0].n}, {levels[1].n}, {levels[2].n} end "
                          f"at different load factors ({', '.join(f'{v:.6g}' for v in lam)}): no common final point")
-    d0, d1 = _max_distance(pos[0], pos[1]), _max_distance(pos[1], pos[2])
-    levels[0].difference, levels[1].difference = d0, d1
     length = float(max(problem.grid.length))
     scale = _max_distance(pos[2], _initial_positions(problem))
     scale_of = "the largest displacement" if scale > TOL_ROUNDOFF * length else "the grid length"
     scale = scale if scale > TOL_ROUNDOFF * length else length
+    oscillates = False
+    if on_measure:
+        d0, d1 = abs(values[0] - values[1]), abs(values[1] - values[2])
+        if abs(values[2]) > TOL_ROUNDOFF * length:
+            scale, scale_of = abs(values[2]), "the scale |m| on the finest grid"
+        else:
+            scale_of = f"{scale_of}: the measured value is round-off"
+        oscillates = (values[0] - values[1]) * (values[1] - values[2]) < 0.0 and d1 > TOL_ROUNDOFF * scale
+    else:
+        d0, d1 = _max_distance(pos[0], pos[1]), _max_distance(pos[1], pos[2])
+    levels[0].difference, levels[1].difference = d0, d1
     p, errors = _richardson(d0, d1, TOL_ROUNDOFF * scale)
+    if oscillates:  # |m − m(∞)| is not C·h^p on these grids
+        p, errors = math.nan, [math.nan] * 3
     note = "" if math.isfinite(p) or not math.isfinite(errors[0]) else \
         "the refined grids agree to round-off: the differences to the next level are the estimates"
-    for c, e in zip(levels, errors, strict=True):
-        c.error, c.relative_error, c.order = e, e / scale, p
+    for c, e, v in zip(levels, errors, values or [math.nan] * 3, strict=True):
+        c.error, c.relative_error, c.order, c.value = e, e / scale, p, v
+    extrapolated_value = (values[2] + (values[2] - values[1]) / (2.0 ** p - 1.0)
+                          if on_measure and math.isfinite(p) and p > 0 else math.nan)
     recommended, _ = choose_method(levels, tol, cost=lambda c: c.n, error=lambda c: c.relative_error)
     rec_n, rec_shape, extrapolated, capped, predicted = 0, (), False, False, math.nan
     if recommended is not None:
@@ -1915,17 +2356,24 @@ def advise_resolution(scene: Any, tol: float, *, max_n: int = TOL_MAX_N) -> Reso
         if capped:
             note = (f"tol is not reached within max_n = {max_n} nodes along an axis: the largest grid allowed, "
                     f"n = {_grid_label(rec_shape, rec_n)}, is predicted at {predicted:.3g}; " + note)
+    elif oscillates:
+        note = ("the measured quantity does not converge monotonically on these grids (its differences to the next "
+                "level change sign): no observed order; refine the scene's grid and ask again")
     elif not levels[-1].ok:
         note = (f"observed order {p:.3g} (below {TOL_MIN_ORDER} or undefined): the three levels are not in the "
                 "asymptotic range; refine the scene's grid and ask again")
     else:
         note = "the finest level is not within tol and its difference is round-off: nothing to extrapolate"
     where = f" at the path's final point λ = {lam[0]:.6g}" if lam else ""
-    output = (f"max |x − x(∞)| of the equilibrium node positions{where} at the scene's "
-              f"{_grid_label(shape0, int(np.prod(shape0)))} nodes ({scale_of})")
+    if on_measure:
+        output = f"|m − m(∞)| of the scene's measure m, the {subject.measure.describe()}{where} ({scale_of})"
+    else:
+        output = (f"max |x − x(∞)| of the equilibrium node positions{where} at the scene's "
+                  f"{_grid_label(shape0, int(np.prod(shape0)))} nodes ({scale_of})")
     return ResolutionAdvice(subject.name, problem.medium.name, scheme, subject.mode, output, tol, scale, p, levels,
                             recommended, rec_n, extrapolated, capped, predicted, int(max_n), note,
-                            time.perf_counter() - start, tuple(rec_shape))
+                            time.perf_counter() - start, tuple(rec_shape),
+                            "measure" if on_measure else "positions", extrapolated_value)
 
 
 def _registered_integrator(name: str) -> Any:

@@ -17,7 +17,11 @@
     displacement), by Richardson extrapolation over the grids n, 2n − 1, 4n − 3
     (:func:`cartan.advise.advise_resolution`), extrapolated beyond them from the observed order
     when none is within ``tol``; ``--chart`` then writes the error against n.  A continuation
-    scene gets the same advice at its path's final point.
+    scene gets the same advice at its path's final point.  The error is that of the scene's
+    ``measure`` when it declares one (``--quantity measure|positions`` chooses).  On a dynamic
+    scene the schemes ``--schemes lattice,collocation`` (the default; ``none`` skips) are also
+    compared: the scene's integrator on three grids with Δt refined with h, Richardson's
+    estimates at the observed order, the cheaper scheme that reaches ``tol`` recommended.
 
 Bad input prints one line ``cartan: error: ...`` on stderr and exits with status 2 without
 writing anything; a solve or pilot that fails exits with status 1.
@@ -52,7 +56,14 @@ __all__ = ["advise_cmd", "register"]
                    "scene) reaching this accuracy (continuation scene: its final point).")
 @click.option("--chart", type=click.Path(dir_okay=False, path_type=pathlib.Path), default=None,
               help="With --tol: write the work-precision chart (PNG).")
-def advise_cmd(scene_file, scene_name, check, rtol, pilot_steps, output, as_json, tol, chart) -> None:
+@click.option("--quantity", type=click.Choice(["auto", "measure", "positions"]), default="auto", show_default=True,
+              help="With --tol on a static or continuation scene: the error of the scene's measure (auto: when it "
+                   "declares one) or of the node positions.")
+@click.option("--schemes", "schemes", type=str, default=None, metavar="A,B",
+              help="With --tol on a dynamic scene: the schemes compared (default lattice,collocation; 'none' skips "
+                   "the comparison).")
+def advise_cmd(scene_file, scene_name, check, rtol, pilot_steps, output, as_json, tol, chart, quantity,
+               schemes) -> None:
     """Which reductions a scene admits, with the error and speed-up of each (measured)."""
     from . import io
 
@@ -81,6 +92,13 @@ def advise_cmd(scene_file, scene_name, check, rtol, pilot_steps, output, as_json
                 raise CommandError(f"--chart {chart}: no such directory {chart.parent}")
     elif chart is not None:
         raise CommandError("--chart needs --tol")
+    if tol_value is None and (quantity != "auto" or schemes is not None):
+        raise CommandError("--quantity and --schemes need --tol")
+    scheme_list = None
+    if schemes is not None:
+        scheme_list = [] if schemes.strip() == "none" else [x.strip() for x in schemes.split(",") if x.strip()]
+        if schemes.strip() != "none" and not scheme_list:
+            raise CommandError(f"--schemes must be scheme names separated by commas, or 'none', got {schemes!r}")
     if output is not None:
         if scene_file is not None and output.resolve() == scene_file.resolve():
             raise CommandError(f"-o {output}: that is the scene file; give another output file")
@@ -90,8 +108,10 @@ def advise_cmd(scene_file, scene_name, check, rtol, pilot_steps, output, as_json
             raise CommandError(str(exc)) from None
     subject = scene_file if scene_file is not None else scene_name
     if tol_value is not None:
-        _report(subject, dict(tol=tol_value, pilot_steps=pilot_steps), as_json, chart,
-                lambda report, path: report.plot(path))
+        options = dict(tol=tol_value, pilot_steps=pilot_steps, quantity=quantity)
+        if scheme_list is not None:
+            options["schemes"] = tuple(scheme_list)
+        _report(subject, options, as_json, chart, lambda report, path: report.plot(path))
     else:
         _report(subject, dict(check=check, rtol=rtol, pilot_steps=pilot_steps), as_json, output,
                 lambda report, path: io.write_dataset(report.to_dataset(), path))

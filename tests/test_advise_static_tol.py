@@ -86,6 +86,11 @@ def test_levels_and_observed_order_match_the_lattice_scheme(advice):
     assert all(c.wall_time > 0 and c.newton_iterations >= 1 for c in advice.levels)
     # the scale is the tip deflection: linear theory gives 0.06777 (the scene's description)
     assert advice.scale == pytest.approx(0.06777, rel=1e-2)
+    # the error is that of the scene's own measure, the tip deflection z
+    assert advice.quantity == "measure" and "displacement z of node end" in advice.output
+    assert advice.scale == pytest.approx(abs(advice.levels[-1].value), rel=1e-12)
+    assert abs(advice.extrapolated_value - advice.levels[-1].value) == pytest.approx(
+        advice.levels[-1].error, rel=1e-9)  # Richardson: m(∞) − m(4n−3) = d₁/(2^p − 1)
 
 
 def test_recommendation_is_the_coarsest_level_within_tol(advice):
