@@ -522,7 +522,8 @@ def test_constant_field_potential_pulls_back_to_the_body_force(scheme):
     assert rel_error(V, with_field.potential_energy(state)) <= FORCE_TOL
 
 
-@pytest.mark.parametrize("scheme", sorted(SCHEMES))
+@pytest.mark.parametrize("scheme", [pytest.param(s, marks=[pytest.mark.slow] if s == "collocation" else [])
+                                    for s in sorted(SCHEMES)])  # collocation: the RKMK loop
 def test_rod_under_gravity_runs_compiled_and_agrees(scheme, generated_runs):
     problem = rod("dead", gravity=True)
     assert SCHEMES[scheme](problem).compiled_operators().ok

@@ -190,7 +190,8 @@ def test_rigid_motion_leaves_strains_and_energy_unchanged(solid):
         for a, b in zip(X0, scheme.edge_strains(state)):
             assert np.max(np.abs(a - b)) <= 1e-12
         assert scheme.potential_energy(state) == pytest.approx(V0, rel=1e-12)
-    kw = dict(integrator="lie-verlet", dt=0.01, t_end=0.2, save_every=20, progress=False)
+    # the Python path: the micropolar compiled loops (≈ 25 s to compile) run in make test-slow
+    kw = dict(integrator="lie-verlet", dt=0.01, t_end=0.2, save_every=20, progress=False, compiled=False)
     g = SE3.exp(2.0 * xi)
     ds0 = cartan.simulate(cartan.Problem(solid, grid, init), **kw)
     ds1 = cartan.simulate(cartan.Problem(solid, grid, cartan.InitialState(Phi=SE3.compose(g, init.Phi), N=init.N)),

@@ -144,7 +144,7 @@ def test_residual_matches_the_reference(name):
     assert all(np.array_equal(state.arrays[k], before.arrays[k]) for k in before.arrays)
 
 
-@pytest.mark.parametrize("name", ["lattice-SE3-dead", "lattice-SO2", "collocation-SE2-follower"])
+@pytest.mark.parametrize("name", case_params(["lattice-SE3-dead", "lattice-SO2", "collocation-SE2-follower"]))
 def test_outside_the_domain_of_exp_both_paths_decline(name):
     make, _ = CASES[name]
     scheme = make()
@@ -204,6 +204,7 @@ def test_simulate_compiled_false_is_the_reference(tmp_path):
     assert np.array_equal(runs[True]["time"].values, runs[False]["time"].values)
 
 
+@pytest.mark.slow  # the implicit loop of the SE(3) rod on collocation: ≈ 20 s to compile
 def test_restart_is_bit_for_bit_on_the_compiled_path(tmp_path):
     make, dt = CASES["collocation-SE3-dead"]
     problem = make().problem

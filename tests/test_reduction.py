@@ -365,6 +365,7 @@ save_every = 10
 """
 
 
+@pytest.mark.slow  # the implicit loops of the planar and the SE(3) rod: ≈ 50 s to compile
 def test_cli_runs_write_a_file_and_are_not_reduced(tmp_path):
     """``cartan run`` writes its result, so it steps on the scene's own group (restarts exact)."""
     scene = tmp_path / "planar.toml"

@@ -75,11 +75,14 @@ def _other_method(run: tuple) -> bool:
 
 
 def _own_loop(run: tuple) -> bool:
-    """The micropolar solid's dynamic cases: its generated loop compiles for ≈ 40 s on a fresh
-    cache, beyond the loops ``make test`` compiles (tests/conftest.py); they run in
-    ``make test-slow``, its static cases in both."""
+    """Dynamic cases whose loop ``make test`` does not compile (tests/conftest.py): the micropolar
+    solid's and the relativistic string's generated loops (40-70 s each on a fresh cache) and the
+    lattice's hand-written RKMK loop (overdamped); they run in ``make test-slow``, the static
+    cases in both."""
     case = CASES[run[0]]
-    return case.medium == "cosserat-solid" and not case.static
+    if case.static:
+        return False
+    return case.medium in ("cosserat-solid", "relativistic-rod") or run[1] in ("overdamped", "rkmk4", "lie-euler")
 
 
 QUICK_RUNS = [pytest.param(*run, marks=pytest.mark.slow)
@@ -237,6 +240,7 @@ def test_invariants_round_off_for_lattice_lie_verlet():
     assert report["passed"] and all(v["passed"] in (True, None) for k, v in report.items() if k != "passed")
 
 
+@pytest.mark.slow  # the lattice's forward-euler loop: ≈ 20 s to compile on a fresh cache
 def test_invariants_large_for_forward_euler():
     with pytest.warns(cartan.StabilityWarning):
         ds = cartan.simulate(_ring(), integrator="forward-euler", scheme="lattice", dt=5e-4, t_end=0.1,

@@ -584,11 +584,11 @@ def test_outputs_recorded_by_simulate_and_kept_on_restart(tmp_path):
     m = cartan.medium("sigma-model", n=2, d=2)
     grid = Grid((24, 24), length=(6.0, 6.0), periodic=(True, True))
     problem = Problem(m, grid, m.initial_state(grid, "lump", charge=2, size=0.8))
-    full = cartan.simulate(problem, dt=0.01, t_end=0.06, save_every=2)
+    full = cartan.simulate(problem, dt=0.01, t_end=0.06, save_every=2, compiled=False)  # the d = 2 loop: slow suite
     assert full.energy_density.dims == ("time", "u", "v")
     assert np.all(np.abs(full.topological_charge.values - 2.0) <= 1e-10)
     path = tmp_path / "half.nc"
-    cartan.simulate(problem, dt=0.01, t_end=0.04, save_every=2, output=path, checkpoint_every=1)
-    resumed = cartan.simulate(problem, dt=0.01, t_end=0.06, save_every=2, restart=path)
+    cartan.simulate(problem, dt=0.01, t_end=0.04, save_every=2, output=path, checkpoint_every=1, compiled=False)
+    resumed = cartan.simulate(problem, dt=0.01, t_end=0.06, save_every=2, restart=path, compiled=False)
     for name in ("energy_density", "topological_charge", "S"):
         assert np.array_equal(resumed[name].values, full[name].values), name
