@@ -424,9 +424,9 @@ def test_force_and_drift_match_the_scheme(case):
 
 
 # ---------------------------------------------------------------------------- stopping, declining
-@pytest.mark.parametrize("make", [LieVerlet, pytest.param(LieEuler, marks=SLOW), RKMK4],
+@pytest.mark.parametrize("make", [LieVerlet, pytest.param(LieEuler, marks=SLOW), pytest.param(RKMK4, marks=SLOW)],
                          ids=["lie-verlet", "lie-euler", "rkmk4"])
-@pytest.mark.parametrize("grid", ["rod", "sigma-d2"])
+@pytest.mark.parametrize("grid", ["rod", pytest.param("sigma-d2", marks=SLOW)])
 def test_kinetic_limit_stops_after_the_failing_step(grid, make):
     problem = rod_problem() if grid == "rod" else GRID_CASES["sigma-cylinder-fd4"][0]()
     scheme = Collocation(problem)

@@ -203,6 +203,7 @@ def test_rigid_motion_leaves_strains_and_energy_unchanged(solid):
     assert np.max(np.abs(x0 @ g[1:, 1:].T + g[1:, 0] - x1)) <= 1e-11
 
 
+@pytest.mark.slow  # the micropolar loop: ≈ 12 s to compile on a fresh cache
 def test_homogeneous_stretch_with_face_tractions_stays_exactly_uniform(solid):
     """A homogeneous stretch loaded on all six faces by n_αQ^α is an exact equilibrium of the
     lattice: after a dynamic run the strain is uniform, the kinetic energy round-off, the energy constant."""

@@ -254,6 +254,7 @@ def plate_problem():
     return Problem(med, grid, InitialState(Phi=ref, N=N), reference=ref)
 
 
+@pytest.mark.slow  # the surface's loop: ≈ 12 s to compile on a fresh cache
 def test_invariants_and_energy_order_lie_verlet(plate_problem):
     """Plaquette holonomy and group membership at round-off; the energy error of lie-verlet
     falls as Δt² (observed order asserted)."""

@@ -73,7 +73,8 @@ RUNS = {
 }
 
 
-@pytest.mark.parametrize("label", sorted(RUNS))
+@pytest.mark.parametrize("label", [pytest.param(k, marks=[pytest.mark.slow] if k == "sigma d=2" else [])
+                                   for k in sorted(RUNS)])  # d = 2: a loop of its own (≈ 25 s to compile)
 def test_run_dataset_equals_the_constructor(label, tmp_path, monkeypatch):
     """``simulate``'s Dataset and file with the fast assembly equal those of ``xr.Dataset``."""
     make, options = RUNS[label]

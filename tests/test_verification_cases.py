@@ -255,6 +255,7 @@ def test_invariants_large_for_forward_euler():
         check_invariants(ds, tolerances={"holonomy": 1.0})
 
 
+@pytest.mark.slow  # the d = 2 lattice loops: ≈ 15 s to compile on a fresh cache
 def test_spatial_integrability_d2_and_dissipative_balance():
     m = cartan.medium("sigma-model", n=2, d=2)
     grid = cartan.Grid((12, 12), 1.0, periodic=True)
