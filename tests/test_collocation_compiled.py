@@ -389,7 +389,7 @@ OPERATION_CASES = {
     "se2-open-dead-load": lambda: (GRID_CASES["se2-open-dead-load"][0](), "fd2"),
     "se3-solid-d3": lambda: (GRID_CASES["se3-solid-d3"][0](), "fd2"),
 }
-FAST_OPERATION_CASES = ("rod-fd4", "ring-fd4", "ring-fourier", "sigma-cylinder-fd4")
+FAST_OPERATION_CASES = ("rod-fd4", "ring-fd4", "ring-fourier")  # the d = 2 sigma model: slow suite
 
 
 @pytest.mark.parametrize("case", [c if c in FAST_OPERATION_CASES else pytest.param(c, marks=SLOW)
@@ -587,6 +587,7 @@ def test_cfl_rod_with_and_without_frames(track, compiled_products):
     assert compiled_products == [1]
 
 
+@pytest.mark.slow  # the SE(3) rod's RKMK loop on collocation: ≈ 10 s to compile on a fresh cache
 def test_simulate_uses_the_compiled_estimate(compiled_products):
     """``cartan.simulate`` chooses Δt from ``dt_max`` when none is given: the compiled products
     are taken there, and the run is the same as with the numpy estimate."""

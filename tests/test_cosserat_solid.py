@@ -264,6 +264,7 @@ def test_plaquette_holonomy_of_every_axis_pair_is_round_off(solid):
     assert scheme.plaquette_residual(state) <= 1e-13
 
 
+@pytest.mark.slow  # the micropolar loop: ≈ 25 s to compile on a fresh cache
 def test_energy_balance_is_second_order_with_lie_verlet(free_box_runs):
     _, runs = free_box_runs
     errors = []
@@ -276,6 +277,7 @@ def test_energy_balance_is_second_order_with_lie_verlet(free_box_runs):
     assert np.all(np.abs(orders - 2.0) <= 0.2), (errors, orders)
 
 
+@pytest.mark.slow  # the micropolar loop (as above)
 def test_momentum_of_the_free_box_is_conserved(free_box_runs):
     _, runs = free_box_runs
     P = runs[0.005].total_momentum.values

@@ -271,6 +271,7 @@ def test_invariants_and_energy_order_lie_verlet(plate_problem):
     assert 1.8 <= order <= 2.3, (errors, order)
 
 
+@pytest.mark.slow  # the surface's loop: ≈ 12 s to compile on a fresh cache
 def test_compiled_loop_matches_reference_path(plate_problem):
     """The generated lattice loop runs the same formulas as the numpy path: 1e-12 relative."""
     kw = dict(integrator="lie-verlet", dt=2e-3, t_end=0.04, save_every=10, progress=False)

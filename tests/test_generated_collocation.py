@@ -144,6 +144,7 @@ def test_abelian_rod_lie_verlet_agrees():
         _compare(problem, "lie-verlet", derivative=derivative)
 
 
+@pytest.mark.slow  # a d = 2 collocation loop of its own: ≈ 10 s to compile on a fresh cache
 def test_sigma_model_s2_d2_fourier_agrees():
     scheme, ref, _ = _compare(_sigma(2, (8, 6), (True, True)), "rkmk4", derivative="fourier")
     _operators_agree(scheme, ref)

@@ -231,6 +231,7 @@ def test_restart_is_bit_for_bit(stiff, tmp_path):
         assert np.array_equal(full[name].values, cont[name].values), name
 
 
+@pytest.mark.slow  # the implicit residual of the planar rod and the sphere rod: ≈ 20 s to compile each
 @pytest.mark.parametrize("medium, params, kind, init", [
     ("planar-cosserat-rod", {"E": 1e4, "G": 1e4 / 3, "radius": 0.05, "density": 1000.0}, "arc",
      {"curvature": 1.0, "velocity": [0.0, 0.05, 0.3]}),

@@ -193,7 +193,7 @@ def test_instability_error_pickles():
 
 def test_instability_without_output_uses_a_temporary_file(toy):
     with pytest.warns(StabilityWarning), pytest.raises(InstabilityError) as info:
-        simulate(scene("toy-butterfly"), integrator="forward-euler", dt=0.01, t_end=50.0)
+        simulate(scene("toy-butterfly"), integrator="forward-euler", dt=0.01, t_end=50.0, compiled=False)
     err = info.value
     assert err.dt_max == 0 and "CFL estimate 0" in str(err)
     try:

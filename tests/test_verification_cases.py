@@ -273,6 +273,7 @@ def test_spatial_integrability_d2_and_dissipative_balance():
     assert 1.6 <= math.log2(b1 / b2) <= 2.4, (b1, b2)
 
 
+@pytest.mark.slow  # the overdamped loops: ≈ 20 s to compile on a fresh cache
 def test_dissipation_balance_is_the_gradient_flow_law():
     """dE/dt = −⟨N, ΓN⟩ recomputed from the saved velocities: O(Δt) for Lie–Euler, O(Δt²) for RKMK2
     (every step saved), on the overdamped rod on a sphere (drag) — any overdamped run."""
