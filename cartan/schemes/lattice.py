@@ -103,7 +103,10 @@ class Lattice(Scheme):
 
     def _chart_measures(self) -> None:
         """Node reference volumes and face-load factors of a general chart (module docstring)."""
-        if self.problem.reference is None:
+        from ..medium import Medium
+
+        # the nodal rest strains (a log per edge) only for media that measure their chart
+        if self.problem.reference is None or type(self.medium).reference_volume is Medium.reference_volume:
             return
         X0 = self.nodal_rest_strains()
         J = self.medium.reference_volume(X0)
