@@ -107,14 +107,51 @@ if os.environ.get("CARTAN_COMPILE_LOG"):
 # ``slow_when(item) -> bool``; the items it names are marked ``slow`` (``make test-slow``), so the
 # rule that picks them stays beside the tests.  The loops ``make test`` compiles: the demo's
 # (the hand-written SE(3) lie-verlet loop of the lattice, and its generic twin for the other
-# groups), the generated ``lie-verlet`` loop of the lattice and the generated RKMK loop of
-# collocation on the SE(3) rod, and one implicit-midpoint loop (collocation, SE(2)).
+# groups), the generated ``lie-verlet`` loops of the SE(3) rod on both schemes (and of the SO(2)
+# toy rod on collocation), the hand-written RKMK loop (the study tests' reference runs), one
+# implicit-midpoint loop (the lattice's SE(3) rod), and the groups' and media's kernels.
+#
+# With -n (make test), xdist hands a worker one group of tests at a time, and a test's group is
+# its file (``--dist loadfile``, pyproject.toml) unless it is named in COMPILE_GROUPS: tests of
+# different files that compile the same loop share a group, so that one worker compiles it and
+# the other does not compile it side by side (numba has no lock across processes).
+COMPILE_GROUPS = {
+    # the demo's hand-written SE(3) lie-verlet loop (≈ 60-90 s to compile)
+    "se3-soa-lie-verlet": (
+        "tests/test_scene.py::test_cli_run_and_plot",
+        "tests/test_verification_cases.py::test_case_meets_tolerance_and_order[free-rigid-body-lie-verlet-lattice]",
+    ),
+    # the generated collocation loops of the SO(2) and SE(3) rods
+    "collocation-loops": ("tests/test_collocation_compiled.py", "tests/test_generated_collocation.py"),
+}
+_GROUP_OF = {key: group for group, keys in COMPILE_GROUPS.items() for key in keys}
+
+
+def _group(nodeid: str) -> str:
+    file = nodeid.split("::", 1)[0]
+    return _GROUP_OF.get(nodeid, _GROUP_OF.get(file, file))
+
+
 @pytest.hookimpl(tryfirst=True)
 def pytest_collection_modifyitems(config, items):
     for item in items:
         rule = getattr(getattr(item, "module", None), "slow_when", None)
         if rule is not None and rule(item):
             item.add_marker(pytest.mark.slow)
+
+
+@pytest.hookimpl(optionalhook=True)
+def pytest_xdist_make_scheduler(config, log):
+    """``--dist loadfile`` with the groups of COMPILE_GROUPS (a scope per group or file)."""
+    if config.getvalue("dist") != "loadfile":
+        return None
+    from xdist.scheduler import LoadScopeScheduling
+
+    class _LoadFileAndCompileGroups(LoadScopeScheduling):
+        def _split_scope(self, nodeid: str) -> str:
+            return _group(nodeid)
+
+    return _LoadFileAndCompileGroups(config, log)
 
 
 @pytest.hookimpl(hookwrapper=True)

@@ -522,8 +522,8 @@ def test_constant_field_potential_pulls_back_to_the_body_force(scheme):
     assert rel_error(V, with_field.potential_energy(state)) <= FORCE_TOL
 
 
-@pytest.mark.parametrize("scheme", [pytest.param(s, marks=[pytest.mark.slow] if s == "collocation" else [])
-                                    for s in sorted(SCHEMES)])  # collocation: the RKMK loop
+@pytest.mark.slow  # the RKMK loops: ≈ 25-35 s each to compile on a fresh cache
+@pytest.mark.parametrize("scheme", sorted(SCHEMES))
 def test_rod_under_gravity_runs_compiled_and_agrees(scheme, generated_runs):
     problem = rod("dead", gravity=True)
     assert SCHEMES[scheme](problem).compiled_operators().ok
@@ -569,8 +569,8 @@ PRODUCT_TOL = 1e-8
 DT_TOL = 1e-7
 
 
-@pytest.mark.parametrize("scheme", [pytest.param(s, marks=[pytest.mark.slow] if s == "lattice" else [])
-                                    for s in sorted(SCHEMES)])  # the lattice plan's probe: ≈ 76 s to compile
+@pytest.mark.slow  # the probes: ≈ 15 s (collocation) and 76 s (the lattice plan's) to compile
+@pytest.mark.parametrize("scheme", sorted(SCHEMES))
 def test_cfl_estimate_with_compiled_diagnostics_matches_numpy(scheme, monkeypatch):
     """``dt_max`` (a power iteration on the stiffness products) with compiled diagnostics
     against the numpy products: equal to the probe's round-off, without calling the numpy

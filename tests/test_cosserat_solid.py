@@ -285,6 +285,7 @@ def test_momentum_of_the_free_box_is_conserved(free_box_runs):
 
 
 # ---------------------------------------------------------------------------- compiled = reference
+@pytest.mark.slow  # the solid's own lie-verlet loop: ≈ 25 s to compile on a fresh cache
 def test_compiled_matches_reference_on_periodic_and_loaded_boxes(solid):
     periodic = cartan.Grid((3, 4, 3), length=(0.75, 1.0, 0.75), periodic=True)
     open_box = _box(4, 1.0)

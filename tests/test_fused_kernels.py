@@ -88,7 +88,14 @@ CASES = [(name, closed) for name in ("SO3", "SE3") for closed in (True, False)] 
 SCALES = [1e-9, 0.3, 1.0, 2.0]
 
 
-@pytest.fixture(scope="module", params=CASES, ids=[f"{n}-{'closed' if c else 'default'}" for n, c in CASES])
+#: ``make test`` checks the closed forms the loops of SO(3), SE(3) and SE(2) use; the matrix-kernel
+#: defaults and SO(4) (≈ 10-20 s of compilation each on a fresh cache) run in ``make test-slow``
+FAST_CASES = {("SO3", True), ("SE3", True), ("SE2", True)}
+
+
+@pytest.fixture(scope="module", params=[c if c in FAST_CASES else pytest.param(c, marks=pytest.mark.slow)
+                                        for c in CASES],
+                ids=[f"{n}-{'closed' if c else 'default'}" for n, c in CASES])
 def compiled(request):
     return _module(*request.param)
 

@@ -122,15 +122,18 @@ def _indefinite(n: int = 13):
 
 
 # ---------------------------------------------------------------------------- fast set: one module each
+@pytest.mark.parametrize("integrator", ["lie-verlet", pytest.param("rkmk4", marks=SLOW)])
 @pytest.mark.parametrize("derivative", ["fd2", "fd4"])
-def test_se3_rod_with_every_load_agrees(derivative):
+def test_se3_rod_with_every_load_agrees(derivative, integrator):
     """SE(3) Cosserat rod, d = 1: clamped start, dead end load, damping, gravity (the frames are
-    stepped); rkmk4 and the operators outside the loop (potential with gravity, strains, K)."""
-    scheme, ref, fast = _compare(rod_problem("dead", n=11), "rkmk4", derivative=derivative)
+    stepped); the loop and the operators outside it (potential with gravity, strains, K).
+    ``make test`` runs lie-verlet, whose loop the collocation output tests compile too."""
+    scheme, ref, fast = _compare(rod_problem("dead", n=11), integrator, derivative=derivative)
     assert scheme.track and scheme.compiled_operators().data.has_field
     _operators_agree(scheme, ref)
 
 
+@pytest.mark.slow  # the Euler loop: ≈ 20 s to compile on a fresh cache
 def test_se3_follower_rod_lie_euler_agrees():
     _compare(rod_problem("follower", n=11), "lie-euler", derivative="fd4")
 

@@ -262,6 +262,7 @@ def test_a_failure_in_simulate_names_the_same_step(stiff, tmp_path):
 
 
 # ---------------------------------------------------------------------------- simulate
+@pytest.mark.slow  # the SE(2) rod's Newton blocks: ≈ 20 s to compile (make test compiles the SE(3) rod's)
 def test_simulate_runs_the_blocks_and_matches_the_python_driver(stiff, monkeypatch):
     problem, limit = stiff
     dt = 100 * limit

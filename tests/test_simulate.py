@@ -55,7 +55,7 @@ def test_scene_settings_and_overrides(toy):
         0.01,
         5,
     )
-    ds = simulate(sc, integrator="rkmk4", dt=0.005, t_end=0.05, save_every=2)
+    ds = simulate(sc, integrator="rkmk4", dt=0.005, t_end=0.05, save_every=2, compiled=False)  # settings only
     assert list(ds.step.values) == [0, 2, 4, 6, 8, 10]
     assert json.loads(ds.attrs["cartan_config"])["run"]["integrator"] == "rkmk4"
     # conservative run: lie-verlet keeps the energy to O(dt²)
@@ -96,7 +96,7 @@ def test_overdamped_relaxation(toy):
     )
     with warnings.catch_warnings():
         warnings.simplefilter("error", StabilityWarning)
-        ds = simulate(sc)
+        ds = simulate(sc, compiled=False)  # the overdamped loops compile in make test-slow
     assert np.all(ds.kinetic_energy.values == 0) and np.all(np.diff(ds.potential_energy.values) <= 0)
     assert float(np.abs(ds.N.isel(time=-1)).max()) > 0  # N of the gradient flow is recorded
 

@@ -14,6 +14,7 @@ import pytest
 import scipy.linalg
 from hypothesis import given
 from hypothesis import strategies as st
+from toys import params_of
 
 import cartan
 from cartan import use_backend
@@ -77,6 +78,21 @@ def _scale(g_elem):
 # Moderate magnitudes for the non-compact groups keep |Λ| ~ e^3 so round-off stays visible.
 def _max_mag(g):
     return 3.0 if g.name in ("SO13", "Poincare") else np.pi
+
+
+#: the groups whose compiled kernels only the slow media use (the sigma model on S³, the
+#: relativistic string): their numba kernels compile (≈ 5-15 s each on a fresh cache) in
+#: ``make test-slow``; ``make test`` checks their numpy kernels
+SLOW_COMPILED = {("SO", 4), ("SO13", None), ("Poincare", None)}
+
+
+def slow_when(item) -> bool:
+    """The compiled-kernel tests of :data:`SLOW_COMPILED` (tests/conftest.py)."""
+    p = params_of(item)
+    key = (p.get("name"), (p.get("params") or {}).get("n"))
+    compiled = p.get("backend") == "numba" or item.originalname in {"test_vectorised_over_leading_axes",
+                                                                   "test_numba_and_numpy_agree"}
+    return key in SLOW_COMPILED and compiled
 
 
 @pytest.fixture(params=BACKENDS)
