@@ -21,8 +21,8 @@ function, and every case must end in one of the documented outcomes:
 The cases run the steps in the numpy reference path (``compiled=False``, backend ``numpy``):
 what is fuzzed is the handling of the input, and this way no case waits for numba to compile
 a loop for a new combination.  ``CARTAN_MAX_STEPS`` and ``CARTAN_MAX_MEMORY`` are set low, so
-that whatever the fuzzer draws, a case runs within a second.  The default run has a few
-hundred cases (3 × 100); the ``slow`` tests draw fifteen times as many and also let the compiled loops and
+that whatever the fuzzer draws, a case runs within a second.  The default run has 150
+cases (3 × 50); the ``slow`` tests draw thirty times as many and also let the compiled loops and
 the other integrators and schemes run.
 """
 
@@ -53,7 +53,7 @@ simulate_module = importlib.import_module("cartan.simulate")
 
 #: the environment of every case: small limits, no progress bar, no compile messages
 ENV = {"CARTAN_MAX_STEPS": "100", "CARTAN_MAX_MEMORY": "1M", "CI": "1", "CARTAN_SHOW_COMPILE": "0"}
-FAST = settings(max_examples=100, deadline=None, suppress_health_check=list(HealthCheck))
+FAST = settings(max_examples=50, deadline=None, suppress_health_check=list(HealthCheck))
 SLOW = settings(max_examples=1500, deadline=None, suppress_health_check=list(HealthCheck))
 
 BASE = {
