@@ -107,23 +107,33 @@ if os.environ.get("CARTAN_COMPILE_LOG"):
 # ``slow_when(item) -> bool``; the items it names are marked ``slow`` (``make test-slow``), so the
 # rule that picks them stays beside the tests.  The loops ``make test`` compiles: the demo's
 # (the hand-written SE(3) lie-verlet loop of the lattice, and its generic twin for the other
-# groups), the generated ``lie-verlet`` loops of the SE(3) rod on both schemes (and of the SO(2)
-# toy rod on collocation), the hand-written RKMK loop (the study tests' reference runs), one
-# implicit-midpoint loop (the lattice's SE(3) rod), and the groups' and media's kernels.
+# groups), the generated ``lie-verlet`` loops of the SE(3) rod on both schemes, the hand-written
+# RKMK loop (the study tests' reference runs), one implicit-midpoint loop (the lattice's SE(3)
+# rod), and the groups' and media's kernels.
 #
-# With -n (make test), xdist hands a worker one group of tests at a time, and a test's group is
-# its file (``--dist loadfile``, pyproject.toml) unless it is named in COMPILE_GROUPS: tests of
-# different files that compile the same loop share a group, so that one worker compiles it and
-# the other does not compile it side by side (numba has no lock across processes).
+# With -n (make test), xdist hands a worker one unit of tests at a time; a unit is a file
+# (``--dist loadfile``, pyproject.toml) or a group of COMPILE_GROUPS.  numba has no lock across
+# processes: two workers that reach an uncompiled loop at once both compile it, and a worker that
+# reaches it after the other has finished loads it from the disk cache.  So the units that compile
+# the suite's large loops go first, one per worker (COMPILE_FIRST, in order: the first to the
+# first worker, the second to the second, ...), and the other units follow, largest first; the
+# loops are on disk by the time the other worker's tests reach them.
 COMPILE_GROUPS = {
     # the demo's hand-written SE(3) lie-verlet loop (≈ 60-90 s to compile)
     "se3-soa-lie-verlet": (
         "tests/test_scene.py::test_cli_run_and_plot",
         "tests/test_verification_cases.py::test_case_meets_tolerance_and_order[free-rigid-body-lie-verlet-lattice]",
     ),
-    # the generated collocation loops of the SO(2) and SE(3) rods
+    # its generic twin for the other groups of rods (≈ 40-80 s)
+    "lattice-generic-lie-verlet": (
+        "tests/test_verification_cases.py::test_case_meets_tolerance_and_order[rod-planar-se3-se2-lie-verlet-lattice]",
+    ),
+    # the generated collocation loop of the SE(3) rod (≈ 30-90 s)
     "collocation-loops": ("tests/test_collocation_compiled.py", "tests/test_generated_collocation.py"),
 }
+#: the units that start the run, in this order (a group's name or a test file)
+COMPILE_FIRST = ("se3-soa-lie-verlet", "lattice-generic-lie-verlet", "collocation-loops",
+                 "tests/test_compiled_paths.py")  # (the generated lattice loop of the SE(3) rod)
 _GROUP_OF = {key: group for group, keys in COMPILE_GROUPS.items() for key in keys}
 
 
@@ -142,14 +152,24 @@ def pytest_collection_modifyitems(config, items):
 
 @pytest.hookimpl(optionalhook=True)
 def pytest_xdist_make_scheduler(config, log):
-    """``--dist loadfile`` with the groups of COMPILE_GROUPS (a scope per group or file)."""
+    """``--dist loadfile`` with the groups of COMPILE_GROUPS, COMPILE_FIRST's units first."""
     if config.getvalue("dist") != "loadfile":
         return None
     from xdist.scheduler import LoadScopeScheduling
 
     class _LoadFileAndCompileGroups(LoadScopeScheduling):
+        _ordered = False
+
         def _split_scope(self, nodeid: str) -> str:
             return _group(nodeid)
+
+        def _assign_work_unit(self, node) -> None:
+            if not self._ordered:  # the first call: the queue is complete
+                self._ordered = True
+                for scope in reversed(COMPILE_FIRST):
+                    if scope in self.workqueue:
+                        self.workqueue.move_to_end(scope, last=False)
+            super()._assign_work_unit(node)
 
     return _LoadFileAndCompileGroups(config, log)
 

@@ -91,7 +91,8 @@ def slow_when(item) -> bool:
     return params_of(item).get("name", "lie-verlet") != "lie-verlet" or item.originalname in {
         "test_grids_agree_with_python", "test_grid_blocks_and_caches_match_the_step_loop",
         "test_simulate_sigma_model_d2_runs_compiled",
-        "test_cfl_products_and_estimates_match_numpy"}  # the compiled probe: used from 60,000 unknowns
+        "test_cfl_products_and_estimates_match_numpy",  # the compiled probes: used from 60,000 unknowns
+        "test_cfl_rod_with_and_without_frames"}
 
 
 run_both = functools.partial(toys.run_both, Collocation)

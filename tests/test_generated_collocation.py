@@ -138,6 +138,7 @@ def test_se3_follower_rod_lie_euler_agrees():
     _compare(rod_problem("follower", n=11), "lie-euler", derivative="fd4")
 
 
+@pytest.mark.slow  # the SO(2) rod's own loop (make test compiles the SE(3) rod's)
 def test_abelian_rod_lie_verlet_agrees():
     """SO(2): one free-flow piece, so the loop's single move per step is the reference's drift."""
     problem = arc_problem(n=13, group="SO2", curvature=1.0, velocity=0.3)
