@@ -575,7 +575,9 @@ def held_strain_twin(problem: Problem) -> tuple[Problem, HeldStrainTwin]:
     Parameters
     ----------
     problem : Problem
-        Its medium declares a twin; no reference state.
+        Its medium declares a twin.  A reference state (a varying rest curvature) carries over
+        when its held components are the values the twin holds (a curved rest shape of an
+        inextensible, unshearable rod).
 
     Returns
     -------
@@ -587,17 +589,40 @@ def held_strain_twin(problem: Problem) -> tuple[Problem, HeldStrainTwin]:
     ------
     ValueError
         When the medium declares no twin, the twin cannot be built or does not hold what is
-        declared, or the problem has a reference state.
+        declared, or the reference state's held components differ from the held values.
     """
     twins = tuple(problem.medium.held_strain_twins())
     if not twins:
         raise ValueError(f"the medium {problem.medium.name!r} declares no held-strain twin")
-    if problem.reference is not None:
-        raise ValueError("the problem has a reference state (a varying rest strain)")
     twin = twins[0]
     med = _twin_medium(problem.medium, twin)
+    if problem.reference is not None:
+        _check_reference_held(problem, med)
     return Problem(med, problem.grid, problem.initial, dict(problem.boundaries), list(problem.loads),
-                   name=problem.name), twin
+                   name=problem.name, reference=problem.reference), twin
+
+
+#: a reference state's held strain components may differ from the twin's values by this (relative)
+REFERENCE_HELD_RTOL = 1e-9
+
+
+def _check_reference_held(problem: Problem, twin: Medium) -> None:
+    """ValueError unless the strains of ``problem.reference`` (the stress-free shape) have the
+    components ``twin`` holds at the values it holds them (to :data:`REFERENCE_HELD_RTOL`): a
+    curved rest shape of an inextensible, unshearable rod, whose rest curvature the twin keeps."""
+    from .schemes.lattice import Lattice
+
+    comps, values = (np.asarray(a) for a in twin.constrained_strains())
+    ref = problem.reference
+    sch = Lattice(Problem(problem.medium, problem.grid, InitialState(Phi=ref.Phi, holonomy=ref.holonomy)))
+    X = np.asarray(sch.strains(sch.initial_state()), dtype=float)
+    X = X.reshape(-1, X.shape[-1])[:, comps.astype(int)]
+    err = float(np.max(np.abs(X - values.astype(float)))) if X.size else 0.0
+    scale = max(1.0, float(np.max(np.abs(values)))) if values.size else 1.0
+    if not err <= REFERENCE_HELD_RTOL * scale:
+        raise ValueError(f"the reference state's strain components {comps.tolist()} differ from the values the "
+                         f"twin holds ({values.tolist()}) by up to {err:.3g}: a rest shape with stretch or shear "
+                         "has no held-strain twin")
 
 
 def held_strain_problem(problem: Problem) -> Problem:
@@ -1022,22 +1047,34 @@ def _sphere_variant(problem: Problem, radius: float | None) -> Problem:
     from .schemes.lattice import Lattice
 
     rod = problem.medium
-    sch = Lattice(problem)
-    X = rod.physical_strains(sch.strains(sch.initial_state())[:, 0])  # (θ₁, θ₂, π_n) [E, 3]
-    V = rod.physical_velocities(problem.initial.N)  # (V₁, V₂, Ω_n) [n, 3]
     h = float(problem.grid.spacing[0])
+
+    def physical(Phi: np.ndarray) -> np.ndarray:
+        """(θ₁, θ₂, π_n) ``[E, 3]`` of the frames ``Phi`` ``[n, m, m]`` on the edges (the lattice's)."""
+        sch = Lattice(Problem(rod, problem.grid, InitialState(Phi=Phi)))
+        return rod.physical_strains(sch.strains(sch.initial_state())[:, 0])
+
     if radius is None:
         med = _plane_medium(rod.planar_parameters())
-        Xc, N = X, V
     else:
         med = type(rod)(**(rod.parameters() | {"radius": float(radius)}))
-        Xc, N = med.strain_components(X[:, 0], X[:, 1], X[:, 2]), med.velocity_components(V[:, 0], V[:, 1], V[:, 2])
     g = med.group
-    Phi0 = np.eye(3) if radius is None else np.asarray(problem.initial.Phi[0], dtype=float)
-    Phi = [Phi0]
-    for x in Xc:
-        Phi.append(Phi[-1] @ g.exp(h * x))
-    Phi = np.stack(Phi)
+
+    def frames(Phi: np.ndarray) -> np.ndarray:
+        """The frames ``[n, m', m']`` of ``med`` with the physical edge strains of ``Phi``, from
+        the identity (the plane: node 0 at the origin, e₁ along x) or ``Phi[0]`` (a sphere)."""
+        X = physical(Phi)
+        Xc = X if radius is None else med.strain_components(X[:, 0], X[:, 1], X[:, 2])
+        out = [np.eye(3) if radius is None else np.asarray(Phi[0], dtype=float)]
+        for x in Xc:
+            out.append(out[-1] @ g.exp(h * x))
+        return np.stack(out)
+
+    V = rod.physical_velocities(problem.initial.N)  # (V₁, V₂, Ω_n) [n, 3]
+    N = V if radius is None else med.velocity_components(V[:, 0], V[:, 1], V[:, 2])
+    Phi = frames(np.asarray(problem.initial.Phi, dtype=float))
+    # the stress-free shape (a varying rest curvature) with the same physical rest strains
+    reference = None if problem.reference is None else frames(np.asarray(problem.reference.Phi, dtype=float))
     boundaries = {}
     for key, b in problem.boundaries.items():
         if type(b) is Clamped:
@@ -1059,7 +1096,8 @@ def _sphere_variant(problem: Problem, radius: float | None) -> Problem:
             raise ValueError(f"load {type(load).__name__} is not mapped to the plane (drag only)")
         gamma = squares(rod) @ np.asarray(load.coefficients, dtype=float)
         loads.append(Damping(np.linalg.solve(squares(med), gamma)))
-    return Problem(med, problem.grid, InitialState(Phi=Phi, N=N), boundaries, loads, name=problem.name)
+    return Problem(med, problem.grid, InitialState(Phi=Phi, N=N), boundaries, loads, name=problem.name,
+                   reference=reference)
 
 
 def plane_limit_problem(problem: Problem) -> Problem:

@@ -32,12 +32,22 @@ scheme runs qualifying problems — d = 1, quadratic media, data-like loads — 
 declines; ``simulate(..., compiled=False)`` forces the Python loop, the reference path.  The
 compiled loop applies the per-step part of the blow-up test itself (finite momentum or
 configuration, kinetic energy against the current bound) and stops after the first failing
-step, and it runs in sub-blocks that end at the steps 1, 2, 4, 8, … of the save block where
-the guard runs its energy-balance test; so the guard sees the same states at the same steps
-as with the Python loop, the failing step is named exactly, and the last good state is the
-copy taken at the start of the save block, as before.  Each step depends only on the state,
-so the result does not depend on the sub-blocks and a restart is bit for bit (with the same
-path on both sides: the compiled and Python paths agree to round-off, not bit for bit).
+step.  Until the run's energy scale is set (its first save block) it runs in sub-blocks that
+end at the steps 1, 2, 4, 8, … of the save block where the guard runs its energy-balance test,
+so that the guard sees the same states at the same steps as with the Python loop; after that
+it takes each save block in one call (a call costs about a millisecond of Python around the
+loop, which dominates short blocks of small problems) and the energy test runs at the save.
+A block that fails — the loop stopped early, or the frame test failed — is run again from the
+copy taken at its start in the sub-blocks, with the integrator's counters reset, so that the
+failing step, its reason and the last good state are those of the sub-block tests.  Each
+step depends only on the state, so the result does not depend on the sub-blocks and a restart
+is bit for bit (with the same path on both sides: the compiled and Python paths agree to
+round-off, not bit for bit).  The energy scale then grows with the saved states only, not with
+the states between them.
+
+The CFL estimate is computed once per content (:func:`_cfl_estimate`): a run whose problem,
+scheme, integrator, options and initial state are those of one of the last few runs (a pilot
+and its warm-up, a run repeated in a study) takes the estimate computed then.
 
 The work around the steps uses compiled kernels too when the scheme has them and the problem
 is large enough for them to pay for their compilation (``scheme.uses_compiled_diagnostics()``:
@@ -52,7 +62,8 @@ Blow-up is detected cheaply inside each save block and fully at every save.  The
 non-finite momentum or configuration (every step); an energy-balance error
 ``|K + V + D − W − E₀|`` beyond ``max_energy_growth`` times the energy scale of the run *and*
 beyond half the state's own ``|K| + |V| + |D| + |W|`` — energy the physics did not put there
-(at steps 1, 2, 4, 8, … of each block and at every save); and, between those, the kinetic
+(at steps 1, 2, 4, 8, … of each block and at every save; in compiled whole blocks at the save
+only); and, between those, the kinetic
 energy against ``max_energy_growth`` times the energy scale.  The energy scale is the largest
 ``|K| + |V| + |D| + |W|`` (kinetic, potential, dissipated, external work) of the states
 checked so far whose energy budget closed (balance error at most half that sum), so that
@@ -70,6 +81,7 @@ import os
 import pathlib
 import sys
 import tempfile
+import threading
 import warnings
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass
@@ -294,6 +306,7 @@ def _advance(
     nsteps: int,
     guard: Callable[[State, int], str | None],
     compiled: bool = True,
+    whole: bool = False,
 ) -> tuple[int, str | None]:
     """Advance ``state`` in place by up to ``nsteps`` steps of ``dt``.
 
@@ -302,7 +315,10 @@ def _advance(
     the integrator's own ``compiled_advance(scheme, state, dt, n, kinetic_limit)`` when it has one
     (``implicit-midpoint``), else to ``scheme.compiled_advance``, when it accepts the
     combination (see the module docstring), in sub-blocks ending where the guard runs its
-    energy test; otherwise,
+    energy test — or, with ``whole``, in one call for the whole block, the guard not called:
+    a compiled loop that stops early (its own per-step test failed) returns the reason
+    ``"stopped early"``, and the caller runs the block again from its start in sub-blocks
+    (:data:`_EARLY`); otherwise,
     or for what it declines, to ``integrator.step`` one by one.  An implicit integrator's
     :class:`~cartan.statics.ConvergenceError` (its stage equations unsolved; the state is left
     at the last step done) is reported like a blow-up.  Integrators with a ``begin_block()``
@@ -332,7 +348,7 @@ def _advance(
         energy_checks = getattr(guard, "energy_checks", True)
         kinetic_limit = getattr(guard, "kinetic_limit", lambda: math.inf)
         while paths and k < nsteps:
-            stop = min(nsteps, 1 << k.bit_length()) if energy_checks else nsteps
+            stop = min(nsteps, 1 << k.bit_length()) if energy_checks and not whole else nsteps
             before = state.scalars.get("nstep", 0)
             try:
                 ran = paths[0](scheme, state, dt, stop - k, kinetic_limit())
@@ -342,6 +358,8 @@ def _advance(
                 paths.pop(0)
                 continue
             k += state.scalars.get("nstep", 0) - before
+            if whole:  # the caller's frame test follows; a loop that stopped early is run again
+                return k, None if k == nsteps else _EARLY
             reason = guard(state, k)
             if reason is not None:
                 return k, reason
@@ -354,6 +372,10 @@ def _advance(
             if reason is not None:
                 return j + 1, reason
     return nsteps, None
+
+
+#: the reason :func:`_advance` gives for a whole block whose compiled loop stopped early
+_EARLY = "stopped early"
 
 
 def _make_guard(scheme: Scheme, integrator: Integrator, growth: float | None, e0: float, scale: list[float]):
@@ -569,6 +591,71 @@ def _checkpoint_scene_path(info: Mapping[str, Any], attrs: Mapping[str, Any] | N
         return None
     value = config.get("scene_path") if isinstance(config, dict) else None
     return value if isinstance(value, str) and value else None
+
+
+#: CFL estimates of recent runs, by the content of what they depend on (:func:`_cfl_estimate`)
+_CFL_MEMO: dict[bytes, float] = {}
+#: the most estimates :data:`_CFL_MEMO` keeps
+_CFL_MEMO_SIZE = 16
+#: runs whose state is larger than this (bytes) are not memoised (their key would copy the state)
+_CFL_MEMO_BYTES = 1 << 25
+_CFL_LOCK = threading.Lock()
+
+
+def _cfl_estimate(problem: Problem, scheme: Scheme, integrator: Integrator, state: State) -> float:
+    """``integrator.dt_max(scheme, state)``, the CFL estimate, computed once per content.
+
+    The estimate is a function of the problem, the scheme and integrator with their options,
+    whether the scheme's compiled diagnostics are on, the backend and the state; a run of the
+    same content as one of the last :data:`_CFL_MEMO_SIZE` (a pilot and its warm-up, a run
+    repeated in a study) takes the number computed then, the same float.  The content is the
+    pickle of those objects (a SHA-256 digest of it); what cannot be pickled, and a state larger
+    than :data:`_CFL_MEMO_BYTES`, is estimated afresh.
+
+    Returns
+    -------
+    float
+        The estimate (0 when no Δt is stable, inf without a stability limit, possibly NaN).
+    """
+    import hashlib
+    import pickle
+    from io import BytesIO
+
+    from ._backend import get_backend
+    from .groups.base import SymmetryGroup
+
+    class _Pickler(pickle.Pickler):
+        def persistent_id(self, obj: Any) -> Any:  # a group by its kind (its lazy caches are no content)
+            if not isinstance(obj, SymmetryGroup):
+                return None
+            return ("group", type(obj).__qualname__, repr(obj),
+                    sorted((k, repr(v)) for k, v in vars(obj).items() if not k.startswith("_")))
+
+    size = state.S.nbytes + sum(np.asarray(a).nbytes for a in state.arrays.values())
+    if size > _CFL_MEMO_BYTES:  # a large run: no copy of its state for the key (estimated afresh)
+        with np.errstate(over="ignore", invalid="ignore", divide="ignore"):
+            return float(integrator.dt_max(scheme, state))
+    buffer = BytesIO()
+    try:
+        _Pickler(buffer, protocol=pickle.HIGHEST_PROTOCOL).dump(
+            (problem, type(scheme).__qualname__, scheme.options(), bool(getattr(scheme, "compiled_diagnostics", False)),
+             type(integrator).__qualname__, integrator.options(), get_backend(), state.t, state.S, state.arrays,
+             state.scalars))
+        key = hashlib.sha256(buffer.getvalue()).digest()
+    except Exception:  # noqa: BLE001 - anything unpicklable (a closure, a compiled function) is estimated afresh
+        key = None
+    if key is not None:
+        with _CFL_LOCK:
+            if key in _CFL_MEMO:
+                return _CFL_MEMO[key]
+    with np.errstate(over="ignore", invalid="ignore", divide="ignore"):
+        dt_max = float(integrator.dt_max(scheme, state))
+    if key is not None:
+        with _CFL_LOCK:  # runs on threads (a study's sweep) share the memo
+            while len(_CFL_MEMO) >= _CFL_MEMO_SIZE:
+                _CFL_MEMO.pop(next(iter(_CFL_MEMO)))
+            _CFL_MEMO[key] = dt_max
+    return dt_max
 
 
 # ---------------------------------------------------------------------------- a resolved run
@@ -890,8 +977,7 @@ def _resolve_run(
     if ck_info is not None and ck_run.get("integrator") == integ_obj.name and same_scheme:
         dt_max = float(ck_run["dt_max"])
     else:
-        with np.errstate(over="ignore", invalid="ignore", divide="ignore"):
-            dt_max = float(integ_obj.dt_max(scheme_obj, state))
+        dt_max = _cfl_estimate(problem, scheme_obj, integ_obj, state)
     if math.isnan(dt_max):
         raise ValueError(
             f"the CFL estimate of {integ_obj.name!r} on {scheme_obj.name!r} is not a number: the medium's "
@@ -1106,11 +1192,25 @@ def _execute_run(run: _ResolvedRun) -> xr.Dataset:
             n = min(save_every - step % save_every, total - step)
             good = state.copy()
             good_info = (len(records["time"]), step, nsaves, list(scale))
-            done, reason = _advance(integ_obj, scheme_obj, state, dt, n, guard, compiled=run.compiled)
-            step += done
+            # once the energy scale is set, a compiled loop takes the whole block in one call (it tests every
+            # step for non-finite values and the kinetic bound itself) and the energy test runs at the save; a
+            # block that fails is run again from its start in sub-blocks, so that the failing step, the reason
+            # and the counters are those of the sub-block tests (each step depends only on the state)
+            whole = run.compiled and scale[1] >= 1
+            counters = integ_obj.counters() if whole else None
+            done, reason = _advance(integ_obj, scheme_obj, state, dt, n, guard, compiled=run.compiled,
+                                    **({"whole": True} if whole else {}))  # (the first blocks: as before)
             if reason is None:
                 rec = io.frame_record(scheme_obj, integ_obj, state)
                 reason = _check_frame(rec, e0, growth, scale[0])
+            if reason is not None and whole:
+                state = good.copy()
+                integ_obj.set_counters(counters)
+                done, reason = _advance(integ_obj, scheme_obj, state, dt, n, guard, compiled=run.compiled)
+                if reason is None:
+                    rec = io.frame_record(scheme_obj, integ_obj, state)
+                    reason = _check_frame(rec, e0, growth, scale[0])
+            step += done
             if reason is not None:
                 nframes, good_step, good_saves, good_scale = good_info
                 scale[:] = good_scale

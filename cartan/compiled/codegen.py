@@ -99,23 +99,28 @@ def _literal(value: Any) -> str:
 
 def _kernel_sources(imports: Iterable[tuple[str, str]]) -> list[str]:
     """Source files of the imported kernels and of the jitted functions their modules import."""
-    files: set[str] = set()
-    for module_name, name in imports:
-        module = importlib.import_module(module_name)
-        obj = getattr(module, name)
-        func = getattr(obj, "py_func", obj)
-        try:
-            files.add(inspect.getsourcefile(func) or "")
-        except TypeError:
-            continue
-        for value in vars(module).values():
-            inner = getattr(value, "py_func", None)
-            if inner is not None:
-                try:
-                    files.add(inspect.getsourcefile(inner) or "")
-                except TypeError:
-                    pass
-    return sorted(f for f in files if f)
+    return sorted({f for imp in imports for f in _kernel_files(*imp)})
+
+
+@functools.cache
+def _kernel_files(module_name: str, name: str) -> tuple[str, ...]:
+    """:func:`_kernel_sources` of one import, found once per process (``inspect`` looks up every
+    function of the module: tens of milliseconds per run of a generated loop); the files are read
+    at every :func:`generate`, so that an edited kernel still makes a new module."""
+    module = importlib.import_module(module_name)
+    func = getattr(getattr(module, name), "py_func", getattr(module, name))
+    try:
+        files = {inspect.getsourcefile(func) or ""}
+    except TypeError:
+        return ()
+    for value in vars(module).values():
+        inner = getattr(value, "py_func", None)
+        if inner is not None:
+            try:
+                files.add(inspect.getsourcefile(inner) or "")
+            except TypeError:
+                pass
+    return tuple(sorted(f for f in files if f))
 
 
 def _inline(name: str) -> str:
