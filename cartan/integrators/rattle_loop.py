@@ -18,8 +18,9 @@ factored and solved in O(E c³) (:mod:`cartan.compiled.banded`).
 
 Per step: the rows at the start (the previous step's closing rows), the start's velocity
 projection (skipped when tangent), the force (first-same-as-last when no force depends on N),
-the predicted multiplier, about four trial flows of the quasi-Newton iteration (one
-factorization, at the first trial), the rows at the end and the closing kick with its velocity
+the predicted multiplier (its factorization of ``B₀ P B₀ᵀ`` is the chord matrix of the
+iteration), three to four trial flows (a quasi-Newton factorization only when the chord gains
+less than a factor ``SLOW_``), the rows at the end and the closing kick with its velocity
 projection (one factorization, reused by the next step's start when no load depends on N).
 ``status`` ``[2]`` int64 returns the outcome (0: steps done, 1: the multipliers' iteration
 failed, 2: the initial configuration could not be projected; the state is then the one the
@@ -33,7 +34,9 @@ import numpy as np
 
 from ..compiled.banded import bt_factor, bt_solve, small_inverse
 from ..compiled.codegen import Fragment, njit_source
+from .constrained import _EPS as EPS
 from .constrained import _MAX_ITERATIONS as MAX_ITERATIONS
+from .constrained import _SLOW as SLOW
 
 __all__ = ["loop_fragment"]
 
@@ -301,8 +304,9 @@ def _rattle_project_config(D, C, comp, value, scale, Bt, Bh, P, F, cres, y, delt
 
 def _rattle_predict(D, C, Ct, S, N, W, Bt, Bh, F, c0, comp, value, work, acc, nu, K):
     """The force-level multiplier at the step's start (the Python step's ``_predict``):
-    ``(B P Bᵀ)λ = −B[M⁺(ad_NᵀS + W)] − Ḃ_c N``, ``Ḃ_c N`` by a central second difference of the
-    rows along exp(±εN) (ε = 1e-4/max|N|), ``F`` the factors of ``B P Bᵀ``; λ into ``nu``."""
+    ``(B P Bᵀ)λ = −B[M⁺(ad_NᵀS + W)] − Ḃ_c N``, ``Ḃ_c N`` by the one-sided difference
+    ``2(c(Φ exp(εN)) − c − εB_cN)/ε²`` (ε = ``EPS_``/max|N|), ``F`` the factors of ``B P Bᵀ``;
+    λ into ``nu``."""
     n = S.shape[0]
     size = 0.0
     for i in range(n):
@@ -317,18 +321,19 @@ def _rattle_predict(D, C, Ct, S, N, W, Bt, Bh, F, c0, comp, value, work, acc, nu
             acc[i, k] = 0.0 if (D.any_clamped and D.clamped[i]) or not D.live[k] else s
     rattle_apply(D, Bt, Bh, acc, nu)
     if size > 0.0:
-        eps = 1e-4 / size
+        eps = EPS_ / size  # noqa: F821
         cp = np.empty((c0.shape[0], c0.shape[1]))
-        cm = np.empty((c0.shape[0], c0.shape[1]))
+        bn = np.empty((c0.shape[0], c0.shape[1]))
+        for i in range(n):  # N on the unknowns (the Python step's B @ N[unknown])
+            for k in range(R_):  # noqa: F821
+                acc[i, k] = 0.0 if (D.any_clamped and D.clamped[i]) or not D.live[k] else N[i, k]
+        rattle_apply(D, Bt, Bh, acc, bn)
         _rattle_copy(C, Ct)
         op_drift(D, Ct, eps, N, K)  # noqa: F821
         rattle_values(D, Ct, comp, value, cp)
-        _rattle_copy(C, Ct)
-        op_drift(D, Ct, -eps, N, K)  # noqa: F821
-        rattle_values(D, Ct, comp, value, cm)
         for e in range(nu.shape[0]):
             for a in range(nu.shape[1]):
-                nu[e, a] += (cp[e, a] - 2.0 * c0[e, a] + cm[e, a]) / (eps * eps)
+                nu[e, a] += 2.0 * (cp[e, a] - c0[e, a] - eps * bn[e, a]) / (eps * eps)
     bt_solve(F[2], F[3], F[4], nu, nu)
     for e in range(nu.shape[0]):
         for a in range(nu.shape[1]):
@@ -473,7 +478,7 @@ def rattle_loop(D, C, S, W, have_w, velocity_free, pieces, fracs, closing, comp,
                 failed = True
                 info[0] = err
                 break
-            if not factored:
+            if not factored and it > 0 and err > SLOW_ * prev:  # noqa: F821 - the chord gains too little
                 rattle_rows(D, C, comp, Bt1, Bh1)
                 op_velocity(D, S, N)  # noqa: F821
                 _rattle_flow_jacobian(D, N, dt, Pj)
@@ -482,10 +487,16 @@ def rattle_loop(D, C, S, W, have_w, velocity_free, pieces, fracs, closing, comp,
                     info[0] = err
                     break
                 factored = True
-            bt_solve(Fq[2], Fq[3], Fq[4], cres, dnu)
-            for e in range(ne):
-                for a in range(nc):
-                    nu[e, a] -= dnu[e, a] / half
+            if factored:  # Newton's matrix ½Δt B₁ J B₀ᵀ
+                bt_solve(Fq[2], Fq[3], Fq[4], cres, dnu)
+                for e in range(ne):
+                    for a in range(nc):
+                        nu[e, a] -= dnu[e, a] / half
+            else:  # the chord ½Δt·Δt B₀ P B₀ᵀ
+                bt_solve(Fs[2], Fs[3], Fs[4], cres, dnu)
+                for e in range(ne):
+                    for a in range(nc):
+                        nu[e, a] -= dnu[e, a] / (half * dt)
             prev = err
             it += 1
         if failed:
@@ -549,7 +560,7 @@ def rattle_loop(D, C, S, W, have_w, velocity_free, pieces, fracs, closing, comp,
 def loop_fragment() -> Fragment:
     """The rattle loop, its helpers and the block-tridiagonal solver as one fragment of a
     generated module (it uses ``_lie_poisson``, ``_damped`` and ``_book`` of :mod:`cartan.integrators.loops`)."""
-    return Fragment(constants={"MAX_ITERATIONS_": MAX_ITERATIONS},
+    return Fragment(constants={"MAX_ITERATIONS_": MAX_ITERATIONS, "EPS_": EPS, "SLOW_": SLOW},
                     source=njit_source(small_inverse, bt_factor, bt_solve, rattle_values, rattle_rows, rattle_metric,
                                        _rattle_flow_jacobian, _rattle_right, _rattle_left, rattle_factor, rattle_apply,
                                        rattle_impulse, rattle_project_velocity, _rattle_project_config,
