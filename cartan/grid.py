@@ -5,6 +5,15 @@ A :class:`Grid` discretises the material base space M (paper §III) by nodes at
 ``h = L/(n−1)`` and n − 1 edges; a periodic axis has ``h = L/n`` and n edges, the last one
 joining node n − 1 back to node 0.  Edges along axis α join node ``i`` to its successor
 along α (paper's charts, §III.D).
+
+A **glued** axis (``glued[α] = β``) closes a chart over poles, as colatitude closes the sphere
+S¹ × [0, π] (paper §VII.B): its n nodes are staggered, ``u_k = (k + ½)h`` with ``h = L/n``, so
+that no node sits on an end, and each end of a line along α continues across the end onto the
+line half way round the periodic axis β (index ``i_β + n_β/2``, n_β even).  Such an axis has
+n + 1 edges per line: edge 0 comes from the ghost of node 0 beyond the start (node 0 of the
+opposite line), edge n goes to the ghost of node n − 1 beyond the end.  The frame the ghost is
+seen in (a constant group element, the chart's turn across the end) belongs to the initial
+state (:class:`~cartan.problem.InitialState` ``glue``).
 """
 
 from __future__ import annotations
@@ -39,6 +48,9 @@ class Grid:
         Reference (material) length L₀ of each axis, > 0.
     periodic : bool or sequence of bool
         Whether each axis is periodic (a closed rod, a torus).
+    glued : None or sequence of (int or None)
+        Per axis, None (default) or the index β of the periodic axis across whose half-turn the
+        axis's ends are glued (module docstring; d = 2 or 3, n_β even, the axis itself open).
 
     Attributes
     ----------
@@ -51,9 +63,10 @@ class Grid:
     shape: tuple[int, ...]
     length: tuple[float, ...] = field(default=(1.0,))
     periodic: tuple[bool, ...] = field(default=(False,))
+    glued: tuple[int | None, ...] | None = None
 
     def __init__(self, shape: int | Sequence[int], length: float | Sequence[float] = 1.0,
-                 periodic: bool | Sequence[bool] = False):
+                 periodic: bool | Sequence[bool] = False, glued: Sequence[int | None] | None = None):
         shape_t = (shape,) if np.isscalar(shape) else tuple(shape)
         d = len(shape_t)
         if d not in (1, 2, 3):
@@ -80,6 +93,11 @@ class Grid:
         object.__setattr__(self, "shape", tuple(int(n) for n in shape_t))
         object.__setattr__(self, "length", length_t)
         object.__setattr__(self, "periodic", periodic_t)
+        object.__setattr__(self, "glued", _check_glued(glued, self.shape, periodic_t))
+
+    def is_glued(self, axis: int) -> bool:
+        """Whether ``axis`` is glued across its ends (module docstring)."""
+        return self.glued is not None and self.glued[axis] is not None
 
     @property
     def d(self) -> int:
@@ -92,27 +110,31 @@ class Grid:
 
     @property
     def spacing(self) -> tuple[float, ...]:
-        return tuple(L / (n if p else n - 1) for n, L, p in zip(self.shape, self.length, self.periodic))
+        return tuple(L / (n if p or self.is_glued(a) else n - 1)
+                     for a, (n, L, p) in enumerate(zip(self.shape, self.length, self.periodic)))
 
     @property
     def axis_names(self) -> tuple[str, ...]:
         return AXIS_NAMES[: self.d]
 
     def coordinates(self, axis: int = 0) -> np.ndarray:
-        """Material coordinates ``u_k = k h`` of the nodes along ``axis``, shape ``(n_axis,)``."""
-        return np.arange(self.shape[axis]) * self.spacing[axis]
+        """Material coordinates ``u_k = k h`` of the nodes along ``axis`` (``(k + ½)h`` on a glued
+        axis), shape ``(n_axis,)``."""
+        return (np.arange(self.shape[axis]) + (0.5 if self.is_glued(axis) else 0.0)) * self.spacing[axis]
 
     def edge_shape(self, axis: int) -> tuple[int, ...]:
         """Shape of the array of edges along ``axis``."""
         s = list(self.shape)
-        if not self.periodic[axis]:
+        if self.is_glued(axis):
+            s[axis] += 1
+        elif not self.periodic[axis]:
             s[axis] -= 1
         return tuple(s)
 
     def edge_coordinates(self, axis: int = 0) -> np.ndarray:
         """Material coordinates of edge midpoints along ``axis``."""
         n = self.edge_shape(axis)[axis]
-        return (np.arange(n) + 0.5) * self.spacing[axis]
+        return (np.arange(n) + (0.0 if self.is_glued(axis) else 0.5)) * self.spacing[axis]
 
     def node_weights(self) -> np.ndarray:
         """Quadrature weights of the nodes (trapezoidal; ∑ = ∏ L), shape ``self.shape``.
@@ -123,7 +145,7 @@ class Grid:
         w = np.ones(self.shape)
         for axis, (n, h, p) in enumerate(zip(self.shape, self.spacing, self.periodic)):
             wa = np.full(n, h)
-            if not p:
+            if not p and not self.is_glued(axis):
                 wa[0] = wa[-1] = h / 2
             shape = [1] * self.d
             shape[axis] = n
@@ -131,4 +153,31 @@ class Grid:
         return w
 
     def to_dict(self) -> dict:
-        return {"shape": list(self.shape), "length": list(self.length), "periodic": list(self.periodic)}
+        out = {"shape": list(self.shape), "length": list(self.length), "periodic": list(self.periodic)}
+        if self.glued is not None:
+            out["glued"] = [-1 if b is None else int(b) for b in self.glued]
+        return out
+
+
+def _check_glued(glued, shape: tuple[int, ...], periodic: tuple[bool, ...]) -> tuple[int | None, ...] | None:
+    """The validated ``glued`` declaration of a grid (see :class:`Grid`); None when no axis is glued."""
+    if glued is None:
+        return None
+    d = len(shape)
+    if isinstance(glued, str | bytes) or not hasattr(glued, "__len__") or len(glued) != d:
+        raise ValueError(f"glued must be None or a list of {d} entries (None or an axis index per axis), "
+                         f"got {glued!r}")
+    out: list[int | None] = []
+    for a, b in enumerate(glued):
+        if b is None or (isinstance(b, int | np.integer) and not isinstance(b, bool) and b < 0):
+            out.append(None)
+            continue
+        if isinstance(b, bool) or not isinstance(b, int | np.integer) or not 0 <= b < d or b == a:
+            raise ValueError(f"glued[{a}] must be None or the index of another axis in [0, {d - 1}], got {b!r}")
+        if periodic[a]:
+            raise ValueError(f"glued[{a}]: a glued axis is open (periodic[{a}] must be False)")
+        if not periodic[b] or shape[b] % 2:
+            raise ValueError(f"glued[{a}] = {b}: the ends are glued half way round axis {b}, which must be periodic "
+                             f"with an even number of nodes (shape[{b}] = {shape[b]}, periodic[{b}] = {periodic[b]})")
+        out.append(int(b))
+    return tuple(out) if any(b is not None for b in out) else None

@@ -288,7 +288,9 @@ class Medium(abc.ABC):
         metric, ``K(N) = ½ Σ_k m_k N_k²`` in the group's basis, given by :meth:`inertia`
         (the ``m_k``).  ``m_k = 0`` marks a gauge direction (paper §III.E): its component of
         N is held at zero.  A diagonal metric lets ``lie-verlet`` split the free motion into
-        exactly integrable one-parameter flows.
+        exactly integrable one-parameter flows.  A medium whose Lagrangian ℓ(N, X) couples
+        velocity and strain declares :attr:`coupled_lagrangian` and its pointwise Legendre map
+        (:meth:`momentum_at`, :meth:`velocity_at`, :meth:`stress_with`, :meth:`hamiltonian`).
 
     Potential energy
         ``U(X)`` per unit reference volume and its gradient ``Q^α = ∂U/∂X_α``.  The stress
@@ -628,6 +630,37 @@ class Medium(abc.ABC):
             safe = np.where(m > 0, m, 1.0)
             return np.where(m > 0, np.asarray(S) / safe, 0.0)
         return np.einsum("kl,...l->...k", self.inverse_metric(), S)
+
+    # ------------------------------------------------------------------ coupled Lagrangians (optional)
+    #: True when the reduced Lagrangian ℓ(N, X) couples velocity and strain (paper §IV: S = ∂ℓ/∂N
+    #: depends on X, Q = −∂ℓ/∂X on N), so that it is not K(N) − U(X).  The medium then gives its
+    #: Legendre map and Hamiltonian pointwise — :meth:`momentum_at`, :meth:`velocity_at`,
+    #: :meth:`stress_with`, :meth:`hamiltonian` — and the schemes that support it
+    #: (``Scheme.supports_coupled_lagrangian``: the ``lattice`` for d = 1) step the Hamiltonian
+    #: system ``Φ̇ = ΦN``, ``Ṡ + ad*_N S = D*Q`` with ``N = ∂H/∂S(S, X)`` and ``Q = ∂H/∂X(S, X)``
+    #: (docs/design.md, "Media whose Lagrangian couples N and X").  The integrators that split
+    #: K(S) + U(X) (``lie-verlet``, ``implicit-midpoint``) and the compiled loops refuse it.
+    coupled_lagrangian: ClassVar[bool] = False
+
+    def momentum_at(self, N: np.ndarray, X: np.ndarray) -> np.ndarray:
+        """The Legendre map ``S = ∂ℓ/∂N(N, X)``, N ``[..., r]`` and X ``[..., d, r]`` → ``[..., r]``
+        (default: :meth:`momentum`, X unused)."""
+        return self.momentum(N)
+
+    def velocity_at(self, S: np.ndarray, X: np.ndarray) -> np.ndarray:
+        """The inverse Legendre map ``N = ∂H/∂S(S, X)``, S ``[..., r]`` and X ``[..., d, r]`` →
+        ``[..., r]``, gauge components as the medium fixes them (default: :meth:`velocity`)."""
+        return self.velocity(S)
+
+    def stress_with(self, S: np.ndarray, X: np.ndarray) -> np.ndarray:
+        """The Hamiltonian stress ``Q = ∂H/∂X(S, X) = −∂ℓ/∂X(N(S, X), X)``, ``[..., d, r]``
+        (default: :meth:`stress`, S unused)."""
+        return self.stress(X)
+
+    def hamiltonian(self, S: np.ndarray, X: np.ndarray) -> np.ndarray:
+        """The Hamiltonian density ``H(S, X) = ⟨S, N⟩ − ℓ(N, X)`` at ``N = N(S, X)``, ``[...]``
+        (default: ``K(N(S)) + U(X)``)."""
+        return self.kinetic(self.velocity(S)) + self.potential(X)
 
     def stiffness(self, X: np.ndarray | None = None, eps: float = 1e-6) -> np.ndarray:
         """Hessian ``∂Q/∂X`` at X (default: the rest strain), shape ``(d, r, d, r)``.

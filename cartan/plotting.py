@@ -217,6 +217,42 @@ def _seams(ds: xr.Dataset) -> tuple[tuple[bool, ...], dict[int, np.ndarray]]:
     return tuple(periodic), holonomy
 
 
+def _glued(ds: xr.Dataset) -> tuple[int | None, ...] | None:
+    """The glued axes of the grid of the run that wrote ``ds`` (``problem.grid.glued`` of
+    ``cartan_config``: per axis the periodic axis its ends are glued across, or None); None when
+    the file records none."""
+    import json
+
+    try:
+        config = json.loads(str(ds.attrs.get("cartan_config", "")))
+        glued = config["problem"]["grid"]["glued"]
+    except (ValueError, KeyError, TypeError):
+        return None
+    if not isinstance(glued, list) or not all(isinstance(b, int) for b in glued):
+        return None
+    return tuple(None if b < 0 else b for b in glued)
+
+
+def _close_poles(points: np.ndarray, values: np.ndarray | None,
+                 glued: tuple[int | None, ...] | None) -> tuple[np.ndarray, np.ndarray | None]:
+    """Points ``[*nodes, k]`` (and ``values`` ``[*nodes]``) with, on each glued axis α (a chart
+    closed over poles, :class:`~cartan.grid.Grid` ``glued``), one layer before the first and one
+    after the last: the pole each end closes on, drawn at the mean of the end's ring of nodes
+    (values: the ring's mean), so that a sphere is drawn without holes at its poles."""
+    for axis, beta in enumerate(glued or ()):
+        if beta is None or axis >= points.ndim - 1:
+            continue
+        n = points.shape[axis]
+        rings = [np.take(points, [i], axis=axis) for i in (0, n - 1)]
+        caps = [np.broadcast_to(np.mean(r, axis=beta, keepdims=True), r.shape) for r in rings]
+        points = np.concatenate([caps[0], points, caps[1]], axis=axis)
+        if values is not None:
+            vr = [np.take(values, [i], axis=axis) for i in (0, n - 1)]
+            vc = [np.broadcast_to(np.mean(r, axis=beta, keepdims=True), r.shape) for r in vr]
+            values = np.concatenate([vc[0], values, vc[1]], axis=axis)
+    return points, values
+
+
 def _close_seams(points: np.ndarray, values: np.ndarray | None, periodic: tuple[bool, ...],
                  holonomy: dict[int, np.ndarray], affine: bool = True) -> tuple[np.ndarray, np.ndarray | None]:
     """Points ``[*nodes, k]`` (and nodal ``values`` ``[*nodes]``) with one more layer of nodes
@@ -258,10 +294,13 @@ def _close_seams(points: np.ndarray, values: np.ndarray | None, periodic: tuple[
 def _closed(ds: xr.Dataset, points: np.ndarray,
             values: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray | None]:
     """:func:`_close_seams` with the periodic axes and holonomies of the run that wrote ``ds``
-    (points ``[*nodes, k]``: positions when the file holds ``position``)."""
+    (points ``[*nodes, k]``: positions when the file holds ``position``), after the poles of
+    its glued axes (:func:`_close_poles`)."""
     periodic, holonomy = _seams(ds)
     if not periodic or len(periodic) != points.ndim - 1:
         return points, values
+    if "position" in ds:  # a chart closed over poles (the sphere): its caps, then its seam
+        points, values = _close_poles(points, values, _glued(ds))
     return _close_seams(points, values, periodic, holonomy, affine="position" in ds)
 
 

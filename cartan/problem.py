@@ -463,6 +463,11 @@ def axis_holonomies(state: InitialState | None, d: int) -> dict[int, np.ndarray]
     return dict(state.holonomy) if isinstance(state.holonomy, Mapping) else {0: state.holonomy}
 
 
+def axis_glues(state: InitialState | None) -> dict[int, np.ndarray]:
+    """The glue elements of a (validated) initial or reference state as ``{axis: Γ}``."""
+    return {} if state is None or state.glue is None else dict(state.glue)
+
+
 def rotation_part(group, Phi: np.ndarray) -> np.ndarray:
     """Φ with its translation removed (affine groups), i.e. the frame at the material point."""
     if not getattr(group, "affine", False):
@@ -497,6 +502,12 @@ class InitialState:
         for a helix.  d = 1: one array; any d: ``{axis: H_α}`` for the periodic axes that have
         one (a box of a solid periodic up to a translation along each axis: H_α the
         translation by L_α).
+    glue : array, shape ``(m, m)``, or dict of int → array, optional
+        For a glued axis (:class:`~cartan.grid.Grid` ``glued``): the constant group element Γ
+        the chart turns by across the axis's ends, so that the ghost of node j beyond an end is
+        the opposite node j' seen in the frame Φ_j' Γ (Γ² = I).  For the sphere charted by
+        (longitude, colatitude) with e₃ the normal, the half-turn about e₃.  Identity by
+        default; d = 2 with one glued axis: one array, otherwise ``{axis: Γ_α}``.
     reference : InitialState or array, optional
         The stress-free reference configuration the state comes with (an initial kind that
         charts a body, e.g. a disk by a square, returns it): a :class:`Problem` given no
@@ -507,6 +518,37 @@ class InitialState:
     N: Any = None
     holonomy: Any = None
     reference: Any = None
+    glue: Any = None
+
+
+def _check_glue(name: str, glue: Any, g, grid: Grid) -> dict[int, np.ndarray] | None:
+    """Validate a glue declaration (see :class:`InitialState`) against the grid's glued axes:
+    ``{axis: Γ}`` with every glued axis present (identity when not given), None without glued axes."""
+    axes = [a for a in range(grid.d) if grid.is_glued(a)]
+    if not axes:
+        if glue is not None:
+            raise ValueError(f"{name} is only meaningful on a grid with a glued axis (Grid(glued=...))")
+        return None
+    m = g.matrix_size
+    if glue is None:
+        glue = {}
+    elif not isinstance(glue, Mapping):
+        if len(axes) != 1:
+            raise ValueError(f"{name}: give {{axis: element}} for the glued axes {axes}")
+        glue = {axes[0]: glue}
+    out = {}
+    for axis, value in glue.items():
+        if axis not in axes:
+            raise ValueError(f"{name}: axis must be one of the glued axes {axes}, got {axis!r}")
+        G = np.asarray(check_finite(f"{name}[{axis}]", _numeric(f"{name}[{axis}]", value), (m, m)), dtype=float)
+        if float(g.defect(G)) > 1e-8:
+            raise ValueError(f"{name}[{axis}] is not in {g.name}")
+        if np.max(np.abs(G @ G - np.eye(m))) > 1e-8:
+            raise ValueError(f"{name}[{axis}] must be an involution (Γ² = I: the ghost of the ghost is the node)")
+        out[int(axis)] = G
+    for axis in axes:
+        out.setdefault(axis, np.eye(m))
+    return out
 
 
 @dataclass
@@ -545,7 +587,8 @@ class Problem:
         H = _check_holonomy("initial.holonomy", self.initial.holonomy, g, self.grid)
         if self.reference is None and self.initial.reference is not None:
             self.reference = self.initial.reference
-        self.initial = InitialState(Phi=Phi, N=N, holonomy=H)
+        glue = _check_glue("initial.glue", self.initial.glue, g, self.grid)
+        self.initial = InitialState(Phi=Phi, N=N, holonomy=H, glue=glue)
         valid = self.boundary_names()
         for key, b in self.boundaries.items():
             if key not in valid:
@@ -577,7 +620,8 @@ class Problem:
             if float(np.max(g.defect(Phi_ref))) > 1e-8:
                 raise ValueError(f"reference is not in {g.name}")
             H_ref = _check_holonomy("reference.holonomy", ref.holonomy, g, self.grid)
-            self.reference = InitialState(Phi=Phi_ref, holonomy=H_ref)
+            glue_ref = glue if ref.glue is None else _check_glue("reference.glue", ref.glue, g, self.grid)
+            self.reference = InitialState(Phi=Phi_ref, holonomy=H_ref, glue=glue_ref)
 
     def _check_types(self) -> None:
         """TypeError naming the argument for arguments of the wrong kind."""
@@ -603,8 +647,8 @@ class Problem:
 
     def boundary_names(self) -> set[str]:
         names = set()
-        for name, p in zip(self.grid.axis_names, self.grid.periodic):
-            if p:
+        for axis, (name, p) in enumerate(zip(self.grid.axis_names, self.grid.periodic)):
+            if p or self.grid.is_glued(axis):
                 continue
             if self.grid.d == 1:
                 names |= {"start", "end"}

@@ -141,7 +141,7 @@ _TOP_KEYS = {
     "name", "description", "mode", "medium", "parameters", "grid", "boundaries", "loads", "initial", "run",
     "static", "continuation",
 }
-_GRID_KEYS = {"n", "shape", "length", "periodic"}
+_GRID_KEYS = {"n", "shape", "length", "periodic", "glued"}
 _RUN_KEYS = {
     "integrator",
     "scheme",
@@ -626,7 +626,11 @@ def _grid(reader: _Reader, data: Mapping, medium: Any) -> Grid:
         raise reader.fail(
             "grid.periodic", f"must be true or false (or a list of them, one per axis), got {periodic!r}"
         )
-    grid = _building(reader, "grid", g, Grid, shape, length=length, periodic=periodic)
+    glued = g.get("glued")  # per axis: the periodic axis its ends are glued across, or -1 (Grid's glued)
+    if glued is not None and not (isinstance(glued, list) and all(isinstance(b, int) and not isinstance(b, bool)
+                                                                  for b in glued)):
+        raise reader.fail("grid.glued", f"must be a list of integers, one per axis (-1: not glued), got {glued!r}")
+    grid = _building(reader, "grid", g, Grid, shape, length=length, periodic=periodic, glued=glued)
     nodes = math.prod(grid.shape)
     try:
         check_memory(f"a grid of {nodes} nodes", state_bytes(medium.group, nodes, grid.d), "use fewer nodes")

@@ -383,6 +383,9 @@ class _Equilibrium:
 
         if jacobian not in _JACOBIANS:
             raise ValueError(f"jacobian must be one of {', '.join(map(repr, _JACOBIANS))}, got {jacobian!r}")
+        if problem.grid.glued is not None:  # the Jacobian's stencil and colouring know the grid's own edges only
+            raise ValueError("solve_static and continuation do not support a glued axis yet (Grid.glued, the "
+                             "sphere's chart); run the dynamics with an explicit integrator on the lattice")
         self.problem = problem
         self.sch = sch = Lattice(problem, track_frames=True)
         self.g = g = sch.group

@@ -32,7 +32,7 @@ def slow_when(item) -> bool:
 # ---------------------------------------------------------------------------- parameters
 @pytest.mark.parametrize(("kw", "match"), [({"c": 0.0}, "c must be > 0"), ({"c": -1.0}, "c must be > 0"),
                                            ({"mu": 0.0}, "mu must be > 0"), ({"mu": math.inf}, "mu must be finite"),
-                                           ({"energy": "elastic"}, "core does not provide"),
+                                           ({"energy": "elastic"}, "needs stiffness k > 0"),
                                            ({"energy": "rubber"}, "energy must be one of")])
 def test_bad_parameters_are_refused(kw, match):
     with pytest.raises(ValueError, match=match):

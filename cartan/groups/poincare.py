@@ -668,14 +668,20 @@ class Poincare(SymmetryGroup):
         return np.concatenate([y, bracket_np(xi[..., 4:], eta[..., 4:])], axis=-1)
 
     def _Q(self, xi: np.ndarray) -> np.ndarray:
-        """Coupling block ``Q`` ``[..., 4, 6]`` of ``dexp`` by a reduced Van Loan exponential."""
+        """Coupling block ``Q`` ``[..., 4, 6]`` of ``dexp`` by a reduced Van Loan exponential
+        (exactly ``−½N(y)`` where the Lorentz part is zero: ad_ξ is then nilpotent, ad_ξ² = 0)."""
         lead = xi.shape[:-1]
-        T = np.zeros((*lead, 16, 16))
-        T[..., :4, :4] = hat_np(xi[..., 4:])
-        T[..., :4, 4:10] = -N_np(xi[..., :4])
-        T[..., 4:10, 4:10] = ad_np(xi[..., 4:])
-        T[..., 4:10, 10:] = np.eye(6)
-        return scipy.linalg.expm(T)[..., :4, 10:]
+        out = -0.5 * N_np(xi[..., :4])
+        moving = np.any(xi[..., 4:] != 0.0, axis=-1)
+        if np.any(moving):
+            sub = xi[moving]
+            T = np.zeros((sub.shape[0], 16, 16))
+            T[:, :4, :4] = hat_np(sub[:, 4:])
+            T[:, :4, 4:10] = -N_np(sub[:, :4])
+            T[:, 4:10, 4:10] = ad_np(sub[:, 4:])
+            T[:, 4:10, 10:] = np.eye(6)
+            out[moving] = scipy.linalg.expm(T)[:, :4, 10:]
+        return out.reshape(*lead, 4, 6)
 
     def _dexp(self, xi: np.ndarray) -> np.ndarray:
         out = np.zeros((*xi.shape[:-1], 10, 10))

@@ -155,8 +155,8 @@ class Integrator(abc.ABC):
         from .._backend import get_backend
         from ..compiled.codegen import first_call
 
-        if get_backend() != "numba":
-            return False
+        if get_backend() != "numba" or getattr(scheme, "coupled_lagrangian", False):
+            return False  # (a Lagrangian coupling N and X runs on the numpy path: cartan.schemes._coupled)
         operators = getattr(scheme, "compiled_operators", None)
         ops = operators() if operators is not None else None
         if ops is None or not ops.ok or not ops.accepts(state):

@@ -158,6 +158,12 @@ class _Plan:
         from ..schemes.lattice import Lattice
         from ..statics import _colouring, _stencil_pairs
 
+        if getattr(scheme, "coupled_lagrangian", False):
+            raise ValueError("implicit-midpoint's discrete Lagrangian is K(N) − U(Φ); the medium's Lagrangian couples "
+                             "N and X (Medium.coupled_lagrangian): use rkmk4 or lie-euler")
+        if scheme.grid.glued is not None:  # the Jacobian's stencil knows the grid's own edges only
+            raise ValueError("implicit-midpoint does not support a glued axis yet (Grid.glued, the sphere's chart); "
+                             "use lie-verlet or rkmk4")
         if not scheme.diagonal_metric or np.any(scheme.mass < 0):
             raise ValueError("implicit-midpoint needs a positive diagonal kinetic metric (Medium.kinetic_metric); "
                              "use lie-verlet or rkmk4 for this medium")

@@ -115,10 +115,17 @@ class Scheme(abc.ABC):
     #: (0.26–0.68 s against 0.23–0.29 s), and below that the compiled kernels save milliseconds
     #: per run but compile for ≈ 76 s on a fresh cache
     compiled_diagnostics_from: int = 60_000
+    #: whether the scheme steps media whose Lagrangian couples N and X
+    #: (:attr:`cartan.medium.Medium.coupled_lagrangian`, :mod:`cartan.schemes._coupled`); the others refuse them
+    supports_coupled_lagrangian: ClassVar[bool] = False
 
     def __init__(self, problem: Problem, **options: Any):
         if options:
             raise ValueError(f"scheme {self.name!r} takes no option(s) {sorted(options)}")
+        if getattr(problem.medium, "coupled_lagrangian", False) and not (
+                self.supports_coupled_lagrangian and problem.grid.d == 1):
+            raise ValueError(f"medium {problem.medium.name!r} has a Lagrangian that couples N and X; scheme "
+                             f"{self.name!r} does not step such media (the 'lattice' does, for d = 1)")
         self.problem = problem
         self.medium = problem.medium
         self.group = problem.medium.group
@@ -135,7 +142,7 @@ class Scheme(abc.ABC):
         """Whether the CFL estimate (:meth:`stiffness_probe`) and the blow-up guard's energies
         run on compiled kernels: :attr:`compiled_diagnostics` is set and the problem has at
         least :attr:`compiled_diagnostics_from` unknowns (nodes × dim 𝔤)."""
-        return bool(self.compiled_diagnostics) and (
+        return bool(self.compiled_diagnostics) and not self.coupled_lagrangian and (
             int(np.prod(self.grid.shape)) * self.group.dim >= self.compiled_diagnostics_from)
 
     # ------------------------------------------------------------------ contract
@@ -178,7 +185,7 @@ class Scheme(abc.ABC):
         (``cartan.schemes.<module>.build_plan(self)``, None when the problem does not qualify)
         and run ``<module>.advance``; False when the numpy backend is selected or the problem
         does not qualify (nothing touched)."""
-        plan = self.compiled_plan(module)
+        plan = None if self.coupled_lagrangian else self.compiled_plan(module)
         if plan is None:
             return False
         import importlib
@@ -239,12 +246,27 @@ class Scheme(abc.ABC):
             arrays["Phi_root"] = Phi[(0,) * self.grid.d].copy()
         S = self.medium.momentum(self.problem.initial.N)
         state = State(0.0, np.ascontiguousarray(S, dtype=float), arrays)
+        if self.coupled_lagrangian:  # S₀ such that N(S₀, X) = N₀ (the discrete Legendre map)
+            from ._coupled import initial_momentum
+
+            state.S = initial_momentum(self, state, self.problem.initial.N)
         self.constrain(state)
         return state
 
+    @property
+    def coupled_lagrangian(self) -> bool:
+        """Whether the medium's Lagrangian couples N and X (:mod:`cartan.schemes._coupled`)."""
+        return bool(getattr(self.medium, "coupled_lagrangian", False))
+
     def velocity(self, state: State) -> np.ndarray:
-        """N = ∂K*/∂S with gauge components and clamped nodes held at zero."""
-        N = self.medium.velocity(state.S)
+        """N = ∂K*/∂S with gauge components and clamped nodes held at zero (N = ∂H_d/∂S, the
+        discrete Legendre map of :mod:`cartan.schemes._coupled`, for a coupled Lagrangian)."""
+        if self.coupled_lagrangian:
+            from ._coupled import coupled_velocity
+
+            N = coupled_velocity(self, state)
+        else:
+            N = self.medium.velocity(state.S)
         if self._clamped.any():
             N[self._clamped] = 0.0
         return N
@@ -256,6 +278,10 @@ class Scheme(abc.ABC):
             state.S[self._clamped] = 0.0
 
     def kinetic_energy(self, state: State) -> float:
+        if self.coupled_lagrangian:  # H_d − Σ h U(X_e): the kinetic part of the discrete Hamiltonian
+            from ._coupled import kinetic_part
+
+            return kinetic_part(self, state)
         N = self.velocity(state)
         return float(np.sum(self.weights * self.medium.kinetic(N)))
 

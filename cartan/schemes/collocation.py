@@ -272,6 +272,9 @@ class Collocation(Scheme):
 
     def __init__(self, problem, derivative: str = "fd2", track_frames: bool | None = None):
         super().__init__(problem)
+        if problem.grid.glued is not None:
+            raise ValueError("the collocation scheme does not support a glued axis (Grid.glued, the sphere's "
+                             "chart); use the lattice scheme")
         if problem.initial.holonomy is not None:
             raise ValueError(
                 "the collocation scheme supports closed periodic axes only (no initial.holonomy); "

@@ -44,6 +44,20 @@ Charts
     ``weights = w_i J_i``, and a face load (per unit reference area) is integrated with the
     face's reference area element (:meth:`~cartan.medium.Medium.reference_area`); media that
     return None (the default) keep ``weights = w_i`` and the chart's face areas.
+Glued axes (closed surfaces over poles)
+    On an axis α glued across a periodic axis β (:class:`~cartan.grid.Grid` ``glued``, the
+    sphere's colatitude), each line along α has n + 1 edges: edge 0 comes from the ghost of its
+    first node — the node of the line half way round β, seen in the frame Φ_j'Γ with Γ the
+    state's constant ``glue`` — and edge n goes to the ghost of its last node, so
+    ``G_e = Φ_i⁻¹Φ_j'Γ`` (or ``Γ⁻¹Φ_j'⁻¹Φ_i``).  Every physical edge across an end is stored
+    twice, once per line, the two copies related by G' = ΓG⁻¹Γ and kept so by the drift,
+    which moves a ghost by ``Γ⁻¹D_j'Γ``.  A node's corners take, along α, the two edges it is a
+    genuine end of, so every node has the full set of corners (no pole row is special); the
+    force a stored edge puts on a ghost end goes to the node it stands for through
+    ``Ad_{Γ⁻¹}ᵀ`` (the ghost moves by Φ_j'Γ exp(Ad_{Γ⁻¹}η)).  The glued edges close loops as a
+    periodic closing edge does: frames are rebuilt from the interior edges only, and the
+    plaquettes across an end (ghost edges Γ⁻¹G Γ) enter the integrability residual.  Glued
+    problems run on this numpy path (the compiled loops and operators decline them).
 
 Compiled loops
     :meth:`Lattice.compiled_advance` runs whole blocks of steps in numba
@@ -61,7 +75,7 @@ from typing import Any
 
 import numpy as np
 
-from ..problem import Free, axis_holonomies, dead_to_body
+from ..problem import Free, axis_glues, axis_holonomies, dead_to_body
 from .base import Scheme, State, prefix_products
 
 __all__ = ["Lattice"]
@@ -74,6 +88,7 @@ class Lattice(Scheme):
     plan_module = "_lattice_compiled"
     order = 2
     strain_location = "edge"
+    supports_coupled_lagrangian = True  # d = 1: cartan.schemes._coupled
 
     def __init__(self, problem, track_frames: bool | None = None):
         super().__init__(problem)
@@ -82,13 +97,16 @@ class Lattice(Scheme):
         #: True when the potential is evaluated at the corners (d ≥ 2, axes coupled)
         self.coupled = d > 1 and not getattr(self.medium, "separable_axes", False)
         self.h = self.grid.spacing
+        #: per glued axis, (Γ of the initial state, Γ of the reference): see "Glued axes"
+        self._glue = axis_glues(problem.initial)
+        self._glue_ref = axis_glues(problem.reference) if problem.reference is not None else {}
         #: the energy's quadrature weights (the grid's, per unit chart volume); :attr:`weights`
         #: are the nodes' reference volumes (mass, body loads), equal to them unless the medium
         #: measures a general chart (module docstring, "Charts")
         self.chart_weights = self.weights
         self._end_loads = []  # (index tuple, Free)
         for axis in range(d):
-            if self.grid.periodic[axis]:
+            if self.grid.periodic[axis] or self.grid.is_glued(axis):
                 continue
             for side, idx in (("start", 0), ("end", -1)):
                 b = problem.boundary(axis, side)
@@ -158,6 +176,8 @@ class Lattice(Scheme):
         momentum, configuration) is not finite, or whose kinetic energy ``½Σ w S²/m`` exceeds
         ``kinetic_limit``; the number of steps done is the increase of ``state.scalars["nstep"]``.
         """
+        if self._glue:
+            return False  # glued axes run on the numpy path (module docstring)
         return self._run_compiled(self.plan_module, integrator, state, dt, nsteps, kinetic_limit)
 
     def compiled_operators(self):
@@ -166,6 +186,12 @@ class Lattice(Scheme):
         body-frame uniform forces, free (loaded) and clamped ends or faces."""
         ops = self.__dict__.get("_operators")
         if ops is None:
+            if self._glue:
+                from ..compiled.operators import OperatorSet
+
+                ops = self._operators = OperatorSet.declined(
+                    "a glued axis (a chart closed over poles) runs on the numpy path")
+                return ops
             if any(f is not None for f in self._end_factors):
                 from ..compiled.operators import OperatorSet
 
@@ -181,8 +207,27 @@ class Lattice(Scheme):
     def _key(self, axis: int) -> str:
         return f"G_{self.grid.axis_names[axis]}"
 
-    def _ends(self, a: np.ndarray, axis: int) -> tuple[np.ndarray, np.ndarray]:
-        """Node-shaped array ``a`` (node axes first) → (tail, head) values per edge."""
+    def _ends(self, a: np.ndarray, axis: int, kind: str | None = None,
+              glue: dict[int, np.ndarray] | None = None) -> tuple[np.ndarray, np.ndarray]:
+        """Node-shaped array ``a`` (node axes first) → (tail, head) values per edge.
+
+        On a glued axis the ghost ends take the values of the opposite nodes, seen through the
+        glue Γ (``glue``, default the initial state's) as ``kind`` says: ``"frame"`` Φ → ΦΓ,
+        ``"inverse"`` Φ⁻¹ → Γ⁻¹Φ⁻¹, ``"conj"`` D → Γ⁻¹DΓ (node motions, edge elements), None
+        unchanged (node numbers)."""
+        if self.grid.is_glued(axis):
+            G = (self._glue if glue is None else glue)[axis]
+            beta = self.grid.glued[axis]
+            half = self.grid.shape[beta] // 2
+            n = a.shape[axis]
+            first = np.roll(np.take(a, [0], axis=axis), half, axis=beta)
+            last = np.roll(np.take(a, [n - 1], axis=axis), half, axis=beta)
+            if kind is not None:
+                Gi = self.group.inverse(G)
+                first, last = ([f @ G if kind == "frame" else Gi @ f if kind == "inverse" else Gi @ f @ G]
+                               for f in (first, last))
+                first, last = first[0], last[0]
+            return np.concatenate([first, a], axis=axis), np.concatenate([a, last], axis=axis)
         if self.grid.periodic[axis]:
             return a, np.roll(a, -1, axis=axis)
         n = a.shape[axis]
@@ -190,6 +235,16 @@ class Lattice(Scheme):
 
     def _scatter(self, F: np.ndarray, tail: np.ndarray, head: np.ndarray, axis: int) -> None:
         """F[tail nodes] += tail; F[head nodes] += head (edge-shaped contributions)."""
+        if self.grid.is_glued(axis):
+            r = F.shape[-1]
+            flat = F.reshape(-1, r)
+            t, hd = self.edge_nodes()
+            gt, gh = self.ghost_ends()
+            tail = self.from_ghosts(tail.reshape(-1, r), gt[axis], axis)
+            head = self.from_ghosts(head.reshape(-1, r), gh[axis], axis)
+            np.add.at(flat, t[axis], tail)
+            np.add.at(flat, hd[axis], head)
+            return
         if self.grid.periodic[axis]:
             F += tail
             F += np.roll(head, 1, axis=axis)
@@ -210,8 +265,8 @@ class Lattice(Scheme):
         Phi_inv = g.inverse(Phi)
         holonomies = axis_holonomies(self.problem.initial, self.grid.d)
         for axis in range(self.grid.d):
-            inv_tail, _ = self._ends(Phi_inv, axis)
-            _, head = self._ends(Phi, axis)
+            inv_tail, _ = self._ends(Phi_inv, axis, "inverse")
+            _, head = self._ends(Phi, axis, "frame")
             if axis in holonomies:
                 head = np.moveaxis(head.copy(), axis, 0)
                 head[-1] = g.compose(holonomies[axis], head[-1])
@@ -246,6 +301,9 @@ class Lattice(Scheme):
     def _to_nodes(self, X: np.ndarray, axis: int) -> np.ndarray:
         """Edge values along ``axis`` ``[*edge_shape, r]`` averaged onto the nodes (one-sided at
         the ends of an open axis)."""
+        if self.grid.is_glued(axis):  # every node between two edges of its own chart
+            n = X.shape[axis] - 1
+            return 0.5 * (np.take(X, np.arange(n), axis=axis) + np.take(X, np.arange(1, n + 1), axis=axis))
         if self.grid.periodic[axis]:
             return 0.5 * (X + np.roll(X, 1, axis=axis))
         Xm = np.moveaxis(X, axis, 0)
@@ -274,8 +332,8 @@ class Lattice(Scheme):
         cache = self.__dict__.setdefault("_edge_rest", {})
         if axis not in cache:
             g = self.group
-            inv_tail, _ = self._ends(g.inverse(ref.Phi), axis)
-            _, head = self._ends(ref.Phi, axis)
+            inv_tail, _ = self._ends(g.inverse(ref.Phi), axis, "inverse", self._glue_ref)
+            _, head = self._ends(ref.Phi, axis, "frame", self._glue_ref)
             holonomies = axis_holonomies(ref, self.grid.d)
             if axis in holonomies:
                 head = np.moveaxis(head.copy(), axis, 0)
@@ -301,9 +359,39 @@ class Lattice(Scheme):
     def edge_nodes(self) -> tuple[list[np.ndarray], list[np.ndarray]]:
         """Per axis, the flat (C-order) nodes at the tail and at the head of each edge, in the
         order of that axis' edge array: ``(tails, heads)``, two lists of ``[E_α]`` int arrays."""
-        numbers = np.arange(int(np.prod(self.grid.shape))).reshape(self.grid.shape)
-        ends = [self._ends(numbers, a) for a in range(self.grid.d)]
-        return [t.ravel() for t, _ in ends], [hd.ravel() for _, hd in ends]
+        held = self.__dict__.get("_edge_nodes")
+        if held is None:
+            numbers = np.arange(int(np.prod(self.grid.shape))).reshape(self.grid.shape)
+            ends = [self._ends(numbers, a) for a in range(self.grid.d)]
+            held = self._edge_nodes = ([t.ravel() for t, _ in ends], [hd.ravel() for _, hd in ends])
+        return held
+
+    def ghost_ends(self) -> tuple[list[np.ndarray], list[np.ndarray]]:
+        """Per axis, which edges' tail and head are ghosts (the ends of a glued axis, module
+        docstring): ``(tail, head)``, two lists of ``[E_α]`` bool arrays (all False off glued axes)."""
+        tails, heads = [], []
+        for a in range(self.grid.d):
+            es = self.grid.edge_shape(a)
+            t, hd = np.zeros(es, dtype=bool), np.zeros(es, dtype=bool)
+            if self.grid.is_glued(a):
+                sl = [slice(None)] * self.grid.d
+                sl[a] = 0
+                t[tuple(sl)] = True
+                sl[a] = -1
+                hd[tuple(sl)] = True
+            tails.append(t.ravel())
+            heads.append(hd.ravel())
+        return tails, heads
+
+    def from_ghosts(self, F: np.ndarray, ghost: np.ndarray, axis: int) -> np.ndarray:
+        """Edge-end forces ``F [E, r]`` with those on ghost ends (mask ``ghost [E]``) taken to the
+        nodes they stand for, ``Ad_{Γ⁻¹}ᵀ F`` (module docstring, "Glued axes")."""
+        if not np.any(ghost):
+            return F
+        A = self.group.Ad(self.group.inverse(self._glue[axis]))
+        F = F.copy()
+        F[ghost] = F[ghost] @ A
+        return F
 
     def corners(self) -> dict[str, np.ndarray]:
         """The corners of a coupled lattice (see the module docstring), built once.
@@ -322,12 +410,13 @@ class Lattice(Scheme):
         d, r, shape = self.grid.d, self.group.dim, self.grid.shape
         n = int(np.prod(shape))
         tails, heads = self.edge_nodes()
+        ghost_t, ghost_h = self.ghost_ends()
         after, before = [], []
-        for t, hd in zip(tails, heads):
+        for t, hd, gt, gh in zip(tails, heads, ghost_t, ghost_h):
             ea = np.full(n, -1)
             eb = np.full(n, -1)
-            ea[t] = np.arange(t.size)
-            eb[hd] = np.arange(t.size)
+            ea[t[~gt]] = np.flatnonzero(~gt)  # a node's corners use the edges it is a genuine end of
+            eb[hd[~gh]] = np.flatnonzero(~gh)
             after.append(ea)
             before.append(eb)
         count = np.ones(n)
@@ -348,7 +437,7 @@ class Lattice(Scheme):
             if ref is not None:
                 X0[:, a, :] = ref.reshape(-1, d, r)[edge[:, a], a, :]
         held = self._corners = {"node": node, "edge": edge, "weight": w[node] / count[node], "X0": X0,
-                                "tail": tails, "head": heads}
+                                "tail": tails, "head": heads, "ghost_tail": ghost_t, "ghost_head": ghost_h}
         return held
 
     def _corner_strains(self, state: State) -> tuple[list[np.ndarray], np.ndarray]:
@@ -371,8 +460,10 @@ class Lattice(Scheme):
         for a, xi in enumerate(xis):
             Qe = np.zeros_like(xi)
             np.add.at(Qe, c["edge"][:, a], (c["weight"] / self.h[a])[:, None] * Q[:, a, :])
-            np.add.at(F, c["tail"][a], np.einsum("...ji,...j->...i", g.dexp_inv(xi), Qe))
-            np.add.at(F, c["head"][a], -np.einsum("...ji,...j->...i", g.dexp_inv(-xi), Qe))
+            out = self.from_ghosts(np.einsum("...ji,...j->...i", g.dexp_inv(xi), Qe), c["ghost_tail"][a], a)
+            inc = self.from_ghosts(np.einsum("...ji,...j->...i", g.dexp_inv(-xi), Qe), c["ghost_head"][a], a)
+            np.add.at(F, c["tail"][a], out)
+            np.add.at(F, c["head"][a], -inc)
         return F.reshape(*self.grid.shape, g.dim)
 
     def internal_force(self, state: State) -> np.ndarray:
@@ -383,7 +474,12 @@ class Lattice(Scheme):
         F = np.zeros((*self.grid.shape, g.dim))
         for axis in range(self.grid.d):
             xi = g.log(state.arrays[self._key(axis)])
-            Q, _ = self._axis_stress(xi / self.h[axis], axis)
+            if self.coupled_lagrangian:  # ℓ(N, X) coupling N and X: the Hamiltonian stress (cartan.schemes._coupled)
+                from ._coupled import coupled_stress
+
+                Q = coupled_stress(self, state, xi / self.h[axis])
+            else:
+                Q, _ = self._axis_stress(xi / self.h[axis], axis)
             # V = cell·Σ_e U(X_e) and δX_e carries 1/h_α: the edge stress enters as (cell/h_α)·Q
             Q = Q * (float(np.prod(self.h)) / self.h[axis])
             out = np.einsum("...ji,...j->...i", g.dexp_inv(xi), Q)
@@ -441,8 +537,8 @@ class Lattice(Scheme):
             Dinv = g.inverse(D)
             for axis in range(self.grid.d):
                 key = self._key(axis)
-                Dinv_tail, _ = self._ends(Dinv, axis)
-                _, D_head = self._ends(D, axis)
+                Dinv_tail, _ = self._ends(Dinv, axis, "conj")
+                _, D_head = self._ends(D, axis, "conj")
                 arr[key] = g.compose(g.compose(Dinv_tail, arr[key]), D_head)
             if "Phi" in arr:
                 arr["Phi"] = g.compose(arr["Phi"], D)
@@ -454,7 +550,7 @@ class Lattice(Scheme):
         Nh = g.hat(tau * N)
         for axis in range(self.grid.d):
             key = self._key(axis)
-            N_tail, N_head = self._ends(Nh, axis)
+            N_tail, N_head = self._ends(Nh, axis, "conj")
             G = arr[key]
             arr[key] = G - N_tail @ G + G @ N_head
         if "Phi" in arr:
@@ -475,7 +571,9 @@ class Lattice(Scheme):
             G = state.arrays[self._key(axis)]
             # the edges along this axis that start on the part built so far (index 0 on later axes)
             G = G[tuple(slice(None) if k <= axis else 0 for k in range(self.grid.d))]
-            if self.grid.periodic[axis]:
+            if self.grid.is_glued(axis):  # the interior edges; the glued ones close loops
+                G = np.take(G, np.arange(1, G.shape[axis] - 1), axis=axis)
+            elif self.grid.periodic[axis]:
                 G = np.take(G, np.arange(G.shape[axis] - 1), axis=axis)
             steps = np.moveaxis(G, axis, 0)
             P = np.moveaxis(prefix_products(P, steps), 0, axis)
@@ -493,8 +591,8 @@ class Lattice(Scheme):
         for a in range(self.grid.d):
             for b in range(a + 1, self.grid.d):
                 Ga, Gb = state.arrays[self._key(a)], state.arrays[self._key(b)]
-                Ga_i, Ga_next = self._ends(Ga, b)  # G_α(i), G_α(i + e_β)
-                Gb_i, Gb_next = self._ends(Gb, a)  # G_β(i), G_β(i + e_α)
+                Ga_i, Ga_next = self._ends(Ga, b, "conj")  # G_α(i), G_α(i + e_β)
+                Gb_i, Gb_next = self._ends(Gb, a, "conj")  # G_β(i), G_β(i + e_α)
                 loop = g.compose(g.compose(Ga_i, Gb_next), g.inverse(g.compose(Gb_i, Ga_next)))
                 res = max(res, float(np.max(np.abs(g.log(loop)))))
         return res
@@ -526,8 +624,8 @@ class Lattice(Scheme):
         Phi = state.arrays["Phi"]
         res = 0.0
         for axis in range(self.grid.d):
-            inv_tail, _ = self._ends(g.inverse(Phi), axis)
-            _, head = self._ends(Phi, axis)
+            inv_tail, _ = self._ends(g.inverse(Phi), axis, "inverse")
+            _, head = self._ends(Phi, axis, "frame")
             G = state.arrays[self._key(axis)]
             mismatch = g.log(g.compose(g.inverse(G), g.compose(inv_tail, head)))
             res = max(res, float(np.max(np.abs(mismatch))) / self.h[axis])

@@ -23,3 +23,4 @@ def cartan_register_cases(register):
     register_cases(register, f"{__package__}.cases")
     register_cases(register, f"{__package__}.cases_shells")
     register_cases(register, f"{__package__}.cases_pressure")
+    register_cases(register, f"{__package__}.cases_sphere")

@@ -34,9 +34,19 @@ Drill (gauge)
     about the director.  π_α,3 is carried by the lattice but enters neither the energy nor
     any output.
 
-Kinetic energy per unit chart area (paper §VI.B: [K] = energy per unit material area)
-    K = ½ ρh |V|² + ½ (ρh³/12)(Ω₁² + Ω₂²), drill inertia 0.  The inertia is per unit chart
-    area, i.e. exact for charts with √a⁰ = 1 (flat plates, cylinders by arclength).
+Kinetic energy per unit reference area (paper §VI.B: [K] = energy per unit material area)
+    K = ½ ρh |V|² + ½ (ρh³/12)(Ω₁² + Ω₂²), drill inertia 0.  On a chart that is not the
+    reference's own measure (the sphere by longitude and colatitude) the medium reports the
+    reference area element √a⁰ per unit chart area (:meth:`~CosseratSurface.reference_volume`)
+    and the lattice weighs a node's mass and its loads by it; flat plates and cylinders by
+    arclength have √a⁰ = 1.
+
+The closed sphere (``"sphere"`` initial kind)
+    Longitude u (periodic, N even) × colatitude v, glued across the poles
+    (``Grid(..., glued=(None, 0))``, paper §VII.B): the colatitude nodes are staggered,
+    v_j = (j + ½)π/n, no node on a pole, and the line of longitude φ continues across a pole
+    onto the line φ + π, whose frames seen from it are turned by π about the normal (the
+    state's glue Γ).  Frames e₁ = e_φ (east), e₂ = −e_θ (north), e₃ = e_r (outward).
 """
 
 from __future__ import annotations
@@ -226,6 +236,13 @@ def _translation(t: np.ndarray) -> np.ndarray:
     H = np.eye(4)
     H[1:, 0] = t
     return H
+
+
+def _half_turn() -> np.ndarray:
+    """The half-turn about e₃ in SE(3), ``(4, 4)``: the sphere chart's glue across a pole."""
+    G = np.eye(4)
+    G[1, 1] = G[2, 2] = -1.0
+    return G
 
 
 def _axis_derivative(x: np.ndarray, axis: int, h: float, periodic: bool, shift: np.ndarray | None) -> np.ndarray:
@@ -490,7 +507,7 @@ class CosseratSurface(KernelMedium):
 
     name: ClassVar[str] = "cosserat-surface"
     material_dim: ClassVar[int] = 2
-    initial_kinds: ClassVar[tuple[str, ...]] = ("flat", "cylinder", "surface")
+    initial_kinds: ClassVar[tuple[str, ...]] = ("flat", "cylinder", "sphere", "surface")
     load_kinds: ClassVar[tuple[str, ...]] = ("gravity", "dead-load", "director-pressure", "pressure",
                                              "node-springs", "simple-support", "symmetry")
     output_fields: ClassVar[dict[str, tuple[str, str]]] = {
@@ -557,6 +574,15 @@ class CosseratSurface(KernelMedium):
         X0[0, 4] = self.k0[0]     # ∂_u R = R[(0, k_u, 0)]×: bends e₁ towards −e₃ about e₂
         X0[1, 3] = -self.k0[1]    # ∂_v R = R[(−k_v, 0, 0)]×
         return X0
+
+    def reference_volume(self, X0: np.ndarray) -> np.ndarray | None:
+        """The reference area element √det a⁰ per unit chart area at the nodal rest strains
+        ``X0 [..., 2, 6]`` → ``[...]`` (a⁰_αβ = θ⁰_α·θ⁰_β), or None when it is 1 to round-off
+        (flat plates, cylinders by arclength keep the chart's weights to the bit)."""
+        t = np.asarray(X0, dtype=float)[..., :3]
+        a = np.einsum("...ai,...bi->...ab", t, t)
+        J = np.sqrt(np.maximum(a[..., 0, 0] * a[..., 1, 1] - a[..., 0, 1] ** 2, 0.0))
+        return None if np.all(np.abs(J - 1.0) <= 1e-12) else J
 
     def point_kernels(self) -> MediumKernels:
         return MediumKernels(surface_energy, surface_stress, np.array([self.E, self.nu, self.h, self.ks]))
@@ -627,6 +653,14 @@ class CosseratSurface(KernelMedium):
             circumference, e₃ the outward normal; ``radius`` R (default: L_u/(2π) on a periodic u).
             On a periodic v axis the tube repeats after L_v: the state's holonomy is the
             translation by L_v along y (a long tube's plane strain).
+            ``"sphere"``: the closed sphere of ``radius`` R (default 1) charted by longitude
+            φ = 2πu/L_u and colatitude θ = πv/L_v on a grid with a periodic u axis (an even number
+            of nodes) and a v axis glued across the poles, ``Grid((N, n), (L_u, L_v),
+            periodic=(True, False), glued=(None, 0))``; the poles on the axis ``rotation``·e_z
+            through ``center`` (anywhere: the chart is turned, not the physics).  Stress-free:
+            the state's reference is itself, its glue Γ the half-turn about e₃.  The optional
+            ``radial_velocity`` V starts the shell with the outward velocity V everywhere (a
+            breathing mode).
             ``"surface"``: r = ``position(u, v)`` (a callable on node arrays returning ``[..., 3]``),
             frames from ``frames(u, v)`` (``[..., 3, 3]``, columns e₁ e₂ e₃) or, if not given, the
             coordinate gauge e₁ ∥ r_u, e₃ ∥ r_u × r_v (tangents by central differences).
@@ -641,12 +675,15 @@ class CosseratSurface(KernelMedium):
         if grid.d != 2:
             raise ValueError(f"cosserat-surface needs a d = 2 grid, got d = {grid.d}")
         twist = params.pop("twist", None)
-        builders: dict[str, Callable] = {"flat": self._flat, "cylinder": self._cylinder, "surface": self._surface}
+        builders: dict[str, Callable] = {"flat": self._flat, "cylinder": self._cylinder, "sphere": self._sphere,
+                                         "surface": self._surface}
         if kind not in builders:
             return super().initial_state(grid, kind)
         from cartan.medium import check_keywords
 
-        check_keywords(kind, builders[kind], params, extra=("twist",))
+        radial = params.pop("radial_velocity", None) if kind == "sphere" else None
+        check_keywords(kind, builders[kind], params, extra=("twist", "radial_velocity") if kind == "sphere"
+                       else ("twist",))
         pos, frames = builders[kind](grid, **params)
         Phi = self._assemble(pos, frames)
         N = None
@@ -654,6 +691,12 @@ class CosseratSurface(KernelMedium):
             xi = check_finite("twist", twist, (6,))
             N = np.einsum("...ij,j->...i", self.group.Ad(self.group.inverse(Phi)), xi)
             N[..., 5] = 0.0
+        if radial is not None:
+            N = np.zeros((*grid.shape, 6)) if N is None else N
+            N[..., 2] += float(check_finite("radial_velocity", radial, ()))
+        if kind == "sphere":
+            glue = _half_turn()
+            return InitialState(Phi=Phi, N=N, glue=glue, reference=InitialState(Phi=Phi.copy(), glue=glue))
         holonomy = None
         if kind == "cylinder" and grid.periodic[1]:
             # a periodic axial direction: the tube repeats after L_v along its axis, Φ(v + L) = HΦ(v)
@@ -694,6 +737,25 @@ class CosseratSurface(KernelMedium):
         e2 = np.stack([z, z + 1.0, z], axis=-1)
         e3 = np.stack([s, z, c], axis=-1)
         return pos, np.stack([e1, e2, e3], axis=-1)
+
+    def _sphere(self, grid, radius=1.0, center=None, rotation=None):
+        if not (grid.periodic[0] and grid.glued is not None and grid.glued[1] == 0):
+            raise ValueError("sphere: the grid must have a periodic u axis with an even number of nodes and a v axis "
+                             "glued across the poles, Grid((N, n), (L_u, L_v), periodic=(True, False), "
+                             f"glued=(None, 0)); got periodic={list(grid.periodic)}, glued={grid.glued}")
+        R = float(check_positive("radius", radius, shape=()))
+        o = np.zeros(3) if center is None else check_finite("center", center, (3,))
+        Rm = np.eye(3) if rotation is None else check_finite("rotation", rotation, (3, 3))
+        if np.linalg.norm(Rm.T @ Rm - np.eye(3)) > 1e-10 or np.linalg.det(Rm) < 0:
+            raise ValueError("rotation must be a proper rotation matrix")
+        u, v = self._mesh(grid)
+        phi, theta = 2.0 * np.pi * u / grid.length[0], np.pi * v / grid.length[1]
+        cp, sp, ct, st = np.cos(phi), np.sin(phi), np.cos(theta), np.sin(theta)
+        e_r = np.stack([st * cp, st * sp, ct], axis=-1)
+        e_theta = np.stack([ct * cp, ct * sp, -st], axis=-1)
+        e_phi = np.stack([-sp, cp, np.zeros_like(sp)], axis=-1)
+        frames = np.einsum("ij,...jk->...ik", Rm, np.stack([e_phi, -e_theta, e_r], axis=-1))
+        return o + R * e_r @ Rm.T, frames
 
     def _surface(self, grid, position=None, frames=None):
         if not callable(position):

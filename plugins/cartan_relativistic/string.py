@@ -27,9 +27,8 @@ string.  With ``r⁰ = ct`` at t = 0 and ``∂_t r⁰ = c`` the time component s
 per unit u being μc².
 
 An elastic string with ε(λ) ≠ μc²λ has no conformal gauge in which u stays a material
-coordinate; its equations (derived in the docs) need either a Lagrangian that couples N and X,
-or the adapted dynamics of §IV.E with Lagrange multipliers, neither of which the core has:
-``energy="elastic"`` is refused with that reason.
+coordinate; ``energy="elastic"`` runs it in the temporal gauge r⁰ = ct, where its Lagrangian
+ℓ(v⃗, x⃗′) couples N and X (:mod:`cartan_relativistic.elastic_rod`, docs §2–§3).
 """
 
 from __future__ import annotations
@@ -52,8 +51,10 @@ __all__ = [
     "nambu_goto_stress",
 ]
 
-#: energy laws ε(λ) the medium accepts (``"elastic"`` is derived in the docs but not runnable)
-ENERGIES = ("nambu-goto",)
+#: energy laws ε(λ) the medium accepts: the Nambu–Goto string ε = μc²λ (conformal gauge, K − U) and
+#: the elastic string ε = μc² + ½k(λ − 1)² (temporal gauge, a Lagrangian coupling N and X:
+#: :class:`cartan_relativistic.elastic_rod.ElasticRelativisticRod`)
+ENERGIES = ("nambu-goto", "elastic")
 
 _ETA = np.array([-1.0, 1.0, 1.0, 1.0])
 
@@ -138,8 +139,11 @@ class RelativisticRod(KernelMedium):
     mu : float, default 1
         Rest mass per unit rest length μ, > 0; the tension is T = μc².
     energy : str, default ``"nambu-goto"``
-        The rest-frame energy law ε(λ); only ``"nambu-goto"`` (ε = μc²λ) runs in the core
-        (see the module docstring and the docs for the elastic string).
+        The rest-frame energy law ε(λ): ``"nambu-goto"`` (ε = μc²λ, this class) or ``"elastic"``
+        (ε = μc² + ½k(λ − 1)²: the constructor returns an
+        :class:`~cartan_relativistic.elastic_rod.ElasticRelativisticRod`).
+    stiffness : float, optional
+        k > 0 of the elastic law (``energy="elastic"`` only).
 
     Notes
     -----
@@ -168,17 +172,24 @@ class RelativisticRod(KernelMedium):
         "virasoro_residual": ("max over nodes of |⟨ṙ, r′⟩| and |⟨ṙ, ṙ⟩ + c²⟨r′, r′⟩| relative to c²", "1"),
     }
 
-    def __init__(self, c: float = 1.0, mu: float = 1.0, energy: str = "nambu-goto"):
+    def __new__(cls, *args: Any, **kwargs: Any):
+        energy = kwargs.get("energy", args[2] if len(args) > 2 else "nambu-goto")
+        if cls is RelativisticRod and isinstance(energy, str) and energy == "elastic":
+            from .elastic_rod import ElasticRelativisticRod
+
+            return super().__new__(ElasticRelativisticRod)
+        return super().__new__(cls)
+
+    def __init__(self, c: float = 1.0, mu: float = 1.0, energy: str = "nambu-goto", stiffness: float | None = None):
         self.group = cartan.group("Poincare")
         self.space = cartan.space("frame-M13")
         self.c = float(check_positive("c", c, shape=()))
         self.mu = float(check_positive("mu", mu, shape=()))
-        if energy == "elastic":
-            raise ValueError(
-                "energy 'elastic' (ε(λ) ≠ μc²λ) needs a Lagrangian coupling N and X or the adapted dynamics "
-                "with multipliers (paper §IV.E), which the core does not provide; allowed: 'nambu-goto'")
-        if energy not in ENERGIES:
+        if not isinstance(energy, str) or energy not in ENERGIES:
             raise ValueError(f"energy must be one of {ENERGIES}, got {energy!r}")
+        if energy == "nambu-goto" and stiffness is not None:
+            raise ValueError("stiffness applies to energy='elastic' (ε(λ) = μc² + ½k(λ − 1)²); the Nambu–Goto "
+                             "string has none")
         self.energy = energy
         self.tension = self.mu * self.c**2
 

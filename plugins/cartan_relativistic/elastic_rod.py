@@ -1,0 +1,253 @@
+"""The elastic relativistic string: ``relativistic-rod`` with ``energy="elastic"`` (docs §2–§3).
+
+Rest-frame energy per unit reference length ε(λ) = μc² + ½k(λ − 1)² (λ the rest-frame stretch,
+tension T = ε′ = k(λ − 1), rest mass μ per unit reference length), run in the **temporal
+gauge** r⁰ = ct: the core's time t is the lab time at every node, Λ = I is held (the Lorentz
+part of 𝔤 is gauge), and the translation components of N and X are ṙ = (c, v⃗) and
+r′ = (0, x⃗′).  The reduced Lagrangian (paper §IV.A)
+
+    ℓ(v⃗, x⃗′) = −ε(λ) √(c² − v²)/c,        λ² = |x⃗′|² + (v⃗·x⃗′)²/(c² − v²),
+
+couples velocity and strain, so the medium declares
+:attr:`~cartan.medium.Medium.coupled_lagrangian` and gives the Legendre map pointwise:
+``S = (0, p⃗, 0₆)`` with p⃗ = ∂ℓ/∂v⃗ (:meth:`momentum_at`), its inverse by Newton's method per
+point (:meth:`velocity_at`, N₀ = c: the gauge), the Hamiltonian stress Q⃗ = −∂ℓ/∂x⃗′
+(:meth:`stress_with`) and H = p⃗·v⃗ − ℓ − μc² (:meth:`hamiltonian`; the constant rest energy
+μc² per unit u is left out of the core's energies and added back in the output ``energy``).
+The lattice steps the Hamiltonian system with ``rkmk4`` (order 4) or ``lie-euler`` (order 1)
+on the numpy path (:mod:`cartan.schemes._coupled`); ``lie-verlet``, ``implicit-midpoint`` and
+the compiled loops refuse it.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Any, ClassVar
+
+import numpy as np
+
+from cartan.medium import check_finite, check_keywords, check_positive
+from cartan.problem import InitialState
+
+from .elastic import (
+    quadratic_law,
+    stretch,
+    temporal_lagrangian,
+    temporal_momentum,
+    temporal_stress,
+    temporal_velocity,
+)
+from .string import RelativisticRod
+
+__all__ = ["ElasticRelativisticRod"]
+
+
+class ElasticRelativisticRod(RelativisticRod):
+    """An elastic string in Minkowski space on the Poincaré group, temporal gauge (docs §2–§3).
+
+    Built by ``cartan.medium("relativistic-rod", energy="elastic", stiffness=k, mu=μ, c=c)``.
+
+    Parameters
+    ----------
+    c : float, default 1
+        Speed of light, > 0.
+    mu : float, default 1
+        Rest mass per unit reference length μ, > 0.
+    energy : str
+        ``"elastic"``.
+    stiffness : float
+        Axial stiffness k of ε(λ) = μc² + ½k(λ − 1)² (the ``cosserat-rod``'s stretch stiffness
+        in the Newtonian limit), 0 < k < μc²: longitudinal waves at √(k/μ) < c.
+
+    Notes
+    -----
+    ``X``, ``Q`` ``[..., 1, 10]`` and ``N``, ``S`` ``[..., 10]`` in the Poincaré basis; only the
+    spatial translation components (1, 2, 3) are live.  :meth:`inertia` ``(0, μ, μ, μ, 0₆)`` is
+    the Newtonian limit of the kinetic metric (the CFL estimate and the blow-up guard use it);
+    the dynamics uses the Legendre map.  The quadratic law is causal only for moderate
+    stretches: at large λ or speeds close to c along the string the Hessian of ℓ in v⃗ loses
+    definiteness and :meth:`velocity_at` raises ``ValueError``.
+    """
+
+    coupled_lagrangian: ClassVar[bool] = True
+    initial_kinds: ClassVar[tuple[str, ...]] = ("straight", "ring")
+    output_fields: ClassVar[dict[str, tuple[str, str]]] = {
+        "energy": ("total energy E = Σ w (H + μc²) (lab frame, nodal quadrature)", "J"),
+        "momentum_x": ("total momentum P¹ = Σ w p¹ (lab frame, nodal quadrature)", "kg m s-1"),
+        "momentum_y": ("total momentum P² (lab frame, nodal quadrature)", "kg m s-1"),
+        "momentum_z": ("total momentum P³ (lab frame, nodal quadrature)", "kg m s-1"),
+        "angular_momentum_x": ("total angular momentum J₁ = Σ w (y p_z − z p_y) about the origin", "kg m2 s-1"),
+        "angular_momentum_y": ("total angular momentum J₂ = Σ w (z p_x − x p_z) about the origin", "kg m2 s-1"),
+        "angular_momentum_z": ("total angular momentum J₃ = Σ w (x p_y − y p_x) about the origin", "kg m2 s-1"),
+        "coordinate_time": ("lab (coordinate) time r⁰/c of each node", "s"),
+        "lab_x": ("lab position x of each node", "m"),
+        "lab_y": ("lab position y of each node", "m"),
+        "lab_z": ("lab position z of each node", "m"),
+        "lorentz_factor": ("γ = dt/dτ of each node (proper-time rate 1/γ)", "1"),
+        "stretch": ("rest-frame stretch λ of each node", "1"),
+        "tension": ("tension T = ε′(λ) of each node", "N"),
+    }
+
+    def __init__(self, c: float = 1.0, mu: float = 1.0, energy: str = "elastic", stiffness: float | None = None):
+        if energy != "elastic":
+            raise ValueError(f"{type(self).__name__} is the energy 'elastic'; got energy={energy!r}")
+        super().__init__(c=c, mu=mu, energy="nambu-goto")
+        self.energy = "elastic"
+        if stiffness is None:
+            raise ValueError("energy 'elastic' needs stiffness k > 0 (ε(λ) = μc² + ½k(λ − 1)²)")
+        self.stiffness = float(check_positive("stiffness", stiffness, shape=()))
+        if self.stiffness >= self.mu * self.c**2:
+            raise ValueError(f"stiffness must be < μc² = {self.mu * self.c**2!r} (longitudinal waves at √(k/μ), "
+                             f"slower than light), got {stiffness!r}")
+        self.law = quadratic_law(self.mu, self.stiffness, self.c)
+
+    # ------------------------------------------------------------------ contract
+    def parameters(self) -> dict[str, Any]:
+        return {"c": self.c, "mu": self.mu, "energy": "elastic", "stiffness": self.stiffness}
+
+    def inertia(self) -> np.ndarray:
+        """``(0, μ, μ, μ, 0₆)``: the Newtonian kinetic metric; slot 0 (N₀ = c) and the Lorentz part are gauge."""
+        return np.concatenate([[0.0], np.full(3, self.mu), np.zeros(6)])
+
+    def rest_strain(self) -> np.ndarray:
+        """``φ = (0, 1, 0, 0)``: the unstretched string along e₁ (λ = 1, T = 0), shape ``(1, 10)``."""
+        X0 = np.zeros((1, 10))
+        X0[0, 1] = 1.0
+        return X0
+
+    def point_kernels(self) -> None:
+        """None: the Lagrangian couples N and X, which the compiled loops do not run."""
+        return None
+
+    def _static(self, X: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        x = np.asarray(X, dtype=float)[..., 0, 1:4]
+        return x, np.linalg.norm(x, axis=-1)
+
+    def potential(self, X: np.ndarray) -> np.ndarray:
+        """``U = H(S = 0, X) = ε(|x⃗′|) − μc² = ½k(|x⃗′| − 1)²`` ``[..., 1, 10]`` → ``[...]``."""
+        _, lam = self._static(X)
+        return 0.5 * self.stiffness * (lam - 1.0) ** 2
+
+    def stress(self, X: np.ndarray) -> np.ndarray:
+        """``Q = ∂U/∂X = k(|x⃗′| − 1) x̂′`` on slots 1–3 (the Hamiltonian stress at S = 0)."""
+        return self.stress_with(np.zeros((*np.shape(X)[:-2], 10)), X)
+
+    def potential_at(self, X: np.ndarray, X0: np.ndarray) -> np.ndarray:
+        return self.potential(X)
+
+    def stress_at(self, X: np.ndarray, X0: np.ndarray) -> np.ndarray:
+        return self.stress(X)
+
+    def momentum_at(self, N: np.ndarray, X: np.ndarray) -> np.ndarray:
+        """``S = (0, p⃗, 0₆)`` with p⃗ = ∂ℓ/∂v⃗(v⃗, x⃗′), v⃗ = N[..., 1:4], x⃗′ = X[..., 0, 1:4]."""
+        N = np.asarray(N, dtype=float)
+        x, _ = self._static(X)
+        S = np.zeros(np.broadcast_shapes(N.shape, (*x.shape[:-1], 10)))
+        S[..., 1:4] = temporal_momentum(N[..., 1:4], x, self.law, self.c)
+        return S
+
+    def velocity_at(self, S: np.ndarray, X: np.ndarray) -> np.ndarray:
+        """``N = (c, v⃗, 0₆)``, v⃗ solving p⃗(v⃗, x⃗′) = S[..., 1:4] (Newton per point,
+        :func:`cartan_relativistic.elastic.temporal_velocity`)."""
+        S = np.asarray(S, dtype=float)
+        x, _ = self._static(X)
+        p = np.ascontiguousarray(S[..., 1:4])
+        key = (p.shape, x.shape, p.tobytes(), x.tobytes())
+        memo = self.__dict__.setdefault("_memo", {})
+        if key not in memo:  # (the same (S, X) comes back for the stress: Newton once)
+            if len(memo) >= 8:
+                memo.pop(next(iter(memo)))
+            memo[key] = temporal_velocity(p, x, self.law, self.c)
+        N = np.zeros(np.broadcast_shapes(S.shape, (*x.shape[:-1], 10)))
+        N[..., 0] = self.c
+        N[..., 1:4] = memo[key]
+        return N
+
+    def stress_with(self, S: np.ndarray, X: np.ndarray) -> np.ndarray:
+        """``Q = ∂H/∂X(S, X)``: Q⃗ = −∂ℓ/∂x⃗′ = (T√A/c)(x⃗′ + (B/A)v⃗)/λ on slots 1–3 at v⃗ = v⃗(S, X);
+        zero on slot 0 (φ₀ = 0 is the gauge) and on the Lorentz part, shape ``[..., 1, 10]``."""
+        N = self.velocity_at(S, X)
+        x, _ = self._static(X)
+        Q = np.zeros(np.broadcast_shapes(np.shape(X), (*N.shape[:-1], 1, 10)))
+        Q[..., 0, 1:4] = temporal_stress(N[..., 1:4], x, self.law, self.c)
+        return Q
+
+    def hamiltonian(self, S: np.ndarray, X: np.ndarray) -> np.ndarray:
+        """``H = p⃗·v⃗ − ℓ(v⃗, x⃗′) − μc²`` at v⃗ = v⃗(S, X): the lab energy per unit u less the rest
+        energy (½μv² + W in the Newtonian limit)."""
+        N = self.velocity_at(S, X)
+        x, _ = self._static(X)
+        v = N[..., 1:4]
+        p = np.asarray(S, dtype=float)[..., 1:4]
+        return np.sum(p * v, axis=-1) - temporal_lagrangian(v, x, self.law, self.c) - self.mu * self.c**2
+
+    # ------------------------------------------------------------------ initial states
+    def initial_state(self, grid, kind: str, **params: Any) -> InitialState:
+        """Initial Φ and N in the temporal gauge (r⁰ = 0, N₀ = c, Λ = I).
+
+        ``"straight"``: the string along e₁ with the uniform ``stretch`` λ₀ (default 1) at rest,
+        ``origin`` (3,).  ``"ring"`` (periodic grid): a circle of ``radius`` R (default L/2π:
+        unstretched) about ``center`` in the x–y plane, spinning at ``spin`` ω about e₃ (speed
+        ωR, < c) and breathing at ``radial_speed`` (outwards).  Velocities and positions are
+        lab-frame; use :meth:`state_from` for any other shape.
+        """
+        if grid.d != 1:
+            raise ValueError(f"{self.name} needs a grid with d = 1, got d = {grid.d}")
+        if kind == "straight":
+            check_keywords(kind, self._straight_elastic, params)
+            x, v = self._straight_elastic(grid, **params)
+        elif kind == "ring":
+            check_keywords(kind, self._ring, params)
+            x, v = self._ring(grid, **params)
+        else:
+            raise ValueError(f"medium {self.name!r} (energy 'elastic') has no initial state kind {kind!r}; "
+                             f"available: {', '.join(self.initial_kinds)}")
+        return self.state_from(x, v)
+
+    def _straight_elastic(self, grid, stretch=1.0, origin=None):
+        lam = float(check_positive("stretch", stretch, shape=()))
+        o = np.zeros(3) if origin is None else check_finite("origin", origin, (3,))
+        u = grid.coordinates(0)
+        x = o + np.stack([lam * u, np.zeros_like(u), np.zeros_like(u)], axis=-1)
+        return x, np.zeros_like(x)
+
+    def _ring(self, grid, radius=None, spin=0.0, radial_speed=0.0, center=None):
+        if not grid.periodic[0]:
+            raise ValueError("initial kind 'ring' needs a periodic grid (a closed string)")
+        R = grid.length[0] / (2 * math.pi) if radius is None else float(check_positive("radius", radius, shape=()))
+        w = float(check_finite("spin", spin, ()))
+        vr = float(check_finite("radial_speed", radial_speed, ()))
+        if math.hypot(w * R, vr) >= self.c:
+            raise ValueError(f"spin·radius and radial_speed must give a speed below c = {self.c}, got "
+                             f"{math.hypot(w * R, vr)!r}")
+        o = np.zeros(3) if center is None else check_finite("center", center, (3,))
+        ang = 2 * math.pi * grid.coordinates(0) / grid.length[0]
+        er = np.stack([np.cos(ang), np.sin(ang), np.zeros_like(ang)], axis=-1)
+        et = np.stack([-np.sin(ang), np.cos(ang), np.zeros_like(ang)], axis=-1)
+        return o + R * er, w * R * et + vr * er
+
+    # ------------------------------------------------------------------ outputs
+    def outputs(self, q: np.ndarray, X: np.ndarray, N: np.ndarray, grid: Any) -> dict[str, np.ndarray]:
+        """Lab positions and times, γ, λ and T per node, and the charges by nodal quadrature
+        (S = S(N, X) at the nodal strains; the exactly conserved discrete charges are the core's
+        ``total_momentum`` and ``kinetic_energy + potential_energy``, docs §3)."""
+        c = self.c
+        r, rdot = self.lab_events(q, N)
+        x = np.asarray(X, dtype=float)
+        S = self.momentum_at(N, x)
+        w = grid.node_weights()
+        E = np.tensordot(w, self.hamiltonian(S, x) + self.mu * c * c, axes=1)
+        p = S[..., 1:4]
+        P = np.tensordot(w, p, axes=1)
+        J = np.tensordot(w, np.cross(r[..., 1:], p), axes=1)
+        v = rdot[..., 1:] * (c / rdot[..., 0])[..., None]
+        gamma = 1.0 / np.sqrt(np.maximum(1.0 - np.sum(v * v, axis=-1) / c**2, 1e-300))
+        rprime = np.concatenate([np.zeros((*x.shape[:-2], 1)), x[..., 0, 1:4]], axis=-1)
+        lam = stretch(rdot, rprime)
+        return {
+            "energy": E, "momentum_x": P[0], "momentum_y": P[1], "momentum_z": P[2],
+            "angular_momentum_x": J[0], "angular_momentum_y": J[1], "angular_momentum_z": J[2],
+            "coordinate_time": r[..., 0] / c,
+            "lab_x": r[..., 1], "lab_y": r[..., 2], "lab_z": r[..., 3],
+            "lorentz_factor": gamma, "stretch": lam, "tension": self.law[1](lam),
+        }
