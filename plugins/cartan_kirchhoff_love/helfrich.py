@@ -290,6 +290,14 @@ class HelfrichMembrane(KirchhoffLove):
     def point_kernels(self) -> MediumKernels:
         return MediumKernels(helfrich_energy, helfrich_stress, self.kernel_params)
 
+    def with_tension(self, tension: float) -> HelfrichMembrane:
+        """A copy of the medium whose σ is ``tension`` of either sign (finite): the Lagrange
+        multiplier of a held total area (:func:`cartan_kirchhoff_love.vesicle.helfrich_flow`), which
+        the constructor's σ ≥ 0 does not allow; ``parameters()`` of the copy report it as given."""
+        out = type(self)(**{**self.parameters(), "tension": 0.0})
+        out.sigma = float(check_finite("tension", tension, ()))
+        return out
+
     # ------------------------------------------------------------------ outputs
     def fields(self, X: np.ndarray, X0: np.ndarray | None = None) -> np.ndarray:
         """(H, K, Helfrich energy per unit deformed area, area stretch j, tension σ + K_a(j − 1))

@@ -74,7 +74,7 @@ from numba import njit
 from cartan.medium import MediumKernels
 
 __all__ = ["GAUGES", "UMBILIC_TOLERANCE", "KirchhoffLove", "koiter_energy", "koiter_stress", "principal_angle",
-           "principal_curvatures"]
+           "principal_curvatures", "torus_surface"]
 
 #: the frame gauges of the initial-state builders
 GAUGES = ("coordinate", "principal")
@@ -222,6 +222,66 @@ def principal_angle(T: np.ndarray, b: np.ndarray, *, scale: float | None = None,
     return np.where(flat, 0.0, 0.5 * np.arctan2(2.0 * o, d))
 
 
+# ====================================================================== closed surfaces
+def torus_surface(grid: Any, major_radius: float | None = None, minor_radius: float | None = None
+                  ) -> tuple[np.ndarray, np.ndarray, tuple[np.ndarray, np.ndarray], tuple[np.ndarray, ...]]:
+    """The torus of revolution about z on a doubly periodic chart, by arc length.
+
+    r(u, v) = ((R + r cos ψ) cos φ, (R + r cos ψ) sin φ, r sin ψ), φ = u/R, ψ = v/r: u runs
+    along the centre circle (period 2πR), v around the tube (period 2πr).  Frames in the
+    coordinate gauge: e₁ = ∂_u r/|∂_u r| (the parallel), e₂ = ∂_v r/|∂_v r| (the meridian),
+    e₃ = e₁ × e₂ the outward normal.  Every parallel and every meridian is a circle whose
+    frames turn uniformly — an orbit of a one-parameter subgroup of SE(3) —, so the lattice's
+    edge strains are the continuum strains and the torus is closed with identity holonomies.
+    With the outward normal H = (R + 2r cos ψ)/(2r(R + r cos ψ)), K = cos ψ/(r(R + r cos ψ)),
+    κ₁ = 1/r along the meridian, κ₂ = cos ψ/(R + r cos ψ) along the parallel (no umbilic).
+
+    Parameters
+    ----------
+    grid : cartan.grid.Grid
+        d = 2, both axes periodic, lengths (2πR, 2πr).
+    major_radius, minor_radius : float, optional
+        R > r > 0 (defaults: L_u/(2π), L_v/(2π)); given, they must close the chart's periods.
+
+    Returns
+    -------
+    pos : numpy.ndarray ``[nu, nv, 3]``
+    frames : numpy.ndarray ``[nu, nv, 3, 3]`` (columns e₁ e₂ e₃)
+    tangents : tuple of 2 arrays ``[nu, nv, 3]`` (r_u, r_v)
+    second : tuple of 3 arrays ``[nu, nv, 3]`` (r_uu, r_uv, r_vv)
+    """
+    if grid.d != 2 or not all(grid.periodic):
+        raise ValueError(f"grid: a torus needs a d = 2 grid with both axes periodic, got d = {grid.d}, "
+                         f"periodic = {tuple(grid.periodic)}")
+    radii = []
+    for name, value, L in (("major_radius", major_radius, grid.length[0]),
+                           ("minor_radius", minor_radius, grid.length[1])):
+        rad = L / (2.0 * np.pi) if value is None else float(np.asarray(value, dtype=float))
+        if not np.isfinite(rad) or rad <= 0.0:
+            raise ValueError(f"{name} must be > 0, got {value!r}")
+        if abs(L - 2.0 * np.pi * rad) > 1e-9 * rad:
+            raise ValueError(f"{name}: the periodic axis closes only for length 2π·{name} = {2 * np.pi * rad}, "
+                             f"got length {L}")
+        radii.append(rad)
+    R, r = radii
+    if not r < R:
+        raise ValueError(f"minor_radius must be < major_radius = {R} (a ring torus), got {r}")
+    u, v = np.meshgrid(grid.coordinates(0), grid.coordinates(1), indexing="ij")
+    cp, sp, cq, sq = np.cos(u / R), np.sin(u / R), np.cos(v / r), np.sin(v / r)
+    rho = R + r * cq
+    z = np.zeros_like(u)
+    pos = np.stack([rho * cp, rho * sp, r * sq], axis=-1)
+    e1 = np.stack([-sp, cp, z], axis=-1)
+    e2 = np.stack([-sq * cp, -sq * sp, cq], axis=-1)
+    e3 = np.stack([cq * cp, cq * sp, sq], axis=-1)
+    ru, rv = (rho / R)[..., None] * e1, e2
+    radial = np.stack([cp, sp, z], axis=-1)
+    ruu = -(rho / R ** 2)[..., None] * radial
+    ruv = -(sq / R)[..., None] * e1
+    rvv = -e3 / r
+    return pos, np.stack([e1, e2, e3], axis=-1), (ru, rv), (ruu, ruv, rvv)
+
+
 # ====================================================================== medium
 class KirchhoffLove(CosseratSurface):
     """Kirchhoff–Love (Koiter) plate and shell on SE(3), d = 2, adapted to its Gauss map
@@ -254,8 +314,9 @@ class KirchhoffLove(CosseratSurface):
     -----
     ``X``, ``Q`` have shape ``[..., 2, 6]``, components ``(θ_α; π_α)``.  Energy, stress and
     conventions: see the module docstring.  Initial states (``flat``, ``cylinder``,
-    ``surface``) and loads (``gravity``, ``dead-load``, ``director-pressure`` — here a pressure
-    along the normal —, ``simple-support``) are those of ``cosserat-surface``; a ``surface``
+    ``surface``, and the closed ``torus`` of :func:`torus_surface`) and loads (``gravity``,
+    ``dead-load``, ``director-pressure`` — here a pressure along the normal —,
+    ``simple-support``) are those of ``cosserat-surface`` (the torus is this medium's); a ``surface``
     with given ``frames`` must have e₃ along the normal.
     """
 
@@ -306,6 +367,27 @@ class KirchhoffLove(CosseratSurface):
         return None
 
     # ------------------------------------------------------------------ initial states
+    initial_kinds: ClassVar[tuple[str, ...]] = (*CosseratSurface.initial_kinds, "torus")
+
+    def initial_state(self, grid, kind: str, **params: Any):
+        """The initial states of ``cosserat-surface`` (``flat``, ``cylinder``, ``surface``) and
+        the closed ``"torus"`` of :func:`torus_surface` (``major_radius`` R, ``minor_radius`` r;
+        both axes periodic, identity holonomies), in the medium's gauge."""
+        if kind != "torus":
+            return super().initial_state(grid, kind, **params)
+        from cartan.medium import check_keywords
+        from cartan.problem import InitialState
+
+        check_keywords(kind, self._torus, params)
+        pos, E = self._torus(grid, **params)
+        return InitialState(Phi=self._assemble(pos, E))
+
+    def _torus(self, grid, major_radius=None, minor_radius=None):
+        pos, E, tangents, second = torus_surface(grid, major_radius, minor_radius)
+        if self.gauge == "principal":  # κ₁ = 1/r along the meridian: e₁ turned onto e₂ (φ = π/2)
+            E = self._principal(grid, E, tangents, second)
+        return pos, E
+
     def _principal(self, grid, E: np.ndarray, tangents: tuple, second: tuple) -> np.ndarray:
         """The frames ``E`` ``[*shape, 3, 3]`` turned about e₃ into the principal gauge, from the
         tangents (r_u, r_v) and second derivatives (r_uu, r_uv, r_vv) ``[*shape, 3]`` at the nodes."""
