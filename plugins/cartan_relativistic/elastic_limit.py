@@ -16,7 +16,6 @@ O(c⁻²) (the c⁻² bracket of ℓ, docs §2).
 from __future__ import annotations
 
 import math
-import sys
 from typing import Any
 
 import numpy as np
@@ -57,23 +56,14 @@ def newtonian_run(compiled: bool = False) -> Any:
 
 def main(argv: list[str] | None = None) -> int:
     """Command line: ``python -m cartan_relativistic.elastic_limit OUT.png`` (the c → ∞ chart)."""
-    from matplotlib.figure import Figure
-
     from .cases import ElasticNewtonianLimit
+    from .limit import chart_main
 
-    argv = sys.argv[1:] if argv is None else argv
-    if len(argv) != 1:
-        print("usage: python -m cartan_relativistic.elastic_limit OUT.png", file=sys.stderr)
-        return 2
-    case = ElasticNewtonianLimit()
-    rows = case.measure(case.levels)
-    fig = Figure(figsize=(10.5, 4.4), layout="constrained")
-    slope = case.draw(rows, fig)
-    fig.savefig(argv[0], dpi=110)
-    for r in rows:
-        print(f"c = {r['c']:g}: difference {r['error']:.3e}, energy drift {r['drift']:.1e}")
-    print(f"fitted slope {slope:.3f}")
-    return 0
+    def report(rows, slope):
+        return [*(f"c = {r['c']:g}: difference {r['error']:.3e}, energy drift {r['drift']:.1e}" for r in rows),
+                f"fitted slope {slope:.3f}"]
+
+    return chart_main("cartan_relativistic.elastic_limit", ElasticNewtonianLimit(), report, argv)
 
 
 if __name__ == "__main__":  # pragma: no cover

@@ -29,11 +29,12 @@ from __future__ import annotations
 
 import math
 import sys
+from typing import Any
 
 import numpy as np
 from scipy.special import jv
 
-__all__ = ["TERMS", "amplitude", "lab_period", "main", "newtonian_string", "standing_wave", "tilt_curve",
+__all__ = ["TERMS", "amplitude", "chart_main", "lab_period", "main", "newtonian_string", "standing_wave", "tilt_curve",
            "tilt_for_speed"]
 
 #: Bessel terms kept in the Jacobi–Anger sums (J_m(θ₀) < 1e-30 beyond them for θ₀ ≤ 1)
@@ -174,25 +175,35 @@ def newtonian_string(x: np.ndarray, t: float, theta0: float, length: float, c: f
     return 0.5 * (_shape(x - c * t, theta0, length) + _shape(x + c * t, theta0, length))
 
 
-def main(argv: list[str] | None = None) -> int:
-    """Command line: ``python -m cartan_relativistic.limit OUT.png`` (the c → ∞ chart)."""
+def chart_main(module: str, case: Any, report, argv: list[str] | None = None) -> int:
+    """A limit chart's command line, ``python -m MODULE OUT.png``: measures ``case``'s levels,
+    draws them (``case.draw(rows, fig)``) into OUT.png and prints ``report(rows, drawn)`` (the
+    lines to print; ``drawn`` is what ``draw`` returned).  Returns the exit status."""
     from matplotlib.figure import Figure
-
-    from .cases import NewtonianLimit
 
     argv = sys.argv[1:] if argv is None else argv
     if len(argv) != 1:
-        print("usage: python -m cartan_relativistic.limit OUT.png", file=sys.stderr)
+        print(f"usage: python -m {module} OUT.png", file=sys.stderr)
         return 2
-    case = NewtonianLimit()
     rows = case.measure(case.levels)
     fig = Figure(figsize=(10.5, 4.4), layout="constrained")
-    case.draw(rows, fig)
+    drawn = case.draw(rows, fig)
     fig.savefig(argv[0], dpi=110)
-    for r in rows:
-        print(f"v/c = {r['beta']:.4f}: difference at t = L/3 {r['error']:.3e}, at t = L/4 {r['quarter']:.3e} "
-              f"(π/8 (v/c)² = {math.pi / 8 * r['beta'] ** 2:.3e}), Nambu–Goto run vs exact {r['exact']:.1e}")
+    for line in report(rows, drawn):
+        print(line)
     return 0
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Command line: ``python -m cartan_relativistic.limit OUT.png`` (the c → ∞ chart)."""
+    from .cases import NewtonianLimit
+
+    def report(rows, _):
+        return [f"v/c = {r['beta']:.4f}: difference at t = L/3 {r['error']:.3e}, at t = L/4 {r['quarter']:.3e} "
+                f"(π/8 (v/c)² = {math.pi / 8 * r['beta'] ** 2:.3e}), Nambu–Goto run vs exact {r['exact']:.1e}"
+                for r in rows]
+
+    return chart_main("cartan_relativistic.limit", NewtonianLimit(), report, argv)
 
 
 if __name__ == "__main__":  # pragma: no cover
