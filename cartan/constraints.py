@@ -62,9 +62,6 @@ class StrainConstraints:
 
     def __init__(self, scheme: Any, unknown: np.ndarray, state: Any, check: bool = True):
         medium = scheme.medium
-        if scheme.grid.glued is not None:  # the rows are built on the grid's own edges
-            raise ValueError("strain constraints (Medium.constrained_strains) do not support a glued axis yet "
-                             "(Grid.glued, the sphere's chart)")
         self.sch = scheme
         self.g = scheme.group
         self.r_dim = r_dim = scheme.group.dim
@@ -83,6 +80,9 @@ class StrainConstraints:
         spec = medium.constrained_strains() if hasattr(medium, "constrained_strains") else None
         if spec is None:
             return
+        if scheme.grid.glued is not None:  # the rows are built on the grid's own edges
+            raise ValueError("strain constraints (Medium.constrained_strains) do not support a glued axis yet "
+                             "(Grid.glued, the sphere's chart)")
         comp, val = spec
         comp = np.atleast_1d(np.asarray(comp)).astype(np.int64)
         val = np.atleast_1d(np.asarray(val, dtype=float))

@@ -112,7 +112,7 @@ def continuation(
     *,
     monitor: Callable[[Any], float] | None = None,
     stops: Any = None,
-    pins: dict | None = None,
+    pins: dict | str | None = None,
     lam_scale: float | None = None,
     ds_min: float | None = None,
     ds_max: float | None = None,
@@ -153,7 +153,9 @@ def continuation(
         ``"start"``/``"end"`` (d = 1), a flat node index, or on a lattice of d ≥ 2 one entry per
         axis — ``"start"``, ``"middle"``, ``"end"`` or an index — as a tuple or a text
         (``("end", "middle")``, ``"start,start"``; :func:`cartan.statics.pin_node`); a node held
-        by a clamped boundary or a component pinned twice is a ValueError.  E.g. a pinned–pinned
+        by a clamped boundary or a component pinned twice is a ValueError.  ``"rigid"`` holds every
+        component of node 0, the rigid-body gauge of a body without clamps (a closed filament;
+        :func:`cartan.statics.rigid_gauge_pins`).  E.g. a pinned–pinned
         column along x:
         ``{"start": (0, 1), "end": (1,)}`` (the end slides along x).  Components from m − 1 on
         (m the matrix size: 3, 4, 5 on SE(3)) hold the node's rotation about a spatial axis, e.g.
@@ -224,10 +226,14 @@ def continuation(
         raise ValueError("lam_max and ds0 must be positive")
     init = _initial_phi(problem, initial)
     if init is not problem.initial:
-        problem = Problem(problem.medium, problem.grid, InitialState(Phi=init.Phi, holonomy=problem.initial.holonomy),
+        problem = Problem(problem.medium, problem.grid, InitialState(Phi=init.Phi, holonomy=problem.initial.holonomy,
+                                                                     glue=problem.initial.glue),
                           problem.boundaries, problem.loads, problem.name, reference=problem.reference)
     if jacobian not in _JACOBIANS:
         raise ValueError(f"jacobian must be one of {', '.join(map(repr, _JACOBIANS))}, got {jacobian!r}")
+    from .statics import rigid_gauge_pins
+
+    pins = rigid_gauge_pins(problem, pins)  # "rigid": node 0 held, the gauge of a free body
     sysm = _Equilibrium(problem, jacobian=jacobian, fd_step=fd_step, t=t, pins=pins, probe_lam=0.0)
     g = sysm.g
     affine = bool(getattr(g, "affine", False))

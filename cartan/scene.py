@@ -62,7 +62,9 @@ Modes
 
 On a lattice of d ≥ 2 the keys of ``pins`` name nodes per axis — ``start``, ``middle``,
 ``end`` or an index, comma-separated: ``pins = { "start,start" = ["x", "y", "z"], "end,middle" =
-["z"] }`` (:func:`cartan.statics.pin_node`).
+["z"] }`` (:func:`cartan.statics.pin_node`).  ``pins = "rigid"`` holds every component of the
+first node instead: the rigid-body gauge of a body without clamps, a closed filament or a free
+body under balanced loads (:func:`cartan.statics.rigid_gauge_pins`).
 
 Static and continuation scenes have no ``[run]`` table; :meth:`Scene.run` runs any mode and
 writes the result (CF attributes, ``history``, ``cartan_config``) atomically.
@@ -977,11 +979,20 @@ def _continuation(reader: _Reader, data: Mapping, problem: Problem) -> dict[str,
     return out
 
 
-def _pins(reader: _Reader, spec: Any, problem: Problem, key: str = "continuation.pins") -> dict[str, tuple[int, ...]]:
+def _pins(reader: _Reader, spec: Any, problem: Problem,
+          key: str = "continuation.pins") -> dict[str, tuple[int, ...]] | str:
+    if spec == "rigid":  # the rigid-body gauge of a body without clamps (cartan.statics.rigid_gauge_pins)
+        try:
+            from .statics import rigid_gauge_pins
+
+            rigid_gauge_pins(problem, spec)
+        except ValueError as err:
+            raise reader.fail(key, str(err)) from None
+        return spec
     if not isinstance(spec, Mapping):
         example = '{ start = ["x", "y"], end = ["y"] }' if problem.grid.d == 1 else \
             '{ "start,start" = ["x", "y", "z"], "end,middle" = ["z"] }'
-        raise reader.fail(key, f"must be a table such as {example}, got {spec!r}")
+        raise reader.fail(key, f"must be a table such as {example} or \"rigid\", got {spec!r}")
     k = _affine_problem(reader, problem, key)
     if problem.grid.d > 1:
         return _lattice_pins(reader, spec, problem, k, key)
@@ -1075,7 +1086,11 @@ def _label_pins(sc: Scene, ds: Any) -> None:
         return
     k = sc.problem.medium.group.matrix_size - 1
     axes = list(_AXIS_LABELS[:k]) if k <= 3 else [f"x{i}" for i in range(k)]
-    labels = [f"{node} {axes[c]}" for node, comps in pins.items() for c in comps]
+    if isinstance(pins, str):  # the rigid-body gauge: node 0, its translations then its rotations
+        npin = ds["reaction"].shape[-1]
+        labels = [f"0 {axes[c]}" if c < k else f"0 rotation {c - k}" for c in range(npin)]
+    else:
+        labels = [f"{node} {axes[c]}" for node, comps in pins.items() for c in comps]
     ds.coords["pin"] = ("pin", np.array(labels, dtype=object), {"long_name": "pinned node, component"})
 
 

@@ -170,6 +170,55 @@ def _stencil_pairs(shape: tuple[int, ...], periodic: tuple[bool, ...],
     return pairs[:, 0], pairs[:, 1]
 
 
+def _lattice_stencil(sch: Any) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(colour, source, target) of a lattice from its own edges and corners (any grid, glued axes
+    included): target in the stencil of source when an edge joins them (a glued edge joins node
+    ``(i, end)`` to ``(i + n_β/2, end)``, :meth:`Lattice.edge_nodes` maps its ghost to that node),
+    or, on a lattice coupled at the corners, when both are ends of one corner's edges (a corner
+    through a pole included); every node is in its own stencil, and on an open or glued axis the
+    first and last node also reach two nodes in (the one-sided second-order differences of a
+    load that reads its neighbours, e.g. a surface pressure).  The colouring is greedy: nodes of
+    one colour have disjoint stencils (as :func:`_colouring` on a grid without glued axes, which
+    keeps that structured colouring and :func:`_stencil_pairs`).
+
+    Returns
+    -------
+    colour : int array ``(nnode,)``; src, dst : int arrays ``(npairs,)``
+    """
+    import scipy.sparse as sp
+
+    grid = sch.grid
+    shape = tuple(grid.shape)
+    nnode = int(np.prod(shape))
+    idx = np.arange(nnode).reshape(shape)
+    tails, heads = sch.edge_nodes()
+    groups = [np.stack([t, h], axis=1) for t, h in zip(tails, heads, strict=True)]
+    if getattr(sch, "coupled", False):
+        c = sch.corners()
+        groups.append(np.stack([end[a][c["edge"][:, a]] for a in range(grid.d) for end in (tails, heads)], axis=1))
+    for axis, n in enumerate(shape):
+        if not grid.periodic[axis] and n >= 3:
+            for ends in ((0, 1, 2), (n - 1, n - 2, n - 3)):
+                groups.append(np.stack([np.take(idx, k, axis=axis).ravel() for k in ends], axis=1))
+    src, dst = [np.arange(nnode)], [np.arange(nnode)]
+    for grp in groups:
+        k = grp.shape[1]
+        for i in range(k):
+            for j in range(k):
+                src.append(grp[:, i])
+                dst.append(grp[:, j])
+    pairs = np.unique(np.stack([np.concatenate(src), np.concatenate(dst)], axis=1), axis=0)
+    S = sp.csr_matrix((np.ones(len(pairs)), (pairs[:, 0], pairs[:, 1])), shape=(nnode, nnode))
+    conflict = (S @ S.T).tocsr()  # nodes whose stencils meet
+    colour = -np.ones(nnode, dtype=np.int64)
+    for node in range(nnode):
+        taken = colour[conflict.indices[conflict.indptr[node]:conflict.indptr[node + 1]]]
+        used = np.zeros(taken.size + 2, dtype=bool)
+        used[taken[(taken >= 0) & (taken < used.size)]] = True
+        colour[node] = int(np.argmin(used))
+    return colour, pairs[:, 0], pairs[:, 1]
+
+
 def _coloured_jacobian(displaced, colour: np.ndarray, src: np.ndarray, dst: np.ndarray, unknown: np.ndarray,
                        index: np.ndarray, shape: tuple[int, ...], step: float):
     """Sparse Jacobian of a nodal residual by coloured central finite differences.
@@ -383,9 +432,6 @@ class _Equilibrium:
 
         if jacobian not in _JACOBIANS:
             raise ValueError(f"jacobian must be one of {', '.join(map(repr, _JACOBIANS))}, got {jacobian!r}")
-        if problem.grid.glued is not None:  # the Jacobian's stencil and colouring know the grid's own edges only
-            raise ValueError("solve_static and continuation do not support a glued axis yet (Grid.glued, the "
-                             "sphere's chart); run the dynamics with an explicit integrator on the lattice")
         self.problem = problem
         self.sch = sch = Lattice(problem, track_frames=True)
         self.g = g = sch.group
@@ -403,8 +449,15 @@ class _Equilibrium:
         self.cols = np.flatnonzero(self.unknown_flat.ravel())  # flat node·r + k of each unknown
         self.w = sch.weights[..., None]
         self.zero = np.zeros((*shape, r_dim))
-        self.colour = _colouring(shape, tuple(sch.grid.periodic))
-        self.src, self.dst = _stencil_pairs(shape, tuple(sch.grid.periodic), box=bool(getattr(sch, "coupled", False)))
+        #: a glued axis (the sphere's chart): the stencil of the lattice's own edges and corners,
+        #: the Jacobian by coloured differences of the whole force (the glued ends' Ad_{Γ⁻¹})
+        self.glued = sch.grid.glued is not None
+        if self.glued:
+            self.colour, self.src, self.dst = _lattice_stencil(sch)
+        else:
+            self.colour = _colouring(shape, tuple(sch.grid.periodic))
+            self.src, self.dst = _stencil_pairs(shape, tuple(sch.grid.periodic),
+                                                box=bool(getattr(sch, "coupled", False)))
         self.length = max(1.0, float(np.max(sch.grid.length)))
         # scaled norms: translations in units of the rod length, rotations in radians; strains
         # (X = Φ⁻¹∂Φ) carry one more 1/length than the increments
@@ -698,6 +751,13 @@ class _Equilibrium:
         for axis in range(sch.grid.d):
             xi = g.log(state.arrays[sch._key(axis)])
             tail, head = sch._ends(full, axis)
+            if sch.grid.is_glued(axis):  # a ghost end moves by Ad_{Γ⁻¹} δ (Lattice, "Glued axes")
+                A = g.Ad(g.inverse(sch._glue[axis]))
+                sl = [slice(None)] * sch.grid.d
+                sl[axis] = 0
+                tail[tuple(sl)] = tail[tuple(sl)] @ A.T
+                sl[axis] = -1
+                head[tuple(sl)] = head[tuple(sl)] @ A.T
             out.append((np.einsum("...ij,...j->...i", g.dexp_inv(-xi), head)
                         - np.einsum("...ij,...j->...i", g.dexp_inv(xi), tail)) / sch.h[axis])
         return out
@@ -1056,7 +1116,8 @@ class _Equilibrium:
                     out += self._assemble_full(trial, offset)
                 return out
 
-            K = self._corner_tangent(state, offset) if self.sch.coupled else self._fd(state, nodal)
+            K = (self._corner_tangent(state, offset) if self.sch.coupled and not self.glued
+                 else self._fd(state, nodal))
             K = K + self._local_jacobian(state, lam)
         if any(not load.local for load in self.problem.loads):  # on the lattice's stencil, like the internal force
             K = K + self._neighbour_jacobian(state, lam)
@@ -1389,6 +1450,68 @@ def _lu_solve(K, order: np.ndarray | None = None) -> Callable[[np.ndarray], np.n
     return lu.solve
 
 
+RIGID_GAUGE = "rigid"
+
+
+def rigid_gauge_pins(problem: Problem, pins: dict | str | None) -> dict | None:
+    """The pins of ``solve_static(..., pins=...)``: ``pins`` itself, or for ``pins="rigid"`` the
+    rigid-body gauge of a free body: every component of node 0 (positions, then rotations).
+
+    A body without clamped boundaries (a closed filament, a free–free rod, a free surface;
+    periodic axes with the identity holonomy) keeps its equilibria under every rigid motion,
+    and its Jacobian is singular.  The gauge fixes node 0's position and rotation at the
+    starting configuration, ``dim G`` multipliers whose values are the wrench that node 0
+    would need: zero when the loads are balanced (checked after the solve, :func:`check_rigid_gauge`).
+
+    Parameters
+    ----------
+    problem : Problem
+        Without clamped boundaries; its medium on an affine group.
+    pins : dict, ``"rigid"`` or None
+
+    Returns
+    -------
+    dict or None
+
+    Raises
+    ------
+    ValueError
+        ``pins`` a text other than ``"rigid"``; ``"rigid"`` on a problem with a clamped
+        boundary (which holds the rigid motions already), or with a periodic axis whose
+        holonomy is not the identity (not every rigid motion keeps its equilibria).
+    """
+    if not isinstance(pins, str):
+        return pins
+    if pins != RIGID_GAUGE:
+        raise ValueError(f"pins must be a dict {{node: components}}, None or {RIGID_GAUGE!r} (the rigid-body gauge "
+                         f"of a free body), got {pins!r}")
+    from .problem import Clamped, axis_holonomies
+
+    clamped = sorted(k for k, b in problem.boundaries.items() if isinstance(b, Clamped))
+    if clamped:
+        raise ValueError(f"pins={RIGID_GAUGE!r} fixes the rigid motions of a free body; this problem has the clamped "
+                         f"boundaries {clamped}, which hold them already (give pins as a dict or None)")
+    for axis, H in axis_holonomies(problem.initial, problem.grid.d).items():
+        if np.max(np.abs(np.asarray(H, dtype=float) - np.eye(H.shape[0]))) > 1e-12:
+            raise ValueError(f"pins={RIGID_GAUGE!r} holds every rigid motion of node 0, but the holonomy of the "
+                             f"periodic axis {axis} is not the identity: only the rigid motions that commute with it "
+                             "leave the equilibria unchanged; give pins as a dict naming those")
+    return {0: tuple(range(problem.medium.group.dim))}
+
+
+def check_rigid_gauge(reaction: np.ndarray, forces: np.ndarray, length: float, tol: float) -> None:
+    """Raise when the rigid-body gauge carries a load: the wrench ``reaction`` ``(dim G,)`` at
+    node 0 must vanish against the external nodal forces ``forces`` (any shape), to
+    ``max(100·tol, 1e-8)·Σ|f|·max(1, L)`` — a free body is in equilibrium only under
+    balanced loads (total force and moment zero)."""
+    bound = max(100.0 * tol, 1e-8) * max(float(np.sum(np.abs(forces))), 1e-12) * max(1.0, length)
+    worst = float(np.max(np.abs(reaction), initial=0.0))
+    if worst > bound:
+        raise ValueError(f"pins={RIGID_GAUGE!r}: the loads on this free body are unbalanced (a free body has no "
+                         f"equilibrium then): node 0 would carry the reaction {np.round(reaction, 12).tolist()}, "
+                         f"max {worst:.3e} > {bound:.3e}; balance the loads or hold the body (Clamped, pins)")
+
+
 def solve_static(
     problem: Problem,
     scheme: str = "lattice",
@@ -1407,7 +1530,7 @@ def solve_static(
     mixed: bool = True,
     reuse: float = 0.0,
     t: float = 0.0,
-    pins: dict | None = None,
+    pins: dict | str | None = None,
 ):
     """An equilibrium of ``problem`` by Newton's method on the group.
 
@@ -1467,6 +1590,10 @@ def solve_static(
         multipliers, as in :func:`cartan.continuation.continuation` (the node names:
         :func:`pin_node`); a load step has converged when the pins hold to ``tol·max(1, L)``
         too.  Their multipliers, the reactions, are returned as ``reaction`` along ``pin``.
+        ``"rigid"``: the rigid-body gauge of a free body (no clamped boundary, e.g. a closed
+        filament on a periodic grid): every component of node 0 held
+        (:func:`rigid_gauge_pins`); the solve raises a ``ValueError`` when the loads are
+        unbalanced (node 0's reaction not zero, :func:`check_rigid_gauge`).
 
     Returns
     -------
@@ -1514,9 +1641,11 @@ def solve_static(
     start = time.perf_counter()
     init = _initial_phi(problem, initial)
     if init is not problem.initial:
-        problem = Problem(problem.medium, problem.grid, InitialState(Phi=init.Phi, holonomy=problem.initial.holonomy),
+        problem = Problem(problem.medium, problem.grid, InitialState(Phi=init.Phi, holonomy=problem.initial.holonomy,
+                                                                     glue=problem.initial.glue),
                           problem.boundaries, problem.loads, problem.name, reference=problem.reference)
     nsteps = int(load_steps)
+    pins_option, pins = pins, rigid_gauge_pins(problem, pins)
     eq = _Equilibrium(problem, jacobian=jacobian, fd_step=fd_step, t=t, probe_lam=1.0 / nsteps, pins=pins)
     sch, g, nunk = eq.sch, eq.g, eq.nunk
     mu0 = np.zeros(eq.nmult)  # the pins' multipliers, then the strain constraints'
@@ -1589,7 +1718,7 @@ def solve_static(
             continue
         if out.singular_start:
             raise fail(f"{out.reason} at load factor {lam_try:g}; the problem may be ill-posed, e.g. a free body "
-                       "under an unbalanced load or without supports")
+                       "under an unbalanced load or without supports (a free body under balanced loads: pins='rigid')")
         if not adaptive_load:
             raise fail(f"{out.reason} at load factor {lam_try:g}")
         dlam *= 0.5
@@ -1599,6 +1728,8 @@ def solve_static(
                        f"min_load_step = {min_load_step:g}; the problem may be singular or ill-posed, e.g. a free body "
                        "under an unbalanced load, or the load path has a limit point (use cartan.continuation)")
     wall = time.perf_counter() - start
+    if isinstance(pins_option, str):  # the rigid-body gauge: node 0 must carry no load
+        check_rigid_gauge(mu[: eq.npin], eq.parts(state)[1], eq.length, tol)
 
     rec = io.frame_record(sch, _Static(), state)
     records = {k: [v] for k, v in rec.items()}
@@ -1621,7 +1752,7 @@ def solve_static(
             "mixed": bool(mixed),
             "reuse": reuse,
             "t": float(t),
-            **({"pins": pins} if pins else {}),
+            **({"pins": pins_option} if pins_option else {}),
         },
         "counters": {"newton_iterations": len(alphas), "load_steps": len(attempts), "wall_time": wall},
     }

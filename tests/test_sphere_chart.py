@@ -8,7 +8,8 @@ strain- and force-free to round-off; the forces are the exact gradient of the en
 the glued edges; the drift keeps the two stored copies of every glued edge and every plaquette
 (those across a pole too) consistent; the compiled paths decline glued problems; the breathing
 mode conserves energy and does not see where the poles are; its frequency converges to the
-membrane value at order 2 (slow).
+membrane value at order 2, and the rows next to the poles approach the equator's (slow); a
+uniform expansion pulls every row alike but the pole rows (their meridional balance: strict xfail).
 """
 
 from __future__ import annotations
@@ -115,6 +116,38 @@ def test_forces_are_the_gradient_of_the_energy_across_the_poles():
     np.testing.assert_allclose(G[4:, -1], init.glue @ np.linalg.inv(G[:4, -1]) @ init.glue, atol=1e-12)
 
 
+def _expansion_forces(N: int, eps: float = 1e-6) -> np.ndarray:
+    """Row means of the force per node weight ``[N/2, r]`` (body components) under the uniform
+    expansion r → (1 + ε)r of the sphere, over the equator row's radial force."""
+    med, grid, init = _sphere(N)
+    Phi = init.Phi.copy()
+    Phi[..., 1:, 0] *= 1.0 + eps  # the positions (SE(3) as 4×4, translation in column 0)
+    ref = Problem(med, grid, init).reference
+    sch = Lattice(Problem(med, grid, InitialState(Phi=Phi, glue=init.glue), reference=ref), track_frames=True)
+    F = (sch.internal_force(sch.initial_state()) / sch.weights[..., None]).mean(axis=0)
+    return F / F[N // 4, 2]
+
+
+def test_uniform_expansion_pulls_every_row_off_the_poles_alike():
+    for N in (16, 32):
+        F = _expansion_forces(N)
+        # radial (e₃) pull of the rows not next to a pole: the equator's, to round-off of the
+        # eps = 1e-6 difference (the chart's longitude and the staggered rows are exact)
+        np.testing.assert_allclose(F[1:-1, 2], 1.0, atol=1e-6)
+        # the meridional (e₂) force of those rows is O(h) of the radial one (the corner quadrature)
+        assert np.max(np.abs(F[1:-1, 1])) < 0.2 * np.pi / (N // 2)
+        # the pole rows pull harder: ≈ 1 + ¼ (the glued edge's meridional stress, weighed like any edge's)
+        assert 1.2 < F[0, 2] < 1.3 and F[-1, 2] == pytest.approx(F[0, 2], rel=1e-6)
+
+
+@pytest.mark.xfail(strict=True, reason="the pole rows keep a meridional force ∝ 1/h under a uniform expansion "
+                                        "(docs/media/cosserat-surface.md, 'The closed sphere')")
+def test_uniform_expansion_leaves_the_pole_rows_in_meridional_balance():
+    ratios = [abs(_expansion_forces(N)[0, 1]) for N in (16, 32)]
+    # a consistent quadrature: the meridional force over the radial one falls at least as h
+    assert ratios[1] < ratios[0] / 2, ratios
+
+
 def test_compiled_paths_decline_glued_problems():
     med, grid, init = _sphere(8)
     sch = Lattice(Problem(med, grid, init))
@@ -125,18 +158,14 @@ def test_compiled_paths_decline_glued_problems():
 
 
 def test_solvers_without_glued_edges_refuse_the_sphere():
-    """The solvers whose stencils know the grid's own edges only (statics and continuation, the
-    implicit integrators, strain constraints) and collocation refuse a glued chart by name."""
+    """Collocation refuses a glued chart by name (statics and implicit-midpoint on the sphere:
+    test_sphere_statics.py)."""
     from cartan.schemes.collocation import Collocation
 
     med, grid, init = _sphere(8)
     prob = Problem(med, grid, init)
     with pytest.raises(ValueError, match="collocation scheme does not support a glued axis"):
         Collocation(prob)
-    with pytest.raises(ValueError, match="solve_static and continuation do not support a glued axis"):
-        cartan.solve_static(prob)
-    with pytest.raises(ValueError, match="implicit-midpoint does not support a glued axis"):
-        cartan.simulate(prob, integrator="implicit-midpoint", dt=1e-3, t_end=2e-3, progress=False)
 
 
 # ---------------------------------------------------------------------------- breathing
@@ -177,13 +206,15 @@ def test_breathing_frequency_converges_at_order_two():
 
 
 @pytest.mark.slow
-@pytest.mark.xfail(strict=True, reason="the rows next to the poles breathe 2–3 % more than the rest at N = 16 and "
-                                        "32 (docs/media/cosserat-surface.md, 'The closed sphere'): not yet falling")
 def test_breathing_pole_rows_move_like_the_equator():
-    spreads = []
-    for N in (16, 32):
+    spreads, poles = [], []
+    for N in (32, 64):
         _, w = _breathe(N, t_end=1.0)
         rows = w[-1].mean(axis=0)
         spreads.append(float(np.ptp(rows) / np.max(np.abs(rows))))
-    # an order-2 chart: the spread between pole and equator rows falls at least 3× per halving
-    assert spreads[1] < spreads[0] / 3, spreads
+        poles.append(float(rows[0] / rows[N // 4] - 1.0))  # the pole row over the equator row
+    # the pole artefact is O(h²) (4× per halving, measured 3.9× from N = 64 to 128) but still
+    # pre-asymptotic here: measured 3.1× (spread 3.0 % → 0.97 %) and 2.8× (pole row +2.2 % →
+    # +0.79 %); the bound asks for order > 1.3 (2.5×)
+    assert spreads[1] < spreads[0] / 2.5, spreads
+    assert 0.0 < poles[1] < poles[0] / 2.5, poles

@@ -53,7 +53,9 @@ previous step's ξ (scaled by the ratio of the steps), else ΔtN_k.  The Jacobia
 is assembled by coloured central finite differences (:func:`cartan.statics._coloured_jacobian`
 with the colouring and stencil of :func:`cartan.statics._colouring` and
 :func:`cartan.statics._stencil_pairs`: ``2·3^d·r`` residual evaluations on the lattice, whose
-force has a nearest-neighbour stencil; the dense pattern for other schemes, up to
+force has a nearest-neighbour stencil; on a glued chart, the sphere's, the greedy colouring of
+the lattice's own edges and corners, :func:`cartan.statics._lattice_stencil`; the dense
+pattern for other schemes, up to
 :data:`MAX_DENSE_UNKNOWNS` unknowns) and factorised by sparse LU.  The factorisation is kept
 across steps (modified Newton).  An iteration that reduces ``‖R‖_*`` by less than the factor
 ``contraction`` discards it, so the next iteration uses a fresh Jacobian at the current
@@ -156,14 +158,14 @@ class _Plan:
 
     def __init__(self, scheme: Scheme):
         from ..schemes.lattice import Lattice
-        from ..statics import _colouring, _stencil_pairs
+        from ..statics import _colouring, _lattice_stencil, _stencil_pairs
 
         if getattr(scheme, "coupled_lagrangian", False):
             raise ValueError("implicit-midpoint's discrete Lagrangian is K(N) − U(Φ); the medium's Lagrangian couples "
                              "N and X (Medium.coupled_lagrangian): use rkmk4 or lie-euler")
-        if scheme.grid.glued is not None:  # the Jacobian's stencil knows the grid's own edges only
-            raise ValueError("implicit-midpoint does not support a glued axis yet (Grid.glued, the sphere's chart); "
-                             "use lie-verlet or rkmk4")
+        if scheme.grid.glued is not None and not isinstance(scheme, Lattice):
+            raise ValueError("implicit-midpoint supports a glued axis (Grid.glued, the sphere's chart) on the "
+                             "'lattice' scheme only")
         if not scheme.diagonal_metric or np.any(scheme.mass < 0):
             raise ValueError("implicit-midpoint needs a positive diagonal kinetic metric (Medium.kinetic_metric); "
                              "use lie-verlet or rkmk4 for this medium")
@@ -178,7 +180,9 @@ class _Plan:
         self.nunk = int(unknown.sum())
         self.index = -np.ones((nnode, r), dtype=np.int64)
         self.index[self.unknown_flat] = np.arange(self.nunk)
-        if isinstance(scheme, Lattice):
+        if isinstance(scheme, Lattice) and scheme.grid.glued is not None:  # edges across the poles
+            self.colour, self.src, self.dst = _lattice_stencil(scheme)
+        elif isinstance(scheme, Lattice):
             self.colour = _colouring(shape, tuple(scheme.grid.periodic))
             self.src, self.dst = _stencil_pairs(shape, tuple(scheme.grid.periodic),
                                                 box=bool(getattr(scheme, "coupled", False)))
