@@ -17,8 +17,9 @@ BLOCK = re.compile(r"^```python\n(.*?)^```", re.S | re.M)
 
 #: pages whose examples compile several loops of their own (a minute or more on a fresh cache)
 #: pages whose examples compile loops of their own for minutes on a fresh cache (filament.md: the
-#: compiled rattle loop of its dynamics example)
-SLOW_PAGES = {"integrators.md", "plugins.md", "relativistic-rod.md", "verification.md", "filament.md"}
+#: compiled rattle loop of its dynamics example; kirchhoff-love.md: ≈ 1 min of static solves)
+SLOW_PAGES = {"integrators.md", "plugins.md", "relativistic-rod.md", "verification.md", "filament.md",
+              "kirchhoff-love.md"}
 
 
 @pytest.mark.parametrize("path", [pytest.param(p, marks=[pytest.mark.slow] if p.name in SLOW_PAGES else [])

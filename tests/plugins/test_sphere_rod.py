@@ -504,7 +504,7 @@ def test_scene_file_and_a_few_steps():
 def test_plot_sphere_rod(tmp_path):
     from cartan_sphere_rod.plotting import plot_sphere_rod
 
-    ds = cartan.simulate("sphere-rod-relax", t_end=2e-3, save_every=5)
+    ds = cartan.simulate("sphere-rod-relax", t_end=2e-3, save_every=5, compiled=False)  # Python path
     fig = plot_sphere_rod(ds, tmp_path / "rod.png")
     assert (tmp_path / "rod.png").stat().st_size > 10_000
     assert len(fig.axes) == 3
