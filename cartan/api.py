@@ -2,7 +2,7 @@
 
 ``cartan.simulate``, ``cartan.open``, ``cartan.load_scene``, ``cartan.scene``,
 ``cartan.medium`` and the problem-building classes (``Problem``, ``Grid``,
-``InitialState``, ``Free``, ``Clamped``, ``Damping``, ``UniformForce``, ``NodeForce``, ``PotentialLoad``),
+``InitialState``, ``Free``, ``Clamped``, ``Symmetry``, ``Damping``, ``UniformForce``, ``NodeForce``, ``PotentialLoad``),
 with the errors and warnings a run can raise (``InstabilityError``, ``StabilityWarning``,
 ``SceneError``).  Importing this module does not import xarray (that happens on the first
 run or read).
@@ -32,6 +32,7 @@ from .problem import (
     NodeForce,
     PotentialLoad,
     Problem,
+    Symmetry,
     UniformForce,
 )
 from .scene import Scene, SceneError, load_scene, scene
@@ -53,6 +54,7 @@ __all__ = [
     "Scene",
     "SceneError",
     "StabilityWarning",
+    "Symmetry",
     "NodeForce",
     "UniformForce",
     "load_scene",

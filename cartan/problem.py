@@ -40,7 +40,9 @@ __all__ = [
     "NodeForce",
     "PotentialLoad",
     "Problem",
+    "Symmetry",
     "UniformForce",
+    "held_components",
 ]
 
 
@@ -108,6 +110,139 @@ class Clamped(Boundary):
     kind: str = field(default="clamped", init=False)
 
 
+_AXES = {"x": (1.0, 0.0, 0.0), "y": (0.0, 1.0, 0.0), "z": (0.0, 0.0, 1.0)}
+
+
+@dataclass
+class Symmetry(Boundary):
+    """Symmetry (mirror, roller) face of a medium on SE(3): the face is the mirror plane of a
+    symmetric body whose other half is not modelled.
+
+    Under the mirror P = I − 2 n nᵀ of the plane with unit normal n a displacement u (a vector)
+    maps to P u and a micro-rotation φ (a pseudovector) to −P φ.  A mirror-symmetric field takes
+    at a point of the plane the value it maps to, so there
+
+        u·n = 0  and  φ × n = 0  (φ ∥ n):
+
+    the face's nodes slide in the plane and their frames turn about n only, R R̄ᵀ a rotation
+    about n.  The reactions are the normal force and the two in-plane couples; the in-plane
+    tractions and the couple about n vanish (natural conditions, as on a free face).
+
+    Exact, not a penalty (compare :class:`cartan.supports.SymmetrySupport`): with R̄ the face
+    node's initial frame and m = R̄ᵀn its body-frame normal, the body velocities (and static
+    increments) that keep the conditions are ξ = (v, ω) with m·v = 0 and ω ∥ m, a subalgebra
+    ≅ se(2) whose exponential keeps Rᵀn = m and n·x exactly.  When m is a frame axis ±e_k at each
+    face node the scheme holds the components v_k and ω_j (j ≠ k) at zero like a clamp holds all
+    six: zero body velocity, momentum and force there (the reaction), for every integrator of the
+    numpy path, ``solve_static`` and ``continuation``.  The held momentum components are those of
+    the reaction only when the kinetic metric does not couple them with the free ones (a
+    diagonal metric, checked).
+
+    Parameters
+    ----------
+    normal : str or array_like, shape ``(3,)``, optional
+        The plane's spatial normal: ``"x"``, ``"y"``, ``"z"`` or a non-zero vector (normalised).
+        Default: the face's conormal R̄ m at its nodes, m the part of the rest strain's
+        translation along the face's axis orthogonal to those along the other axes (for a block
+        of frames R̄ = I on a box, the face's normal; for a rod, its tangent).
+
+    Notes
+    -----
+    The face's initial nodes must lie in one plane n·x = c, and R̄ᵀn must be a frame axis
+    (to 1e-9) at each of them (ValueError otherwise).  A medium on SE(3) only.
+    """
+
+    normal: Any = None
+    kind: str = field(default="symmetry", init=False)
+
+    def __post_init__(self):
+        if self.normal is None:
+            return
+        if isinstance(self.normal, str):
+            if self.normal not in _AXES:
+                raise ValueError(f"normal must be 'x', 'y', 'z', a non-zero vector (3,) or None, got {self.normal!r}")
+            n = np.array(_AXES[self.normal])
+        else:
+            n = check_finite("normal", _numeric("normal", self.normal), (3,))
+            if not np.linalg.norm(n) > 0.0:
+                raise ValueError(f"normal must be 'x', 'y', 'z', a non-zero vector (3,) or None, got {self.normal!r}")
+        self.normal = n / np.linalg.norm(n)
+
+    def to_dict(self) -> dict[str, Any]:
+        return {"kind": "symmetry", "normal": None if self.normal is None else np.asarray(self.normal).tolist()}
+
+
+def held_components(problem: Problem) -> np.ndarray | None:
+    """The body-velocity components held at zero by the problem's :class:`Symmetry` faces,
+    ``(*grid.shape, r)`` bool (clamped ends not included), or None without symmetry faces.
+
+    At a node of a symmetry face with body-frame normal m = R̄ᵀn = ±e_k (R̄ its initial frame):
+    the translation component k and the rotation components j ≠ k (:class:`Symmetry`).  A node
+    on several faces holds the union (on the edge of two planes it moves along the edge only).
+    """
+    grid = problem.grid
+    faces = [(axis, side, problem.boundary(axis, side)) for axis in range(grid.d)
+             if not (grid.periodic[axis] or grid.is_glued(axis)) for side in ("start", "end")]
+    faces = [(axis, side, b) for axis, side, b in faces if isinstance(b, Symmetry)]
+    if not faces:
+        return None
+    g = problem.medium.group
+    if g.dim != 6 or g.matrix_size != 4 or not getattr(g, "affine", False):
+        raise ValueError(f"boundaries: a Symmetry face needs a medium on SE(3) (positions and rotations); medium "
+                         f"{problem.medium.name!r} is on {g.name}")
+    metric = np.asarray(problem.medium.kinetic_metric(), dtype=float)
+    Phi = np.asarray(problem.initial.Phi, dtype=float)
+    held = np.zeros((*grid.shape, 6), dtype=bool)
+    X0 = np.asarray(problem.medium.rest_strain(), dtype=float).reshape(grid.d, -1)[:, :3]
+    for axis, side, b in faces:
+        name = f"{grid.axis_names[axis]}-{side}"
+        sl = [slice(None)] * grid.d
+        sl[axis] = 0 if side == "start" else -1
+        F = Phi[tuple(sl)].reshape(-1, 4, 4)
+        x, R = F[:, 1:, 0], F[:, 1:, 1:]
+        if b.normal is None:
+            t = X0[axis]
+            others = np.delete(X0, axis, axis=0)
+            if others.size:
+                q, _ = np.linalg.qr(others.T)
+                t = t - q @ (q.T @ t)
+            if not np.linalg.norm(t) > 1e-12:
+                raise ValueError(f"boundaries[{name!r}]: the rest strain gives the face no conormal; "
+                                 "give Symmetry(normal=...)")
+            nn = np.einsum("nij,j->ni", R, t / np.linalg.norm(t))
+            n = nn[0]
+            if float(np.max(np.abs(nn - n))) > 1e-9:
+                raise ValueError(f"boundaries[{name!r}]: the face's conormals R̄m differ between its nodes (by "
+                                 f"{float(np.max(np.abs(nn - n))):.2e}); a Symmetry face is a plane: give normal=")
+        else:
+            n = np.asarray(b.normal, dtype=float)
+        c = x @ n
+        scale = max(1.0, float(np.max(np.abs(x))))
+        if float(np.ptp(c)) > 1e-9 * scale:
+            raise ValueError(f"boundaries[{name!r}]: the face's nodes are not in one plane ⊥ n = {n.round(6).tolist()} "
+                             f"(n·x spans {float(np.ptp(c)):.2e}); a Symmetry face is a mirror plane")
+        m = np.einsum("nji,j->ni", R, n)  # R̄ᵀ n per node
+        k = np.argmax(np.abs(m), axis=1)
+        off = float(np.max(1.0 - np.abs(m[np.arange(len(k)), k])))
+        if off > 1e-9:
+            raise ValueError(f"boundaries[{name!r}]: the plane's normal n = {n.round(6).tolist()} is not a frame axis "
+                             f"at every face node (R̄ᵀn off a frame axis by {off:.2e}); a Symmetry face holds body "
+                             "components and needs R̄ᵀn = ±e_k")
+        comp = np.zeros((len(k), 6), dtype=bool)
+        comp[np.arange(len(k)), k] = True       # v·m = 0
+        comp[:, 3:] = True
+        comp[np.arange(len(k)), 3 + k] = False  # ω ∥ m
+        view = held[tuple(sl)].reshape(-1, 6)
+        held[tuple(sl)] = (view | comp).reshape(held[tuple(sl)].shape)
+        if metric.shape == (6, 6):
+            for kk in np.unique(k):
+                h = comp[k == kk][0]
+                if np.any(metric[np.ix_(h, ~h)]):
+                    raise ValueError(f"boundaries[{name!r}]: the kinetic metric of {problem.medium.name!r} couples "
+                                     "the held components of a Symmetry face with its free ones; not supported")
+    return held
+
+
 # ---------------------------------------------------------------------------- loads
 class Load(abc.ABC):
     """An external or dissipative generalised force density.
@@ -138,6 +273,12 @@ class Load(abc.ABC):
 
     def bind(self, medium: Medium) -> None:  # noqa: B027 - optional hook
         """Called once with the medium before a run (validate shapes against its group)."""
+
+    def measure(self, volumes: np.ndarray) -> None:  # noqa: B027 - optional hook
+        """Called by a scheme on a general chart with its nodes' reference volumes per unit
+        chart volume, ``volumes`` ``(*grid.shape)`` (``w_i J_i``: the weights it multiplies every
+        load density by; :meth:`cartan.medium.Medium.reference_volume`).  A load that is not a
+        density (a point force) takes its node's volume here.  Default: nothing."""
 
     def attach(self, problem: Problem) -> None:  # noqa: B027 - optional hook
         """Called by every :class:`Problem` holding the load, once it is built (after :meth:`bind`).
@@ -306,7 +447,11 @@ class NodeForce(Load):
     :class:`~cartan.problem.Load`) is P/w at the node, w its quadrature weight
     (:meth:`~cartan.grid.Grid.node_weights`, trapezoidal: the lattice's and fd2 collocation's
     weights; fd4 collocation's SBP norm weighs the rows next to an open end differently), and 0
-    elsewhere.  As :class:`~cartan.problem.UniformForce`, P is either fixed in the spatial frame
+    elsewhere.  On a general chart, whose scheme weighs a node by its reference volume w·J
+    (:meth:`~cartan.medium.Medium.reference_volume`), the scheme hands the load these volumes
+    (:meth:`measure`) and the density is P/(wJ): the node receives P on every chart (the volumes
+    of the scheme built last for the problem).  As :class:`~cartan.problem.UniformForce`, P is
+    either fixed in the spatial frame
     (``frame="spatial"``, the default: a dead load, body components Ad_Rᵀ P with R the rotational
     part of Φ at the node, as a free end's dead load) or in the body frame (``frame="body"``, a
     follower load).  Not conservative in general: its power goes to ``external_work``.
@@ -335,7 +480,7 @@ class NodeForce(Load):
     force_components : ndarray, shape ``(r,)``
         P.
     weight : float
-        w, the node's quadrature weight.
+        w, the node's quadrature weight (w·J on a general chart, :meth:`measure`).
     """
 
     def __init__(self, grid: Grid, force: Any, *, node: Any = None, at: Any = None, frame: str = "spatial"):
@@ -367,8 +512,17 @@ class NodeForce(Load):
             raise ValueError(f"force must have {r} components (the dimension of {medium.group.name}, medium "
                              f"{medium.name!r}), got {self.force_components.shape[0]}")
 
+    def measure(self, volumes: np.ndarray) -> None:
+        """Take the node's reference volume w·J from a scheme's ``volumes`` ``(*shape)`` (a
+        general chart), so that the node receives P."""
+        volumes = np.asarray(volumes, dtype=float)
+        if volumes.shape != tuple(self.shape):
+            raise ValueError(f"volumes must have the grid's shape {tuple(self.shape)}, got {volumes.shape}")
+        self.weight = float(volumes[self.node])
+
     def force(self, Phi: np.ndarray | None, N: np.ndarray, t: float) -> np.ndarray:
-        """``[*shape, r]``: P/w (body components) at the node, 0 elsewhere."""
+        """``[*shape, r]``: P/w (body components) at the node, 0 elsewhere (w the node's
+        reference volume per unit chart volume, :meth:`measure`)."""
         out = np.zeros((*self.shape, self.force_components.shape[0]))
         P = self.force_components
         if self.frame == "spatial":
@@ -594,7 +748,7 @@ class Problem:
             if key not in valid:
                 raise ValueError(f"boundaries: unknown end {key!r}; this grid has ends {sorted(valid) or 'none'}")
             if not isinstance(b, Boundary):
-                raise ValueError(f"boundaries[{key!r}] must be Free(...) or Clamped(), got {b!r}")
+                raise ValueError(f"boundaries[{key!r}] must be Free(...), Clamped() or Symmetry(...), got {b!r}")
             if isinstance(b, Free) and b.load is not None:
                 b.load = check_finite(f"boundaries[{key!r}].load", b.load, (g.dim,))
         ends = {}

@@ -116,7 +116,7 @@ from .limits import (  # noqa: F401 - re-exported: the limits' home is cartan.li
     step_limit,
 )
 from .plugins import get_registry
-from .problem import Clamped, Damping, Free, NodeForce, Problem, UniformForce
+from .problem import Clamped, Damping, Free, NodeForce, Problem, Symmetry, UniformForce
 
 __all__ = [
     "MAX_ITERATIONS",
@@ -658,8 +658,14 @@ def _boundaries(reader: _Reader, data: Mapping) -> dict:
             if not isinstance(follower, bool):
                 raise reader.fail(f"{key}.follower", f"must be true or false, got {follower!r}")
             out[end] = Free(load=spec.get("load"), follower=follower)
+        elif kind == "symmetry":
+            reader.no_extra(spec, {"kind", "normal"}, key)
+            try:
+                out[end] = Symmetry(normal=spec.get("normal"))
+            except ValueError as exc:
+                raise reader.fail(f"{key}.normal", str(exc)) from None
         else:
-            raise reader.fail(f"{key}.kind", f"unknown boundary kind {kind!r}; choose 'clamped' or 'free'")
+            raise reader.fail(f"{key}.kind", f"unknown boundary kind {kind!r}; choose 'clamped', 'free' or 'symmetry'")
     return out
 
 

@@ -30,8 +30,10 @@ Move
     pieces, fracs, dt, Dn, K)`` takes ``lie-verlet``'s free flow as the reference does: each
     piece's momentum update and exact drift in turn.
 Energies
-    ``op_potential``: ``Σ_i w_i U(X_i; X0_i) − Σ_i w_i ρf·x_i``; ``op_kinetic``:
-    ``½Σ_i w_i S_i·M⁺S_i`` over the unclamped nodes (``Scheme.kinetic_energy``).
+    ``op_potential``: ``Σ_i w_i U(X_i; X0_i) − Σ_i w_i J_i ρf·x_i``; ``op_kinetic``:
+    ``½Σ_i w_i J_i S_i·M⁺S_i`` over the unclamped nodes (``Scheme.kinetic_energy``); J_i = 1
+    but on a general chart (the medium's reference volume, ``Collocation.weights``), where the
+    internal force is divided by J_i too.
 """
 
 from __future__ import annotations
@@ -75,7 +77,10 @@ class CollocationData(NamedTuple):
     X0n: np.ndarray  # [n, d, r] rest strain at each node, or [1, d, r] the medium's
     x0step: int  # 1 when X0n varies over the nodes, else 0
     params: np.ndarray  # medium kernel parameters
-    w: np.ndarray  # [n] quadrature weights (SBP norm on open axes)
+    w: np.ndarray  # [n] the nodes' reference volumes w·J (mass, loads; w on the chart's own measure)
+    wc: np.ndarray  # [n] quadrature weights w of the energy (SBP norm on open axes)
+    inv_volume: np.ndarray  # [n] 1/J on a general chart (the internal force per reference volume), else [1]
+    charted: bool  # a general chart: J ≠ 1 somewhere
     inv_metric: np.ndarray  # [r, r] M⁺ on the live block, 0 on gauge ones
     live: np.ndarray  # [r] bool
     clamped: np.ndarray  # [n] bool
@@ -182,6 +187,9 @@ def op_force(D, C, t, N, W, K):
     nf = D.field.shape[0]
     for i in range(n):
         zero = D.any_clamped and D.clamped[i]
+        if D.charted:  # per unit reference volume on a general chart
+            for k in range(R_):  # noqa: F821
+                W[i, k] *= D.inv_volume[i]
         for k in range(R_):  # noqa: F821
             W[i, k] += -N[i, k] * D.damp[k] + D.ubody[k]
         if D.has_field:
@@ -292,7 +300,7 @@ def op_potential(D, C, K):
     X, Phi = C
     V = 0.0
     for i in range(X.shape[0]):
-        V += D.w[i] * m_energy(X[i], D.X0n[i * D.x0step], D.params)  # noqa: F821
+        V += D.wc[i] * m_energy(X[i], D.X0n[i * D.x0step], D.params)  # noqa: F821
     if D.has_field:
         for i in range(X.shape[0]):
             s = 0.0
@@ -434,7 +442,10 @@ def collocation_operators(scheme, reference: type):
         naxis=np.array(shape, dtype=np.int64), indptr=indptr,
         col=np.array([c for c, _ in entries], dtype=np.int64), coef=np.array([v for _, v in entries], dtype=float),
         X0n=X0n, x0step=int(X0n.shape[0] > 1), params=np.ascontiguousarray(kernels.params, dtype=float).ravel(),
-        w=weights, inv_metric=np.ascontiguousarray(scheme.inverse_metric, dtype=float),
+        w=weights, wc=np.ascontiguousarray(scheme.chart_weights, dtype=float).reshape(n),
+        inv_volume=(np.ones(1) if scheme._inv_volume is None
+                    else np.ascontiguousarray(scheme._inv_volume, dtype=float).reshape(n)),
+        charted=scheme._inv_volume is not None, inv_metric=np.ascontiguousarray(scheme.inverse_metric, dtype=float),
         live=np.ascontiguousarray(scheme.live, dtype=np.bool_), clamped=clamped, any_clamped=bool(clamped.any()),
         damp=damp, ubody=ubody, field=np.ascontiguousarray(field, dtype=float), has_field=bool(field.size),
         end_idx=np.array([e[0] for e in ends], dtype=np.int64), end_axis=np.array([e[1] for e in ends], dtype=np.int64),

@@ -33,6 +33,15 @@ Open axes and boundary conditions (paper §IV.D, n_α Q^α = P on ∂M)
     stable for fd2 but not for fd4: the semi-discrete wave operator then has eigenvalues
     with Re λ ≈ 0.05 c/h.)  At a clamped end N = 0 and W = 0.  Solutions converge with
     order 2 (fd2) and about 3 (fd4, boundary rows of order 2) on open axes.
+Charts
+    The grid is a chart of the body; the energy is summed with the quadrature weights
+    (:attr:`~Collocation.chart_weights`).  When the medium measures the reference volume of a
+    general chart (:meth:`~cartan.medium.Medium.reference_volume` J_i at the nodal rest strains
+    of the ``reference``), a node's mass, body loads and kinetic energy are those of its
+    reference volume, ``weights = w_i J_i``, as on the lattice, and the internal force (a
+    density per unit chart volume, ∂_αQ^α − ad*…) is divided by J_i, so that the semi-discrete
+    energy balance Σ w_i J_i S·Ṅ = −Σ w_i U̇ still holds.  A free face's load P enters its
+    penalty per unit chart area (the lattice integrates it with the face's reference area).
 Frames
     Stepped at every node when a force needs them (``problem.needs_structure_field``) or
     when ``track_frames=True``.  Otherwise only the root node's frame is stepped and the
@@ -305,6 +314,9 @@ class Collocation(Scheme):
         # Free, face weight) for every free end; the face weight integrates a traction over
         # the other axes (1 for d = 1).
         self._free_ends: list[tuple[int, tuple, float, float, Free, np.ndarray]] = []
+        if any(type(b) not in (Free, Clamped) for b in problem.boundaries.values()):
+            raise ValueError("the collocation scheme takes Free and Clamped boundaries; a Symmetry face runs on "
+                             "scheme='lattice'")
         for axis in range(d):
             if grid.periodic[axis]:
                 continue
@@ -325,6 +337,36 @@ class Collocation(Scheme):
             if problem.reference.holonomy is not None:
                 raise ValueError("the collocation scheme takes a reference configuration without a holonomy")
             self.rest = self.strain_from_frames(problem.reference.Phi)
+        self._chart_measures()
+
+    def _chart_measures(self) -> None:
+        """Reference volumes of a general chart (module docstring, "Charts"): when the medium
+        measures them (:meth:`~cartan.medium.Medium.reference_volume` J at the nodal rest
+        strains :attr:`rest`), :attr:`weights` become ``w_i J_i`` (mass, body loads, kinetic
+        energy) and the internal force, a density per unit chart volume, is divided by J;
+        :attr:`chart_weights` (the quadrature weights w) keep weighing the energy."""
+        from ..medium import Medium
+
+        #: the energy's quadrature weights (per unit chart volume); :attr:`weights` are the nodes'
+        #: reference volumes, equal to them unless the medium measures a general chart
+        self.chart_weights = self.weights
+        #: 1/J per node on a general chart, else None
+        self._inv_volume: np.ndarray | None = None
+        if self.rest is None or type(self.medium).reference_volume is Medium.reference_volume:
+            return
+        J = self.medium.reference_volume(self.rest)
+        if J is None:
+            return
+        J = np.asarray(J, dtype=float)
+        if J.shape != tuple(self.grid.shape) or not np.all(np.isfinite(J) & (J > 0)):
+            raise ValueError(f"medium {self.medium.name!r}: reference_volume must be finite and > 0 at every node, "
+                             f"shape {tuple(self.grid.shape)}")
+        if np.all(J == 1.0):  # the chart's own measure keeps the weights to the bit
+            return
+        self.weights = self.chart_weights * J
+        self._inv_volume = 1.0 / J
+        for load in self.problem.loads:
+            load.measure(self.weights)
 
     def options(self) -> dict[str, Any]:
         return {"derivative": self.derivative, "track_frames": self.track}
@@ -459,6 +501,8 @@ class Collocation(Scheme):
             W -= np.einsum("...ji,...j->...i", g.ad(X[..., axis, :]), Qa)
         for axis, idx, sign, H_end, b, _ in self._free_ends:
             W[idx] += (self._end_load(Phi, b, idx) - sign * Q[idx][..., axis, :]) / H_end
+        if self._inv_volume is not None:  # per unit reference volume on a general chart
+            W *= self._inv_volume[..., None]
         return W
 
     def force(self, state: State, N: np.ndarray, t: float) -> np.ndarray:
@@ -536,10 +580,11 @@ class Collocation(Scheme):
 
     def potential_energy(self, state: State) -> float:
         """``Σ_i w_i U(X_i)`` plus conservative-load energies; w the scheme's quadrature
-        weights (:attr:`weights`: trapezoidal, except the SBP norm on open fd4 axes)."""
+        weights (:attr:`chart_weights`: trapezoidal, except the SBP norm on open fd4 axes), the
+        loads' energies (per unit reference volume) weighed by :attr:`weights`."""
         X = state.arrays["X"]
         U = self.medium.potential(X) if self.rest is None else self.medium.potential_at(X, self.rest)
-        V = float(np.sum(self.weights * U))
+        V = float(np.sum(self.chart_weights * U))
         conservative = [load for load in self.problem.loads if load.conservative]
         if conservative:
             Phi = self.frames(state)

@@ -75,7 +75,7 @@ from typing import Any
 
 import numpy as np
 
-from ..problem import Free, axis_glues, axis_holonomies, dead_to_body
+from ..problem import Free, axis_glues, axis_holonomies, dead_to_body, held_components
 from .base import Scheme, State, prefix_products
 
 __all__ = ["Lattice"]
@@ -92,6 +92,8 @@ class Lattice(Scheme):
 
     def __init__(self, problem, track_frames: bool | None = None):
         super().__init__(problem)
+        if self._clamped.ndim > self.grid.d and self.coupled_lagrangian:
+            raise ValueError("a Symmetry face is not supported with a coupled Lagrangian (Medium.coupled_lagrangian)")
         self.track = problem.needs_structure_field if track_frames is None else bool(track_frames)
         d = self.grid.d
         #: True when the potential is evaluated at the corners (d ≥ 2, axes coupled)
@@ -136,6 +138,8 @@ class Lattice(Scheme):
                              f"shape {tuple(self.grid.shape)}")
         if not np.all(J == 1.0):  # the chart's own measure (an orthonormal chart) keeps the weights to the bit
             self.weights = self.chart_weights * J
+            for load in self.problem.loads:  # point loads take their node's volume (Load.measure)
+                load.measure(self.weights)
         for k, (idx, _) in enumerate(self._end_loads):
             A = self.medium.reference_area(X0[idx], self._end_axis(idx))
             factor = (np.ones(J[idx].shape) if A is None else np.asarray(A, dtype=float)) / J[idx]
@@ -191,6 +195,12 @@ class Lattice(Scheme):
 
                 ops = self._operators = OperatorSet.declined(
                     "a glued axis (a chart closed over poles) runs on the numpy path")
+                return ops
+            if self._clamped.ndim > self.grid.d:
+                from ..compiled.operators import OperatorSet
+
+                ops = self._operators = OperatorSet.declined(
+                    "symmetry faces (cartan.Symmetry: held body components) run on the numpy path")
                 return ops
             if any(f is not None for f in self._end_factors):
                 from ..compiled.operators import OperatorSet
@@ -486,6 +496,19 @@ class Lattice(Scheme):
             inc = np.einsum("...ji,...j->...i", g.dexp_inv(-xi), Q)
             self._scatter(F, out, -inc, axis)
         return F
+
+    def _clamp_mask(self) -> np.ndarray:
+        """The clamped nodes ``(*shape)``, or with :class:`~cartan.problem.Symmetry` faces the
+        held body components ``(*shape, r)`` (:func:`~cartan.problem.held_components`, all six
+        at clamped nodes): either indexes the ``(*shape, r)`` velocities, momenta and forces
+        that are zeroed there.  The compiled loops and operators take clamps only and decline
+        symmetry faces (their boundary check), so this mask reaches the numpy path only."""
+        mask = super()._clamp_mask()
+        held = held_components(self.problem)
+        if held is None:
+            return mask
+        held[mask] = True
+        return held
 
     def force(self, state: State, N: np.ndarray, t: float) -> np.ndarray:
         W = self.internal_force(state) / self.weights[..., None]
