@@ -64,7 +64,7 @@ from cartan.problem import ConstantFieldPotential, InitialState, Load, Potential
 from cartan.supports import PenaltySupport, SymmetrySupport  # the core's face supports, d = 2 by default
 
 __all__ = ["CosseratSurface", "NodeSprings", "PenaltySupport", "Pressure", "SurfaceGravity", "SymmetrySupport",
-           "shell_point",
+           "VolumePressure", "shell_point",
            "surface_energy", "surface_stress"]
 
 
@@ -280,8 +280,17 @@ class Pressure(Load):
         f = p (∂_u r × ∂_v r),
 
     |∂_u r × ∂_v r| being the deformed area per unit chart area (an external force density of the
-    balance of linear momentum, paper §IV.B, §VI.B); its body components (the
-    generalised force density T = (Rᵀf, 0), no moment) are what :meth:`force` returns.  The
+    balance of linear momentum, paper §IV.B, §VI.B).  Like every load (:class:`cartan.problem.Load`:
+    a density per unit *reference* area, which the lattice integrates with its node weights
+    w_i J_i, J_i = √a⁰ the reference area per unit chart area, :meth:`CosseratSurface.reference_volume`;
+    gravity, ``director-pressure`` and the face loads are weighed so too), :meth:`force` returns
+    it per unit reference area, f/J_i, in body components (the generalised force density
+    T = (Rᵀf/J_i, 0), no moment): a node then receives w_i J_i · f_i/J_i = w_i f_i, p
+    times its deformed area (the chart quadrature of ∮ p n dA) on every chart.  J_i is the one
+    the problem's scheme weighs with (:meth:`measure`: its node weights over the grid's); it is 1 on
+    plates and on cylinders by arclength, R² sin θ on the sphere by longitude and colatitude, and
+    the reference's area element on any ``Problem(reference=...)``.  Without a problem (a
+    standalone load built from a grid) J = 1.  The
     tangents are second-order differences of the *current* node positions on the grid
     (:func:`_axis_derivative`: central inside and across periodic seams, one-sided at open
     edges), so the force at a node depends on the positions of its neighbours along each axis.
@@ -296,6 +305,8 @@ class Pressure(Load):
     −(p/4 h_u h_v)[r_{k+v} − r_{k−v}]× while ∂f_{k+u}/∂r_k = (p/4 h_u h_v)[r_{k+u+v} − r_{k+u−v}]×),
     so a potential −pV would close the energy balance only to O(dx²).  The load is therefore a
     plain :class:`~cartan.problem.Load`: its power Σ w_i f_i·V_i goes to ``external_work``.
+    :class:`VolumePressure` is the conservative alternative on a closed surface: the exact gradient
+    of the lattice's enclosed volume, with the potential −pV_h.
 
     Statics: the force at a node depends on its neighbours (``local = False``), so
     ``solve_static`` differences it on the lattice's coloured stencil, the frames displaced
@@ -326,6 +337,8 @@ class Pressure(Load):
         self.pressure = float(check_finite("pressure", pressure, ()))
         self.grid: Grid | None = None
         self.holonomy: dict[int, np.ndarray] = {}
+        #: J_i, the reference area per unit chart area ``[*shape]`` (None: 1 at every node), from :meth:`measure`
+        self.chart_measure: np.ndarray | None = None
         self._from_problem = grid is None and holonomy is None
         if grid is None:
             if holonomy is not None:
@@ -361,12 +374,25 @@ class Pressure(Load):
 
     def attach(self, problem: Any) -> None:
         """Take the grid and the initial state's holonomy from ``problem`` when none was given
-        (:meth:`cartan.problem.Load.attach`); a given grid must be the problem's node shape."""
+        (:meth:`cartan.problem.Load.attach`); a given grid must be the problem's node shape.  The
+        chart measure J_i is reset to 1, to be reported by the problem's scheme (:meth:`measure`)."""
         if self._from_problem:
             self._set_grid(problem.grid, axis_holonomies(problem.initial, problem.grid.d))
         elif tuple(self.grid.shape) != tuple(problem.grid.shape):
             raise ValueError(f"pressure: grid has shape {tuple(self.grid.shape)} but the problem's grid has "
                              f"{tuple(problem.grid.shape)}")
+        self.chart_measure = None   # 1 until the problem's scheme reports its node volumes (:meth:`measure`)
+
+    def measure(self, volumes: np.ndarray) -> None:
+        """J_i = ``volumes``/w_i ``[*shape]``: the node volumes w_i J_i a scheme on a general chart
+        weighs the loads with (:meth:`cartan.problem.Load.measure`) over the grid's weights w_i."""
+        if self.grid is None:
+            raise ValueError("Pressure has no grid: give grid=..., or give the load to a Problem")
+        volumes = np.asarray(volumes, dtype=float)
+        if volumes.shape != tuple(self.grid.shape):
+            raise ValueError(f"volumes must have the grid's shape {tuple(self.grid.shape)}, got {volumes.shape}")
+        J = volumes / self.grid.node_weights()
+        self.chart_measure = None if np.all(J == 1.0) else J
 
     def tangents(self, Phi: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """(∂_u r, ∂_v r) ``[*shape, 3]`` each, from the node positions of Φ ``[*shape, 4, 4]``."""
@@ -386,8 +412,11 @@ class Pressure(Load):
         return self.pressure * np.cross(ru, rv)
 
     def force(self, Phi, N, t):
-        """T = (Rᵀf, 0) ``[*shape, 6]``: the pressure's force in body components, no moment."""
+        """T = (Rᵀf/J, 0) ``[*shape, 6]``: the pressure's force per unit reference area in body
+        components, no moment (J the chart measure, class docstring)."""
         f = self.spatial_force(Phi)
+        if self.chart_measure is not None:
+            f = f / self.chart_measure[..., None]
         out = np.zeros((*f.shape[:-1], 6))
         out[..., :3] = np.einsum("...ji,...j->...i", np.asarray(Phi)[..., 1:, 1:], f)
         return out
@@ -395,6 +424,171 @@ class Pressure(Load):
     def to_dict(self) -> dict[str, Any]:
         return {"kind": "pressure", "pressure": self.pressure,
                 "holonomy": {int(a): H.tolist() for a, H in self.holonomy.items()}}
+
+
+class VolumePressure(Load):
+    """A pressure p that is exactly the multiplier of the lattice's enclosed volume V_h: the
+    nodal forces are p ∂V_h/∂η_i and the potential energy is −pV_h, a conservative follower load
+    (paper §IV.B: a configurational potential; §VI.B, §VII.B the closed surface).
+
+    The discrete volume is the corner quadrature of V = ⅓∮ r·n dA with the lattice's corners
+    (:meth:`cartan.schemes.lattice.Lattice.corners`: node i, one incident edge per axis, weight
+    w_c = w_i/#corners_i, the grid's chart weights):
+
+        V_h = ⅓ Σ_c w_c ρ_i·(θ_u,c × θ_v,c),      ρ_i = R_iᵀ(r_i − r̄),
+
+    θ_α,c the translational part of the corner's edge strain X_α = log(Φ_i⁻¹Φ_j)/h_α (R_iθ_α the
+    edge's chord direction, the lattice's tangent), so R_i(θ_u × θ_v) is the area vector per unit
+    chart area and V_h is signed by the chart's orientation (positive when ∂_u r × ∂_v r points
+    out), r̄ the mean of the node positions.  Measured from r̄, V_h is invariant under every rigid
+    motion (the discrete area vectors Σ_c w_c R_i(θ_u × θ_v) need not sum to zero, so measured
+    from the origin it would not be under translations): the load has no net force nor moment
+    and a free surface under it keeps its momenta.  On a surface adapted to its normal
+    (θ_α,3 = 0, the ``kirchhoff-love`` family) it is ⅓ Σ_c w_c ((r_i − r̄)·e₃,i) det T_c, the
+    volume of ``cartan_kirchhoff_love.vesicle.surface_measures``.
+
+    Its gradient along a node's motion Φ_i ← Φ_i exp(η_i), η = (v, ω) (translation first) is
+    exact: the node's own term gives δρ_i = v + ρ_i × ω, and r̄ moves by R_j v_j/n, so with
+    c_i = ⅓ Σ_{c at i} w_c θ_u × θ_v and a = Σ_i R_i c_i
+
+        ∂V_h/∂v_i = c_i − R_iᵀa/n,        ∂V_h/∂ω_i = c_i × ρ_i;
+
+    the corner strains give the "stress" S_c = (⅓w_c θ_v × ρ_i, ⅓w_c ρ_i × θ_u) on (θ_u, θ_v),
+    taken from the edges to their end nodes as the lattice takes its internal stress
+    (δ(hX_e) = dexp⁻¹(−hX_e)η_j − dexp⁻¹(hX_e)η_i, ghost ends through Ad_{Γ⁻¹}ᵀ on a glued axis).
+    :meth:`force` is the density p ∂V_h/∂η_i/(w_i J_i) per unit reference volume, w_i J_i the
+    node weights the problem's scheme integrates it with (:meth:`measure`), so that the nodal
+    force is p ∂V_h/∂η_i exactly, and :meth:`energy` is −p v_i/(w_i J_i), v_i node i's share of
+    V_h: Σ_i w_i J_i e_i = −pV_h and the energy balance closes to the integrator's accuracy.
+
+    Compared with :class:`Pressure` (p per unit deformed area from central-difference tangents,
+    equal to it to O(h²) on a smooth surface): a potential load, and the multiplier of V_h in a
+    constrained minimisation (``cartan_kirchhoff_love.vesicle.helfrich_flow``).  The force at a
+    node reads its neighbours along both axes and across the corners (``local = False``: the
+    statics difference it on the lattice's coloured stencil, which has the corners' reach; the
+    mean position couples every node to every other through a, which is O(h²) and zero on
+    symmetric shapes, and which the stencil leaves out: Newton is then fast-linear, 6 iterations
+    on the scene ``sphere-volume-pressure`` against 4 with :class:`Pressure`).
+    Sign convention as :class:`Pressure`: positive p pushes along +∂_u r × ∂_v r.
+
+    Parameters
+    ----------
+    pressure : float
+        p (finite; force per unit deformed area, the multiplier of V_h).
+
+    Notes
+    -----
+    The lattice's charts only (the edges and corners are the lattice's); the grid, holonomies and
+    glue are those of the :class:`~cartan.problem.Problem` the load is given to (:meth:`attach`).
+    """
+
+    needs_structure_field = True
+    conservative = True
+    local = False
+
+    def __init__(self, pressure: float):
+        self.pressure = float(check_finite("pressure", pressure, ()))
+        self._lattice: Any = None
+        self._holonomies: dict[int, np.ndarray] = {}
+        self.volumes: np.ndarray | None = None
+
+    def bind(self, medium: Any) -> None:
+        Pressure.bind(self, medium)  # type: ignore[arg-type]
+
+    def attach(self, problem: Any) -> None:
+        """Take the grid, the holonomies and the glue of ``problem``'s initial state (a lattice
+        of the problem's chart, without its loads); the node weights are the grid's until the
+        problem's scheme reports its own (:meth:`measure`)."""
+        from cartan.problem import Problem
+        from cartan.schemes.lattice import Lattice
+
+        if problem.grid.d != 2:
+            raise ValueError(f"grid must be a d = 2 Grid, got d = {problem.grid.d}")
+        self._lattice = Lattice(Problem(problem.medium, problem.grid, problem.initial))
+        self._holonomies = axis_holonomies(problem.initial, problem.grid.d)
+        self.volumes = np.asarray(problem.grid.node_weights(), dtype=float)
+
+    def measure(self, volumes: np.ndarray) -> None:
+        """w_i J_i ``[*shape]``: the node weights of the problem's scheme on a general chart
+        (:meth:`cartan.problem.Load.measure`)."""
+        volumes = np.asarray(volumes, dtype=float)
+        if self._lattice is not None and volumes.shape != tuple(self._lattice.grid.shape):
+            raise ValueError(f"volumes must have the grid's shape {tuple(self._lattice.grid.shape)}, "
+                             f"got {volumes.shape}")
+        self.volumes = volumes
+
+    def _edge_logs(self, Phi: np.ndarray) -> list[np.ndarray]:
+        """Per axis the flat edge logarithms hX_e = log(Φ_i⁻¹Φ_j) ``[E_α, 6]`` of Φ, as the
+        lattice builds its edges (holonomies on periodic axes, ghosts on glued ones)."""
+        L = self._lattice
+        if L is None:
+            raise ValueError("VolumePressure has no problem: give the load to a Problem (which attaches its chart)")
+        g = L.group
+        Phi = np.asarray(Phi, dtype=float)
+        if Phi.shape != (*L.grid.shape, 4, 4):
+            raise ValueError(f"Phi must have shape {(*L.grid.shape, 4, 4)} (the problem's grid), got {Phi.shape}")
+        out = []
+        Phi_inv = g.inverse(Phi)
+        for axis in range(2):
+            inv_tail, _ = L._ends(Phi_inv, axis, "inverse")
+            _, head = L._ends(Phi, axis, "frame")
+            if axis in self._holonomies:
+                head = np.moveaxis(head.copy(), axis, 0)
+                head[-1] = g.compose(self._holonomies[axis], head[-1])
+                head = np.moveaxis(head, 0, axis)
+            out.append(g.log(g.compose(inv_tail, head)).reshape(-1, g.dim))
+        return out
+
+    def volume_and_gradient(self, Phi: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """(v_i ``[*shape]``, ∂V_h/∂η_i ``[*shape, 6]``): each node's share of V_h (Σ v_i = V_h)
+        and the exact gradient of V_h along Φ_i ← Φ_i exp(η_i) (class docstring)."""
+        L = self._lattice
+        xis = self._edge_logs(Phi)
+        g, c, h = L.group, L.corners(), L.h
+        n = int(np.prod(L.grid.shape))
+        flat = np.asarray(Phi, dtype=float).reshape(n, 4, 4)
+        x = flat[:, 1:, 0]
+        rho = np.einsum("nji,nj->ni", flat[:, 1:, 1:], x - x.mean(axis=0))     # R_iᵀ(r_i − r̄)
+        node = c["node"]
+        tu, tv = (xis[a][c["edge"][:, a], :3] / h[a] for a in range(2))
+        area = np.cross(tu, tv)                                                  # θ_u × θ_v [C, 3]
+        w3 = c["weight"] / 3.0
+        rc = rho[node]
+        v = np.bincount(node, weights=w3 * np.einsum("ci,ci->c", rc, area), minlength=n)
+        G = np.zeros((n, 6))
+        ci = np.zeros((n, 3))
+        np.add.at(ci, node, w3[:, None] * area)
+        G[:, :3] += ci
+        G[:, 3:] += np.cross(ci, rho)
+        a = np.einsum("nij,nj->i", flat[:, 1:, 1:], ci)                         # Σ_i R_i c_i: r̄'s share
+        G[:, :3] -= np.einsum("nji,j->ni", flat[:, 1:, 1:], a) / n
+        S = (w3[:, None] * np.cross(tv, rc), w3[:, None] * np.cross(rc, tu))      # ∂V_h/∂θ_u, ∂V_h/∂θ_v
+        for a, xi in enumerate(xis):
+            Qe = np.zeros_like(xi)
+            np.add.at(Qe[:, :3], c["edge"][:, a], S[a] / h[a])
+            out = L.from_ghosts(np.einsum("...ji,...j->...i", g.dexp_inv(xi), Qe), c["ghost_tail"][a], a)
+            inc = L.from_ghosts(np.einsum("...ji,...j->...i", g.dexp_inv(-xi), Qe), c["ghost_head"][a], a)
+            np.add.at(G, c["tail"][a], -out)
+            np.add.at(G, c["head"][a], inc)
+        shape = tuple(L.grid.shape)
+        return v.reshape(shape), G.reshape(*shape, 6)
+
+    def volume(self, Phi: np.ndarray) -> float:
+        """V_h of the configuration Φ ``[*shape, 4, 4]``."""
+        return float(np.sum(self.volume_and_gradient(Phi)[0]))
+
+    def force(self, Phi, N, t):
+        """p ∂V_h/∂η_i/(w_i J_i) ``[*shape, 6]`` (body components, a moment included)."""
+        _, G = self.volume_and_gradient(Phi)
+        return self.pressure * G / self.volumes[..., None]
+
+    def energy(self, Phi):
+        """−p v_i/(w_i J_i) ``[*shape]``: the potential −pV_h per unit reference volume."""
+        v, _ = self.volume_and_gradient(Phi)
+        return -self.pressure * v / self.volumes
+
+    def to_dict(self) -> dict[str, Any]:
+        return {"kind": "volume-pressure", "pressure": self.pressure}
 
 
 class NodeSprings(PotentialLoad):
@@ -508,7 +702,7 @@ class CosseratSurface(KernelMedium):
     name: ClassVar[str] = "cosserat-surface"
     material_dim: ClassVar[int] = 2
     initial_kinds: ClassVar[tuple[str, ...]] = ("flat", "cylinder", "sphere", "surface")
-    load_kinds: ClassVar[tuple[str, ...]] = ("gravity", "dead-load", "director-pressure", "pressure",
+    load_kinds: ClassVar[tuple[str, ...]] = ("gravity", "dead-load", "director-pressure", "pressure", "volume-pressure",
                                              "node-springs", "simple-support", "symmetry")
     output_fields: ClassVar[dict[str, tuple[str, str]]] = {
         "director_x": ("director p = R e3, x component", "1"),
@@ -593,7 +787,9 @@ class CosseratSurface(KernelMedium):
         a force ``pressure`` per unit chart area along the director, a follower load),
         ``"pressure"`` (:class:`Pressure`: ``pressure``, optional ``grid`` and ``holonomy``,
         by default the problem's: p per unit deformed area normal to the deformed surface,
-        positive along e₃), ``"node-springs"`` (:class:`NodeSprings` on the initial positions:
+        positive along e₃), ``"volume-pressure"`` (:class:`VolumePressure`: ``pressure``, the
+        conservative multiplier of the lattice's enclosed volume), ``"node-springs"``
+        (:class:`NodeSprings` on the initial positions:
         ``springs`` a list of ``[i, j, component]``, ``stiffness``),
         ``"dead-load"`` (``force``: a spatially fixed force (3,) per unit chart area) or
         ``"simple-support"`` (:class:`PenaltySupport`: ``edges``, ``position_stiffness``,
@@ -616,6 +812,10 @@ class CosseratSurface(KernelMedium):
                 raise ValueError("load 'pressure' takes the parameter 'pressure' and optionally 'grid' and 'holonomy' "
                                  f"(default: the problem's), got {sorted(params)}")
             return Pressure(**params)
+        if kind == "volume-pressure":
+            if set(params) != {"pressure"}:
+                raise ValueError(f"load 'volume-pressure' takes exactly the parameter 'pressure', got {sorted(params)}")
+            return VolumePressure(params["pressure"])
         if kind == "node-springs":
             if set(params) != {"springs", "stiffness"}:
                 raise ValueError("load 'node-springs' takes exactly the parameters 'springs' (a list of [i, j, "

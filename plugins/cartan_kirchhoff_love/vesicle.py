@@ -9,11 +9,14 @@ Global measures (the lattice's corner quadrature, :class:`cartan.schemes.lattice
     At a corner c (node i, one incident edge per axis) the strain X_c gives the area element
     J_c = |det T_c|, T_αr = θ_α,r (the tangential components; θ_α,3 = 0 on the adaptation), so
 
-        A = Σ_c w_c J_c,        V = ⅓ Σ_c w_c (r_i·e₃,i) J_c        (V = ⅓∮ r·n dA),
+        A = Σ_c w_c J_c,        V = ⅓ Σ_c w_c ρ_i·(θ_u,c × θ_v,c)        (V = ⅓∮ (r − r̄)·n dA),
 
-    w_c the corner weights (w_i/#corners_i).  A is exactly the functional the medium's tension σ
+    w_c the corner weights (w_i/#corners_i), ρ_i = R_iᵀ(r_i − r̄), r̄ the mean node position (V is
+    invariant under rigid motions); on the adaptation (θ_α,3 = 0) the volume's integrand is
+    ((r_i − r̄)·e₃,i) J_c.  A is exactly the functional the medium's tension σ
     multiplies (the σ-term of the Helfrich energy is σJ per unit chart area at every corner), so
-    σ is the Lagrange multiplier of A; V is the enclosed volume for the outward normal e₃.
+    σ is the Lagrange multiplier of A; V is the enclosed volume for the outward normal e₃, and
+    :class:`cartan_cosserat_surface.surface.VolumePressure` applies exactly its gradient.
 
 Gauss–Bonnet (∫K dA = 2πχ; χ = 0 on a torus)
     Two discrete forms (:func:`gauss_bonnet`):
@@ -39,26 +42,26 @@ Gradient flow (:func:`helfrich_flow`; minimizing movements)
     the L² dissipation of the node positions (a :class:`Tether`) plus the medium's in-plane
     regularisation measured from Φ_n (``Problem(reference=Φ_n)``: K_a, μ act as an in-plane
     viscosity and vanish at Φ_n).  The multipliers — the tension σ for A and the pressure p for V
-    (a follower pressure along e₃, :class:`cartan_cosserat_surface.surface.Pressure`) — are the
+    (:class:`cartan_cosserat_surface.surface.VolumePressure`, p times the exact gradient of V) — are the
     unknowns of an outer Newton iteration on the constraint residuals (a Broyden-updated 2 × 2
     Jacobian, started by finite differences), each residual evaluation a static solve; the
     constraints are held to ``hold_tol`` relative (default 1e-10).  Since Φ_n is admissible,
-    E_H(Φ_{n+1}) + D ≤ E_H(Φ_n) when each multiplier load is the exact gradient of its held
-    functional: true of the area (σ is the medium's σ-term; the energy then decreases
-    monotonically, recorded as ``bending_energy``), not of the pressure (below).
+    E_H(Φ_{n+1}) + D ≤ E_H(Φ_n) since each multiplier load is the exact gradient of its held
+    functional (σ is the medium's σ-term, the volume load is V's gradient): the energy decreases
+    monotonically, recorded as ``bending_energy``.
     With ``mesh="step"`` nothing restores the mesh: run long, the nodes slide along the meridians
     (a tangential mode the continuum energy does not see) and the discrete energy falls below its
     continuum minimum; ``mesh="initial"`` measures the regularisation from Φ_0 instead and the
     flow becomes stationary, but the discrete W of the end shape still undershoots the Clifford
-    torus's 2π² by 1–2 % without converging in h (docs/media/kirchhoff-love.md; unresolved).
+    torus's 2π² by 1–2 % without converging in h: the flow grades its meridian mesh (gaps up to
+    ~50° of ψ at every h) and the corner quadrature of W is O(gap²) below the integral on a graded
+    mesh (on a fixed mesh map W converges to 2π² at order 2; docs/media/kirchhoff-love.md).
     The step τ grows geometrically (``growth``) up to ``tau_max`` — backward Euler is
     unconditionally stable —, so the flow reaches the stationary shape in tens of steps.
 
-    The pressure load differences the positions (central differences) and is not the exact
-    gradient of the lattice V: V is held to ``hold_tol`` by the outer iteration, but the step is
-    stationary for another functional than E_H + D − p(V − V₀), and with the volume held the
-    energy is not monotone (it rises on the coarse torus, docs/media/kirchhoff-love.md); a volume
-    load that is the exact gradient of the lattice V is still to be written.
+    The dissipation's metric is the lattice's: the tether's density is per unit reference area, so
+    with ``Problem(reference=Φ_n)`` D = Σ_i w_i J_i |r_i − r_i,n|²/(2τ), J_i the area element of
+    Φ_n per unit chart area (the L² metric of the surface, ∫|r − r_n|² dA/(2τ)).
 """
 
 from __future__ import annotations
@@ -118,14 +121,19 @@ def surface_measures(problem: Problem, Phi: np.ndarray | None = None) -> dict[st
     Returns
     -------
     dict
-        ``area`` A = Σ_c w_c J_c, ``volume`` V = ⅓ Σ_c w_c (r·e₃) J_c.
+        ``area`` A = Σ_c w_c J_c, ``volume`` V_h = ⅓ Σ_c w_c ρ_i·(θ_u,c × θ_v,c) (ρ_i = R_iᵀ(r_i − r̄),
+        r̄ the mean node position; ⅓ Σ_c w_c ((r − r̄)·e₃) J_c on the adaptation θ_α,3 = 0 with a
+        positive chart): the volume whose
+        exact gradient :class:`cartan_cosserat_surface.surface.VolumePressure` applies.
     """
     _check_closed(problem.grid)
     Phi = np.asarray(problem.initial.Phi if Phi is None else Phi, dtype=float)
-    c, _, J = _corner_data(problem, Phi)
+    c, Xc, J = _corner_data(problem, Phi)
+    xbar = Phi[..., 1:, 0].reshape(-1, 3).mean(axis=0)
     flat = Phi.reshape(-1, 4, 4)[c["node"]]
-    rn = np.einsum("ci,ci->c", flat[:, 1:, 0], flat[:, 1:, 3])
-    return {"area": float(np.sum(c["weight"] * J)), "volume": float(np.sum(c["weight"] * rn * J) / 3.0)}
+    rho = np.einsum("cji,cj->ci", flat[:, 1:, 1:], flat[:, 1:, 0] - xbar)   # R_iᵀ(r_i − r̄)
+    rn = np.einsum("ci,ci->c", rho, np.cross(Xc[:, 0, :3], Xc[:, 1, :3]))   # (r_i·e₃,i) J_c when adapted
+    return {"area": float(np.sum(c["weight"] * J)), "volume": float(np.sum(c["weight"] * rn) / 3.0)}
 
 
 def plaquette_curvature(problem: Problem, Phi: np.ndarray | None = None) -> np.ndarray:
@@ -194,8 +202,9 @@ def torus_radii(Phi: np.ndarray) -> tuple[float, float]:
 
 # ====================================================================== the flow
 class Tether(PotentialLoad):
-    """U = ½k|r − r̄|² per unit chart area at every node: the L² dissipation D = Σ w|r − r_n|²/(2τ)
-    of a minimizing-movement step (k = 1/τ, r̄ the positions of Φ_n).  A support (not scaled).
+    """U = ½k|r − r̄|² per unit reference area at every node (the lattice weighs it with its node
+    weights w_i J_i): the L² dissipation D = Σ w_i J_i |r_i − r̄_i|²/(2τ) of a minimizing-movement
+    step (k = 1/τ, r̄ the positions of Φ_n).  A support (not scaled).
 
     Parameters
     ----------
@@ -276,7 +285,7 @@ def helfrich_flow(problem: Problem, *, steps: int = 30, tau: float = 0.05, growt
         ``hold``, ``hold_residual_max`` (max relative |A/A₀ − 1|, |V/V₀ − 1| over the steps) and
         ``rejected_steps`` (steps retried with a halved τ).
     """
-    from cartan_cosserat_surface.surface import Pressure
+    from cartan_cosserat_surface.surface import VolumePressure
 
     medium = problem.medium
     if getattr(medium, "name", None) != "helfrich-membrane":
@@ -323,7 +332,7 @@ def helfrich_flow(problem: Problem, *, steps: int = 30, tau: float = 0.05, growt
             nonlocal solves
             solves += 1
             med = type(medium)(**{**base, "tension": 0.0}).with_tension(m["area"])
-            loads = [tether] + ([Pressure(m["volume"])] if m["volume"] != 0.0 else [])
+            loads = [tether] + ([VolumePressure(m["volume"])] if m["volume"] != 0.0 else [])
             pb = Problem(med, grid, start, reference=start if mesh == "step" else problem.initial, loads=loads)
             out = cartan.solve_static(pb, tol=tol, initial=InitialState(Phi=guess))
             P = _frames_of(out)
