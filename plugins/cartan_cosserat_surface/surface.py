@@ -784,17 +784,20 @@ class CosseratSurface(KernelMedium):
     # ------------------------------------------------------------------ loads
     def make_load(self, kind: str, **params: Any):
         """``"gravity"`` (``g``, 3 components; mass ρh), ``"director-pressure"`` (``pressure``:
-        a force ``pressure`` per unit chart area along the director, a follower load),
+        a force ``pressure`` per unit reference area along the director, a follower load),
         ``"pressure"`` (:class:`Pressure`: ``pressure``, optional ``grid`` and ``holonomy``,
         by default the problem's: p per unit deformed area normal to the deformed surface,
         positive along e₃), ``"volume-pressure"`` (:class:`VolumePressure`: ``pressure``, the
         conservative multiplier of the lattice's enclosed volume), ``"node-springs"``
         (:class:`NodeSprings` on the initial positions:
         ``springs`` a list of ``[i, j, component]``, ``stiffness``),
-        ``"dead-load"`` (``force``: a spatially fixed force (3,) per unit chart area) or
+        ``"dead-load"`` (``force``: a spatially fixed force (3,) per unit reference area) or
         ``"simple-support"`` (:class:`PenaltySupport`: ``edges``, ``position_stiffness``,
         ``director_stiffness``) or ``"symmetry"`` (:class:`SymmetrySupport`: ``edges``, ``normal``,
-        ``position_stiffness``, ``director_stiffness``)."""
+        ``position_stiffness``, ``director_stiffness``).
+
+        Every density is per unit *reference* area: the lattice weighs node i by w_iJ_i, J_i = √a⁰
+        the reference area per unit chart area (1 on plates and cylinders of the default chart)."""
         if kind == "gravity":
             if set(params) != {"g"}:
                 raise ValueError(f"load 'gravity' takes exactly the parameter 'g', got {sorted(params)}")
