@@ -155,6 +155,28 @@ def _total_momentum(scheme: Scheme, state: State, Phi: np.ndarray) -> np.ndarray
     return scheme.total_momentum_of(state, Phi)
 
 
+def _kinetic_energy(scheme: Scheme, state: State, N: np.ndarray | None) -> float:
+    """``scheme.kinetic_energy(state)``, from the velocity ``N = scheme.velocity(state)`` already
+    built (or None) when the scheme keeps the core's formula ``Σ w K(N)``: the same numbers
+    without a second velocity."""
+    from .schemes.base import Scheme
+
+    if N is None or type(scheme).kinetic_energy is not Scheme.kinetic_energy or scheme.coupled_lagrangian:
+        return float(scheme.kinetic_energy(state))
+    return float(np.sum(scheme.weights * scheme.medium.kinetic(N)))
+
+
+def _edge_strains(scheme: Scheme, state: State) -> list[np.ndarray] | None:
+    """``scheme.edge_strains(state)`` for a d = 1 lattice that keeps the lattice's ``strains``
+    (its edge strains with an axis slot), else None: one evaluation serves the frame's ``X``
+    and the constrained rows' residual (the same arrays, so the same numbers)."""
+    from .schemes.lattice import Lattice
+
+    if scheme.grid.d != 1 or not isinstance(scheme, Lattice) or type(scheme).strains is not Lattice.strains:
+        return None
+    return scheme.edge_strains(state)
+
+
 def frame_record(scheme: Scheme, integrator: Integrator, state: State) -> dict[str, Any]:
     """The output of one saved frame: fields (copied) and scalar diagnostics.
 
@@ -176,8 +198,9 @@ def frame_record(scheme: Scheme, integrator: Integrator, state: State) -> dict[s
     d = scheme.grid.d
     rec: dict[str, Any] = {"time": float(state.t), "step": int(state.scalars.get("nstep", 0))}
     with np.errstate(all="ignore"):
+        edge = _edge_strains(scheme, state)  # (the lattice's: computed once for X and the held rows)
         if d == 1:
-            X = np.asarray(scheme.strains(state))
+            X = edge[0][..., None, :] if edge is not None else np.asarray(scheme.strains(state))
             rec["X"] = np.array(X[..., 0, :] if X.ndim == 3 else X, dtype=float)
         else:
             rec["X"] = np.array(scheme.nodal_strains(state), dtype=float)
@@ -196,7 +219,7 @@ def frame_record(scheme: Scheme, integrator: Integrator, state: State) -> dict[s
                 rec["frame"] = np.array(sp.frame(q), dtype=float)
             else:
                 rec["field"] = np.array(q, dtype=float)
-        rec["kinetic_energy"] = float(scheme.kinetic_energy(state))
+        rec["kinetic_energy"] = _kinetic_energy(scheme, state, N if integrator.uses_momentum else None)
         rec["potential_energy"] = float(scheme.potential_energy(state))
         rec["dissipated_energy"] = float(state.scalars.get("dissipated_energy", 0.0))
         rec["external_work"] = float(state.scalars.get("external_work", 0.0))
@@ -208,7 +231,8 @@ def frame_record(scheme: Scheme, integrator: Integrator, state: State) -> dict[s
         rec["group_defect"] = float(np.max(g.defect(Phi))) if Phi.size else 0.0
         held = getattr(integrator, "constraint_residual", None)
         if held is not None:
-            rec["constraint_residual"] = float(held(scheme, state))
+            reuse = edge is not None and getattr(integrator, "residual_from_edge_strains", False)
+            rec["constraint_residual"] = float(held(scheme, state, edge_strains=edge) if reuse else held(scheme, state))
         rec["total_momentum"] = np.array(_total_momentum(scheme, state, Phi), dtype=float)
         med = scheme.medium
         if getattr(med, "output_fields", None):

@@ -86,6 +86,7 @@ class Rattle(LieVerlet):
         self._matrix_at: tuple | None = None  # (state key, B_c at the state the last step ended on)
         self._closing_B = None
         self._failure: tuple | None = None
+        self._loop_args: tuple | None = None  # (scheme, problem, Δt, the loop's fixed arguments)
         #: why the last :meth:`compiled_loop` left the steps to Python (None: it did not)
         self.compiled_declined: str | None = None
 
@@ -113,26 +114,52 @@ class Rattle(LieVerlet):
     def compiled_loop(self, scheme: Scheme, state: State, dt: float):
         """``rattle_loop`` (:mod:`cartan.integrators.rattle_loop`) when :meth:`compiled_reason`
         is None; lie-verlet's loop when the medium holds nothing fixed; otherwise None (the
-        Python step), the reason in ``self.compiled_declined``."""
+        Python step), the reason in ``self.compiled_declined``.
+
+        The arguments that depend on the problem and Δt only (the free flow's pieces, the
+        closing matrix, the held components and their values) are built at the first call for
+        a (scheme, problem, Δt) and reused by the later calls of a run, which only take the
+        force carried between steps (first-same-as-last) and fresh ``status``/``info``."""
         self.compiled_declined = None
         if scheme.medium.constrained_strains() is None:
             return super().compiled_loop(scheme, state, dt)
-        reason = self.compiled_reason(scheme)
-        if reason is None:
-            con, unknown, nodes, scale = self._constraints(scheme, state)
-            if not con.ncon:
-                return super().compiled_loop(scheme, state, dt)
-            if not all(bool(a.all()) for a in con.active):
-                reason = "an edge joins two fixed nodes (no row there: the chain of rows is broken)"
-        if reason is not None:
-            self.compiled_declined = reason
+        cached = self._loop_args
+        if cached is not None and cached[0] is scheme and cached[1] is scheme.problem and cached[2] == dt:
+            static = cached[3]
+        else:
+            static = self._loop_static(scheme, state, dt)
+            self._loop_args = (scheme, scheme.problem, dt, static)
+        if isinstance(static, str):
+            self.compiled_declined = static
             return None
-        name, (W, have, velocity_free, pieces, fracs, closing) = super().compiled_loop(scheme, state, dt)
+        if static is None:  # no rows: lie-verlet's loop
+            return super().compiled_loop(scheme, state, dt)
+        velocity_free, pieces, fracs, closing, comp, value, scale = static
+        r = scheme.group.dim
+        key = (id(state), state.t, state.scalars.get("nstep", 0))
+        have = self._fsal is not None and self._fsal[0] == key  # (lie-verlet's first-same-as-last force)
+        W = (np.array(self._fsal[1], dtype=float) if have else np.zeros(state.S.shape)).reshape(-1, r)
         status = np.zeros(2, dtype=np.int64)
         info = np.zeros(1)
+        return "rattle_loop", (W, bool(have), velocity_free, pieces, fracs, closing, comp, value, scale, status,
+                               info)
+
+    def _loop_static(self, scheme: Scheme, state: State, dt: float) -> tuple | str | None:
+        """The arguments of ``rattle_loop`` fixed by (scheme, problem, Δt): ``(velocity_free,
+        pieces, fracs, closing, comp, value, scale)``; the reason (a string) when the loop does
+        not take the steps; None when the medium holds no row on this lattice."""
+        reason = self.compiled_reason(scheme)
+        if reason is not None:
+            return reason
+        con, unknown, nodes, scale = self._constraints(scheme, state)
+        if not con.ncon:
+            return None
+        if not all(bool(a.all()) for a in con.active):
+            return "an edge joins two fixed nodes (no row there: the chain of rows is broken)"
+        _, (_, _, velocity_free, pieces, fracs, closing) = super().compiled_loop(scheme, state, dt)
         comp = np.ascontiguousarray(con.comp, dtype=np.int64)
-        value = np.ascontiguousarray(con.value, dtype=float)
-        return "rattle_loop", (W, have, velocity_free, pieces, fracs, closing, comp, value, float(scale), status, info)
+        value = np.ascontiguousarray(con.value, dtype=float)  # (the loop reads these: shared by the calls)
+        return bool(velocity_free), pieces, fracs, closing, comp, value, float(scale)
 
     def compiled_loop_done(self, state: State, args: tuple) -> None:
         super().compiled_loop_done(state, args)
@@ -295,11 +322,27 @@ class Rattle(LieVerlet):
         acc = scheme.medium.velocity(_adT(scheme.group, N, state.S) + W)
         return -lu.solve(B @ acc[unknown] + rate)
 
-    def constraint_residual(self, scheme: Scheme, state: State) -> float:
-        """max |X_e[k] − value_k| over the constrained edges and components (0 when none)."""
+    #: :meth:`constraint_residual` takes the scheme's edge strains when the caller has them
+    #: (:func:`cartan.io.frame_record`)
+    residual_from_edge_strains = True
+
+    def constraint_residual(self, scheme: Scheme, state: State,
+                            edge_strains: list[np.ndarray] | None = None) -> float:
+        """max |X_e[k] − value_k| over the constrained edges and components (0 when none).
+
+        ``edge_strains``, when given, is ``scheme.edge_strains(state)`` (per axis
+        ``[*edge_shape, r]``), already computed by the caller: the rows' values are taken from
+        it as :meth:`~cartan.constraints.StrainConstraints.values` takes them (the same numbers)."""
         if scheme.medium.constrained_strains() is None:
             return 0.0
-        return float(np.max(np.abs(self._constraints(scheme, state)[0].values(state)), initial=0.0))
+        con = self._constraints(scheme, state)[0]
+        if edge_strains is None or not con.ncon:
+            return float(np.max(np.abs(con.values(state)), initial=0.0))
+        big = 0.0
+        for x, active in zip(edge_strains, con.active, strict=True):
+            xe = x.reshape(-1, con.r_dim)[:, con.comp] - con.value
+            big = max(big, float(np.max(np.abs(xe[active]), initial=0.0)))
+        return big
 
     # ------------------------------------------------------------------ step
     def _step(self, scheme: Scheme, state: State, dt: float) -> None:

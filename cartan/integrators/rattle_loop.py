@@ -21,7 +21,12 @@ projection (skipped when tangent), the force (first-same-as-last when no force d
 the predicted multiplier (its factorization of ``B₀ P B₀ᵀ`` is the chord matrix of the
 iteration), three to four trial flows (a quasi-Newton factorization only when the chord gains
 less than a factor ``SLOW_``), the rows at the end and the closing kick with its velocity
-projection (one factorization, reused by the next step's start when no load depends on N).
+projection (one factorization, reused by the next step's start when no load depends on N, or
+when the damping is proportional to the inertia: the closing matrix is then s·I on the live
+block and ``B P_closing Bᵀ = s·B P Bᵀ``).  With damping the force a step starts from is the
+one the closing kick left, ``W(N = 0) − ΓN`` (the damping is linear), and a call that starts
+without it (the first, or after a restart) evaluates it the same way: the steps do not depend
+on how they are grouped into calls.
 ``status`` ``[2]`` int64 returns the outcome (0: steps done, 1: the multipliers' iteration
 failed, 2: the initial configuration could not be projected; the state is then the one the
 failing step started from) and the iterations summed over the steps; ``info`` ``[1]`` the
@@ -140,17 +145,29 @@ def _rattle_flow_jacobian(D, N, dt, P):
                 P[i, k, j] = s * D.winv[i]
 
 
-def _rattle_right(P, i, R, e, T):
+def _rattle_diagonal(P):
+    """Whether every block ``P[i]`` ``(r, r)`` of ``P`` ``[n, r, r]`` is diagonal."""
+    for i in range(P.shape[0]):
+        for k in range(R_):  # noqa: F821
+            for j in range(R_):  # noqa: F821
+                if j != k and P[i, k, j] != 0.0:
+                    return False
+    return True
+
+
+def _rattle_right(P, i, R, e, T, pdiag):
     """``T = P_i R_eᵀ`` ``(r, c)`` for ``P`` ``[n, r, r]`` and ``R`` ``[E, c, r]``; a diagonal
     ``P_i`` (the blocks of a diagonal metric) takes its diagonal only (the same sums: the other
-    terms are exact zeros).  Indices rather than views of the blocks: no array views in the
-    assembly's inner loops."""
+    terms are exact zeros); ``pdiag``: every block of ``P`` is known to be diagonal
+    (:func:`_rattle_diagonal`), else each is checked.  Indices rather than views of the
+    blocks: no array views in the assembly's inner loops."""
     c = R.shape[1]
     diagonal = True
-    for k in range(R_):  # noqa: F821
-        for j in range(R_):  # noqa: F821
-            if j != k and P[i, k, j] != 0.0:
-                diagonal = False
+    if not pdiag:
+        for k in range(R_):  # noqa: F821
+            for j in range(R_):  # noqa: F821
+                if j != k and P[i, k, j] != 0.0:
+                    diagonal = False
     for k in range(R_):  # noqa: F821
         for b in range(c):
             if diagonal:
@@ -173,12 +190,13 @@ def _rattle_left(L, e, T, out, f, add):
             out[f, a, b] = out[f, a, b] + s if add else s
 
 
-def rattle_factor(D, Lt, Lh, P, Rt, Rh, F):
+def rattle_factor(D, Lt, Lh, P, Rt, Rh, F, pdiag):
     """Assemble and factor ``L P Rᵀ`` on the chain (``F = (sub, diag, sup, inv, mult)``, each
     ``[E, c, c]``): diagonal ``Lt_e P_i Rt_eᵀ + Lh_e P_j Rh_eᵀ``, below ``Lt_e P_i Rh_{e−1}ᵀ``
     (node i = tail of e = head of e − 1), above ``Lh_e P_j Rt_{e+1}ᵀ``; returns False when it
-    is singular.  Each node's products ``P_i Rt_eᵀ``, ``P_j Rh_eᵀ`` are formed once and serve
-    two blocks: ``P_i Rt_eᵀ`` the diagonal of e and the block above it in row e − 1,
+    is singular (``pdiag``: every block of ``P`` is diagonal, see :func:`_rattle_right`).  Each
+    node's products ``P_i Rt_eᵀ``, ``P_j Rh_eᵀ`` are formed once and serve two blocks:
+    ``P_i Rt_eᵀ`` the diagonal of e and the block above it in row e − 1,
     ``P_j Rh_eᵀ`` the diagonal of e and the block below it in row e + 1."""
     sub, dia, sup, inv, mult = F
     ne = Lt.shape[0]
@@ -186,8 +204,8 @@ def rattle_factor(D, Lt, Lh, P, Rt, Rh, F):
     Th = np.empty((R_, Lt.shape[1]))  # noqa: F821
     for e in range(ne):
         i, j = D.tail[e], D.head[e]
-        _rattle_right(P, i, Rt, e, Tt)
-        _rattle_right(P, j, Rh, e, Th)
+        _rattle_right(P, i, Rt, e, Tt, pdiag)
+        _rattle_right(P, j, Rh, e, Th, pdiag)
         _rattle_left(Lt, e, Tt, dia, e, False)
         _rattle_left(Lh, e, Th, dia, e, True)
         if e > 0:
@@ -228,12 +246,12 @@ def rattle_impulse(D, Bt, Bh, nu, out):
             out[i, k] *= D.winv[i]
 
 
-def rattle_project_velocity(D, S, N, Bt, Bh, bmax, F, factored, P, closing, use_closing, half, skip, res, mu,
-                            imp):
+def rattle_project_velocity(D, S, N, Bt, Bh, bmax, F, factored, P, pdiag, fscale, closing, use_closing, half, skip,
+                            res, mu, imp):
     """Add the impulse ``½Δt·closing·B_cᵀμ/w`` that makes ``B_c N = 0``: ``(B P Bᵀ)μ = −B N/(½Δt)``
-    with ``F`` the factors of ``B P Bᵀ`` (built here unless ``factored``); with ``skip``, nothing
-    when ``max|B N| ≤ 1e-13·max|B|·max|N|`` (tangent to round-off).  ``N`` is the velocity of
-    ``S`` on entry.  Returns ``(projected, factored, ok)``."""
+    with ``F`` the factors of ``B P Bᵀ/fscale`` (built here, with ``fscale`` = 1, unless
+    ``factored``); with ``skip``, nothing when ``max|B N| ≤ 1e-13·max|B|·max|N|`` (tangent to
+    round-off).  ``N`` is the velocity of ``S`` on entry.  Returns ``(projected, factored, ok)``."""
     rattle_apply(D, Bt, Bh, N, res)
     if skip:
         rmax = 0.0
@@ -247,13 +265,13 @@ def rattle_project_velocity(D, S, N, Bt, Bh, bmax, F, factored, P, closing, use_
         if rmax <= 1e-13 * bmax * nmax:
             return False, factored, True
     if not factored:
-        if not rattle_factor(D, Bt, Bh, P, Bt, Bh, F):
+        if not rattle_factor(D, Bt, Bh, P, Bt, Bh, F, pdiag):
             return False, False, False
         factored = True
     bt_solve(F[2], F[3], F[4], res, mu)
     for e in range(mu.shape[0]):
         for a in range(mu.shape[1]):
-            mu[e, a] = -mu[e, a] / half
+            mu[e, a] = -mu[e, a] / (half * fscale)
     rattle_impulse(D, Bt, Bh, mu, imp)
     row = np.empty(R_)  # noqa: F821
     for i in range(S.shape[0]):
@@ -272,7 +290,7 @@ def rattle_project_velocity(D, S, N, Bt, Bh, bmax, F, factored, P, closing, use_
     return True, factored, True
 
 
-def _rattle_project_config(D, C, comp, value, scale, Bt, Bh, P, F, cres, y, delta, K):
+def _rattle_project_config(D, C, comp, value, scale, Bt, Bh, P, pdiag, F, cres, y, delta, K):
     """Bring C onto c = 0 by Gauss–Newton steps ``δ = −P Bᵀ(B P Bᵀ)⁻¹c`` along the drift (the
     Python step's ``_project_configuration``); returns the residual, or −1 when it did not
     converge in ``MAX_ITERATIONS_`` steps (the Python step's limit)."""
@@ -282,7 +300,7 @@ def _rattle_project_config(D, C, comp, value, scale, Bt, Bh, P, F, cres, y, delt
         if err <= 1e-13 * scale:
             return err
         rattle_rows(D, C, comp, Bt, Bh)
-        if not rattle_factor(D, Bt, Bh, P, Bt, Bh, F):
+        if not rattle_factor(D, Bt, Bh, P, Bt, Bh, F, pdiag):
             return -1.0
         bt_solve(F[2], F[3], F[4], cres, y)
         rattle_impulse(D, Bt, Bh, y, delta)  # (B_cᵀy)_i / w_i
@@ -302,11 +320,11 @@ def _rattle_project_config(D, C, comp, value, scale, Bt, Bh, P, F, cres, y, delt
     return err if err <= 1e-13 * scale else -1.0
 
 
-def _rattle_predict(D, C, Ct, S, N, W, Bt, Bh, F, c0, comp, value, work, acc, nu, K):
+def _rattle_predict(D, C, Ct, S, N, W, Bt, Bh, F, c0, comp, value, work, acc, nu, cp, bn, K):
     """The force-level multiplier at the step's start (the Python step's ``_predict``):
     ``(B P Bᵀ)λ = −B[M⁺(ad_NᵀS + W)] − Ḃ_c N``, ``Ḃ_c N`` by the one-sided difference
     ``2(c(Φ exp(εN)) − c − εB_cN)/ε²`` (ε = ``EPS_``/max|N|), ``F`` the factors of ``B P Bᵀ``;
-    λ into ``nu``."""
+    λ into ``nu``; ``cp``, ``bn`` ``[E, c]`` are scratch."""
     n = S.shape[0]
     size = 0.0
     for i in range(n):
@@ -322,8 +340,6 @@ def _rattle_predict(D, C, Ct, S, N, W, Bt, Bh, F, c0, comp, value, work, acc, nu
     rattle_apply(D, Bt, Bh, acc, nu)
     if size > 0.0:
         eps = EPS_ / size  # noqa: F821
-        cp = np.empty((c0.shape[0], c0.shape[1]))
-        bn = np.empty((c0.shape[0], c0.shape[1]))
         for i in range(n):  # N on the unknowns (the Python step's B @ N[unknown])
             for k in range(R_):  # noqa: F821
                 acc[i, k] = 0.0 if (D.any_clamped and D.clamped[i]) or not D.live[k] else N[i, k]
@@ -395,6 +411,32 @@ def rattle_loop(D, C, S, W, have_w, velocity_free, pieces, fracs, closing, comp,
     Pj = np.empty((n, R_, R_))  # noqa: F821
     rattle_metric(D, eye, Pm)
     rattle_metric(D, closing, Pc)
+    pm_diag = _rattle_diagonal(Pm)
+    pc_diag = _rattle_diagonal(Pc)
+    # a closing matrix s·I on the live block (Γ_k M⁺_kk the same on every live component: damping
+    # proportional to the inertia) makes B P_closing Bᵀ = s·B P Bᵀ: the closing kick's projection
+    # then solves with the factors of B P Bᵀ, which the next step's start needs anyway
+    sc = 1.0
+    uniform = False
+    if not velocity_free:
+        uniform = True
+        first = -1
+        for k in range(R_):  # noqa: F821
+            if not D.live[k]:
+                continue
+            if first < 0:
+                first = k
+                sc = closing[k, k]
+            for j in range(R_):  # noqa: F821
+                if D.live[j] and j != k and closing[k, j] != 0.0:
+                    uniform = False
+            if abs(closing[k, k] - sc) > 1e-14 * abs(sc):
+                uniform = False
+        if first < 0 or not sc > 0.0:
+            uniform = False
+    Z = np.zeros((n, R_))  # noqa: F821 - N = 0: the velocity-free part of the force
+    cp = np.empty((ne, nc))
+    bn = np.empty((ne, nc))
     Fs = _rattle_factors(ne, nc)  # B₀ P B₀ᵀ (start)
     Fc = _rattle_factors(ne, nc)  # B⁺ P_closing B⁺ᵀ (closing kick)
     Fq = _rattle_factors(ne, nc)  # B₁ J B₀ᵀ (quasi-Newton)
@@ -420,7 +462,7 @@ def rattle_loop(D, C, S, W, have_w, velocity_free, pieces, fracs, closing, comp,
         else:
             err0 = rattle_values(D, C, comp, value, c0)
         if err0 > 1e-10 * scale:
-            err0 = _rattle_project_config(D, C, comp, value, scale, Bt0, Bh0, Pm, Fs, cres, dnu, imp, K)
+            err0 = _rattle_project_config(D, C, comp, value, scale, Bt0, Bh0, Pm, pm_diag, Fs, cres, dnu, imp, K)
             if err0 < 0.0:
                 status[0] = 2
                 info[0] = rattle_values(D, C, comp, value, c0)
@@ -434,8 +476,8 @@ def rattle_loop(D, C, S, W, have_w, velocity_free, pieces, fracs, closing, comp,
             have_fs = False
         # ... with a tangent velocity
         op_velocity(D, S, N)  # noqa: F821
-        projected, have_fs, ok = rattle_project_velocity(D, S, N, Bt0, Bh0, bmax, Fs, have_fs, Pm, eye, no, half,
-                                                         yes, pres, mu, imp)
+        projected, have_fs, ok = rattle_project_velocity(D, S, N, Bt0, Bh0, bmax, Fs, have_fs, Pm, pm_diag, 1.0,
+                                                         eye, no, half, yes, pres, mu, imp)
         if not ok:
             status[0] = 1
             info[0] = np.nan
@@ -443,20 +485,24 @@ def rattle_loop(D, C, S, W, have_w, velocity_free, pieces, fracs, closing, comp,
         if projected:
             have_w = False
             op_velocity(D, S, N)  # noqa: F821
-        if not (have_w and velocity_free):
-            op_force(D, C, t, N, W, K)  # noqa: F821
+        if not have_w:
+            if velocity_free:
+                op_force(D, C, t, N, W, K)  # noqa: F821
+            else:  # as the closing kick leaves it, W(N = 0) − ΓN: the same W whether the last step ran
+                op_force(D, C, t, Z, W, K)  # noqa: F821 - in this call, an earlier one or before a restart
+                _damped(D, W, N)  # noqa: F821
             nforce += 1
         for i in range(n):
             for k in range(R_):  # noqa: F821
                 S0[i, k] = S[i, k]
         _rattle_copy(C, C0)
         if not have_fs:
-            if not rattle_factor(D, Bt0, Bh0, Pm, Bt0, Bh0, Fs):
+            if not rattle_factor(D, Bt0, Bh0, Pm, Bt0, Bh0, Fs, pm_diag):
                 status[0] = 1
                 info[0] = np.nan
                 break
             have_fs = True
-        _rattle_predict(D, C, Ct, S, N, W, Bt0, Bh0, Fs, c0, comp, value, work, acc, nu, K)
+        _rattle_predict(D, C, Ct, S, N, W, Bt0, Bh0, Fs, c0, comp, value, work, acc, nu, cp, bn, K)
         # the position multipliers: c(Φₙ₊₁(ν)) = 0 by quasi-Newton steps
         prev = np.inf
         factored = False
@@ -482,7 +528,7 @@ def rattle_loop(D, C, S, W, have_w, velocity_free, pieces, fracs, closing, comp,
                 rattle_rows(D, C, comp, Bt1, Bh1)
                 op_velocity(D, S, N)  # noqa: F821
                 _rattle_flow_jacobian(D, N, dt, Pj)
-                if not rattle_factor(D, Bt1, Bh1, Pj, Bt0, Bh0, Fq):
+                if not rattle_factor(D, Bt1, Bh1, Pj, Bt0, Bh0, Fq, no):
                     failed = True
                     info[0] = err
                     break
@@ -519,8 +565,8 @@ def rattle_loop(D, C, S, W, have_w, velocity_free, pieces, fracs, closing, comp,
                     S[i, k] += half * W[i, k]
             op_constrain(D, S)  # noqa: F821
             op_velocity(D, S, N)  # noqa: F821
-            _, have_fs, ok = rattle_project_velocity(D, S, N, Bt0, Bh0, bmax, Fs, no, Pm, eye, no, half, no, pres,
-                                                     mu, imp)
+            _, have_fs, ok = rattle_project_velocity(D, S, N, Bt0, Bh0, bmax, Fs, no, Pm, pm_diag, 1.0, eye, no,
+                                                     half, no, pres, mu, imp)
         else:
             for i in range(n):
                 for k in range(R_):  # noqa: F821
@@ -536,9 +582,13 @@ def rattle_loop(D, C, S, W, have_w, velocity_free, pieces, fracs, closing, comp,
                     S[i, k] = v
             op_constrain(D, S)  # noqa: F821
             op_velocity(D, S, N)  # noqa: F821
-            _, _, ok = rattle_project_velocity(D, S, N, Bt0, Bh0, bmax, Fc, no, Pc, closing, yes, half, no, pres,
-                                               mu, imp)
-            have_fs = False
+            if uniform:  # B P_closing Bᵀ = s·B P Bᵀ: the factors of B P Bᵀ, kept for the next step
+                _, have_fs, ok = rattle_project_velocity(D, S, N, Bt0, Bh0, bmax, Fs, no, Pm, pm_diag, sc, closing,
+                                                         yes, half, no, pres, mu, imp)
+            else:
+                _, _, ok = rattle_project_velocity(D, S, N, Bt0, Bh0, bmax, Fc, no, Pc, pc_diag, 1.0, closing, yes,
+                                                   half, no, pres, mu, imp)
+                have_fs = False
         if not ok:
             status[0] = 1
             info[0] = np.nan
@@ -562,6 +612,7 @@ def loop_fragment() -> Fragment:
     generated module (it uses ``_lie_poisson``, ``_damped`` and ``_book`` of :mod:`cartan.integrators.loops`)."""
     return Fragment(constants={"MAX_ITERATIONS_": MAX_ITERATIONS, "EPS_": EPS, "SLOW_": SLOW},
                     source=njit_source(small_inverse, bt_factor, bt_solve, rattle_values, rattle_rows, rattle_metric,
-                                       _rattle_flow_jacobian, _rattle_right, _rattle_left, rattle_factor, rattle_apply,
-                                       rattle_impulse, rattle_project_velocity, _rattle_project_config,
-                                       _rattle_predict, _rattle_copy, _rattle_factors, rattle_loop))
+                                       _rattle_flow_jacobian, _rattle_diagonal, _rattle_right, _rattle_left,
+                                       rattle_factor, rattle_apply, rattle_impulse, rattle_project_velocity,
+                                       _rattle_project_config, _rattle_predict, _rattle_copy, _rattle_factors,
+                                       rattle_loop))
