@@ -639,7 +639,8 @@ class Medium(abc.ABC):
     #: (``Scheme.supports_coupled_lagrangian``: the ``lattice`` for d = 1) step the Hamiltonian
     #: system ``Φ̇ = ΦN``, ``Ṡ + ad*_N S = D*Q`` with ``N = ∂H/∂S(S, X)`` and ``Q = ∂H/∂X(S, X)``
     #: (docs/design.md, "Media whose Lagrangian couples N and X").  The integrators that split
-    #: K(S) + U(X) (``lie-verlet``, ``implicit-midpoint``) and the compiled loops refuse it.
+    #: K(S) + U(X) (``lie-verlet``, ``rattle``) and the compiled loops refuse it;
+    #: ``implicit-midpoint`` runs it as a discrete Lagrangian method (symplectic).
     coupled_lagrangian: ClassVar[bool] = False
 
     def momentum_at(self, N: np.ndarray, X: np.ndarray) -> np.ndarray:

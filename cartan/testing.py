@@ -29,6 +29,15 @@ runs
     ``implicit-midpoint`` needs a positive diagonal metric) is skipped, with its reason; a
     medium with constrained strains is stepped only by the integrators that hold them
     (``rattle``, on the lattice).
+coupled Lagrangian
+    for a medium with :attr:`~cartan.medium.Medium.coupled_lagrangian` (ℓ(N, X) coupling
+    velocity and strain), at small random velocities and the random strains above:
+    ``velocity_at`` and ``momentum_at`` are inverse to each other (1e-10 relative, on the
+    live components: both are Newton solves in general), ``velocity_at = ∂H/∂S`` and
+    ``stress_with = ∂H/∂X`` (central differences of ``hamiltonian``, ≤ ``fd_rtol``
+    relative), ``velocity_at`` does not depend on the gauge components of S, and
+    ``stress_with``, ``hamiltonian`` and ``velocity_at`` have the contract's shapes
+    (:func:`check_coupled_contract`, also usable alone).
 point kernels
     for a medium that declares them (:meth:`~cartan.medium.Medium.point_kernels`): the energy
     and stress kernels agree with ``potential`` and ``stress`` to round-off (1e-12 relative) at
@@ -51,7 +60,7 @@ from typing import Any
 
 import numpy as np
 
-__all__ = ["ConformanceError", "Report", "check_medium"]
+__all__ = ["ConformanceError", "Report", "check_coupled_contract", "check_medium"]
 
 
 class ConformanceError(AssertionError):
@@ -127,6 +136,106 @@ def _small_problem(med, rng: np.random.Generator, n: int = 5):
     Phi = g.compose(g.exp(xi), g.exp(pert))
     N = 0.05 * rng.standard_normal((*grid.shape, g.dim)) * live
     return Problem(med, grid, InitialState(Phi=Phi, N=N))
+
+
+def _coupled_checks(med: Any, Xs: np.ndarray, rng: np.random.Generator,
+                    fd_rtol: float) -> list[tuple[str, bool, str]]:
+    """``(name, ok, detail)`` of the coupled-Lagrangian checks (:func:`check_coupled_contract`)."""
+    out: list[tuple[str, bool, str]] = []
+    r = med.group.dim
+    live = ~np.asarray(med.gauge_mask(), dtype=bool)
+    n = Xs.shape[0]
+    # velocities of 0.1 in the units of N on the live components: the contract's media are
+    # checked near rest, where the Legendre map is invertible
+    N = np.zeros((n, r))
+    N[:, live] = 0.1 * rng.standard_normal((n, int(live.sum())))
+    try:
+        S = np.asarray(med.momentum_at(N, Xs), dtype=float)
+        Nb = np.asarray(med.velocity_at(S, Xs), dtype=float)
+        Sb = np.asarray(med.momentum_at(Nb, Xs), dtype=float)
+        H = np.asarray(med.hamiltonian(S, Xs), dtype=float)
+        Q = np.asarray(med.stress_with(S, Xs), dtype=float)
+    except Exception as exc:  # noqa: BLE001 - reported as a failed check
+        return [("coupled contract: momentum_at, velocity_at, hamiltonian, stress_with evaluate", False,
+                 f"{type(exc).__name__}: {exc}")]
+    shapes = S.shape == (n, r) and Nb.shape == (n, r) and H.shape == (n,) and Q.shape == Xs.shape
+    out.append(("coupled contract: shapes of momentum_at [..., r], velocity_at [..., r], hamiltonian [...], "
+                "stress_with [..., d, r]", bool(shapes), f"got {S.shape}, {Nb.shape}, {H.shape}, {Q.shape}"))
+    if not shapes:
+        return out
+    scale_n = max(float(np.max(np.abs(N[:, live]))), 1e-300)
+    scale_s = max(float(np.max(np.abs(S[:, live]))), 1e-300)
+    err = max(float(np.max(np.abs((Nb - N)[:, live]))) / scale_n, float(np.max(np.abs((Sb - S)[:, live]))) / scale_s)
+    out.append(("coupled contract: velocity_at and momentum_at are inverse maps", err <= 1e-10,
+                f"relative error {err:.2e}"))
+    gauge = S.copy()
+    gauge[:, ~live] += 1.0
+    Ng = np.asarray(med.velocity_at(gauge, Xs), dtype=float)
+    err_g = float(np.max(np.abs(Ng - Nb), initial=0.0)) / scale_n
+    out.append(("coupled contract: velocity_at ignores the gauge components of S", err_g <= 1e-10,
+                f"relative change {err_g:.2e}"))
+    eps = 1e-6
+    fd_s = np.zeros_like(S)
+    for k in np.flatnonzero(live):
+        dS = np.zeros(r)
+        dS[k] = eps
+        fd_s[:, k] = (med.hamiltonian(S + dS, Xs) - med.hamiltonian(S - dS, Xs)) / (2 * eps)
+    err_s = float(np.max(np.abs((fd_s - Nb)[:, live]))) / max(float(np.max(np.abs(fd_s[:, live]))), 1e-300)
+    out.append(("coupled contract: velocity_at = ∂H/∂S (central differences)", err_s <= fd_rtol,
+                f"relative error {err_s:.2e} > {fd_rtol:.0e}"))
+    fd_x = np.zeros_like(Q)
+    d = Xs.shape[1]
+    for a in range(d):
+        for k in range(r):
+            dX = np.zeros((d, r))
+            dX[a, k] = eps
+            fd_x[:, a, k] = (med.hamiltonian(S, Xs + dX) - med.hamiltonian(S, Xs - dX)) / (2 * eps)
+    err_x = float(np.max(np.abs(fd_x - Q))) / max(float(np.max(np.abs(fd_x))), 1e-300)
+    out.append(("coupled contract: stress_with = ∂H/∂X (central differences)", err_x <= fd_rtol,
+                f"relative error {err_x:.2e} > {fd_rtol:.0e}"))
+    return out
+
+
+def check_coupled_contract(medium: Any, params: dict[str, Any] | None = None, *, fd_rtol: float = 1e-6,
+                           seed: int = 0, raise_on_failure: bool = True) -> Report:
+    """The checks of a Lagrangian coupling N and X (module docstring, "coupled Lagrangian") alone.
+
+    At 7 random strains ``X = rest_strain() + 0.1·noise`` ``[7, d, r]`` and velocities of 0.1
+    in the units of N on the live components: the Legendre maps ``momentum_at`` and
+    ``velocity_at`` inverse to each other, ``velocity_at = ∂H/∂S`` and ``stress_with = ∂H/∂X``
+    by central differences of ``hamiltonian`` (step 1e-6: error O(1e-12) + round-off
+    ε_mach·|H|/1e-6, far below ``fd_rtol``).
+
+    Parameters
+    ----------
+    medium : str, Medium subclass or Medium instance
+        With ``coupled_lagrangian`` set.
+    params : dict, optional
+        Constructor keywords when ``medium`` is a name or a class.
+    fd_rtol : float
+        Relative tolerance of the finite-difference checks.
+    seed : int
+        Of the random strains and velocities.
+    raise_on_failure : bool
+        Raise :class:`ConformanceError` listing the failures (default); otherwise return the report.
+
+    Raises
+    ------
+    ValueError
+        When the medium does not declare ``coupled_lagrangian``.
+    """
+    med = _build(medium, params)
+    if not getattr(med, "coupled_lagrangian", False):
+        raise ValueError(f"medium {med.name or type(med).__name__!r} does not declare coupled_lagrangian: "
+                         "check_medium covers its contract")
+    rng = np.random.default_rng(seed)
+    rep = Report(med.name or type(med).__name__)
+    Xs = np.asarray(med.rest_strain(), dtype=float) + 0.1 * rng.standard_normal((7, *np.shape(med.rest_strain())))
+    for name, ok, detail in _coupled_checks(med, Xs, rng, fd_rtol):
+        (rep.passed if ok else rep.failed).append(name if ok else f"{name}: {detail}")
+    if rep.failed and raise_on_failure:
+        raise ConformanceError(str(rep))
+    return rep
 
 
 def check_medium(medium: Any, params: dict[str, Any] | None = None, *, schemes: list[str] | None = None,
@@ -208,6 +317,11 @@ def check_medium(medium: Any, params: dict[str, Any] | None = None, *, schemes: 
         scale = max(float(np.max(np.abs(fd))), 1e-300)
         worst = max(worst, float(np.max(np.abs(fd - med.stress(X)))) / scale)
     check("stress = ∂U/∂X (central differences)", worst <= fd_rtol, f"relative error {worst:.2e} > {fd_rtol:.0e}")
+
+    # ---------------------------------------------------------------- coupled Lagrangian
+    if getattr(med, "coupled_lagrangian", False):
+        for name, ok, detail in _coupled_checks(med, Xs, rng, fd_rtol):
+            check(name, ok, detail)
 
     # ---------------------------------------------------------------- point kernels
     kernels = med.point_kernels()

@@ -3,7 +3,7 @@ path for Lagrangians that couple N and X (docs/media/relativistic-rod.md §2–�
 docs/design.md, "Media whose Lagrangian couples N and X").
 
 Fast tests run the numpy path only: the temporal-gauge Legendre map against its closed forms,
-the parameter checks, the refusals (``lie-verlet``, ``implicit-midpoint``, ``collocation``, the
+the parameter checks, the refusals (``lie-verlet``, ``collocation``, the
 compiled loops), the Nambu–Goto string through the coupled path (the same run to round-off) and
 a short free-rod run whose 4-momentum is conserved to round-off.  Slow: the order of the energy
 and angular-momentum errors of ``rkmk4``, the Newtonian limit against ``cosserat-rod`` and the
@@ -128,12 +128,13 @@ def test_stiffness_belongs_to_the_elastic_law_and_initial_kinds():
 
 # ---------------------------------------------------------------------------- the core path
 def test_splitting_integrators_refuse_a_coupled_lagrangian():
+    """lie-verlet splits K(S) + U(X): refused (implicit-midpoint runs it: test_relativistic_implicit.py)."""
     scheme = Lattice(_free_string(5))
     state = scheme.initial_state()
     with pytest.raises(ValueError, match="couples N and X"):
         LieVerlet().step(scheme, state, 0.01)
     with pytest.raises(ValueError, match="couples N and X"):
-        cartan.simulate(_free_string(5), integrator="implicit-midpoint", dt=0.01, t_end=0.01, progress=False)
+        cartan.simulate(_free_string(5), integrator="lie-verlet", dt=0.01, t_end=0.01, progress=False)
 
 
 def test_collocation_refuses_and_compiled_loops_decline():

@@ -46,6 +46,32 @@ Properties
   explicit limit when the stiff modes are slaved to a slow motion (thin rods bending:
   ``cartan_verification.stiff``).
 
+Coupled Lagrangians
+-------------------
+For a medium whose reduced Lagrangian couples velocity and strain
+(:attr:`~cartan.medium.Medium.coupled_lagrangian`, on the schemes that step it:
+:mod:`cartan.schemes._coupled`) the discrete Lagrangian is
+
+    L_d(Φ_k, Φ_{k+1}) = Δt L(ξ/Δt, X(Φ_{k+½})),    L(N, X) = sup_p [Σ_i p_i·N_i − H_d(p, X)],
+
+the Legendre transform of the scheme's discrete Hamiltonian H_d (the semi-discrete system the
+other integrators run).  Its discrete Euler–Lagrange equations are the stage equation above
+with two pieces evaluated differently (numpy path only, :meth:`ImplicitMidpoint._residual`):
+
+* ``μ = ∂L/∂N(ξ/Δt, X_{k+½})`` per unit weight: the momenta S whose discrete velocity
+  ``N_d(S, X_{k+½})`` at the midpoint configuration is ξ/Δt on the live components
+  (:meth:`cartan.schemes.base.Scheme.momentum`, started from the previous stage's μ);
+* ``W_{k+½}``: the scheme's force at the midpoint configuration carrying the momenta μ, whose
+  stress is then the Hamiltonian one ``∂H_d/∂X(μ, X_{k+½}) = −∂L/∂X`` (envelope theorem).
+
+The gauge components of ξ are not unknowns: they are Δt times those the medium fixes in
+:meth:`~cartan.schemes.base.Scheme.velocity` at the start of the step (r⁰ = ct for the temporal gauge
+of the elastic relativistic string; exact when the gauge value is a constant).  The method
+stays symmetric (order 2) and symplectic, and its momentum maps change by the Newton residual
+only.  A ξ for which the Legendre map has no inverse (outside the medium's range: an acausal
+velocity) counts as outside the domain of the residual (a halving).  The compiled residual and
+blocks decline such media.
+
 Newton's method
 ---------------
 Unknowns: ξ at the live components of every non-clamped node; the initial guess is the
@@ -160,9 +186,6 @@ class _Plan:
         from ..schemes.lattice import Lattice
         from ..statics import _colouring, _lattice_stencil, _stencil_pairs
 
-        if getattr(scheme, "coupled_lagrangian", False):
-            raise ValueError("implicit-midpoint's discrete Lagrangian is K(N) − U(Φ); the medium's Lagrangian couples "
-                             "N and X (Medium.coupled_lagrangian): use rkmk4 or lie-euler")
         if scheme.grid.glued is not None and not isinstance(scheme, Lattice):
             raise ValueError("implicit-midpoint supports a glued axis (Grid.glued, the sphere's chart) on the "
                              "'lattice' scheme only")
@@ -298,12 +321,14 @@ class ImplicitMidpoint(Integrator):
         self.newton_iterations = 0
         self.jacobians = 0
         self._cache: dict[str, Any] | None = None  # the last step: continuation key, Δt, ξ, Jacobian factor
+        self._coupled_start: np.ndarray | None = None  # the last stage momenta μ (coupled Lagrangians)
 
     def begin_block(self) -> None:
         """Forget the previous step (kept Jacobian, previous ξ): the next step starts afresh,
         exactly as a run restarted here would (called by :func:`cartan.simulate` at the start
         of every save block)."""
         self._cache = None
+        self._coupled_start = None
 
     def step(self, scheme: Scheme, state: State, dt: float) -> None:
         """Advance ``state`` in place by one step of size ``dt``.
@@ -480,7 +505,7 @@ class ImplicitMidpoint(Integrator):
         (:meth:`_residual`): ``scheme.compiled_diagnostics`` cleared (``simulate(...,
         compiled=False)``), the numpy backend, no compiled operator set for the problem, another state
         layout, or a subclass overriding :meth:`_residual` or :meth:`force`."""
-        if not getattr(scheme, "compiled_diagnostics", True):
+        if not getattr(scheme, "compiled_diagnostics", True) or getattr(scheme, "coupled_lagrangian", False):
             return None
         if type(self)._residual is not ImplicitMidpoint._residual or type(self).force is not Integrator.force:
             return None
@@ -506,8 +531,20 @@ class ImplicitMidpoint(Integrator):
         mid = state.copy()
         scheme.drift(mid, 0.5, xi)
         N = xi / dt
-        W = self.force(scheme, mid, N, state.t + 0.5 * dt)
-        mu = scheme.medium.momentum(N)
+        if getattr(scheme, "coupled_lagrangian", False):
+            # ℓ(N, X): μ = ∂L/∂N at the midpoint strains (the discrete Legendre map inverted there),
+            # and the force with the Hamiltonian stress at (μ, X_{k+½}) (module docstring)
+            start = self._coupled_start  # the last stage's μ: a close first iterate
+            try:
+                mu = scheme.momentum(mid, N, start=start)
+            except ValueError:
+                return None
+            self._coupled_start = mu
+            mid.S = mu
+            W = self.force(scheme, mid, N, state.t + 0.5 * dt)
+        else:
+            W = self.force(scheme, mid, N, state.t + 0.5 * dt)
+            mu = scheme.medium.momentum(N)
         lhs = np.swapaxes(np.eye(g.dim) + g.Ad(g.exp(0.5 * xi)), -1, -2)
         BW = np.linalg.solve(lhs, W[..., None])[..., 0]  # B(ξ)ᵀ W
         Dmu = np.einsum("...ji,...j->...i", g.dexp_inv(xi), mu)
@@ -572,6 +609,11 @@ class ImplicitMidpoint(Integrator):
                 return res
 
         xi = np.zeros_like(state.S)
+        if scheme.coupled_lagrangian:
+            # the gauge components of ξ are Δt times those the medium fixes at the start of the step
+            # (r⁰ = ct for the temporal gauge); only the live ones are unknowns
+            held = ~unk
+            xi[held] = dt * scheme.velocity(state)[held]
         res = None
         if cache is not None and self.predictor:
             # ξ_{k+½} ≈ ξ_{k−½}(Δt/Δt_prev): the midpoint velocities are smooth, whereas the step
@@ -588,10 +630,12 @@ class ImplicitMidpoint(Integrator):
             xi[unk] = dt * N_k[unk]
             res = residual(xi)
             if np.any(xi):
-                zero = np.zeros_like(xi)
+                zero = np.where(unk, 0.0, xi)
                 res0 = residual(zero)
-                if res is None or dnorm(res0["R"]) < dnorm(res["R"]):
+                if res0 is not None and (res is None or dnorm(res0["R"]) < dnorm(res["R"])):
                     xi, res = zero, res0
+        if res is None:  # (a coupled Lagrangian whose Legendre map has no inverse at either start)
+            raise self._failure(state, dt, 0, math.inf, [math.inf], _NOT_FINITE)
         rn = dnorm(res["R"])
         history = [rn]
         it = 0

@@ -91,13 +91,16 @@ def kinetic_part(scheme: Any, state: State) -> float:
     return float(h * np.sum(H - med.potential(X)))
 
 
-def initial_momentum(scheme: Any, state: State, N: np.ndarray) -> np.ndarray:
+def initial_momentum(scheme: Any, state: State, N: np.ndarray, start: np.ndarray | None = None) -> np.ndarray:
     """The node momenta S ``[n, r]`` whose discrete velocity (:func:`coupled_velocity`) is ``N``.
 
     Starts from the half-edge average of the pointwise Legendre map ``S(N_i, X_e)`` and corrects
     it by ``S ← S + Σ_e (h/2w_i)[S(N_i, X_e) − S(N_i(S), X_e)]`` (a Newton step with the
-    half-edge average of ∂S/∂N for the Jacobian) until ``N(S)`` matches ``N`` to 1e-14
-    relative.
+    half-edge average of ∂S/∂N for the Jacobian) until ``N(S)`` matches ``N`` on the live
+    components to 1e-14 of the largest live component of ``N`` (at least 1e-3 of its largest
+    component, gauge components included: N₀ = c in a temporal gauge).  A
+    ``start`` ``[n, r]`` (a nearby solution, e.g. the previous stage's momenta) replaces the
+    half-edge average as the first iterate; the fixed point is the same.
 
     Raises
     ------
@@ -112,9 +115,13 @@ def initial_momentum(scheme: Any, state: State, N: np.ndarray) -> np.ndarray:
         return _to_nodes(scheme, tail, head, med.momentum_at(Nt[tail], X), med.momentum_at(Nh[head], X), h)
 
     target = legendre(N, N)
-    S = target.copy()
+    S = target.copy() if start is None or np.shape(start) != target.shape else np.array(start, dtype=float)
     live = ~np.asarray(med.gauge_mask(), dtype=bool)
-    scale = max(float(np.max(np.abs(N[..., live]), initial=0.0)), 1e-300)
+    # relative to the largest live velocity, but at least 1e-3 of the largest component of N, the
+    # gauge ones included (N₀ = c in the temporal gauge): a zero live velocity (a string at rest,
+    # the stage ξ = 0) is met to the round-off of the medium's own inverse, not to 1e-300
+    scale = max(float(np.max(np.abs(N[..., live]), initial=0.0)), 1e-3 * float(np.max(np.abs(N), initial=0.0)),
+                1e-300)
     trial = state.copy()
     for _ in range(_ITERATIONS):
         trial.S = S

@@ -258,6 +258,23 @@ class Scheme(abc.ABC):
         """Whether the medium's Lagrangian couples N and X (:mod:`cartan.schemes._coupled`)."""
         return bool(getattr(self.medium, "coupled_lagrangian", False))
 
+    def momentum(self, state: State, N: np.ndarray, start: np.ndarray | None = None) -> np.ndarray:
+        """The node momenta S ``[*shape, r]`` whose velocity (:meth:`velocity`) at ``state``'s
+        configuration is ``N``: ∂K/∂N, or the inverse of the discrete Legendre map of
+        :mod:`cartan.schemes._coupled` for a coupled Lagrangian (``start``: a nearby solution
+        as its first iterate; the root is the same).
+
+        Raises
+        ------
+        ValueError
+            Where the Legendre map has no inverse (a coupled Lagrangian outside its range).
+        """
+        if self.coupled_lagrangian:
+            from ._coupled import initial_momentum
+
+            return initial_momentum(self, state, N, start=start)
+        return self.medium.momentum(N)
+
     def velocity(self, state: State) -> np.ndarray:
         """N = ∂K*/∂S with gauge components and clamped nodes held at zero (N = ∂H_d/∂S, the
         discrete Legendre map of :mod:`cartan.schemes._coupled`, for a coupled Lagrangian)."""

@@ -18,7 +18,7 @@ from collections.abc import Callable
 
 import numpy as np
 
-__all__ = ["ETA", "lagrangian", "momentum_stress", "newtonian_expansion", "quadratic_law", "stretch",
+__all__ = ["ETA", "ElasticLaw", "lagrangian", "momentum_stress", "newtonian_expansion", "quadratic_law", "stretch",
            "temporal_hessian", "temporal_lagrangian", "temporal_momentum", "temporal_stress", "temporal_velocity"]
 
 #: Minkowski metric η = diag(−1, 1, 1, 1)
@@ -71,6 +71,94 @@ def newtonian_expansion(v: np.ndarray, xprime: np.ndarray, m: float, W: Callable
     l0 = 0.5 * m * v2 - W(L)
     l2 = (m * v2 * v2 / 8.0 + 0.5 * W(L) * v2 - 0.5 * dW(L) * L * vt * vt) / c**2
     return l0, l2
+
+
+# ---------------------------------------------------------------------------- the law ε(λ)
+class ElasticLaw:
+    """The elastic part ``W(λ) = ε(λ) − μc²`` of a rest-frame energy per unit reference length,
+    with its derivatives ``W′`` (the tension T = ε′ = W′) and ``W″`` (docs §2, "General ε(λ)").
+
+    Parameters
+    ----------
+    energy, tension, stiffness : callable
+        ``W(λ)``, ``W′(λ)`` and ``W″(λ)``, elementwise on arrays of stretches ``[...]``.
+    name : str, optional
+        A label for ``repr`` and the medium's parameters.
+
+    Notes
+    -----
+    The medium checks the law on construction (:meth:`check`): finite values, the derivatives
+    consistent with ``W`` (central differences), and, with ε = μc² + W, on the stretches
+    checked (λ = 1 and the medium's ``stretch_range``)
+
+        ε > 0,   ε″ > 0   and   c_L² = c² λ²ε″/(ε − λε′) < c²  ⇔  ε − λε′ − λ²ε″ > 0,
+
+    the longitudinal waves real and slower than light; then ε − λε′ > 0 as well, so the
+    transverse waves, at c_T² = c² λε′/ε, are slower than light and the kinetic Hessian
+    ∂²ℓ/∂v⃗² is positive definite at rest (the Legendre map is invertible near v⃗ = 0).
+    """
+
+    def __init__(self, energy: Callable, tension: Callable, stiffness: Callable, name: str = "custom"):
+        for key, f in (("energy", energy), ("tension", tension), ("stiffness", stiffness)):
+            if not callable(f):
+                raise ValueError(f"ElasticLaw {key} must be a callable W, W′ or W″ of the stretch λ, got {f!r}")
+        self.W, self.dW, self.ddW = energy, tension, stiffness
+        self.name = str(name)
+
+    @classmethod
+    def quadratic(cls, k: float) -> ElasticLaw:
+        """``W = ½k(λ − 1)²``, ``W′ = k(λ − 1)``, ``W″ = k``."""
+        return cls(lambda lam: 0.5 * k * (lam - 1.0) ** 2, lambda lam: k * (lam - 1.0),
+                   lambda lam: np.full_like(np.asarray(lam, dtype=float), k), name=f"quadratic(k={k!r})")
+
+    @classmethod
+    def quartic(cls, k: float, q: float) -> ElasticLaw:
+        """``W = ½k(λ − 1)² + ¼q(λ − 1)⁴``, ``W′ = k(λ − 1) + q(λ − 1)³``, ``W″ = k + 3q(λ − 1)²``."""
+        return cls(lambda lam: 0.5 * k * (lam - 1.0) ** 2 + 0.25 * q * (lam - 1.0) ** 4,
+                   lambda lam: k * (lam - 1.0) + q * (lam - 1.0) ** 3,
+                   lambda lam: k + 3.0 * q * (lam - 1.0) ** 2, name=f"quartic(k={k!r}, q={q!r})")
+
+    def functions(self, mu: float, c: float) -> tuple[Callable, Callable, Callable]:
+        """``(ε, ε′, ε″)`` with ε = μc² + W, elementwise (the ``law`` tuple of this module)."""
+        rest = mu * c * c
+        return ((lambda lam: rest + self.W(lam)), self.dW,
+                (lambda lam: np.broadcast_to(np.asarray(self.ddW(lam), dtype=float), np.shape(lam)).copy()))
+
+    def speeds(self, lam: np.ndarray, mu: float, c: float) -> tuple[np.ndarray, np.ndarray]:
+        """Squared longitudinal and transverse wave speeds in the rest frame at the stretch λ ``[...]``:
+        ``c_L² = c²λ²ε″/(ε − λε′)`` and ``c_T² = c²λε′/ε`` (docs §2, "General ε(λ)")."""
+        lam = np.asarray(lam, dtype=float)
+        eps, deps, ddeps = (f(lam) for f in self.functions(mu, c))
+        return c * c * lam * lam * ddeps / (eps - lam * deps), c * c * lam * deps / eps
+
+    def check(self, mu: float, c: float, stretches: np.ndarray) -> None:
+        """Raise ``ValueError`` (naming ``law``) unless W, W′, W″ are finite and consistent and
+        ε > 0, ε″ > 0 and ε − λε′ − λ²ε″ > 0 at every stretch given (class notes)."""
+        lam = np.asarray(stretches, dtype=float)
+        eps, deps, ddeps = (np.asarray(f(lam), dtype=float) * np.ones_like(lam) for f in self.functions(mu, c))
+        if not (np.all(np.isfinite(eps)) and np.all(np.isfinite(deps)) and np.all(np.isfinite(ddeps))):
+            raise ValueError(f"law {self.name}: W, W′ and W″ must be finite for λ in [{float(lam.min())!r}, "
+                             f"{float(lam.max())!r}]")
+        h = 1e-5
+        at = np.union1d(lam, [0.9, 0.95, 1.05, 1.1])  # (around the rest state too: W(1) = W′(1) = 0 is common)
+        for f, df, what in ((self.W, self.dW, "W′"), (self.dW, self.ddW, "W″")):
+            fd = (np.asarray(f(at + h), dtype=float) - np.asarray(f(at - h), dtype=float)) / (2 * h)
+            exact = np.asarray(df(at), dtype=float) * np.ones_like(at)
+            # central differences err by h²f‴/6 + round-off ε|f|/h ≈ 1e-11 of the scales: 1e-6 is far above
+            scale = float(np.max(np.abs(exact))) + float(np.max(np.abs(np.asarray(f(at), dtype=float))))
+            bad = np.abs(fd - exact) > 1e-6 * max(scale, 1e-300)
+            if np.any(bad):
+                raise ValueError(f"law {self.name}: {what} is not the derivative of the previous function "
+                                 f"(central differences disagree at λ = {float(at[bad][0]):.6g})")
+        for ok, what in ((eps > 0, "ε(λ) = μc² + W > 0"), (ddeps > 0, "ε″ = W″ > 0 (real longitudinal waves)"),
+                         (eps - lam * deps - lam * lam * ddeps > 0,
+                          "ε − λε′ − λ²ε″ > 0 (longitudinal waves c_L² = c²λ²ε″/(ε − λε′) slower than light)")):
+            if not np.all(ok):
+                raise ValueError(f"law {self.name} must have {what} for λ in [{float(lam.min())!r}, "
+                                 f"{float(lam.max())!r}]; violated at λ = {float(lam[~ok][0]):.6g}")
+
+    def __repr__(self) -> str:
+        return f"ElasticLaw({self.name})"
 
 
 # ---------------------------------------------------------------------------- temporal gauge
@@ -155,7 +243,8 @@ def _newton(p: np.ndarray, x: np.ndarray, v: np.ndarray, law: tuple, c: float, i
     return None
 
 
-def temporal_velocity(p: np.ndarray, x: np.ndarray, law: tuple, c: float, iterations: int = 40) -> np.ndarray:
+def temporal_velocity(p: np.ndarray, x: np.ndarray, law: tuple, c: float, iterations: int = 40,
+                      start: np.ndarray | None = None) -> np.ndarray:
     """The inverse Legendre map v⃗(p⃗, x⃗′) ``[..., 3]``: Newton per point on p⃗(v⃗) = p⃗.
 
     The Jacobian is the closed-form Hessian (:func:`temporal_hessian`), the start the
@@ -163,7 +252,10 @@ def temporal_velocity(p: np.ndarray, x: np.ndarray, law: tuple, c: float, iterat
     light cone is halved until it does not.  Once every correction is below 10⁻¹² of
     max(|v⃗|, 10⁻³c) one more step is taken (quadratic convergence: the result is at round-off).
     When that fails (fast motion along the string, where ℓ is far from quadratic in v⃗), the
-    momentum is reached by continuation from p⃗ = 0 in 32 stages.
+    momentum is reached by continuation from p⃗ = 0 in 32 stages.  A ``start`` ``[..., 3]``
+    inside the light cone (a nearby solution: the previous call's) is tried first; the root is
+    the same (p⃗(v⃗) is the gradient of a strictly convex ℓ where the law is causal), only the
+    number of iterations changes.
 
     Raises
     ------
@@ -173,6 +265,10 @@ def temporal_velocity(p: np.ndarray, x: np.ndarray, law: tuple, c: float, iterat
     """
     p = np.asarray(p, dtype=float)
     x = np.asarray(x, dtype=float)
+    if start is not None and np.shape(start) == p.shape and np.all(np.linalg.norm(start, axis=-1) < c):
+        out = _newton(p, x, np.array(start, dtype=float), law, c, iterations)
+        if out is not None:
+            return out
     v = p * (c * c / law[0](np.linalg.norm(x, axis=-1)))[..., None]
     speed = np.linalg.norm(v, axis=-1, keepdims=True)
     v = np.where(speed >= 0.9 * c, v * (0.9 * c / np.maximum(speed, 1e-300)), v)

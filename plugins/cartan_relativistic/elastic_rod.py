@@ -1,8 +1,8 @@
 """The elastic relativistic string: ``relativistic-rod`` with ``energy="elastic"`` (docs §2–§3).
 
-Rest-frame energy per unit reference length ε(λ) = μc² + ½k(λ − 1)² (λ the rest-frame stretch,
-tension T = ε′ = k(λ − 1), rest mass μ per unit reference length), run in the **temporal
-gauge** r⁰ = ct: the core's time t is the lab time at every node, Λ = I is held (the Lorentz
+Rest-frame energy per unit reference length ε(λ) = μc² + ½k(λ − 1)² by default (λ the
+rest-frame stretch, tension T = ε′ = k(λ − 1), rest mass μ per unit reference length), run in
+the **temporal gauge** r⁰ = ct: the core's time t is the lab time at every node, Λ = I is held (the Lorentz
 part of 𝔤 is gauge), and the translation components of N and X are ṙ = (c, v⃗) and
 r′ = (0, x⃗′).  The reduced Lagrangian (paper §IV.A)
 
@@ -14,9 +14,14 @@ couples velocity and strain, so the medium declares
 point (:meth:`velocity_at`, N₀ = c: the gauge), the Hamiltonian stress Q⃗ = −∂ℓ/∂x⃗′
 (:meth:`stress_with`) and H = p⃗·v⃗ − ℓ − μc² (:meth:`hamiltonian`; the constant rest energy
 μc² per unit u is left out of the core's energies and added back in the output ``energy``).
-The lattice steps the Hamiltonian system with ``rkmk4`` (order 4) or ``lie-euler`` (order 1)
-on the numpy path (:mod:`cartan.schemes._coupled`); ``lie-verlet``, ``implicit-midpoint`` and
-the compiled loops refuse it.
+The lattice steps the Hamiltonian system with ``rkmk4`` (order 4), ``lie-euler`` (order 1) or
+``implicit-midpoint`` (order 2, symplectic: the discrete Lagrangian method of the Legendre
+transform of H_d) on the numpy path (:mod:`cartan.schemes._coupled`); ``lie-verlet`` and the
+compiled loops refuse it.
+
+A general rest-frame energy ε(λ) = μc² + W(λ) is given as ``law``
+(:class:`cartan_relativistic.elastic.ElasticLaw`: W, W′, W″), checked on construction at λ = 1
+and over ``stretch_range`` (ε > 0, ε″ > 0, longitudinal waves slower than light; docs §2).
 """
 
 from __future__ import annotations
@@ -30,6 +35,7 @@ from cartan.medium import check_finite, check_keywords, check_positive
 from cartan.problem import InitialState
 
 from .elastic import (
+    ElasticLaw,
     quadratic_law,
     stretch,
     temporal_lagrangian,
@@ -55,9 +61,16 @@ class ElasticRelativisticRod(RelativisticRod):
         Rest mass per unit reference length μ, > 0.
     energy : str
         ``"elastic"``.
-    stiffness : float
+    stiffness : float, optional
         Axial stiffness k of ε(λ) = μc² + ½k(λ − 1)² (the ``cosserat-rod``'s stretch stiffness
         in the Newtonian limit), 0 < k < μc²: longitudinal waves at √(k/μ) < c.
+    law : ElasticLaw or tuple (W, W′, W″), optional
+        Instead of ``stiffness``: a general ε(λ) = μc² + W(λ)
+        (:class:`cartan_relativistic.elastic.ElasticLaw`, e.g. ``ElasticLaw.quartic(k, q)``),
+        checked on construction at λ = 1 and over ``stretch_range`` (ε > 0, ε″ > 0, longitudinal
+        waves slower than light; docs §2, "General ε(λ)").
+    stretch_range : (float, float), optional
+        Stretches 0 < λ_min < λ_max over which the law is checked as well (201 points).
 
     Notes
     -----
@@ -88,22 +101,56 @@ class ElasticRelativisticRod(RelativisticRod):
         "tension": ("tension T = ε′(λ) of each node", "N"),
     }
 
-    def __init__(self, c: float = 1.0, mu: float = 1.0, energy: str = "elastic", stiffness: float | None = None):
+    def __init__(self, c: float = 1.0, mu: float = 1.0, energy: str = "elastic", stiffness: float | None = None,
+                 law: ElasticLaw | tuple | None = None, stretch_range: tuple[float, float] | None = None):
         if energy != "elastic":
             raise ValueError(f"{type(self).__name__} is the energy 'elastic'; got energy={energy!r}")
         super().__init__(c=c, mu=mu, energy="nambu-goto")
         self.energy = "elastic"
+        if stretch_range is not None:
+            lo, hi = (float(v) for v in check_positive("stretch_range", stretch_range, shape=(2,)))
+            if not lo < hi:
+                raise ValueError(f"stretch_range must be (λ_min, λ_max) with 0 < λ_min < λ_max, got {stretch_range!r}")
+            stretches = np.union1d(np.linspace(lo, hi, 201), [1.0])
+            self.stretch_range: tuple[float, float] | None = (lo, hi)
+        else:
+            stretches = np.array([1.0])
+            self.stretch_range = None
+        if law is not None:
+            if stiffness is not None:
+                raise ValueError("give either stiffness k (the quadratic law) or law (an ElasticLaw W, W′, W″), "
+                                 "not both")
+            if isinstance(law, tuple) and len(law) == 3:
+                law = ElasticLaw(*law)
+            if not isinstance(law, ElasticLaw):
+                raise ValueError(f"law must be an ElasticLaw or a tuple (W, W′, W″) of callables, got {law!r}")
+            self.stiffness = None
+            self.elastic_law = law
+            law.check(self.mu, self.c, stretches)
+            self.law = law.functions(self.mu, self.c)
+            return
         if stiffness is None:
-            raise ValueError("energy 'elastic' needs stiffness k > 0 (ε(λ) = μc² + ½k(λ − 1)²)")
+            raise ValueError("energy 'elastic' needs stiffness k > 0 (ε(λ) = μc² + ½k(λ − 1)²) or a law "
+                             "(ElasticLaw: W(λ) = ε(λ) − μc², W′, W″)")
         self.stiffness = float(check_positive("stiffness", stiffness, shape=()))
         if self.stiffness >= self.mu * self.c**2:
             raise ValueError(f"stiffness must be < μc² = {self.mu * self.c**2!r} (longitudinal waves at √(k/μ), "
                              f"slower than light), got {stiffness!r}")
+        self.elastic_law = ElasticLaw.quadratic(self.stiffness)
+        if stretch_range is not None:
+            self.elastic_law.check(self.mu, self.c, stretches)
         self.law = quadratic_law(self.mu, self.stiffness, self.c)
 
     # ------------------------------------------------------------------ contract
     def parameters(self) -> dict[str, Any]:
-        return {"c": self.c, "mu": self.mu, "energy": "elastic", "stiffness": self.stiffness}
+        out: dict[str, Any] = {"c": self.c, "mu": self.mu, "energy": "elastic"}
+        if self.stiffness is not None:
+            out["stiffness"] = self.stiffness
+        else:
+            out["law"] = self.elastic_law
+        if self.stretch_range is not None:
+            out["stretch_range"] = self.stretch_range
+        return out
 
     def inertia(self) -> np.ndarray:
         """``(0, μ, μ, μ, 0₆)``: the Newtonian kinetic metric; slot 0 (N₀ = c) and the Lorentz part are gauge."""
@@ -124,9 +171,10 @@ class ElasticRelativisticRod(RelativisticRod):
         return x, np.linalg.norm(x, axis=-1)
 
     def potential(self, X: np.ndarray) -> np.ndarray:
-        """``U = H(S = 0, X) = ε(|x⃗′|) − μc² = ½k(|x⃗′| − 1)²`` ``[..., 1, 10]`` → ``[...]``."""
+        """``U = H(S = 0, X) = ε(|x⃗′|) − μc² = W(|x⃗′|)`` (½k(|x⃗′| − 1)² for the quadratic law),
+        ``[..., 1, 10]`` → ``[...]``."""
         _, lam = self._static(X)
-        return 0.5 * self.stiffness * (lam - 1.0) ** 2
+        return np.asarray(self.elastic_law.W(lam), dtype=float)
 
     def stress(self, X: np.ndarray) -> np.ndarray:
         """``Q = ∂U/∂X = k(|x⃗′| − 1) x̂′`` on slots 1–3 (the Hamiltonian stress at S = 0)."""
@@ -157,10 +205,12 @@ class ElasticRelativisticRod(RelativisticRod):
         if key not in memo:  # (the same (S, X) comes back for the stress: Newton once)
             if len(memo) >= 8:
                 memo.pop(next(iter(memo)))
-            memo[key] = temporal_velocity(p, x, self.law, self.c)
+            # Newton from the point's own first guess, never from an earlier call's solution: the
+            # result is then a function of (S, X) alone, bit for bit, so that restarts are exact
+            memo[key] = ((p.copy(), x.copy()), temporal_velocity(p, x, self.law, self.c))
         N = np.zeros(np.broadcast_shapes(S.shape, (*x.shape[:-1], 10)))
         N[..., 0] = self.c
-        N[..., 1:4] = memo[key]
+        N[..., 1:4] = memo[key][1]
         return N
 
     def stress_with(self, S: np.ndarray, X: np.ndarray) -> np.ndarray:

@@ -144,6 +144,9 @@ class RelativisticRod(KernelMedium):
         :class:`~cartan_relativistic.elastic_rod.ElasticRelativisticRod`).
     stiffness : float, optional
         k > 0 of the elastic law (``energy="elastic"`` only).
+    law, stretch_range : optional
+        A general elastic law ε(λ) = μc² + W(λ) and the stretches it is checked over
+        (``energy="elastic"`` only: :class:`cartan_relativistic.elastic_rod.ElasticRelativisticRod`).
 
     Notes
     -----
@@ -180,13 +183,17 @@ class RelativisticRod(KernelMedium):
             return super().__new__(ElasticRelativisticRod)
         return super().__new__(cls)
 
-    def __init__(self, c: float = 1.0, mu: float = 1.0, energy: str = "nambu-goto", stiffness: float | None = None):
+    def __init__(self, c: float = 1.0, mu: float = 1.0, energy: str = "nambu-goto", stiffness: float | None = None,
+                 law: Any = None, stretch_range: Any = None):
         self.group = cartan.group("Poincare")
         self.space = cartan.space("frame-M13")
         self.c = float(check_positive("c", c, shape=()))
         self.mu = float(check_positive("mu", mu, shape=()))
         if not isinstance(energy, str) or energy not in ENERGIES:
             raise ValueError(f"energy must be one of {ENERGIES}, got {energy!r}")
+        if energy == "nambu-goto" and (law is not None or stretch_range is not None):
+            raise ValueError("law and stretch_range apply to energy='elastic' (ε(λ) = μc² + W(λ)); the Nambu–Goto "
+                             "string's ε = μc²λ is fixed")
         if energy == "nambu-goto" and stiffness is not None:
             raise ValueError("stiffness applies to energy='elastic' (ε(λ) = μc² + ½k(λ − 1)²); the Nambu–Goto "
                              "string has none")
