@@ -1198,8 +1198,7 @@ def _execute_run(run: _ResolvedRun) -> xr.Dataset:
             # and the counters are those of the sub-block tests (each step depends only on the state)
             whole = run.compiled and scale[1] >= 1
             counters = integ_obj.counters() if whole else None
-            done, reason = _advance(integ_obj, scheme_obj, state, dt, n, guard, compiled=run.compiled,
-                                    **({"whole": True} if whole else {}))  # (the first blocks: as before)
+            done, reason = _advance(integ_obj, scheme_obj, state, dt, n, guard, compiled=run.compiled, whole=whole)
             if reason is None:
                 rec = io.frame_record(scheme_obj, integ_obj, state)
                 reason = _check_frame(rec, e0, growth, scale[0])

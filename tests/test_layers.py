@@ -281,7 +281,7 @@ def test_dt_reaches_the_loop_from_cartan_run_through_four_functions(tmp_path, mo
     class Stop(Exception):
         pass
 
-    def advance(integrator, scheme, state, dt, nsteps, guard, compiled=True):
+    def advance(integrator, scheme, state, dt, nsteps, guard, compiled=True, whole=False):
         names = [f.function for f in inspect.stack()[1:]]
         seen.append((dt, names[: names.index("_run") if "_run" in names else len(names)]))
         raise Stop
