@@ -346,6 +346,9 @@ def _subject(obj: Any) -> _Subject:
     obj = _load(obj)
     if not isinstance(obj, Scene):
         raise TypeError(f"advise takes a Problem, a Scene, a scene file or a registered scene name, got {obj!r}")
+    if obj.mode == "flow":
+        raise ValueError(f"scene {obj.name!r}: advise compares dynamic, static and continuation runs; a flow "
+                         f"scene ([flow]) has no reduced twin to compare")
     if obj.mode == "static" and obj.initial_guess is not None:
         raise ValueError(f"scene {obj.name!r}: advise does not take a static scene with an initial_guess file")
     settings = obj.run_settings() if obj.mode == "dynamic" else {}

@@ -7,7 +7,8 @@
     ``--checkpoint-every``.  Scenes with ``mode = "static"`` or ``mode = "continuation"``
     are solved by :func:`cartan.statics.solve_static` or followed by
     :func:`cartan.continuation.continuation` with their ``[static]`` / ``[continuation]``
-    settings (the dynamic options do not apply to them);
+    settings (the dynamic options do not apply to them); scenes with a ``[flow]`` table run
+    the flow a plugin registered under its ``kind`` (registry ``"flows"``);
 ``cartan plot out.nc [-o out.png]``
     dynamic runs: configuration snapshots coloured by time and the energies against time;
     static results: the equilibrium shape, its displacement and the Newton residuals;
@@ -302,11 +303,20 @@ def _same_file(a: pathlib.Path, b: pathlib.Path) -> bool:
 
 
 def _summary(ds: Any, mode: str) -> str:
-    """One line about a static or continuation result."""
+    """One line about a static, flow or continuation result."""
     if mode == "static":
         text = f"static equilibrium, {ds.attrs['newton_iterations']} Newton iterations"
         if "measure" in ds.attrs:
             text += f"; {ds.attrs['measure']} = {ds.attrs['measured_displacement']:.6g}"
+        return text
+    if mode == "flow":
+        text = f"{ds.attrs.get('flow', 'flow')} flow, {ds.sizes.get('step', 1) - 1} steps"
+        if "flow_time" in ds:
+            text += f", t = {float(ds['flow_time'].values[-1]):.6g}"
+        energy = next((n for n in ("bending_energy", "energy") if n in ds and ds[n].dims == ("step",)), None)
+        if energy is not None:
+            e = ds[energy].values
+            text += f", {energy} {e[0]:.6g} to {e[-1]:.6g}"
         return text
     lam = ds["load_factor"].values
     text = f"continuation, {ds.sizes['path']} path points, λ = {lam[0]:g} to {lam[-1]:g}"

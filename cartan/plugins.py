@@ -47,6 +47,7 @@ KINDS: dict[str, str] = {
     "integrators": "cartan_register_integrators",
     "cases": "cartan_register_cases",
     "scenes": "cartan_register_scenes",
+    "flows": "cartan_register_flows",
     "commands": "cartan_register_commands",
 }
 
@@ -94,6 +95,13 @@ class HookSpecs:
         """Register named runnable scenes (callables returning a problem, or scene dicts)."""
 
     @hookspec
+    def cartan_register_flows(self, register: Register) -> None:
+        """Register named flows a scene's ``[flow]`` table runs: ``register("helfrich", fn)`` with
+        ``fn(problem, **options) -> xarray.Dataset`` (the options are ``fn``'s keyword parameters,
+        checked by the scene reader against their defaults' types; an optional attribute
+        ``fn.check(problem, options)`` raising ``ValueError`` checks ranges before the run)."""
+
+    @hookspec
     def cartan_register_commands(self, register: Register) -> None:
         """Register extra ``click`` commands for the ``cartan`` CLI."""
 
@@ -110,7 +118,7 @@ class Entry:
 
 
 _SINGULAR = {"groups": "group", "spaces": "space", "media": "medium", "schemes": "scheme",
-             "integrators": "integrator", "cases": "case", "scenes": "scene", "commands": "command"}
+             "integrators": "integrator", "cases": "case", "scenes": "scene", "flows": "flow", "commands": "command"}
 
 _NAME = re.compile(r"^[A-Za-z][A-Za-z0-9]*(-[A-Za-z0-9]+)*$")
 
@@ -246,5 +254,5 @@ def reset_registry(extra_plugins: Iterable[tuple[str, object]] = (), entry_point
 
 def registry(kind: str) -> dict[str, Any]:
     """``{name: object}`` of one registry: ``"groups"``, ``"spaces"``, ``"media"``,
-    ``"schemes"``, ``"integrators"``, ``"cases"``, ``"scenes"`` or ``"commands"``."""
+    ``"schemes"``, ``"integrators"``, ``"cases"``, ``"scenes"``, ``"flows"`` or ``"commands"``."""
     return {name: e.obj for name, e in get_registry().table(kind).items()}

@@ -35,6 +35,9 @@ are the core's; every other kind is built by ``medium.make_load(kind, **rest)``.
 Modes
 -----
 ``mode = "dynamic"`` (the default) runs :func:`cartan.simulate` with the ``[run]`` table.
+A ``[flow]`` table (``mode = "flow"``, implied) runs the flow a plugin registered under its
+``kind`` (registry ``"flows"``) with the table's other keys as keyword options, checked against
+the flow's signature, its defaults' types and its optional ``check(problem, options)``.
 ``mode = "static"`` finds an equilibrium with :func:`cartan.statics.solve_static`, settings in
 ``[static]``::
 
@@ -86,7 +89,7 @@ the medium checks).  Numbers are finite, integers fit in 64 bits.  Grids are bou
 memory their state needs (:func:`cartan.limits.check_memory`, :envvar:`CARTAN_MAX_MEMORY`),
 time-step counts by :func:`cartan.limits.step_limit` (:envvar:`CARTAN_MAX_STEPS`), and the work
 of static and continuation solves by :data:`MAX_LOAD_STEPS`, :data:`MAX_ITERATIONS` and
-:data:`MAX_PATH_POINTS`.
+:data:`MAX_PATH_POINTS`, flows by :data:`MAX_FLOW_STEPS`.
 """
 
 from __future__ import annotations
@@ -138,10 +141,10 @@ __all__ = [
     "step_limit",
 ]
 
-MODES = ("dynamic", "static", "continuation")
+MODES = ("dynamic", "static", "continuation", "flow")
 _TOP_KEYS = {
     "name", "description", "mode", "medium", "parameters", "grid", "boundaries", "loads", "initial", "run",
-    "static", "continuation",
+    "static", "continuation", "flow",
 }
 _GRID_KEYS = {"n", "shape", "length", "periodic", "glued"}
 _RUN_KEYS = {
@@ -262,6 +265,9 @@ class Scene:
         Static mode: a run file whose last frame starts Newton's method.
     parameter : str
         Continuation mode: the load λ scales (a loaded end, or ``"all"``).
+    flow : str or None
+        Flow mode: the registered flow (registry ``"flows"``) the ``[flow]`` table names by
+        ``kind``; its options are in ``solver_options``.
     source : dict
         The scene as parsed (TOML tables as dicts); recorded in the output and used to
         rebuild the problem on restart.
@@ -285,6 +291,7 @@ class Scene:
     measure: Measure | None = None
     initial_guess: pathlib.Path | None = None
     parameter: str = "all"
+    flow: str | None = None
     source: dict[str, Any] = field(default_factory=dict)
     path: pathlib.Path | None = None
 
@@ -347,8 +354,10 @@ class Scene:
             ``solve_static`` plus ``initial_position`` (affine groups).  Continuation: the path of
             ``continuation`` (``load_factor``, ``monitor`` — the measured displacement —,
             ``position`` along ``path``, critical points along ``critical``) plus
-            ``initial_position``; both with the CF attributes of a dynamic run (``Conventions``,
-            ``title``, ``source``, ``history``, ``cartan_config`` holding the scene).
+            ``initial_position``.  Flow: the registered flow's Dataset (the final fields, the
+            history along ``step`` with the coordinate ``flow_time``); all with the CF attributes
+            of a dynamic run (``Conventions``, ``title``, ``source``, ``history``,
+            ``cartan_config`` holding the scene).
 
         Raises
         ------
@@ -371,7 +380,12 @@ class Scene:
 
         if output is not None:
             io.check_output(output)  # before the work, not after it
-        ds = _solve_static(self, command) if self.mode == "static" else _follow_path(self, command)
+        if self.mode == "static":
+            ds = _solve_static(self, command)
+        elif self.mode == "flow":
+            ds = _run_flow(self, command)
+        else:
+            ds = _follow_path(self, command)
         if output is not None:
             io.write_dataset(ds, output)
         return ds
@@ -571,7 +585,8 @@ def _building(reader: _Reader, key: str, values: Mapping, build: Any, *args: Any
         raise reader.fail(key, _out_of_range(values, exc)) from None
 
 
-_SINGULAR = {"media": "medium", "integrators": "integrator", "schemes": "scheme", "scenes": "scene"}
+_SINGULAR = {"media": "medium", "integrators": "integrator", "schemes": "scheme", "scenes": "scene",
+             "flows": "flow"}
 
 
 def _lookup(reader: _Reader, kind: str, name: str, key: str) -> Any:
@@ -779,10 +794,10 @@ def _problem_error_key(message: str) -> str:
 
 # ---------------------------------------------------------------------------- static and continuation
 def _mode(reader: _Reader, data: Mapping) -> str:
-    mode = data.get("mode", "dynamic")
+    mode = data.get("mode", "flow" if "flow" in data else "dynamic")  # a [flow] table implies mode = "flow"
     if mode not in MODES:
         raise reader.fail("mode", f"unknown mode {mode!r}; allowed: {', '.join(repr(m) for m in MODES)}")
-    for table in ("run", "static", "continuation"):
+    for table in ("run", "static", "continuation", "flow"):
         wanted = "dynamic" if table == "run" else table
         if table in data and mode != wanted:
             raise reader.fail(
@@ -1056,6 +1071,95 @@ def _lattice_pins(reader: _Reader, spec: Mapping, problem: Problem, k: int, key:
         out[str(node)] = idx
     return out
 
+# ---------------------------------------------------------------------------- flows
+#: largest ``[flow] steps``
+MAX_FLOW_STEPS = 10_000
+
+
+def _flow_option(reader: _Reader, value: Any, default: Any, key: str) -> Any:
+    """One ``[flow]`` option, typed by the flow's default: a bool, an integer, a finite number,
+    a string, a list of strings or a table of numbers (a default of None accepts any of these)."""
+    if isinstance(default, bool):
+        if not isinstance(value, bool):
+            raise reader.fail(key, f"must be true or false, got {value!r}")
+    elif isinstance(default, int):
+        if isinstance(value, bool) or not isinstance(value, int):
+            raise reader.fail(key, f"must be an integer, got {value!r}")
+    elif isinstance(default, float):
+        if not _is_number(value):
+            raise reader.fail(key, f"must be a finite number, got {value!r}")
+        value = float(value)
+    elif isinstance(default, str):
+        if not isinstance(value, str):
+            raise reader.fail(key, f"must be a string, got {value!r}")
+    elif isinstance(default, (tuple, list)):
+        if not isinstance(value, list) or not all(isinstance(v, str) for v in value):
+            raise reader.fail(key, f"must be a list of strings, got {value!r}")
+        value = tuple(value)
+    elif isinstance(value, Mapping):
+        if not all(_is_number(v) for v in value.values()):
+            raise reader.fail(key, f"must be a table of numbers, got {value!r}")
+        value = {k: float(v) for k, v in value.items()}
+    return value
+
+
+def _flow(reader: _Reader, data: Mapping, problem: Problem) -> dict[str, Any]:
+    """``[flow]``: ``kind`` names a registered flow (registry ``"flows"``), the other keys are its
+    keyword options, checked against the flow's signature (names), its defaults (types) and its
+    ``check(problem, options)`` (ranges) before anything runs."""
+    w = "flow"
+    ft = reader.table(data, w, "", required=True)
+    kind = reader.string(ft, "kind", w)
+    fn = _lookup(reader, "flows", kind, f"{w}.kind")
+    options = {k: v for k, v in ft.items() if k != "kind"}
+    for reserved in ("problem", "progress"):
+        if reserved in options:
+            raise reader.fail(f"{w}.{reserved}", "not a scene option (the scene gives the problem; "
+                                                 "`cartan run` the progress)")
+    _check_keywords(reader, fn, options, w, f"flow {kind!r}")
+    try:
+        defaults = {p.name: p.default for p in inspect.signature(fn).parameters.values()}
+    except (TypeError, ValueError):
+        defaults = {}
+    options = {k: _flow_option(reader, v, defaults.get(k), f"{w}.{k}") for k, v in options.items()}
+    if "steps" in options and not 1 <= options["steps"] <= MAX_FLOW_STEPS:
+        raise reader.fail(f"{w}.steps", f"must be an integer in [1, {MAX_FLOW_STEPS}], got {options['steps']!r}")
+    check = getattr(fn, "check", None)
+    if check is not None:
+        try:
+            check(problem, dict(options))
+        except ValueError as exc:
+            raise reader.fail(w, _one_line(exc)) from None
+    return {"flow": kind, "solver_options": options}
+
+
+def _run_flow(sc: Scene, command: str | None) -> Any:
+    """The scene's registered flow on its problem, as a run file: the flow's Dataset with
+    ``flow_time`` a coordinate of its ``step`` dimension and the attributes of the other runs."""
+    import json
+
+    fn = get_registry().get("flows", sc.flow)
+    ds = fn(sc.problem, **sc.solver_options)
+    if "flow_time" in ds and "flow_time" not in ds.coords:
+        ds = ds.set_coords("flow_time")
+    try:
+        config = json.loads(ds.attrs.get("cartan_config", "{}"))
+    except ValueError:
+        config = {}
+    config.setdefault("run", {})
+    config["run"]["flow"] = {"kind": sc.flow, **{k: (list(v) if isinstance(v, tuple) else v)
+                                                 for k, v in sc.solver_options.items()}}
+    from . import io
+
+    ds.attrs.setdefault("Conventions", io.CONVENTIONS)
+    ds.attrs["title"] = f"cartan {sc.flow} flow: {sc.name or sc.problem.medium.name}"
+    ds.attrs.setdefault("source", "cartan")
+    ds.attrs["flow"] = sc.flow
+    ds.attrs.setdefault("references", _REFERENCES)
+    _finish(ds, sc, config, command)
+    return ds
+
+
 # ---------------------------------------------------------------------------- running static modes
 _REFERENCES = "Kikuchi & Adhikari, Cartan media: geometric continuum mechanics in homogeneous spaces"
 
@@ -1318,7 +1422,7 @@ def load_scene(path_or_dict: str | pathlib.Path | Mapping[str, Any]) -> Scene:
         a boolean for a number, a non-finite number), unknown medium/integrator/scheme/load
         kind, a parameter the medium rejects (e.g. a negative stiffness) or that makes a
         computation overflow, a grid above the memory limit, an unknown ``mode`` or a bad
-        value in ``[static]`` / ``[continuation]``.
+        value in ``[static]`` / ``[continuation]`` / ``[flow]``.
     """
     data, path, label = _parse(path_or_dict)
     reader = _Reader(label)
@@ -1352,6 +1456,8 @@ def load_scene(path_or_dict: str | pathlib.Path | Mapping[str, Any]) -> Scene:
         settings = _run(reader, data, problem)
     elif mode == "static":
         settings = _static(reader, data, problem, path)
+    elif mode == "flow":
+        settings = _flow(reader, data, problem)
     else:
         settings = _continuation(reader, data, problem)
     return Scene(problem=problem, name=name, description=description, mode=mode, source=data, path=path,
