@@ -315,3 +315,21 @@ def params_of(item) -> dict:
     ``slow_when`` rules (tests/conftest.py)."""
     spec = getattr(item, "callspec", None)
     return dict(spec.params) if spec is not None else {}
+
+
+def assert_volume_gradient(load, g, Phi, nodes, tol: float, eps: float = 1e-6) -> None:
+    """``load.volume_and_gradient(Phi)``'s gradient against central differences of
+    ``load.volume`` along ``Φ_i exp(±ε e_k)`` at ``nodes`` (every component k): truncation ε² and
+    round-off ≈ 1e-16 V/ε, so ``tol`` (relative to the gradient's largest component) of 1e-8 is
+    far above both and far below a wrong term."""
+    _, G = load.volume_and_gradient(Phi)
+    r = G.shape[-1]
+    for i in nodes:
+        for k in range(r):
+            step = np.zeros(r)
+            step[k] = eps
+            plus, minus = Phi.copy(), Phi.copy()
+            plus[i] = Phi[i] @ g.exp(step)
+            minus[i] = Phi[i] @ g.exp(-step)
+            fd = (load.volume(plus) - load.volume(minus)) / (2 * eps)
+            assert abs(fd - G[i][k]) <= tol * np.abs(G).max(), (i, k)

@@ -224,6 +224,28 @@ class Scheme(abc.ABC):
         for them)."""
         return self.plan_module is not None and self.compiled_plan(self.plan_module) is not None
 
+    def _reference_volumes(self, rest: np.ndarray) -> np.ndarray | None:
+        """J ``[*shape]``, the nodes' reference volume per unit chart volume
+        (:meth:`~cartan.medium.Medium.reference_volume` at the nodal rest strains ``rest``), or None
+        for a medium that does not measure its chart.  Where J ≡ 1 (an orthonormal chart) the
+        callers keep the chart's weights to the bit.
+
+        Raises
+        ------
+        ValueError
+            J not finite and > 0 at every node.
+        """
+        if type(self.medium).reference_volume is Medium.reference_volume:
+            return None
+        J = self.medium.reference_volume(rest)
+        if J is None:
+            return None
+        J = np.asarray(J, dtype=float)
+        if J.shape != tuple(self.grid.shape) or not np.all(np.isfinite(J) & (J > 0)):
+            raise ValueError(f"medium {self.medium.name!r}: reference_volume must be finite and > 0 at every node, "
+                             f"shape {tuple(self.grid.shape)}")
+        return J
+
     def _clamp_mask(self) -> np.ndarray:
         mask = np.zeros(self.grid.shape, dtype=bool)
         for axis in range(self.grid.d):

@@ -345,23 +345,14 @@ class Collocation(Scheme):
         strains :attr:`rest`), :attr:`weights` become ``w_i J_i`` (mass, body loads, kinetic
         energy) and the internal force, a density per unit chart volume, is divided by J;
         :attr:`chart_weights` (the quadrature weights w) keep weighing the energy."""
-        from ..medium import Medium
 
         #: the energy's quadrature weights (per unit chart volume); :attr:`weights` are the nodes'
         #: reference volumes, equal to them unless the medium measures a general chart
         self.chart_weights = self.weights
         #: 1/J per node on a general chart, else None
         self._inv_volume: np.ndarray | None = None
-        if self.rest is None or type(self.medium).reference_volume is Medium.reference_volume:
-            return
-        J = self.medium.reference_volume(self.rest)
-        if J is None:
-            return
-        J = np.asarray(J, dtype=float)
-        if J.shape != tuple(self.grid.shape) or not np.all(np.isfinite(J) & (J > 0)):
-            raise ValueError(f"medium {self.medium.name!r}: reference_volume must be finite and > 0 at every node, "
-                             f"shape {tuple(self.grid.shape)}")
-        if np.all(J == 1.0):  # the chart's own measure keeps the weights to the bit
+        J = None if self.rest is None else self._reference_volumes(self.rest)
+        if J is None or np.all(J == 1.0):  # the chart's own measure keeps the weights to the bit
             return
         self.weights = self.chart_weights * J
         self._inv_volume = 1.0 / J
