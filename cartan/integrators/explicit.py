@@ -201,8 +201,9 @@ class LieVerlet(Integrator):
 
     def _step(self, scheme: Scheme, state: State, dt: float) -> None:
         if getattr(scheme, "coupled_lagrangian", False):  # the split is exact for H = K(S) + U(X) only
-            raise ValueError(f"{self.name} splits the Hamiltonian into K(S) + U(X); the medium's Lagrangian couples "
-                             "N and X (Medium.coupled_lagrangian): use implicit-midpoint (symplectic), rkmk4 or lie-euler")
+            raise ValueError(f"{self.name} splits the Hamiltonian into K(S) + U(X); the medium's Lagrangian "
+                             "couples N and X (Medium.coupled_lagrangian): use implicit-midpoint (symplectic), "
+                             "rkmk4 or lie-euler")
         state.S = state.S + 0.5 * dt * self._kick_force(scheme, state)
         scheme.constrain(state)
         self._free_flow(scheme, state, dt)
