@@ -470,8 +470,10 @@ class _Equilibrium:
         self.quadratic = problem.medium.quadratic_energy() is not None
         # pins: (flat node, spatial component)
         self.pins: list[tuple[int, int]] = []
+        pin_names: dict[int, Any] = {}
         for where, comps in (pins or {}).items():
             node = self._node(where)
+            pin_names[node] = where
             if not self.unknown_flat[node].any():
                 raise ValueError(f"pins: node {where!r} is held by a clamped boundary; pins hold free nodes")
             for k in np.atleast_1d(comps):
@@ -500,6 +502,12 @@ class _Equilibrium:
         if self.pins:
             msize = g.matrix_size
             self._R0 = self.sch.frames(state).reshape(self.nnode, msize, msize)[:, 1:, 1:].copy()
+            for (node, k), basis in zip(self.pins, self._reaction_basis(state), strict=True):
+                # a component a symmetry face holds already: the pin's reaction would have no
+                # unknown to act on and its row of the Jacobian would vanish (singular)
+                if not np.linalg.norm(basis[self.unknown_flat[node]]) > 1e-9 * np.linalg.norm(basis):
+                    raise ValueError(f"pins: component {k} of node {pin_names[node]!r} is held by a symmetry "
+                                     "face already; pins hold free components")
         self.x0 = np.array([self._pin_value(self.sch.frames(state).reshape(self.nnode, g.matrix_size,
                                                                          g.matrix_size)[n], n, k)
                             for n, k in self.pins])

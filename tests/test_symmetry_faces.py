@@ -191,3 +191,12 @@ def test_indented_quarter_is_the_quarter_of_the_whole_slab():
     for x in "xyz":
         name = f"microrotation_{x}"
         assert np.max(np.abs(q[name].values[-1] - f[name].values[-1][4:, 4:])) < 1e-13
+
+
+def test_pin_on_a_component_a_symmetry_face_holds_is_refused():
+    """The node (0, 1, 1) lies on the x = 0 mirror face: its x position is held by the face, so a
+    pin on it would add a reaction with no unknown to act on (a singular Jacobian); y is free."""
+    with pytest.raises(ValueError, match=r"pins: component 0 of node .* held by a symmetry face"):
+        cartan.solve_static(_octant(3), pins={(0, 1, 1): [0]}, max_iter=1)
+    with pytest.raises(ValueError, match=r"pins: component 2 of node .* held by a symmetry face"):
+        cartan.solve_static(_octant(3), pins={(1, 1, 0): [2]}, max_iter=1)
