@@ -47,7 +47,17 @@ from typing import Any
 import numpy as np
 
 from .problem import InitialState, Problem
-from .statics import _JACOBIANS, ConvergenceError, _Equilibrium, _initial_phi, _lu_solve, _newton, _Point, _Singular
+from .statics import (
+    _JACOBIANS,
+    ConvergenceError,
+    _Equilibrium,
+    _factorise,
+    _initial_phi,
+    _low_rank_solve,
+    _newton,
+    _Point,
+    _Singular,
+)
 
 __all__ = ["continuation"]
 
@@ -304,12 +314,14 @@ def continuation(
             return np.concatenate([sysm.residual(pt.state, pt.mu, pt.lam), [gap(pt)]])
 
         def factorise(pt: _Point, offset):
-            K = sysm.jacobian(pt.state, pt.mu, pt.lam, offset)
+            K, low = sysm.jacobian(pt.state, pt.mu, pt.lam, offset, low_rank=True)
             try:
                 lu = bordered(K, sysm.dlam(pt.state), cu, cl)
             except RuntimeError as exc:
                 raise _Singular(str(exc)) from None
-            return lu.solve
+            if low is not None:  # the loads' rank-k part, zero in the arclength row
+                low = tuple(np.concatenate([x, np.zeros((1, x.shape[1]))]) for x in low)
+            return _low_rank_solve(lu.solve, low)
 
         def move(pt: _Point, alpha: float, d: np.ndarray) -> _Point:
             s, u = sysm.update(pt.state, pt.mu, d[:m], alpha)
@@ -354,7 +366,7 @@ def continuation(
 
     first = _newton(sysm, _Point(state, mu, 0.0),
                     residual=lambda pt: sysm.residual(pt.state, pt.mu, 0.0),
-                    factorise=lambda pt, offset: _lu_solve(sysm.jacobian(pt.state, pt.mu, 0.0, offset), sysm.lu_order),
+                    factorise=lambda pt, offset: _factorise(sysm, pt.state, pt.mu, 0.0, offset),
                     move=settle_move, converged=lambda pt, r: small(r), scale=scale, max_iter=max_iter,
                     max_halvings=max_halvings, xtol=xtol, mixed=mixed)
     if not first.converged:  # the start (e.g. with residual stresses) must settle at λ = 0

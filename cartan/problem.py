@@ -300,6 +300,34 @@ class Load(abc.ABC):
         """Potential energy density ``[...]`` of a conservative load (0 otherwise)."""
         return np.zeros(np.shape(Phi)[:-2] if Phi is not None else ())
 
+    def jacobian_parts(self, Phi: np.ndarray, t: float) -> tuple[Any, np.ndarray, np.ndarray] | None:
+        """The statics' Jacobian of a load that reads beyond the lattice's stencil (``local``
+        False, e.g. through a mean over every node), or None (default: the statics difference
+        :meth:`force` on the stencil).
+
+        The Jacobian of the force density T_i along the drifts Φ_j ← Φ_j exp(η_j) is split as
+
+            ∂T_i/∂η_j = ∂T̃_i/∂η_j + Σ_k U[i, :, k] ⊗ V[j, :, k],
+
+        T̃ = ``frozen(Φ')`` the force with its global quantities held at their values at ``Phi``
+        (it reads the stencil only: the statics difference it there) and U Vᵀ the rank-k rest
+        (the statics solve with it by the Sherman–Morrison–Woodbury identity, never forming it).
+
+        Parameters
+        ----------
+        Phi : array ``[*shape, m, m]``
+            The configuration.
+        t : float
+            Time at which the load is evaluated.
+
+        Returns
+        -------
+        (frozen, U, V) or None
+            ``frozen``: callable ``Phi' → [*shape, r]``; U, V ``[*shape, r, k]`` (U per unit
+            reference volume, as :meth:`force`).
+        """
+        return None
+
     def to_dict(self) -> dict[str, Any]:
         return {"kind": type(self).__name__}
 

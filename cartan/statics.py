@@ -22,6 +22,10 @@ Jacobian
     2·r evaluations).  On a lattice whose potential couples the axes at the corners the
     internal force's Jacobian is assembled instead (:meth:`_Equilibrium._corner_tangent`: the
     point stress's derivative at every corner and the edge stresses' geometric stiffness).
+    A load that reads its neighbours (``local`` False) is differenced on the same stencil; one
+    that reads beyond it through a global quantity (a mean over every node) gives its force with
+    that quantity held and the rank-k rest U Vᵀ (:meth:`cartan.problem.Load.jacobian_parts`),
+    which the solve adds by the Sherman–Morrison–Woodbury identity (:func:`_low_rank_solve`).
     Either is factorised by sparse LU, for d ≥ 2 in a nested-dissection order of the nodes;
     with ``reuse`` the factorisation is kept while Newton contracts strongly (simplified
     Newton steps).
@@ -1030,24 +1034,46 @@ class _Equilibrium:
         return W * self.w
 
     def _neighbour_jacobian(self, state: Any, lam: float):
-        """The Jacobian of :meth:`_neighbour_loads` along the drifts, ``(nunk, nunk)``: coloured
-        central differences on the lattice's stencil (:func:`_coloured_jacobian`), the frames
-        displaced directly, ``Φ_i exp(±ε δ_i)`` (a load reads the frames, not the edges)."""
+        """The Jacobian of :meth:`_neighbour_loads` along the drifts: ``(K, low)``, K
+        ``(nunk, nunk)`` by coloured central differences on the lattice's stencil
+        (:func:`_coloured_jacobian`), the frames displaced directly, ``Φ_i exp(±ε δ_i)`` (a load
+        reads the frames, not the edges); a load with :meth:`~cartan.problem.Load.jacobian_parts`
+        has its frozen force differenced there and its rank-k rest in ``low`` = (U, V)
+        ``(nunk, k)`` each (None without), ``J = K + U Vᵀ``."""
         g, t = self.g, state.t
         Phi = self.sch.frames(state)
-        loads = [(load, lam if load.scaled else 1.0) for load in self.problem.loads if not load.local]
+        loads, Us, Vs = [], [], []
+        for load in self.problem.loads:
+            if load.local:
+                continue
+            factor = lam if load.scaled else 1.0
+            parts = load.jacobian_parts(Phi, t)
+            if parts is None:
+                loads.append((lambda moved, load=load: load.force(moved, self.zero, t), factor))
+                continue
+            frozen, U, V = parts
+            loads.append((frozen, factor))
+            k = np.shape(U)[-1]
+            if np.shape(U) != (*self.shape, self.r_dim, k) or np.shape(V) != np.shape(U):
+                raise ValueError(f"{type(load).__name__}.jacobian_parts must return U and V of one shape "
+                                 f"{(*self.shape, self.r_dim, 'k')}, got {np.shape(U)} and {np.shape(V)}")
+            U = (factor * np.asarray(U, dtype=float) * self.w[..., None]).reshape(self.nnode, self.r_dim, k)
+            V = np.asarray(V, dtype=float).reshape(self.nnode, self.r_dim, k)
+            Us.append(U[self.unknown_flat])
+            Vs.append(V[self.unknown_flat])
 
         def displaced(direction: np.ndarray, eps: float) -> np.ndarray:
             moved = g.compose(Phi, g.exp(eps * direction))
             W = np.zeros((*self.shape, self.r_dim))
-            for load, factor in loads:
-                W += factor * load.force(moved, self.zero, t)
+            for force, factor in loads:
+                W += factor * force(moved)
             W *= self.w
             W[~self.unknown] = 0.0
             return W
 
-        return _coloured_jacobian(displaced, self.colour, self.src, self.dst, self.unknown_flat, self.index,
-                                  self.shape, self.fd_step)
+        K = _coloured_jacobian(displaced, self.colour, self.src, self.dst, self.unknown_flat, self.index,
+                               self.shape, self.fd_step)
+        return K, ((np.concatenate(Us, axis=1), np.concatenate(Vs, axis=1)) if Us else None)
 
     def _local_jacobian(self, state: Any, lam: float):
         """The Jacobian of :meth:`_local` along the drifts, ``(nunk, nunk)``: block diagonal
@@ -1090,7 +1116,8 @@ class _Equilibrium:
                              "start but None later; Medium.static_jacobian must depend on the problem only")
         return K
 
-    def jacobian(self, state: Any, mu: np.ndarray, lam: float, offset: list[np.ndarray] | None = None):
+    def jacobian(self, state: Any, mu: np.ndarray, lam: float, offset: list[np.ndarray] | None = None,
+                 low_rank: bool = False):
         """The Jacobian of :meth:`residual` along the drift directions (and the multipliers).
 
         Parameters
@@ -1099,10 +1126,15 @@ class _Equilibrium:
             Per axis, edge stresses added to ``Q(X)`` and held fixed: the Jacobian then has
             the geometric stiffness of ``Q(X) + offset`` (the mixed iteration's ``Q(ε)``)
             with the material stiffness at X.
+        low_rank : bool
+            Also return the loads' rank-k part (:meth:`cartan.problem.Load.jacobian_parts`),
+            which the sparse matrix leaves out.
 
         Returns
         -------
         scipy.sparse.csc_matrix, shape ``(m, m)``
+            Without ``low_rank``; with it ``(J, low)``, ``low`` = (U, V) ``(m, k)`` each or
+            None, the whole Jacobian ``J + U Vᵀ`` (:func:`_low_rank_solve`).
         """
         import scipy.sparse as sp
 
@@ -1127,16 +1159,22 @@ class _Equilibrium:
             K = (self._corner_tangent(state, offset) if self.sch.coupled and not self.glued
                  else self._fd(state, nodal))
             K = K + self._local_jacobian(state, lam)
+        low = None
         if any(not load.local for load in self.problem.loads):  # on the lattice's stencil, like the internal force
-            K = K + self._neighbour_jacobian(state, lam)
+            Kn, low = self._neighbour_jacobian(state, lam)
+            K = K + Kn
+            if low is not None:  # zero rows for the multipliers
+                low = tuple(np.concatenate([x, np.zeros((self.nmult, x.shape[1]))]) for x in low)
         if not self.nmult:
-            return sp.csc_matrix(K)
-        J = sp.block_diag([K, sp.csc_matrix((self.nmult, self.nmult))], format="csc")
-        if self.npin:
-            J = J + self._pin_jacobian(state, mu[: self.npin])
-        if self.ncon:
-            J = J + self._constraint_jacobian(state)
-        return J.tocsc()
+            J = sp.csc_matrix(K)
+        else:
+            J = sp.block_diag([K, sp.csc_matrix((self.nmult, self.nmult))], format="csc")
+            if self.npin:
+                J = J + self._pin_jacobian(state, mu[: self.npin])
+            if self.ncon:
+                J = J + self._constraint_jacobian(state)
+            J = J.tocsc()
+        return (J, low) if low_rank else J
 
     def _pin_jacobian(self, state: Any, mu: np.ndarray):
         """The pins' part of the Jacobian, ``(m, m)``: reactions and constraints along the
@@ -1458,6 +1496,35 @@ def _lu_solve(K, order: np.ndarray | None = None) -> Callable[[np.ndarray], np.n
     return lu.solve
 
 
+def _low_rank_solve(solve: Callable[[np.ndarray], np.ndarray], low: tuple[np.ndarray, np.ndarray] | None
+                    ) -> Callable[[np.ndarray], np.ndarray]:
+    """The solve of ``J + U Vᵀ`` from the solve of J (Sherman–Morrison–Woodbury):
+    ``x = y − Z (I + VᵀZ)⁻¹ Vᵀy`` with ``y = J⁻¹b``, ``Z = J⁻¹U`` (k solves, once); ``low`` =
+    (U, V) ``(m, k)`` each, None: ``solve`` itself.  :class:`_Singular` when ``I + VᵀZ`` is."""
+    if low is None:
+        return solve
+    U, V = low
+    Z = np.column_stack([solve(U[:, j]) for j in range(U.shape[1])])
+    C = np.eye(U.shape[1]) + V.T @ Z
+    if not np.all(np.isfinite(C)) or np.linalg.cond(C) > 1e14:
+        raise _Singular("the Jacobian's low-rank part makes it singular")
+    Cinv = np.linalg.inv(C)
+
+    def lowrank(b: np.ndarray) -> np.ndarray:
+        y = solve(b)
+        return y - Z @ (Cinv @ (V.T @ y))
+
+    return lowrank
+
+
+def _factorise(eq: _Equilibrium, state: Any, mu: np.ndarray, lam: float,
+               offset: list[np.ndarray] | None) -> Callable[[np.ndarray], np.ndarray]:
+    """The solve of the whole Jacobian of ``eq`` at (state, μ, λ): the sparse LU of
+    :meth:`_Equilibrium.jacobian` and the loads' rank-k part by :func:`_low_rank_solve`."""
+    J, low = eq.jacobian(state, mu, lam, offset, low_rank=True)
+    return _low_rank_solve(_lu_solve(J, eq.lu_order), low)
+
+
 RIGID_GAUGE = "rigid"
 
 
@@ -1680,7 +1747,7 @@ def solve_static(
         )
 
     def factorise(pt: _Point, offset: list[np.ndarray] | None) -> Callable[[np.ndarray], np.ndarray]:
-        return _lu_solve(eq.jacobian(pt.state, pt.mu, pt.lam, offset), eq.lu_order)
+        return _factorise(eq, pt.state, pt.mu, pt.lam, offset)
 
     def residual(pt: _Point) -> np.ndarray:
         return eq.residual(pt.state, pt.mu, pt.lam)

@@ -464,11 +464,12 @@ class VolumePressure(Load):
     Compared with :class:`Pressure` (p per unit deformed area from central-difference tangents,
     equal to it to O(h²) on a smooth surface): a potential load, and the multiplier of V_h in a
     constrained minimisation (``cartan_kirchhoff_love.vesicle.helfrich_flow``).  The force at a
-    node reads its neighbours along both axes and across the corners (``local = False``: the
-    statics difference it on the lattice's coloured stencil, which has the corners' reach; the
-    mean position couples every node to every other through a, which is O(h²) and zero on
-    symmetric shapes, and which the stencil leaves out: Newton is then fast-linear, 6 iterations
-    on the scene ``sphere-volume-pressure`` against 4 with :class:`Pressure`).
+    node reads its neighbours along both axes and across the corners (``local = False``), and the
+    mean position couples every node to every other through a: the statics take its exact
+    Jacobian from :meth:`jacobian_parts`, the stencil part by coloured differences and the
+    mean position's rank-6 part by the Sherman–Morrison–Woodbury identity (Newton quadratic,
+    4 iterations on the scene ``sphere-volume-pressure`` as with :class:`Pressure`; without
+    the rank-6 part, 6 linearly contracting ones).
     Sign convention as :class:`Pressure`: positive p pushes along +∂_u r × ∂_v r.
 
     Parameters
@@ -539,16 +540,17 @@ class VolumePressure(Load):
             out.append(g.log(g.compose(inv_tail, head)).reshape(-1, g.dim))
         return out
 
-    def volume_and_gradient(self, Phi: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """(v_i ``[*shape]``, ∂V_h/∂η_i ``[*shape, 6]``): each node's share of V_h (Σ v_i = V_h)
-        and the exact gradient of V_h along Φ_i ← Φ_i exp(η_i) (class docstring)."""
+    def _share_gradient(self, xis: list[np.ndarray], rho: np.ndarray,
+                        translation: bool) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """(v_i ``[n]``, ∂F/∂η_i ``[n, 6]``, c_i ``[n, 3]``) of F = ⅓ Σ_c w_c ρ_i·(θ_u,c × θ_v,c)
+        for node vectors ρ_i ``[n, 3]`` (body components) that move with the node as
+        δρ_i = v_i + ρ_i × ω_i (``translation``: a point, R_iᵀ(r_i − p)) or δρ_i = ρ_i × ω_i
+        (a spatially fixed direction, R_iᵀe), the edge strains ``xis`` (:meth:`_edge_logs`)
+        moving as the lattice's (class docstring); v_i node i's share of F, c_i = ⅓ Σ_{c at i}
+        w_c θ_u × θ_v."""
         L = self._lattice
-        xis = self._edge_logs(Phi)
         g, c, h = L.group, L.corners(), L.h
-        n = int(np.prod(L.grid.shape))
-        flat = np.asarray(Phi, dtype=float).reshape(n, 4, 4)
-        x = flat[:, 1:, 0]
-        rho = np.einsum("nji,nj->ni", flat[:, 1:, 1:], x - x.mean(axis=0))     # R_iᵀ(r_i − r̄)
+        n = rho.shape[0]
         node = c["node"]
         tu, tv = (xis[a][c["edge"][:, a], :3] / h[a] for a in range(2))
         area = np.cross(tu, tv)                                                  # θ_u × θ_v [C, 3]
@@ -558,11 +560,10 @@ class VolumePressure(Load):
         G = np.zeros((n, 6))
         ci = np.zeros((n, 3))
         np.add.at(ci, node, w3[:, None] * area)
-        G[:, :3] += ci
+        if translation:
+            G[:, :3] += ci
         G[:, 3:] += np.cross(ci, rho)
-        a = np.einsum("nij,nj->i", flat[:, 1:, 1:], ci)                         # Σ_i R_i c_i: r̄'s share
-        G[:, :3] -= np.einsum("nji,j->ni", flat[:, 1:, 1:], a) / n
-        S = (w3[:, None] * np.cross(tv, rc), w3[:, None] * np.cross(rc, tu))      # ∂V_h/∂θ_u, ∂V_h/∂θ_v
+        S = (w3[:, None] * np.cross(tv, rc), w3[:, None] * np.cross(rc, tu))      # ∂F/∂θ_u, ∂F/∂θ_v
         for a, xi in enumerate(xis):
             Qe = np.zeros_like(xi)
             np.add.at(Qe[:, :3], c["edge"][:, a], S[a] / h[a])
@@ -570,8 +571,81 @@ class VolumePressure(Load):
             inc = L.from_ghosts(np.einsum("...ji,...j->...i", g.dexp_inv(-xi), Qe), c["ghost_head"][a], a)
             np.add.at(G, c["tail"][a], -out)
             np.add.at(G, c["head"][a], inc)
-        shape = tuple(L.grid.shape)
+        return v, G, ci
+
+    def _gradient(self, Phi: np.ndarray, center: np.ndarray | None = None,
+                  share: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray, list[np.ndarray]]:
+        """(v_i ``[n]``, ∂V_h/∂η_i ``[n, 6]``, a ``(3,)``, edge logs) with the volume measured from
+        ``center`` and r̄'s share of the gradient −R_iᵀa/n taken with ``share`` for a (both
+        default: r̄ and a of Φ, the exact gradient; given, their values held fixed: the
+        gradient's part that reads the stencil only, :meth:`jacobian_parts`)."""
+        xis = self._edge_logs(Phi)
+        flat = np.asarray(Phi, dtype=float).reshape(-1, 4, 4)
+        n = flat.shape[0]
+        x = flat[:, 1:, 0]
+        R = flat[:, 1:, 1:]
+        center = x.mean(axis=0) if center is None else center
+        rho = np.einsum("nji,nj->ni", R, x - center)                            # R_iᵀ(r_i − r̄)
+        v, G, ci = self._share_gradient(xis, rho, True)
+        a = np.einsum("nij,nj->i", R, ci)                                       # Σ_i R_i c_i: r̄'s share
+        G[:, :3] -= np.einsum("nji,j->ni", R, a if share is None else share) / n
+        return v, G, a, xis
+
+    def volume_and_gradient(self, Phi: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """(v_i ``[*shape]``, ∂V_h/∂η_i ``[*shape, 6]``): each node's share of V_h (Σ v_i = V_h)
+        and the exact gradient of V_h along Φ_i ← Φ_i exp(η_i) (class docstring)."""
+        v, G, _, _ = self._gradient(Phi)
+        shape = tuple(self._lattice.grid.shape)
         return v.reshape(shape), G.reshape(*shape, 6)
+
+    def jacobian_parts(self, Phi: np.ndarray, t: float) -> tuple[Callable, np.ndarray, np.ndarray]:
+        """The statics' Jacobian of :meth:`force` (:meth:`cartan.problem.Load.jacobian_parts`):
+        the Hessian of −pV_h along the drifts, ∂(p ∂V_h/∂η_i)/∂η_j, exactly.
+
+        V_h = V(r̄) with V(q) = ⅓ Σ_c w_c R_iᵀ(r_i − q)·(θ_u × θ_v) = V(0) − q·a, a = Σ_i R_i c_i,
+        and ∂V_h/∂η_i = ∂V(q)/∂η_i|_{q = r̄} − (R_iᵀa/n, 0).  Differentiating along η_j:
+
+        * with q = r̄ and a held at their values at Φ (``frozen``), the gradient reads node i's
+          corners and edges only: the lattice's coloured stencil differences it (the change of
+          the cells' area vectors θ_u × θ_v and of R_iᵀ, as the internal force);
+        * q = r̄ moves by R_j v_j/n and ∂²V(q)/∂q∂η_i = −B_iᵀ, B_j = ∂a/∂η_j ``(3, 6)``; a moves
+          by B_j η_j in −R_iᵀa/n: together the rank-6 remainder, every node with every other,
+
+              −(1/n) [P_vᵀ R_iᵀ B_j + B_iᵀ R_j P_v],      P_v η = v,
+
+          returned as U_i = −(p/(n w_iJ_i)) [P_vᵀR_iᵀ | B_iᵀ], V_j = [B_jᵀ | P_vᵀR_jᵀ] ``(6, 6)``.
+
+        B_j row k is the gradient of a_k = ⅓ Σ_c w_c (R_iᵀe_k)·(θ_u × θ_v), whose node vectors
+        turn with the frame and do not translate (:meth:`_share_gradient`).  On a closed surface
+        a = O(h²) and B = O(h²) per node, so the remainder is small, but without it Newton
+        contracts linearly.
+
+        Returns
+        -------
+        frozen : callable
+            Φ' ``[*shape, 4, 4]`` → the force density ``[*shape, 6]`` with r̄ and a held.
+        U, V : arrays ``[*shape, 6, 6]``
+        """
+        shape = tuple(self._lattice.grid.shape)
+        flat = np.asarray(Phi, dtype=float).reshape(-1, 4, 4)
+        n = flat.shape[0]
+        R = flat[:, 1:, 1:]
+        center = flat[:, 1:, 0].mean(axis=0)
+        _, _, a, xis = self._gradient(Phi)
+        vol = self.volumes.reshape(n)
+        p = self.pressure
+
+        def frozen(moved: np.ndarray) -> np.ndarray:
+            _, G, _, _ = self._gradient(moved, center, a)
+            return (p * G / vol[:, None]).reshape(*shape, 6)
+
+        B = np.stack([self._share_gradient(xis, R[:, k, :], False)[1] for k in range(3)], axis=1)  # [n, 3, 6]
+        Rt = np.zeros((n, 6, 3))
+        Rt[:, :3, :] = np.swapaxes(R, -1, -2)                                    # P_vᵀR_iᵀ [n, 6, 3]
+        Bt = np.swapaxes(B, -1, -2)                                              # B_iᵀ [n, 6, 3]
+        U = -(p / (n * vol))[:, None, None] * np.concatenate([Rt, Bt], axis=-1)
+        V = np.concatenate([Bt, Rt], axis=-1)
+        return frozen, U.reshape(*shape, 6, 6), V.reshape(*shape, 6, 6)
 
     def volume(self, Phi: np.ndarray) -> float:
         """V_h of the configuration Φ ``[*shape, 4, 4]``."""
@@ -702,23 +776,31 @@ class CosseratSurface(KernelMedium):
     name: ClassVar[str] = "cosserat-surface"
     material_dim: ClassVar[int] = 2
     initial_kinds: ClassVar[tuple[str, ...]] = ("flat", "cylinder", "sphere", "surface")
+    #: :meth:`outputs` measures the resultants from the problem's reference (its nodal rest strains)
+    outputs_read_reference: ClassVar[bool] = True
     load_kinds: ClassVar[tuple[str, ...]] = ("gravity", "dead-load", "director-pressure", "pressure", "volume-pressure",
                                              "node-springs", "simple-support", "symmetry")
     output_fields: ClassVar[dict[str, tuple[str, str]]] = {
         "director_x": ("director p = R e3, x component", "1"),
         "director_y": ("director p = R e3, y component", "1"),
         "director_z": ("director p = R e3, z component", "1"),
-        "membrane_force_uu": ("membrane force n^uu (thickness-integrated, contravariant)", "N m-1"),
-        "membrane_force_uv": ("membrane force n^uv (thickness-integrated, contravariant)", "N m-1"),
-        "membrane_force_vv": ("membrane force n^vv (thickness-integrated, contravariant)", "N m-1"),
-        "shear_force_u": ("transverse shear force q^u (thickness-integrated)", "N m-1"),
-        "shear_force_v": ("transverse shear force q^v (thickness-integrated)", "N m-1"),
-        "bending_moment_uu": ("bending moment m^uu (thickness-integrated, contravariant)", "N"),
-        "bending_moment_uv": ("bending moment m^uv (thickness-integrated, contravariant)", "N"),
-        "bending_moment_vv": ("bending moment m^vv (thickness-integrated, contravariant)", "N"),
+        "membrane_force_uu": ("membrane force N^uu (thickness-integrated, physical component)", "N m-1"),
+        "membrane_force_uv": ("membrane force N^uv (thickness-integrated, physical component)", "N m-1"),
+        "membrane_force_vv": ("membrane force N^vv (thickness-integrated, physical component)", "N m-1"),
+        "shear_force_u": ("transverse shear force Q^u (thickness-integrated, physical component)", "N m-1"),
+        "shear_force_v": ("transverse shear force Q^v (thickness-integrated, physical component)", "N m-1"),
+        "bending_moment_uu": ("bending moment M^uu (thickness-integrated, physical component)", "N"),
+        "bending_moment_uv": ("bending moment M^uv (thickness-integrated, physical component)", "N"),
+        "bending_moment_vv": ("bending moment M^vv (thickness-integrated, physical component)", "N"),
         "gauss_curvature": ("Gauss curvature of the director field, det b / det a", "m-2"),
         "mean_curvature": ("mean curvature of the director field, tr(a^-1 b)/2", "m-1"),
     }
+
+    def __init_subclass__(cls, **kwargs: Any) -> None:
+        super().__init_subclass__(**kwargs)
+        # a subclass with outputs of its own reads the reference only when it declares so
+        if "outputs" in vars(cls) and "outputs_read_reference" not in vars(cls):
+            cls.outputs_read_reference = False
 
     def __init__(self, E: float = 1.0, poisson: float = 0.3, thickness: float = 0.1, density: float = 1.0,
                  shear_correction: float = 5.0 / 6.0, rest_curvature: Any = (0.0, 0.0)):
@@ -1013,9 +1095,26 @@ class CosseratSurface(KernelMedium):
 
         return (HeldStrainTwin("kirchhoff-love", (2,), (0.0,), parameters, "transverse shear"),)
 
-    def outputs(self, q: np.ndarray, X: np.ndarray, N: np.ndarray, grid: Any) -> dict[str, np.ndarray]:
-        """Director, resultants (relative to the medium's rest strain) and curvatures at the nodes."""
-        res = self.resultants(X)
+    def outputs(self, q: np.ndarray, X: np.ndarray, N: np.ndarray, grid: Any,
+                reference: dict[str, np.ndarray] | None = None) -> dict[str, np.ndarray]:
+        """Director, resultants and curvatures at the nodes ``[*shape]`` each.
+
+        The strains are measured from the problem's stress-free reference (``reference["X0"]``
+        ``[*shape, 2, 6]``, the nodal rest strains, :attr:`outputs_read_reference`), else from the
+        medium's constant :meth:`rest_strain`, as the energy measures them.  The resultants are
+        reported in physical components on the reference chart's unit tangents
+        t_α = θ⁰_α/|θ⁰_α|: N^αβ = n^αβ|θ⁰_α||θ⁰_β|, Q^α = q^α|θ⁰_α|, M^αβ = m^αβ|θ⁰_α||θ⁰_β|
+        (force and moment per unit reference length; the contravariant chart components
+        themselves on plates and cylinders by arclength, |θ⁰_α| = 1).  On the sphere by longitude
+        and colatitude, |θ⁰_u| = R sin θ: the contravariant n^uu ~ N/(R² sin² θ) would grow
+        without bound towards the poles."""
+        X0 = self.rest_strain() if reference is None else np.asarray(reference["X0"], dtype=float)
+        res = self.resultants(X, X0)
+        X0 = np.broadcast_to(X0, np.shape(X))
+        s = np.linalg.norm(X0[..., :3], axis=-1)              # |θ⁰_α| [*shape, 2]
+        scale = np.stack([s[..., 0] ** 2, s[..., 0] * s[..., 1], s[..., 1] ** 2, s[..., 0], s[..., 1],
+                          s[..., 0] ** 2, s[..., 0] * s[..., 1], s[..., 1] ** 2], axis=-1)
+        res[..., :8] *= scale
         names = ["membrane_force_uu", "membrane_force_uv", "membrane_force_vv", "shear_force_u", "shear_force_v",
                  "bending_moment_uu", "bending_moment_uv", "bending_moment_vv", "gauss_curvature", "mean_curvature"]
         out = {name: res[..., i] for i, name in enumerate(names)}
