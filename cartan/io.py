@@ -67,6 +67,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from . import accumulators
 from .medium import check_output_value, output_coordinate_labels, output_field_specs
 from .state import State
 
@@ -235,7 +236,8 @@ def frame_record(scheme: Scheme, integrator: Integrator, state: State) -> dict[s
             rec["constraint_residual"] = float(held(scheme, state, edge_strains=edge) if reuse else held(scheme, state))
         rec["total_momentum"] = np.array(_total_momentum(scheme, state, Phi), dtype=float)
         med = scheme.medium
-        if getattr(med, "output_fields", None):
+        acc = accumulators.declared(med)
+        if getattr(med, "output_fields", None) or acc:
             specs = output_field_specs(med)
             labels = output_coordinate_labels(med)
             sp = _space(scheme)
@@ -245,6 +247,8 @@ def frame_record(scheme: Scheme, integrator: Integrator, state: State) -> dict[s
                 extra = med.outputs(q, X, np.asarray(N), scheme.grid, reference=_nodal_reference(scheme))
             else:
                 extra = med.outputs(q, X, np.asarray(N), scheme.grid)
+            if acc:  # the per-node accumulators of the state (cartan.accumulators)
+                extra = {**extra, **accumulators.values(med, scheme.grid, state)}
             missing = sorted(set(specs) - set(extra))
             if missing:
                 raise ValueError(f"medium {med.name!r}: outputs() did not return {missing}")
@@ -395,6 +399,9 @@ def _output_coords(
 
 
 def _jsonable(obj: Any) -> Any:
+    record = getattr(obj, "cartan_record", None)
+    if callable(record) and not isinstance(obj, type):  # a parameter object that knows its record (may raise)
+        return record()
     if isinstance(obj, np.ndarray):
         return obj.tolist()
     if isinstance(obj, np.generic):
@@ -407,7 +414,9 @@ def _jsonable(obj: Any) -> Any:
 
 
 def to_json(obj: Any) -> str:
-    """JSON text of ``obj`` (numpy arrays and scalars converted, anything else by name/repr)."""
+    """JSON text of ``obj`` (numpy arrays and scalars converted, an object with a ``cartan_record()``
+    method by what it returns — a ``ValueError`` it raises says the object cannot be recorded —,
+    anything else by name/repr)."""
     return json.dumps(obj, default=_jsonable, sort_keys=True, ensure_ascii=False)
 
 
@@ -593,18 +602,22 @@ def _dimensions(variables: Mapping[str, Any]) -> dict[str, int]:
 def checkpoint_dataset(state: State, info: Mapping[str, Any]) -> xr.Dataset:
     """The netCDF group that lets a run continue exactly from ``state``.
 
-    Arrays (``S`` and every ``state.arrays`` entry) are stored as float64 variables; the time,
+    Arrays (``S``, every ``state.arrays`` entry and every ``state.memory`` entry, the latter as
+    ``memory_<name>``) are stored as float64 variables; the time,
     the scalar accumulators and ``info`` (run settings, counters, step and save indices) as
     JSON in the attribute ``cartan_checkpoint`` (Python's float repr round-trips exactly).
     """
     import xarray as xr
 
     data_vars = {}
-    for key, arr in [("S", state.S), *((f"array_{k}", v) for k, v in state.arrays.items())]:
+    for key, arr in [("S", state.S), *((f"array_{k}", v) for k, v in state.arrays.items()),
+                     *((f"memory_{k}", v) for k, v in state.memory.items())]:
         a = np.asarray(arr)
         data_vars[key] = ([f"{key}_dim{i}" for i in range(a.ndim)], a)
     data_vars["t"] = ((), np.float64(state.t))
     meta = {"t": float(state.t), "scalars": dict(state.scalars), "arrays": list(state.arrays), **info}
+    if state.memory:
+        meta["memory"] = list(state.memory)
     return xr.Dataset(data_vars, attrs={"cartan_checkpoint": to_json(meta)})
 
 
@@ -673,8 +686,11 @@ def read_checkpoint(path: str | os.PathLike) -> tuple[State, dict[str, Any], dic
     names = meta.pop("arrays", None)
     if not isinstance(names, list) or not all(isinstance(k, str) for k in names):
         raise damaged(f"arrays must be a list of names, got {names!r:.200}")
+    memory = meta.pop("memory", [])  # (the integrator's memory, State.memory: absent in older files)
+    if not isinstance(memory, list) or not all(isinstance(k, str) for k in memory):
+        raise damaged(f"memory must be a list of names, got {memory!r:.200}")
     arrays = {}
-    for key in ["S", *(f"array_{k}" for k in names)]:
+    for key in ["S", *(f"array_{k}" for k in names), *(f"memory_{k}" for k in memory)]:
         if key not in ck.variables:
             raise damaged(f"the variable {key!r} is missing")
         if ck[key].dtype.kind not in "iuf":
@@ -683,7 +699,8 @@ def read_checkpoint(path: str | os.PathLike) -> tuple[State, dict[str, Any], dic
         if not np.all(np.isfinite(value)):
             raise damaged(f"{key} holds non-finite values")
         arrays[key] = value
-    state = State(t, arrays.pop("S"), {k: arrays[f"array_{k}"] for k in names}, scalars)
+    state = State(t, arrays.pop("S"), {k: arrays[f"array_{k}"] for k in names}, scalars,
+                  {k: arrays[f"memory_{k}"] for k in memory})
     if "time" not in root.variables or "step" not in root.variables:
         raise damaged("the run has no time or step coordinate")
     available = root.sizes.get("time", 0)

@@ -548,6 +548,26 @@ class Medium(abc.ABC):
         """
         return {}
 
+    def accumulators(self) -> dict[str, tuple[str, str]]:
+        """Per-node accumulators the run integrates along the time: ``{name: (long_name, units)}``
+        (default: none).
+
+        Each accumulator is ``a_i(t) = ∫₀ᵗ r_i dt`` with the rate ``r_i`` of
+        :meth:`accumulator_rates`, integrated by the trapezoidal rule over every step on the
+        reference (numpy) path, ``a ← a + ½Δt (r(before) + r(after))`` (second order in Δt;
+        the compiled loops are not used for a medium that declares accumulators).  The values
+        are part of the state (``state.arrays["accumulator_<name>"]``, zero at t = 0, in the
+        checkpoint: a restart continues them exactly) and an output variable ``name``
+        ``(time, *nodes)`` of every saved frame (:mod:`cartan.accumulators`).
+        """
+        return {}
+
+    def accumulator_rates(self, q: np.ndarray, X: np.ndarray, N: np.ndarray, grid: Any) -> dict[str, np.ndarray]:
+        """The rates ``{name: [*grid.shape]}`` of the :meth:`accumulators`, from the configuration
+        q ``[*grid.shape, *point_shape]``, the nodal strains X ``[*grid.shape, d, r]`` and the
+        velocities N ``[*grid.shape, r]`` (the arguments of :meth:`outputs`)."""
+        raise NotImplementedError(f"medium {self.name!r} declares accumulators but no accumulator_rates")
+
     @classmethod
     def draw(cls, ds: Any, fig: Any) -> bool:
         """Draw a picture of a result of this medium into ``fig`` (default: none).
@@ -709,7 +729,8 @@ def _medium_label(medium: Any) -> str:
 
 
 def output_field_specs(medium: Medium) -> dict[str, tuple[str, str, tuple[str, ...]]]:
-    """The medium's :attr:`~Medium.output_fields`, checked and completed with their extra dimensions.
+    """The medium's :attr:`~Medium.output_fields`, checked and completed with their extra dimensions,
+    followed by its :meth:`~Medium.accumulators` (node fields).
 
     Parameters
     ----------
@@ -729,7 +750,12 @@ def output_field_specs(medium: Medium) -> dict[str, tuple[str, str, tuple[str, .
         tuple of distinct non-empty names, or a name of the core's time and node dimensions
         (``time``, ``step``, ``node``, ``edge``, ``u``, ``v``, ``w``, ``u_edge``).
     """
-    fields = getattr(medium, "output_fields", None) or {}
+    fields = dict(getattr(medium, "output_fields", None) or {})
+    acc = medium.accumulators() if callable(getattr(medium, "accumulators", None)) else {}
+    clash = sorted(set(acc) & set(fields))
+    if clash:
+        raise ValueError(f"{_medium_label(medium)}: accumulators {clash} are named like output fields")
+    fields.update(acc)  # (an accumulator is written as a node field of every frame)
     out: dict[str, tuple[str, str, tuple[str, ...]]] = {}
     for name, entry in fields.items():
         where = f"{_medium_label(medium)}: output_fields[{name!r}]"

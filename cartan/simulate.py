@@ -89,6 +89,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from . import accumulators
 from .integrators.base import Integrator
 from .limits import DEFAULT_MAX_STEPS, STEPS_ENV, check_memory, state_bytes, step_limit
 from .plugins import get_registry
@@ -323,11 +324,14 @@ def _advance(
     :class:`~cartan.statics.ConvergenceError` (its stage equations unsolved; the state is left
     at the last step done) is reported like a blow-up.  Integrators with a ``begin_block()``
     method (caches that change results, e.g. a kept Jacobian) are told that a block starts,
-    where a restart could resume, so that restarts stay bit for bit.
+    where a restart could resume, so that restarts stay bit for bit.  A medium that declares
+    per-node accumulators (:mod:`cartan.accumulators`) is stepped one by one on this path, each
+    step followed by the trapezoidal update of its accumulators.
     """
     from .statics import ConvergenceError
 
     k = 0
+    acc = bool(accumulators.declared(scheme.medium))  # per-node accumulators: stepped one by one below
     begin = getattr(integrator, "begin_block", None)
     if begin is not None:
         begin()
@@ -335,7 +339,7 @@ def _advance(
         # the compiled paths, in order of preference: the integrator's own blocks, the scheme's
         # hand-written loops, the integrator's generated loop over the scheme's operators
         paths = []
-        if compiled:
+        if compiled and not acc:
             own = getattr(integrator, "compiled_advance", None)
             if own is not None:
                 paths.append(own)
@@ -363,11 +367,16 @@ def _advance(
             reason = guard(state, k)
             if reason is not None:
                 return k, reason
+        rates = accumulators.rates(scheme, integrator, state) if acc and k < nsteps else None
         for j in range(k, nsteps):
             try:
                 integrator.step(scheme, state, dt)
             except ConvergenceError as exc:
                 return j + 1, str(exc)
+            if rates is not None:  # trapezoidal rule over the step (cartan.accumulators)
+                after = accumulators.rates(scheme, integrator, state)
+                accumulators.add(state, dt, rates, after)
+                rates = after
             reason = guard(state, j + 1)
             if reason is not None:
                 return j + 1, reason
@@ -947,13 +956,14 @@ def _resolve_run(
         )
 
     problem_dict = problem.to_dict()
+    problem_json = io.to_json(problem_dict)  # (now: a parameter that cannot be recorded fails before the run)
     if ck_info is not None:
-        if io.to_json(problem_dict) != io.to_json(ck_info.get("problem")):
+        if problem_json != io.to_json(ck_info.get("problem")):
             raise ValueError(
                 f"restart file {str(restart)!r} was written for a different problem "
                 f"({ck_info.get('problem', {}).get('medium')!r}, {ck_info.get('problem', {}).get('grid')})"
             )
-        fresh = scheme_obj.initial_state()
+        fresh = accumulators.start(scheme_obj, scheme_obj.initial_state())
         expected = set(fresh.arrays)
         if set(ck_state.arrays) != expected:
             raise ValueError(
@@ -970,7 +980,7 @@ def _resolve_run(
         state = ck_state
         integ_obj.set_counters(ck_info["counters"])
     else:
-        state = scheme_obj.initial_state()
+        state = accumulators.start(scheme_obj, scheme_obj.initial_state())  # (the medium's, if it declares any)
         state.scalars.setdefault("nstep", 0)
 
     # -- time step, CFL estimate, schedule

@@ -29,12 +29,17 @@ class State:
         ``"X"`` nodal strains).  Saved verbatim in checkpoints.
     scalars : dict of str → float
         Accumulators (``"dissipated_energy"``, ``"external_work"``) and the step counter.
+    memory : dict of str → ndarray
+        What an integrator carries from one step to the next and its next step depends on
+        (``rattle``'s multiplier offset, :mod:`cartan.integrators.constrained`); empty for
+        the others.  Saved verbatim in checkpoints, so that a restart continues exactly.
     """
 
     t: float
     S: np.ndarray
     arrays: dict[str, np.ndarray] = field(default_factory=dict)
     scalars: dict[str, float] = field(default_factory=lambda: {"dissipated_energy": 0.0, "external_work": 0.0})
+    memory: dict[str, np.ndarray] = field(default_factory=dict)
 
     def copy(self) -> State:
         """An independent copy (arrays and scalars copied).
@@ -43,7 +48,8 @@ class State:
         -------
         State
         """
-        return State(self.t, self.S.copy(), {k: v.copy() for k, v in self.arrays.items()}, dict(self.scalars))
+        return State(self.t, self.S.copy(), {k: v.copy() for k, v in self.arrays.items()}, dict(self.scalars),
+                     {k: v.copy() for k, v in self.memory.items()})
 
     def is_finite(self) -> bool:
         """Whether the momentum and every configuration array are finite.

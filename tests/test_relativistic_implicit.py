@@ -82,7 +82,10 @@ def test_implicit_midpoint_steps_a_coupled_lagrangian_conserving_the_momenta():
     (ElasticLaw(lambda lam: -0.5 * (lam - 1) ** 2, lambda lam: -(lam - 1), lambda lam: -1 + 0 * lam),
      "ε″ = W″ > 0"),
     (ElasticLaw(lambda lam: -2.0 + 0 * lam, lambda lam: 0 * lam, lambda lam: 0 * lam), r"ε\(λ\) = μc² \+ W > 0"),
-    ("quadratic", "law must be an ElasticLaw"),
+    ("no-such-law", "law must be a registered name"),
+    ("quadratic", r"law 'quadratic' takes the parameters \(k"),
+    ({"k": 0.1}, "needs its registered name"),
+    (1.0, "law must be an ElasticLaw"),
 ])
 def test_bad_laws_are_refused(law, match):
     with pytest.raises(ValueError, match=match):

@@ -14,12 +14,16 @@ with T = ε′(λ) and n = (r′ + (B/A)ṙ)/λ the unit rest-frame tangent.
 
 from __future__ import annotations
 
-from collections.abc import Callable
+import inspect
+import threading
+from collections.abc import Callable, Mapping
+from typing import Any
 
 import numpy as np
 
-__all__ = ["ETA", "ElasticLaw", "lagrangian", "momentum_stress", "newtonian_expansion", "quadratic_law", "stretch",
-           "temporal_hessian", "temporal_lagrangian", "temporal_momentum", "temporal_stress", "temporal_velocity"]
+__all__ = ["ETA", "LAW_ENTRY_POINT_GROUP", "ElasticLaw", "as_law", "lagrangian", "law_names", "make_law",
+           "momentum_stress", "newtonian_expansion", "quadratic_law", "register_law", "stretch", "temporal_hessian",
+           "temporal_lagrangian", "temporal_momentum", "temporal_stress", "temporal_velocity"]
 
 #: Minkowski metric η = diag(−1, 1, 1, 1)
 ETA = np.array([-1.0, 1.0, 1.0, 1.0])
@@ -83,7 +87,7 @@ class ElasticLaw:
     energy, tension, stiffness : callable
         ``W(λ)``, ``W′(λ)`` and ``W″(λ)``, elementwise on arrays of stretches ``[...]``.
     name : str, optional
-        A label for ``repr`` and the medium's parameters.
+        A label for ``repr`` and error messages.
 
     Notes
     -----
@@ -96,6 +100,14 @@ class ElasticLaw:
     the longitudinal waves real and slower than light; then ε − λε′ > 0 as well, so the
     transverse waves, at c_T² = c² λε′/ε, are slower than light and the kinetic Hessian
     ∂²ℓ/∂v⃗² is positive definite at rest (the Legendre map is invertible near v⃗ = 0).
+
+    **Records.** A run stores its problem, the law included, in its output and checkpoint, and
+    a restart rebuilds the medium from that record.  A law made by name from the registry
+    (:func:`make_law`, the classmethods :meth:`quadratic` and :meth:`quartic`, or a law given
+    to the medium as ``"name"`` or ``{"name": ..., **parameters}``) carries its record
+    ``{"name": ..., **parameters}`` (:meth:`to_dict`); a law built from bare callables has
+    none, and :meth:`to_dict` raises ``ValueError`` saying how to register it
+    (:func:`register_law`).
     """
 
     def __init__(self, energy: Callable, tension: Callable, stiffness: Callable, name: str = "custom"):
@@ -104,19 +116,58 @@ class ElasticLaw:
                 raise ValueError(f"ElasticLaw {key} must be a callable W, W′ or W″ of the stretch λ, got {f!r}")
         self.W, self.dW, self.ddW = energy, tension, stiffness
         self.name = str(name)
+        #: ``{"name": registered name, **parameters}`` when made by :func:`make_law`, else None
+        self.record: dict[str, Any] | None = None
 
     @classmethod
     def quadratic(cls, k: float) -> ElasticLaw:
-        """``W = ½k(λ − 1)²``, ``W′ = k(λ − 1)``, ``W″ = k``."""
-        return cls(lambda lam: 0.5 * k * (lam - 1.0) ** 2, lambda lam: k * (lam - 1.0),
-                   lambda lam: np.full_like(np.asarray(lam, dtype=float), k), name=f"quadratic(k={k!r})")
+        """``W = ½k(λ − 1)²``, ``W′ = k(λ − 1)``, ``W″ = k`` (the registered law ``"quadratic"``)."""
+        return make_law("quadratic", k=k)
 
     @classmethod
     def quartic(cls, k: float, q: float) -> ElasticLaw:
-        """``W = ½k(λ − 1)² + ¼q(λ − 1)⁴``, ``W′ = k(λ − 1) + q(λ − 1)³``, ``W″ = k + 3q(λ − 1)²``."""
-        return cls(lambda lam: 0.5 * k * (lam - 1.0) ** 2 + 0.25 * q * (lam - 1.0) ** 4,
-                   lambda lam: k * (lam - 1.0) + q * (lam - 1.0) ** 3,
-                   lambda lam: k + 3.0 * q * (lam - 1.0) ** 2, name=f"quartic(k={k!r}, q={q!r})")
+        """``W = ½k(λ − 1)² + ¼q(λ − 1)⁴``, ``W′ = k(λ − 1) + q(λ − 1)³``, ``W″ = k + 3q(λ − 1)²``
+        (the registered law ``"quartic"``)."""
+        return make_law("quartic", k=k, q=q)
+
+    def to_dict(self) -> dict[str, Any]:
+        """The law's record ``{"name": registered name, **parameters}`` (JSON values), from which
+        :func:`as_law` rebuilds it.
+
+        Raises
+        ------
+        ValueError
+            For a law built from bare callables (no registered name): it could not be rebuilt
+            from a run's output, so a restart would not be exact.
+        """
+        if self.record is None:
+            raise ValueError(
+                f"law {self.name!r} is built from bare callables and cannot be recorded in a run's output and "
+                "checkpoint (a restart could not rebuild it); register it by name — "
+                "cartan_relativistic.elastic.register_law('my-law', factory), factory(**parameters) returning the "
+                "ElasticLaw (or the ElasticLaw itself) — and give law='my-law' or {'name': 'my-law', **parameters}; "
+                f"registered laws: {', '.join(law_names())}")
+        return dict(self.record)
+
+    def cartan_record(self) -> dict[str, Any]:
+        """What :func:`cartan.io.to_json` writes for this law: :meth:`to_dict` (which raises
+        for an unregistered law, never a silent ``repr``)."""
+        return self.to_dict()
+
+    @classmethod
+    def from_dict(cls, record: Mapping[str, Any]) -> ElasticLaw:
+        """The law of a record ``{"name": ..., **parameters}`` (:func:`as_law`)."""
+        return as_law(dict(record))
+
+    def __eq__(self, other: object) -> bool:
+        if not isinstance(other, ElasticLaw):
+            return NotImplemented
+        if self.record is not None or other.record is not None:
+            return self.record == other.record
+        return self is other
+
+    def __hash__(self) -> int:
+        return hash(repr(sorted(self.record.items()))) if self.record is not None else id(self)
 
     def functions(self, mu: float, c: float) -> tuple[Callable, Callable, Callable]:
         """``(ε, ε′, ε″)`` with ε = μc² + W, elementwise (the ``law`` tuple of this module)."""
@@ -158,7 +209,166 @@ class ElasticLaw:
                                  f"{float(lam.max())!r}]; violated at λ = {float(lam[~ok][0]):.6g}")
 
     def __repr__(self) -> str:
+        if self.record is not None:
+            args = ", ".join(f"{k}={v!r}" for k, v in self.record.items() if k != "name")
+            return f"ElasticLaw({self.record['name']}({args}))"
         return f"ElasticLaw({self.name})"
+
+
+# ---------------------------------------------------------------------------- the registry of laws
+#: the entry-point group a distribution declares laws in (``name = "module:factory"``), read on
+#: the first lookup of a name not registered in the session
+LAW_ENTRY_POINT_GROUP = "cartan_relativistic.laws"
+
+_LAWS: dict[str, Callable[..., ElasticLaw] | ElasticLaw] = {}
+_LOCK = threading.Lock()
+_ENTRY_POINTS_READ = [False]
+
+
+def _quadratic(k: float) -> ElasticLaw:
+    k = float(k)
+    return ElasticLaw(lambda lam: 0.5 * k * (lam - 1.0) ** 2, lambda lam: k * (lam - 1.0),
+                      lambda lam: np.full_like(np.asarray(lam, dtype=float), k), name=f"quadratic(k={k!r})")
+
+
+def _quartic(k: float, q: float) -> ElasticLaw:
+    k, q = float(k), float(q)
+    return ElasticLaw(lambda lam: 0.5 * k * (lam - 1.0) ** 2 + 0.25 * q * (lam - 1.0) ** 4,
+                      lambda lam: k * (lam - 1.0) + q * (lam - 1.0) ** 3,
+                      lambda lam: k + 3.0 * q * (lam - 1.0) ** 2, name=f"quartic(k={k!r}, q={q!r})")
+
+
+def register_law(name: str, law: Callable[..., ElasticLaw] | ElasticLaw, replace: bool = False) -> None:
+    """Register an elastic law by name, so that runs with it record ``{"name": name, **parameters}``
+    and restart exactly (:meth:`ElasticLaw.to_dict`).
+
+    Parameters
+    ----------
+    name : str
+        A non-empty name (``"quadratic"`` and ``"quartic"`` are built in).
+    law : callable or ElasticLaw
+        A factory ``law(**parameters) -> ElasticLaw`` (parameters: JSON values, numbers or
+        strings), or one fixed :class:`ElasticLaw` (no parameters; it is given its record and
+        can then be passed to the medium itself).
+    replace : bool
+        Allow replacing a registered name (otherwise ``ValueError``).
+
+    Notes
+    -----
+    A distribution can declare laws in the entry-point group :data:`LAW_ENTRY_POINT_GROUP`
+    (``[project.entry-points."cartan_relativistic.laws"]``, ``my-law = "pkg.module:factory"``):
+    they are loaded on the first lookup of a name not registered in the session.
+    """
+    if not isinstance(name, str) or not name.strip():
+        raise ValueError(f"law name must be a non-empty string, got {name!r}")
+    if not (isinstance(law, ElasticLaw) or callable(law)):
+        raise ValueError(f"law must be an ElasticLaw or a factory returning one, got {law!r}")
+    with _LOCK:
+        if name in _LAWS and not replace and _LAWS[name] is not law:
+            raise ValueError(f"law {name!r} is already registered; pass replace=True to replace it")
+        _LAWS[name] = law
+    if isinstance(law, ElasticLaw):
+        law.record = {"name": name}
+
+
+def _entry_point_laws() -> None:
+    if _ENTRY_POINTS_READ[0]:
+        return
+    _ENTRY_POINTS_READ[0] = True
+    import importlib.metadata as md
+
+    for ep in md.entry_points(group=LAW_ENTRY_POINT_GROUP):
+        if ep.name not in _LAWS:
+            try:
+                register_law(ep.name, ep.load())
+            except Exception as exc:  # noqa: BLE001 - a broken plugin is named, the rest keeps working
+                import warnings
+
+                warnings.warn(f"elastic law {ep.name!r} ({ep.value}) could not be loaded: {exc}", stacklevel=2)
+
+
+def law_names() -> tuple[str, ...]:
+    """The registered law names (built in, :func:`register_law`, entry points), sorted."""
+    _entry_point_laws()
+    return tuple(sorted(_LAWS))
+
+
+def _json_value(law: str, key: str, value: Any) -> Any:
+    if isinstance(value, np.generic):
+        value = value.item()
+    if isinstance(value, np.ndarray):
+        value = value.tolist()
+    if isinstance(value, (list, tuple)):
+        return [_json_value(law, key, v) for v in value]
+    if value is None or isinstance(value, (bool, int, float, str)):
+        return value
+    raise ValueError(f"law {law!r}: parameter {key} must be a number, a string or a list of them (a value a "
+                     f"run's record can hold), got {value!r}")
+
+
+def make_law(name: str, **parameters: Any) -> ElasticLaw:
+    """The registered law ``name`` with ``parameters``, carrying its record.
+
+    Raises
+    ------
+    ValueError
+        An unknown name (naming the registered ones), parameters the factory does not take
+        (naming its signature), or parameters that are not JSON values.
+    """
+    if isinstance(name, str) and name not in _LAWS:
+        _entry_point_laws()
+    entry = _LAWS.get(name) if isinstance(name, str) else None
+    if entry is None:
+        raise ValueError(f"law must be a registered name, one of {', '.join(law_names())} "
+                         f"(cartan_relativistic.elastic.register_law adds one), got {name!r}")
+    params = {str(k): _json_value(name, k, v) for k, v in parameters.items()}
+    if isinstance(entry, ElasticLaw):
+        if params:
+            raise ValueError(f"law {name!r} is a fixed law and takes no parameters, got {sorted(params)}")
+        return entry
+    try:
+        law = entry(**params)
+    except TypeError as exc:
+        try:
+            sig = str(inspect.signature(entry))
+        except (TypeError, ValueError):
+            sig = "(...)"
+        raise ValueError(f"law {name!r} takes the parameters {sig}, got {params!r} ({exc})") from None
+    if not isinstance(law, ElasticLaw):
+        raise ValueError(f"the factory of law {name!r} must return an ElasticLaw, got {law!r}")
+    law.record = {"name": name, **params}
+    return law
+
+
+def as_law(spec: Any) -> ElasticLaw:
+    """An :class:`ElasticLaw` from what the medium's ``law`` accepts: an ElasticLaw, a tuple
+    ``(W, W′, W″)`` of callables (unregistered), a registered name, or a record
+    ``{"name": ..., **parameters}`` (:meth:`ElasticLaw.to_dict`, a scene's inline table).
+
+    Raises
+    ------
+    ValueError
+        Naming ``law`` and the accepted forms.
+    """
+    if isinstance(spec, ElasticLaw):
+        return spec
+    if isinstance(spec, tuple) and len(spec) == 3:
+        return ElasticLaw(*spec)
+    if isinstance(spec, str):
+        return make_law(spec)
+    if isinstance(spec, Mapping):
+        params = dict(spec)
+        name = params.pop("name", None)
+        if not isinstance(name, str):
+            raise ValueError(f"law given as a table needs its registered name, {{'name': ..., **parameters}}; "
+                             f"got {spec!r}")
+        return make_law(name, **params)
+    raise ValueError(f"law must be an ElasticLaw, a tuple (W, W′, W″) of callables, a registered name or "
+                     f"{{'name': ..., **parameters}}, got {spec!r}")
+
+
+register_law("quadratic", _quadratic)
+register_law("quartic", _quartic)
 
 
 # ---------------------------------------------------------------------------- temporal gauge

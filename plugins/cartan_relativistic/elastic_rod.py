@@ -36,6 +36,7 @@ from cartan.problem import InitialState
 
 from .elastic import (
     ElasticLaw,
+    as_law,
     quadratic_law,
     stretch,
     temporal_lagrangian,
@@ -64,13 +65,20 @@ class ElasticRelativisticRod(RelativisticRod):
     stiffness : float, optional
         Axial stiffness k of ε(λ) = μc² + ½k(λ − 1)² (the ``cosserat-rod``'s stretch stiffness
         in the Newtonian limit), 0 < k < μc²: longitudinal waves at √(k/μ) < c.
-    law : ElasticLaw or tuple (W, W′, W″), optional
+    law : ElasticLaw, str, dict or tuple (W, W′, W″), optional
         Instead of ``stiffness``: a general ε(λ) = μc² + W(λ)
-        (:class:`cartan_relativistic.elastic.ElasticLaw`, e.g. ``ElasticLaw.quartic(k, q)``),
-        checked on construction at λ = 1 and over ``stretch_range`` (ε > 0, ε″ > 0, longitudinal
-        waves slower than light; docs §2, "General ε(λ)").
+        (:class:`cartan_relativistic.elastic.ElasticLaw`, e.g. ``ElasticLaw.quartic(k, q)``), a
+        registered law by name or as ``{"name": ..., **parameters}`` (``{"name": "quartic",
+        "k": 0.25, "q": 0.5}``; :func:`cartan_relativistic.elastic.register_law`), checked on
+        construction at λ = 1 and over ``stretch_range`` (ε > 0, ε″ > 0, longitudinal waves
+        slower than light; docs §2, "General ε(λ)").  A run records a registered law as its
+        name and parameters and restarts exactly; one built from bare callables cannot be
+        recorded (``ValueError`` when the run starts, saying how to register it).
     stretch_range : (float, float), optional
         Stretches 0 < λ_min < λ_max over which the law is checked as well (201 points).
+    clocks : bool, optional
+        Accumulate each node's proper time in the run (default True: the output
+        ``proper_time``; docs §4).
 
     Notes
     -----
@@ -102,11 +110,13 @@ class ElasticRelativisticRod(RelativisticRod):
     }
 
     def __init__(self, c: float = 1.0, mu: float = 1.0, energy: str = "elastic", stiffness: float | None = None,
-                 law: ElasticLaw | tuple | None = None, stretch_range: tuple[float, float] | None = None):
+                 law: ElasticLaw | tuple | str | dict | None = None, stretch_range: tuple[float, float] | None = None,
+                 clocks: bool | None = None):
         if energy != "elastic":
             raise ValueError(f"{type(self).__name__} is the energy 'elastic'; got energy={energy!r}")
         super().__init__(c=c, mu=mu, energy="nambu-goto")
         self.energy = "elastic"
+        self.clocks = self._check_clocks(clocks, default=True)
         if stretch_range is not None:
             lo, hi = (float(v) for v in check_positive("stretch_range", stretch_range, shape=(2,)))
             if not lo < hi:
@@ -120,10 +130,7 @@ class ElasticRelativisticRod(RelativisticRod):
             if stiffness is not None:
                 raise ValueError("give either stiffness k (the quadratic law) or law (an ElasticLaw W, W′, W″), "
                                  "not both")
-            if isinstance(law, tuple) and len(law) == 3:
-                law = ElasticLaw(*law)
-            if not isinstance(law, ElasticLaw):
-                raise ValueError(f"law must be an ElasticLaw or a tuple (W, W′, W″) of callables, got {law!r}")
+            law = as_law(law)
             self.stiffness = None
             self.elastic_law = law
             law.check(self.mu, self.c, stretches)
@@ -146,11 +153,22 @@ class ElasticRelativisticRod(RelativisticRod):
         out: dict[str, Any] = {"c": self.c, "mu": self.mu, "energy": "elastic"}
         if self.stiffness is not None:
             out["stiffness"] = self.stiffness
+        elif self.elastic_law.record is not None:
+            out["law"] = self.elastic_law.to_dict()  # {"name": ..., **parameters}: rebuilt on a restart
         else:
-            out["law"] = self.elastic_law
+            out["law"] = self.elastic_law  # unregistered: recording it raises (ElasticLaw.to_dict)
         if self.stretch_range is not None:
             out["stretch_range"] = self.stretch_range
+        if not self.clocks:
+            out["clocks"] = False
         return out
+
+    def accumulator_rates(self, q: np.ndarray, X: np.ndarray, N: np.ndarray, grid: Any) -> dict[str, np.ndarray]:
+        """``dτ/dt = √(1 − |v⃗|²/c²)`` per node, ``[*grid.shape]``, v⃗ = N[..., 1:4]: the run's time is
+        the lab time of every node (temporal gauge), so a node held fixed (a clamped end, N = 0)
+        is at rest in the lab and its clock runs at 1, τ = t exactly."""
+        v = np.asarray(N, dtype=float)[..., 1:4]
+        return {"proper_time": np.sqrt(np.maximum(1.0 - np.sum(v * v, axis=-1) / self.c**2, 0.0))}
 
     def inertia(self) -> np.ndarray:
         """``(0, μ, μ, μ, 0₆)``: the Newtonian kinetic metric; slot 0 (N₀ = c) and the Lorentz part are gauge."""
@@ -283,6 +301,7 @@ class ElasticRelativisticRod(RelativisticRod):
         ``total_momentum`` and ``kinetic_energy + potential_energy``, docs §3)."""
         c = self.c
         r, rdot = self.lab_events(q, N)
+        rdot[..., 0] = c  # (temporal gauge ṙ = (c, v⃗); a clamped node, N = 0, is at rest in the lab)
         x = np.asarray(X, dtype=float)
         S = self.momentum_at(N, x)
         w = grid.node_weights()
@@ -290,7 +309,7 @@ class ElasticRelativisticRod(RelativisticRod):
         p = S[..., 1:4]
         P = np.tensordot(w, p, axes=1)
         J = np.tensordot(w, np.cross(r[..., 1:], p), axes=1)
-        v = rdot[..., 1:] * (c / rdot[..., 0])[..., None]
+        v = rdot[..., 1:]
         gamma = 1.0 / np.sqrt(np.maximum(1.0 - np.sum(v * v, axis=-1) / c**2, 1e-300))
         rprime = np.concatenate([np.zeros((*x.shape[:-2], 1)), x[..., 0, 1:4]], axis=-1)
         lam = stretch(rdot, rprime)

@@ -147,6 +147,11 @@ class RelativisticRod(KernelMedium):
     law, stretch_range : optional
         A general elastic law ε(λ) = μc² + W(λ) and the stretches it is checked over
         (``energy="elastic"`` only: :class:`cartan_relativistic.elastic_rod.ElasticRelativisticRod`).
+    clocks : bool, optional
+        Accumulate each node's proper time τ in the run (the output ``proper_time``
+        ``(time, node)``, continued exactly by restarts; :mod:`cartan.accumulators`).  Default:
+        off for the Nambu–Goto string (the accumulator steps on the numpy path, not the
+        compiled loops), on for the elastic string (numpy path anyway).
 
     Notes
     -----
@@ -175,8 +180,10 @@ class RelativisticRod(KernelMedium):
         "virasoro_residual": ("max over nodes of |⟨ṙ, r′⟩| and |⟨ṙ, ṙ⟩ + c²⟨r′, r′⟩| relative to c²", "1"),
     }
 
-    def __new__(cls, *args: Any, **kwargs: Any):
-        energy = kwargs.get("energy", args[2] if len(args) > 2 else "nambu-goto")
+    def __new__(cls, c: float = 1.0, mu: float = 1.0, energy: str = "nambu-goto", stiffness: float | None = None,
+                law: Any = None, stretch_range: Any = None, clocks: bool | None = None):
+        # (the keywords of __init__, so that the signature of the class names them: a scene's
+        # ``clocks = true`` is then read as the switch it is)
         if cls is RelativisticRod and isinstance(energy, str) and energy == "elastic":
             from .elastic_rod import ElasticRelativisticRod
 
@@ -184,7 +191,7 @@ class RelativisticRod(KernelMedium):
         return super().__new__(cls)
 
     def __init__(self, c: float = 1.0, mu: float = 1.0, energy: str = "nambu-goto", stiffness: float | None = None,
-                 law: Any = None, stretch_range: Any = None):
+                 law: Any = None, stretch_range: Any = None, clocks: bool | None = None):
         self.group = cartan.group("Poincare")
         self.space = cartan.space("frame-M13")
         self.c = float(check_positive("c", c, shape=()))
@@ -199,10 +206,40 @@ class RelativisticRod(KernelMedium):
                              "string has none")
         self.energy = energy
         self.tension = self.mu * self.c**2
+        self.clocks = self._check_clocks(clocks, default=False)
+
+    @staticmethod
+    def _check_clocks(clocks: Any, default: bool) -> bool:
+        if clocks is None:
+            return default
+        if not isinstance(clocks, (bool, np.bool_)):
+            raise ValueError(f"clocks must be True or False (accumulate each node's proper time in the run), "
+                             f"got {clocks!r}")
+        return bool(clocks)
 
     # ------------------------------------------------------------------ contract
     def parameters(self) -> dict[str, Any]:
-        return {"c": self.c, "mu": self.mu, "energy": self.energy}
+        out: dict[str, Any] = {"c": self.c, "mu": self.mu, "energy": self.energy}
+        if self.clocks:
+            out["clocks"] = True
+        return out
+
+    # ------------------------------------------------------------------ proper time in the run
+    def accumulators(self) -> dict[str, tuple[str, str]]:
+        """``{"proper_time": ...}`` with ``clocks=True`` (:mod:`cartan.accumulators`): each node's
+        proper time τ, accumulated over every step (docs §4, "Proper time per node")."""
+        if not self.clocks:
+            return {}
+        return {"proper_time": ("proper time τ = ∫ dτ of each node since t = 0 (accumulated in the run, "
+                                "trapezoidal rule per step)", "s")}
+
+    def accumulator_rates(self, q: np.ndarray, X: np.ndarray, N: np.ndarray, grid: Any) -> dict[str, np.ndarray]:
+        """``dτ/dt = √(−⟨ṙ, ṙ⟩)/c`` per node, ``[*grid.shape]``, ṙ = Λ y_N the node's 4-velocity in
+        the run's time t: 1/γ in the conformal–temporal gauge (ṙ⁰ = c), 1 for a run in proper time
+        (``kinematic``, U = (c, 0, 0, 0))."""
+        _, rdot = self.lab_events(q, N)
+        minus = -np.einsum("...i,i,...i->...", rdot, _ETA, rdot)
+        return {"proper_time": np.sqrt(np.maximum(minus, 0.0)) / self.c}
 
     def kinetic_metric(self) -> np.ndarray:
         """``M = μ diag(−1, 1, 1, 1, 0₆)``, shape ``(10, 10)`` (K = ½μ⟨y_N, y_N⟩_M)."""
