@@ -28,14 +28,15 @@ def cartan_register_cases(register):
 def helfrich(problem, *, steps: int = 30, tau: float = 0.05, growth: float = 1.3, tau_max: float = 50.0,
              hold: tuple[str, ...] = ("area", "volume"), targets: dict[str, float] | None = None,
              hold_tol: float = 1e-10, tol: float = 1e-10, stop: float = 0.0, max_hold_iterations: int = 12,
-             max_retries: int = 6, mesh: str = "step"):
+             max_retries: int = 6, mesh: str = "step", redistribute: int = 1):
     """The ``helfrich`` flow of a scene's ``[flow]`` table:
     :func:`cartan_kirchhoff_love.vesicle.helfrich_flow` of the scene's problem (same options)."""
     from .vesicle import helfrich_flow
 
     return helfrich_flow(problem, steps=steps, tau=tau, growth=growth, tau_max=tau_max, hold=hold,
                          targets=targets, hold_tol=hold_tol, tol=tol, stop=stop,
-                         max_hold_iterations=max_hold_iterations, max_retries=max_retries, mesh=mesh)
+                         max_hold_iterations=max_hold_iterations, max_retries=max_retries, mesh=mesh,
+                         redistribute=redistribute)
 
 
 def _check_helfrich(problem, options: dict) -> None:
@@ -53,7 +54,7 @@ def _check_helfrich(problem, options: dict) -> None:
             v = options[name]
             if not math.isfinite(v) or (v <= low if strict else v < low):
                 raise ValueError(f"{name} must be {'>' if strict else '≥'} {low:g}, got {v!r}")
-    for name, low in (("max_hold_iterations", 1), ("max_retries", 0)):
+    for name, low in (("max_hold_iterations", 1), ("max_retries", 0), ("redistribute", 0)):
         if name in options and not low <= options[name] <= 1000:
             raise ValueError(f"{name} must be an integer in [{low}, 1000], got {options[name]!r}")
     if options.get("mesh", "step") not in ("step", "initial"):
