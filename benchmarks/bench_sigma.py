@@ -47,9 +47,15 @@ class SigmaStep:
         self.state = self.scheme.initial_state()
         self.threads = threads
         with cartan.use_threads(threads):
-            if not self.scheme.compiled_advance(self.integrator, self.state, self.dt, 2):
-                raise NotImplementedError("Lattice.compiled_advance declines this problem")
+            if not self._advance(2):
+                raise NotImplementedError("no compiled loop runs this problem")
+
+    def _advance(self, steps: int) -> bool:
+        """The compiled path ``cartan.simulate`` takes: the scheme's hand-written loops (SE(3)
+        rods only), else the integrator's generated loop (the sigma model)."""
+        return self.scheme.compiled_advance(self.integrator, self.state, self.dt, steps) or (
+            self.integrator.run_compiled_loop(self.scheme, self.state, self.dt, steps))
 
     def time_steps(self, N, integrator, threads):
         with cartan.use_threads(self.threads):
-            self.scheme.compiled_advance(self.integrator, self.state, self.dt, STEPS)
+            self._advance(STEPS)

@@ -86,8 +86,11 @@ def _advance(scheme, integrator, state, dt: float, steps: int, threads: int) -> 
 
     with cartan.use_threads(threads):
         t0 = time.perf_counter()
-        if not scheme.compiled_advance(integrator, state, dt, steps):
-            raise RuntimeError("Lattice.compiled_advance declined the problem")
+        # the compiled path cartan.simulate takes: the SE(3) rod's hand-written loop, else the
+        # integrator's generated loop (the sigma model, serial at any thread count)
+        if not (scheme.compiled_advance(integrator, state, dt, steps)
+                or integrator.run_compiled_loop(scheme, state, dt, steps)):
+            raise RuntimeError("no compiled loop runs the problem")
         return time.perf_counter() - t0
 
 

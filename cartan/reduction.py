@@ -356,13 +356,14 @@ def reduction_pays(run: _ResolvedRun) -> bool:
     """Whether the reduced run is expected to cost less than ``run``, the full one.
 
     Not where the full run's steps go to the ``lattice`` scheme's hand-written compiled loops
-    (``Lattice.compiled_advance``: ``lie-verlet``, ``lie-euler``, ``forward-euler``, ``rkmk4``,
-    ``overdamped``): they have closed-form scalar kernels for SE(3), and vectorised loops for
-    SE(3) rods, but only the generic kernels for SE(2), and there the SE(2) run of a planar rod
-    takes 1.5–6× longer than the SE(3) run (``lie-verlet``, n = 21–1001 nodes).  Everywhere
-    else — the Python loop, integrators with their own compiled blocks (``implicit-midpoint``,
-    1.3–1.4× faster reduced), the generated loops (``collocation``, as fast) — the reduced run
-    costs no more.
+    (``Lattice.compiled_advance``: SE(3) rods with ``lie-verlet`` or ``overdamped`` of order 1,
+    :func:`cartan.schemes._lattice_compiled.runs`): they are vectorised for SE(3) rods, and SE(2)
+    has the generated loops only, on which the SE(2) run of a planar rod takes 2.8–5.6× longer
+    than the SE(3) run (``lie-verlet``, n = 21–1001 nodes, measured in one process).  Everywhere
+    else the reduced run costs no more: the generated loops on both groups (``rkmk4``: the
+    SE(2) run 0.68–0.95× the SE(3) one at n = 21–1001; ``lie-euler``, ``forward-euler``,
+    ``overdamped`` of order 2, ``collocation``), the Python loop, integrators with their own
+    compiled blocks (``implicit-midpoint``, 1.3–1.4× faster reduced).
 
     Parameters
     ----------
@@ -375,7 +376,9 @@ def reduction_pays(run: _ResolvedRun) -> bool:
     """
     if not run.compiled or getattr(run.integrator, "compiled_advance", None) is not None:
         return True
-    return not run.scheme.has_hand_written_loops()
+    from .schemes._lattice_compiled import runs
+
+    return not (run.scheme.plan_module == "_lattice_compiled" and runs(run.scheme, run.integrator))
 
 
 def run_reduced(run: _ResolvedRun, *, restart: Any = None) -> xr.Dataset | None:

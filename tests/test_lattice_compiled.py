@@ -1,11 +1,15 @@
-"""Compiled lattice loops (``Lattice.compiled_advance``) against the Python reference path.
+"""Compiled lattice paths against the Python reference path.
 
-The reference is ``Integrator.step`` with the lattice scheme's numpy methods; the compiled
-loops must agree with it to 1e-12 (relative to each array's magnitude) on every state array
-and energy accumulator — rods (d = 1) and the sigma model and toy media on d = 2 and 3
-grids —, count steps and force evaluations identically, decline (and leave the state
-untouched) whatever they do not support, keep restarts bit for bit, and load their machine
-code from numba's cache in a new process.
+The compiled path of a problem is the one :func:`cartan.simulate` takes
+(``toys.advance_compiled``): the hand-written structure-of-arrays loops of SE(3) rods
+(``Lattice.compiled_advance``: ``lie-verlet``, ``overdamped`` of order 1), else the generated
+loops over the lattice's operators (``Integrator.run_compiled_loop``: the other groups, d = 2
+and 3, the other integrators).  The reference is ``Integrator.step`` with the lattice
+scheme's numpy methods; the compiled paths must agree with it to 1e-12 (relative to each
+array's magnitude) on every state array and energy accumulator — rods (d = 1) and the sigma
+model and toy media on d = 2 and 3 grids —, count steps and force evaluations identically,
+decline (and leave the state untouched) whatever they do not support, keep restarts bit for
+bit, and load their machine code from numba's cache in a new process.
 """
 
 from __future__ import annotations
@@ -37,7 +41,7 @@ from cartan.schemes.lattice import Lattice
 ROOT = pathlib.Path(__file__).resolve().parents[1]
 TOL = 1e-12
 
-#: first-order loops beyond the fast suite's (each hand-written loop compiles for a minute under load)
+#: first-order loops beyond the fast suite's (each loop compiles for a minute under load)
 SLOW_SE3 = {"forward-euler", "lie-euler", "overdamped-2"}
 #: (integrator factory, Δt, steps): Δt within each method's stable range for the test rods
 #: (forward-euler is unstable at every Δt, so it runs a few small steps only)
@@ -52,7 +56,7 @@ INTEGRATORS = {
 
 
 #: tests whose loops ``make test`` does not compile (tests/conftest.py): the d ≥ 2 loops, the
-#: vectorised overdamped SE(3) loop and the force kernel alone
+#: vectorised overdamped SE(3) loop and the force kernels alone
 SLOW_TESTS = {"test_sigma_model_d2_agrees_with_python", "test_d2_clamped_and_loaded_faces",
               "test_every_group_on_a_d2_grid", "test_force_matches_lattice_force",
               "test_force_matches_lattice_force_d2", "test_simulate_sigma_model_d2_compiled_agrees_with_reference",
@@ -62,7 +66,7 @@ SLOW_TESTS = {"test_sigma_model_d2_agrees_with_python", "test_d2_clamped_and_loa
 
 def slow_when(item) -> bool:
     """``make test`` runs the lie-verlet loops of rods (d = 1: the SE(3) loop of the demo and the
-    generic loop of the other groups); the other integrators' loops in ``make test-slow``."""
+    generated loops of the other groups); the other integrators' loops in ``make test-slow``."""
     name = params_of(item).get("name", "lie-verlet")
     return item.originalname in SLOW_TESTS or name != "lie-verlet"
 
@@ -153,11 +157,12 @@ def test_every_group_with_generic_kernels(group, name):
 
 
 def test_se3_with_a_gauge_component():
-    """A zero inertia splits the SE(3) free flow into pieces without closed form (generic
-    exp/Ad kernels, array-of-structures loop)."""
+    """A zero inertia splits the SE(3) free flow into pieces without closed form: the
+    structure-of-arrays loop declines them, the generated loop runs them."""
     base = arc_problem(n=9, curvature=1.0, velocity=[0.1, 0.2, 0.0, 0.3, 0.1, 0.2])
     medium = _QuadraticData("SE3", mass=[1.0, 1.0, 0.0, 0.05, 0.04, 0.03])
     problem = Problem(medium, base.grid, base.initial, {"start": Clamped()}, [Damping(0.1)])
+    _declines(problem, LieVerlet())
     scheme, (ref, ri), (fast, fi) = run_both(problem, LieVerlet, 1e-3, 60)
     assert any(np.count_nonzero(np.diag(P)) == 2 for P, _ in fi._sequence(scheme))
     assert_close_states(fast, ref)
@@ -411,9 +416,22 @@ def test_coupled_stiffness(periodic):
     assert_close_states(fast, ref)
 
 
+def _generated_force(scheme, state, N) -> np.ndarray:
+    """``Lattice.force`` at ``state`` and velocity ``N`` on the generated operators (``op_force``)."""
+    ops = scheme.compiled_operators()
+    assert ops.ok
+    module = ops.generated()
+    W = np.empty((ops.nodes, scheme.group.dim))
+    module.op_force(ops.data, ops.pack(state), float(state.t),
+                    np.ascontiguousarray(N, dtype=float).reshape(ops.nodes, -1), W, module.op_work(ops.data))
+    return W.reshape(np.shape(state.S))
+
+
 @pytest.mark.parametrize("on_group", [True, False])
 def test_force_matches_lattice_force(on_group):
-    """One force evaluation at a perturbed state, on the group or off it (forward-euler)."""
+    """One force evaluation at a perturbed state: on the group by the structure-of-arrays
+    passes of the SE(3) loops (and after a drift ``Φ ← Φ exp(τV)``, as the CFL probe drifts),
+    off it (forward-euler) by the generated operators."""
     problem = rod_problem("dead")
     scheme = Lattice(problem)
     state = scheme.initial_state()
@@ -424,9 +442,17 @@ def test_force_matches_lattice_force(on_group):
     state.arrays["G_u"] = G
     N = rng.standard_normal(state.S.shape)
     W = scheme.force(state, N, 0.0)
+    if not on_group:
+        assert _rel(_generated_force(scheme, state, N), W) <= 1e-13
+        return
     Wc = np.empty_like(W)
-    lc.force_once(lc.build_plan(scheme), G, state.arrays["Phi"], N, Wc, on_group)
+    lc.force_once(scheme, lc.build_plan(scheme), G, state.arrays["Phi"], N, Wc)
     assert _rel(Wc, W) <= 1e-13
+    V, tau = 0.3 * rng.standard_normal(state.S.shape), 0.2
+    moved = state.copy()
+    scheme.drift(moved, tau, V)
+    lc.force_once(scheme, lc.build_plan(scheme), G, state.arrays["Phi"], N, Wc, V, tau)
+    assert _rel(Wc, scheme.force(moved, N, 0.0)) <= 1e-13
 
 
 def test_kinetic_limit_stops_after_the_failing_step():
@@ -747,10 +773,8 @@ def test_force_matches_lattice_force_d2(on_group):
         state.arrays[key] = G
     N = rng.standard_normal(state.S.shape)
     W = scheme.force(state, N, 0.0)
-    Wc = np.empty((problem.grid.size, 3))
-    lc.force_once(lc.build_plan(scheme), (state.arrays["G_u"], state.arrays["G_v"]),
-                  state.arrays["Phi"].reshape(-1, 3, 3), N.reshape(-1, 3), Wc, on_group)
-    assert _rel(Wc.reshape(W.shape), W) <= 1e-13
+    assert lc.build_plan(scheme) is None  # d = 2: the generated operators
+    assert _rel(_generated_force(scheme, state, N), W) <= 1e-13
 
 
 def test_d2_unsupported_loads_decline():

@@ -144,13 +144,15 @@ def test_ring_reduced_equals_full(ring_runs):
 
 @pytest.mark.slow  # the implicit loop of the planar rod: ≈ 70 s to compile on a fresh cache
 def test_reduced_only_where_it_pays():
-    """The lattice's hand-written compiled loops run SE(3) rods faster than SE(2) ones: no reduction
-    there; the Python loop and implicit midpoint are reduced."""
+    """The lattice's hand-written compiled loops run SE(3) rods (``lie-verlet``) faster than the
+    generated loops run SE(2) ones: no reduction there; the Python loop, implicit midpoint and
+    the integrators whose steps go to the generated loops on both groups (``rkmk4``) are reduced."""
     p = cantilever()
     short = {**CANTILEVER_RUN, "t_end": 0.01, "save_every": 5}
     assert "cartan_reduction" not in cartan.simulate(p, **short).attrs
     assert cartan.simulate(p, **short, compiled=False).attrs["cartan_reduction"] == PLANAR
     assert cartan.simulate(p, **short, integrator="implicit-midpoint").attrs["cartan_reduction"] == PLANAR
+    assert cartan.simulate(p, **{**short, "dt": 1e-4}, integrator="rkmk4").attrs["cartan_reduction"] == PLANAR
 
 
 def test_reduced_problem_maps_the_data():

@@ -307,8 +307,9 @@ def test_compiled_diagnostics_only_for_large_problems():
 @pytest.mark.slow  # the probe's compiled drift and force: ≈ 76 s on a fresh cache
 @pytest.mark.parametrize("kind", ["straight", "dead", "follower", "ring", "planar"])
 def test_compiled_cfl_estimate_matches_the_numpy_one(kind):
-    """The compiled stiffness probe (lattice with a compiled plan) gives the numpy estimate: the
-    same power iteration on the same operator, round-off apart.  The central difference divides
+    """The compiled stiffness probe gives the numpy estimate — SE(3) rods on the passes of their
+    hand-written loops, the planar (SE(2)) rod on the generated operators —: the same power
+    iteration on the same operator, round-off apart.  The central difference divides
     force round-off (≈ 1e-16 of the stress scale) by ε = 1e-7, so the two estimates may differ
     by ≈ 1e-9 relative (measured ≤ 2e-12)."""
     from test_lattice_compiled import rod_problem
@@ -319,7 +320,8 @@ def test_compiled_cfl_estimate_matches_the_numpy_one(kind):
     scheme.compiled_diagnostics_from = 0  # the small rods of the tests run it too
     state = scheme.initial_state()
     before = state.copy()
-    assert scheme.stiffness_probe(state).__module__ == "cartan.schemes._lattice_diagnostics"
+    expected = "cartan.compiled.diagnostics" if kind == "planar" else "cartan.schemes._lattice_diagnostics"
+    assert scheme.stiffness_probe(state).__module__ == expected
     for rate in ("inertial", "overdamped") if kind != "straight" else ("inertial",):
         fast = scheme.dt_max(state, rate=rate)
         scheme.compiled_diagnostics = False
@@ -372,16 +374,20 @@ def test_prefix_products_compiled_against_doubling():
 
 @pytest.mark.parametrize("kind", ["dead", "ring", "planar"])
 def test_guard_energies_match_the_reference(kind):
-    """The guard's compiled-plan energies against Scheme.kinetic_energy/Lattice.potential_energy
-    (the same sums in another order: round-off, ≤ 1e-12 relative) on moving, loaded rods."""
+    """The guard's compiled energies against Scheme.kinetic_energy/Lattice.potential_energy
+    (the same sums in another order: round-off, ≤ 1e-12 relative) on moving, loaded rods: the
+    SE(3) rods' plan energies, the planar (SE(2)) rod's generated ones."""
     from test_lattice_compiled import rod_problem
+    from toys import advance_compiled
 
-    from cartan.schemes._lattice_diagnostics import guard_energies
+    from cartan.compiled import diagnostics
+    from cartan.schemes import _lattice_diagnostics
 
     problem = rod_problem("dead", planar=True) if kind == "planar" else rod_problem(kind)
     scheme = Lattice(problem)
     state = scheme.initial_state()
-    assert scheme.compiled_advance(LieVerlet(), state, 1e-3, 20)
+    assert advance_compiled(scheme, LieVerlet(), state, 1e-3, 20)
+    guard_energies = (diagnostics if kind == "planar" else _lattice_diagnostics).guard_energies
     K, V = guard_energies(scheme, state)
     assert K > 0 and V != 0
     assert K == pytest.approx(scheme.kinetic_energy(state), rel=1e-12)

@@ -43,22 +43,17 @@ import numpy as np
 from numba import prange
 
 from .._threads import threaded_twins
+from ..groups.se3 import TAYLOR_D, TAYLOR_E, _V_apply
+from ..groups.so3 import SMALL_THETA2, TAYLOR_A, TAYLOR_B, TAYLOR_C, _poly_entries, cross3, horner
 from ._lattice_compiled_kernels import (
     ATAN_SERIES_X2,
     KIND_SE3_TRANSLATION,
-    SMALL_THETA2,
-    TAYLOR_A,
-    TAYLOR_B,
-    TAYLOR_C,
-    TAYLOR_D,
-    TAYLOR_E,
     _ad_T,
     _chunk,
     _edge_terms6,
     _exp3_coeffs,
     _inline,
     _jit,
-    _poly_entries,
     _q_coeffs,
     _rot_coeffs,
     _se3_dexp_inv_T,
@@ -66,9 +61,6 @@ from ._lattice_compiled_kernels import (
     _stress6,
     _sum_parts,
     _turn,
-    _V_apply,
-    cross3,
-    horner,
     so3_log_series,
 )
 from ._lattice_compiled_plan import (
@@ -100,7 +92,8 @@ from ._lattice_compiled_plan import (
     I_X0,
 )
 
-__all__ = ["THREADED", "lie_verlet_se3_loop", "overdamped_se3_loop", "workspace"]
+__all__ = ["THREADED", "force_at", "lie_verlet_se3_loop", "overdamped_se3_loop", "overdamped_velocity",
+           "workspace"]
 
 
 #: steps advanced together, chunk by chunk, by the loop on open rods
@@ -984,8 +977,11 @@ def lie_verlet_se3_loop(P, S, G, Phi, W, have_force, velocity_free, fac, kinds, 
     ``W`` (copied back on return); open rods in blocks of :data:`TIME_BLOCK` steps
     (:func:`_soa_steps_blocked`) when the force is velocity-free and the rod has two chunks
     or more (one block of chunks) or ``block_chunks`` per block (:data:`THREAD_BLOCK_CHUNKS`).
-    ``work``: :func:`workspace`.  Other arguments and the result as
-    :func:`cartan.schemes._lattice_compiled.lie_verlet_loop`."""
+    ``work``: :func:`workspace`.  ``have_force``: ``W`` holds the force of the state (the
+    first-same-as-last force); ``fac [k, 6]``: ``τ/m`` per free-flow piece and component;
+    ``kinds``, ``axes [k]``: each piece's kind and body axis; ``t``, ``dt``, the energy
+    accumulators, the blow-up test ``check`` with ``kinetic_limit`` and ``inv`` (1/m on the
+    live components).  Returns ``(steps done, force evaluations, t, dissipated, external)``."""
     n = S.shape[0]
     s, w, g, phi, D, Nv, OUT, INC, scratch, PART, PARTT, snap, prog = work
     Nv[:] = 0.0
@@ -1062,8 +1058,9 @@ def overdamped_se3_loop(P, S, G, Phi, N, gam, t, dt, nsteps, dissipated, externa
     structure-of-arrays copies of ``G [ne, 4, 4]``, ``Phi`` and ``N [n, 6]`` (copied back on
     return; S = 0 after a step): ``D_i = exp(ΔtN_i)``, ``Φ_i ← Φ_i D_i``, ``G_e ← D_i⁻¹G_eD_j``,
     then ``N = Γ⁻¹W(N = 0)`` with the force of :func:`_soa_close` (damping at zero velocity).
-    ``N`` holds the velocity of the current state on entry.  Arguments and result as
-    :func:`cartan.schemes._lattice_compiled.overdamped_loop` (no kinetic limit: S = 0)."""
+    ``N`` holds the velocity of the current state on entry (:func:`overdamped_velocity`);
+    ``gam`` the drag per component, the blow-up test ``check`` (no kinetic limit: S = 0).
+    Returns ``(steps done, t, dissipated, external)``."""
     n = S.shape[0]
     nv, w, g, phi, D, zero, OUT, INC, scratch, PART = work[:10]
     zero[:] = 0.0
@@ -1095,6 +1092,50 @@ def overdamped_se3_loop(P, S, G, Phi, N, gam, t, dt, nsteps, dissipated, externa
     _from_soa(g, G)
     _from_soa(phi, Phi)
     return done, t, dissipated, external
+
+
+@_jit
+def force_at(P, G, Phi, N, V, tau, W, inv, work):
+    """``W [n, 6]`` ← ``Lattice.force`` at the velocity ``N [n, 6]`` of the rod ``G [ne, 4, 4]``,
+    ``Phi [nf, 4, 4]`` drifted by ``Φ ← Φ exp(τV)`` (``V [n, 6]``; τ = 0: the rod as it is),
+    with the passes of the loops on the work arrays ``work`` (:func:`workspace`, one block);
+    ``G`` and ``Phi`` are read only.  The CFL probe and the tests call it."""
+    n = W.shape[0]
+    s, w, g, phi, D, nv, OUT, INC, scratch, PART = work[:10]
+    _to_soa(G, g)
+    _to_soa(Phi, phi)
+    for i in range(n):
+        for k in range(6):
+            nv[k, i] = N[i, k]
+    drift = tau != 0.0
+    if drift:
+        for i in range(n):
+            for k in range(6):
+                s[k, i] = V[i, k]
+        _soa_exp_nodes(s, tau, D, phi)
+    _soa_edges(P, g, D, drift, OUT, INC, 1, scratch)
+    _soa_close(P, OUT, INC, phi, nv, nv, w, 0.0, False, False, inv, False, PART)
+    for i in range(n):
+        for k in range(6):
+            W[i, k] = w[k, i]
+
+
+@_jit
+def overdamped_velocity(P, G, Phi, N, gam, inv, work):
+    """``N [n, 6]`` ← the overdamped velocity ``Γ⁻¹W(N = 0)`` of the rod ``G``, ``Phi`` (zero on
+    clamped nodes and gauge components), computed as :func:`overdamped_se3_loop` computes it
+    after every step, so that the steps do not depend on how they are grouped into calls."""
+    n = N.shape[0]
+    s, w, g, phi, D, zero, OUT, INC, scratch, PART = work[:10]
+    zero[:] = 0.0
+    _to_soa(G, g)
+    _to_soa(Phi, phi)
+    _soa_edges(P, g, D, False, OUT, INC, 1, scratch)
+    _soa_close(P, OUT, INC, phi, zero, zero, w, 0.0, False, False, inv, False, PART)
+    _soa_drag(P, w, gam, s, phi, PART)
+    for i in range(n):
+        for k in range(6):
+            N[i, k] = s[k, i]
 
 
 #: the threaded variants (``prange`` in parallel) of the passes and of the loops

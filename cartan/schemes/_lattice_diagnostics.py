@@ -1,14 +1,16 @@
-"""Compiled work of the ``lattice`` scheme outside its step loops (``docs/performance.md``).
+"""Compiled work of the ``lattice`` scheme's SE(3) rod loops outside the steps (``docs/performance.md``).
 
-:meth:`cartan.schemes.lattice.Lattice.compiled_advance` runs the steps of qualifying
-problems in numba; what ``cartan.simulate`` does around the steps, once per run or once per
-save, would otherwise cost as much as thousands of compiled steps.  This module offers the
-compiled plan of a problem (the same plan the step loops use) to that work:
+:meth:`cartan.schemes.lattice.Lattice.compiled_advance` runs the steps of SE(3) rods
+(:mod:`cartan.schemes._lattice_compiled`) in numba; what ``cartan.simulate`` does around the
+steps, once per run or once per save, would otherwise cost as much as thousands of compiled
+steps.  This module offers the plan of such a problem (the same plan the step loops use) to
+that work; every other problem uses the generated diagnostics
+(:mod:`cartan.compiled.diagnostics`):
 
 :func:`compiled_stiffness_probe`
     the action v ↦ K v of the force Jacobian for the CFL estimate
     (:meth:`~cartan.schemes.base.Scheme.dt_max`): two drifts and two force evaluations of the
-    compiled loops' kernels per product, in preallocated buffers;
+    loops' structure-of-arrays passes per product (:func:`cartan.schemes._lattice_compiled.force_once`);
 :func:`guard_energies`
     the kinetic and potential energy of a state for the blow-up guard of ``cartan.simulate``,
     from the plan's quadratic energy ``U = ½(X − X₀)ᵀC(X − X₀)`` (paper §VI.C) instead of the
@@ -26,15 +28,15 @@ from collections.abc import Callable
 
 import numpy as np
 
-from .base import State
+from ..state import State
 
 __all__ = ["compiled_stiffness_probe", "guard_energies", "lattice_plan"]
 
 
 def lattice_plan(scheme) -> tuple | None:
     """The compiled plan of a lattice scheme's problem (built once and kept on the scheme, as
-    ``Lattice.compiled_advance`` does), or None: not a lattice, d ≠ 1 (the layout this module
-    reads), the numpy backend, or a problem that does not qualify."""
+    ``Lattice.compiled_advance`` does), or None: not a lattice, not an SE(3) rod (d = 1), the
+    numpy backend, or a problem that does not qualify."""
     from .lattice import Lattice
 
     if not isinstance(scheme, Lattice) or scheme.grid.d != 1:
@@ -74,27 +76,19 @@ def compiled_stiffness_probe(scheme, state: State, eps: float) -> Callable[[np.n
     arrays = _arrays(scheme, state) if plan is not None else None
     if arrays is None:
         return None
-    from ._lattice_compiled import _exp_drift, _scratch, force_once
+    from ._lattice_compiled import force_once
 
     G0, Phi0 = (np.array(a, dtype=float, order="C") for a in arrays)
     n, r = np.shape(state.S)
-    m = G0.shape[1]
-    Gs = np.empty_like(G0)
-    Phis = np.empty_like(Phi0)
-    D = np.empty((n, m, m))
-    scr = _scratch(r, m, G0.shape[0])
     zero = np.zeros((n, r))
     W_plus = np.empty((n, r))
     W_minus = np.empty((n, r))
     eps = float(eps)
 
     def probe(v: np.ndarray) -> np.ndarray:
-        v = np.ascontiguousarray(v, dtype=float)
+        v = np.ascontiguousarray(v, dtype=float).reshape(n, r)
         for tau, W in ((eps, W_plus), (-eps, W_minus)):
-            np.copyto(Gs, G0)
-            np.copyto(Phis, Phi0)
-            _exp_drift(plan, Gs, Phis, v, tau, D, scr)
-            force_once(plan, Gs, Phis, zero, W, True)
+            force_once(scheme, plan, G0, Phi0, zero, W, v, tau)
         return -(W_plus - W_minus) / (2 * eps)
 
     return probe

@@ -217,11 +217,15 @@ class Scheme(abc.ABC):
 
     #: the module of the scheme's hand-written compiled loops (``compiled_advance``), if any
     plan_module: ClassVar[str | None] = None
+    #: the module of the diagnostics on that plan (``compiled_stiffness_probe(scheme, state,
+    #: eps)``, None where the plan does not cover the problem), imported by name, if any
+    diagnostics_module: ClassVar[str | None] = None
 
     def has_hand_written_loops(self) -> bool:
-        """Whether the scheme's hand-written compiled loops take this problem's steps (then the
-        diagnostics around the steps use their plan, and no operator-set module is compiled
-        for them)."""
+        """Whether the scheme's hand-written compiled loops cover this problem (the lattice's
+        SE(3) rods: ``lie-verlet`` and ``overdamped`` of order 1 take their steps there, the
+        other integrators the generated loops); then the diagnostics around the steps use
+        their plan, and no operator-set module is compiled for them."""
         return self.plan_module is not None and self.compiled_plan(self.plan_module) is not None
 
     def _reference_volumes(self, rest: np.ndarray) -> np.ndarray | None:
@@ -391,19 +395,23 @@ class Scheme(abc.ABC):
         callable
             ``probe(v)`` for v ``[*shape, r]`` → K v ``[*shape, r]`` (a new array).  When
             :meth:`uses_compiled_diagnostics` and the lattice scheme has a hand-written
-            compiled plan for the problem (``docs/performance.md``), its compiled kernels; else,
+            compiled plan for the problem (an SE(3) rod, ``docs/performance.md``), the passes of
+            its loops; else,
             when the scheme's compiled operator set (:meth:`compiled_operators`) covers the
             problem and the state, its compiled operators
             (:func:`cartan.compiled.diagnostics.compiled_stiffness_probe`); otherwise
             :meth:`drift` and :meth:`force`.  All evaluate the same formulas (round-off apart).
         """
         if self.uses_compiled_diagnostics():
+            import importlib
+
             from ..compiled.diagnostics import compiled_stiffness_probe as generated_probe
-            from ._lattice_diagnostics import compiled_stiffness_probe as lattice_probe
 
             # a hand-written plan first where the scheme has one (its kernels are compiled with
             # the loops that take the steps), then the operator set
-            probes = [lattice_probe]
+            probes = []
+            if self.diagnostics_module is not None:
+                probes.append(importlib.import_module(f"{__package__}.{self.diagnostics_module}").compiled_stiffness_probe)
             if not self.has_hand_written_loops():
                 probes.append(generated_probe)
             for compiled_probe in probes:

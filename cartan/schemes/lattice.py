@@ -60,12 +60,16 @@ Glued axes (closed surfaces over poles)
     problems run on this numpy path (the compiled loops and operators decline them).
 
 Compiled loops
-    :meth:`Lattice.compiled_advance` runs whole blocks of steps in numba
-    (:mod:`cartan.schemes._lattice_compiled`) for d = 1, 2, 3 on SO(2), SE(2), SO(3), SE(3)
-    when the medium's potential is quadratic and the loads are data (damping, body-frame
-    uniform force, constant-field potentials, end loads, clamps), on threads when
-    ``CARTAN_THREADS`` allows; everything else stays on this module's numpy path, the
-    reference the compiled loops are tested against (``docs/performance.md``).
+    The generated loops (:meth:`cartan.integrators.base.Integrator.run_compiled_loop` over the
+    operators of :mod:`cartan.schemes._lattice_ops`, :meth:`Lattice.compiled_operators`) run
+    whole blocks of steps in numba for every group with point kernels and every medium that
+    declares them, d = 1, 2, 3.  SE(3) rods (d = 1) with a quadratic potential and loads that
+    are data (damping, body-frame uniform force, constant-field potentials, end loads,
+    clamps) run ``lie-verlet`` and ``overdamped`` (order 1) in the hand-written
+    structure-of-arrays loops of :meth:`Lattice.compiled_advance`
+    (:mod:`cartan.schemes._lattice_compiled`), on threads when ``CARTAN_THREADS`` allows.
+    Everything else stays on this module's numpy path, the reference both are tested against
+    (``docs/performance.md``).
 """
 
 from __future__ import annotations
@@ -86,6 +90,7 @@ class Lattice(Scheme):
 
     name = "lattice"
     plan_module = "_lattice_compiled"
+    diagnostics_module = "_lattice_diagnostics"
     order = 2
     strain_location = "edge"
     supports_coupled_lagrangian = True  # d = 1: cartan.schemes._coupled
@@ -159,14 +164,14 @@ class Lattice(Scheme):
         """Advance ``state`` in place by up to ``nsteps`` steps of ``integrator`` in compiled code.
 
         Returns False, leaving everything untouched, when the combination is not supported
-        (the caller then runs ``integrator.step`` in Python): see ``docs/performance.md`` for
-        what qualifies (d = 1, 2, 3; SO(2), SE(2), SO(3), SE(3); a quadratic potential —
-        ``quadratic_energy()``, or a ``QuadraticMedium`` for d ≥ 2; damping, body-frame uniform
-        forces, constant-field potentials, free and clamped ends or faces; ``lie-verlet``,
-        ``lie-euler``, ``forward-euler``, ``rkmk4``, ``overdamped``), and the numpy backend
-        always declines.  With ``CARTAN_THREADS`` (or :func:`cartan.set_threads`) above 1 and
-        a grid of at least ``cartan._threads.MIN_NODES`` nodes the loops run on threads, with
-        the same results.
+        (the caller then offers the steps to the generated loops, then runs ``integrator.step``
+        in Python): these loops take SE(3) rods (d = 1) with a quadratic potential
+        (``quadratic_energy()``), damping, body-frame uniform forces, constant-field
+        potentials, free and clamped ends, stepped by ``lie-verlet`` (every free-flow piece in
+        closed form: no zero inertia) or ``overdamped`` of order 1 (``docs/performance.md``);
+        the numpy backend always declines.  With ``CARTAN_THREADS`` (or
+        :func:`cartan.set_threads`) above 1 and a rod of at least ``cartan._threads.MIN_NODES``
+        nodes the loops run on threads, with the same results.
 
         When it returns True the steps were taken exactly as ``integrator.step`` takes them
         (same formulas, agreement to round-off): ``state.t``, ``state.scalars`` (energy
