@@ -8,8 +8,9 @@ Two tables, from a warm numba cache (a first run compiles the loops, untimed):
 
 Step cost
     µs per step of the filament (B₂ = 1, B₃ = 1.5, C = 0.8, ρA = 1, ρI = 0.01, L = 1, clamped,
-    3-D tip wrench) with ``rattle`` compiled (:mod:`cartan.integrators.rattle_loop`) and in
-    Python (``Rattle.step``), and of the cosserat-rod with the same bending, twist and inertia
+    3-D tip wrench) with ``rattle`` compiled (:mod:`cartan.integrators.rattle_loop`; with its
+    trial free flows per step over the timed steps) and in Python (``Rattle.step``), and of
+    the cosserat-rod with the same bending, twist and inertia
     and EA = GA = 1e6·B with ``lie-verlet`` compiled (the lattice's hand-written loop, what
     ``cartan.simulate`` runs), at n = 11, 21, 41, 81 nodes; and each medium's time step, half
     its CFL estimate (``simulate``'s default).
@@ -86,19 +87,23 @@ def _setup(prob, integ):
     return sch, state, dt
 
 
-def _per_step(make, integ_cls, compiled: bool, steps: int, repeat: int = 3) -> tuple[float, float]:
-    """(µs per step, Δt): the median over ``repeat`` blocks of ``steps`` steps after a warm-up."""
+def _per_step(make, integ_cls, compiled: bool, steps: int, repeat: int = 3) -> tuple[float, float, float]:
+    """(µs per step, Δt, trial free flows per step): the median over ``repeat`` blocks of
+    ``steps`` steps after a warm-up; the trial flows (1 + the multipliers' iterations per step,
+    ``rattle`` only, else 1) over all the timed steps."""
     integ = integ_cls()
     sch, state, dt = _setup(make(), integ)
     run = (lambda k: _advance(sch, integ, state, dt, k)) if compiled else (
         lambda k: [integ.step(sch, state, dt) for _ in range(k)])
     run(2)
     times = []
+    niter0 = getattr(integ, "niter", 0)
     for _ in range(repeat):
         t0 = time.perf_counter()
         run(steps)
         times.append((time.perf_counter() - t0) / steps)
-    return 1e6 * float(np.median(times)), dt
+    flows = 1.0 + (getattr(integ, "niter", 0) - niter0) / (repeat * steps)
+    return 1e6 * float(np.median(times)), dt, flows
 
 
 def step_costs(sizes) -> list[dict]:
@@ -106,10 +111,10 @@ def step_costs(sizes) -> list[dict]:
     for n in sizes:
         fil = lambda n=n: _problem(_filament(), n, TIP)  # noqa: E731
         rod = lambda n=n: _problem(_stiff_rod(), n, TIP)  # noqa: E731
-        c, dt_f = _per_step(fil, Rattle, True, steps=2000)
-        p, _ = _per_step(fil, Rattle, False, steps=max(5, 400 // n), repeat=2)
-        r, dt_r = _per_step(rod, LieVerlet, True, steps=20000)
-        rows.append({"n": n, "rattle_compiled_us": c, "rattle_python_us": p, "speedup": p / c,
+        c, dt_f, flows = _per_step(fil, Rattle, True, steps=2000)
+        p, _, _ = _per_step(fil, Rattle, False, steps=max(5, 400 // n), repeat=2)
+        r, dt_r, _ = _per_step(rod, LieVerlet, True, steps=20000)
+        rows.append({"n": n, "rattle_compiled_us": c, "flows": flows, "rattle_python_us": p, "speedup": p / c,
                      "rod_lie_verlet_us": r, "dt_filament": dt_f, "dt_rod": dt_r, "dt_ratio": dt_f / dt_r})
     return rows
 
@@ -192,10 +197,11 @@ def main(argv=None) -> None:
         sizes = ()
     if sizes:
         print(f"step cost (µs per step; Δt = half the CFL estimate); load average {_load()}")
-        print(f"{'n':>4} {'rattle compiled':>16} {'rattle Python':>14} {'speed-up':>9} {'rod lie-verlet':>15} "
+        print(f"{'n':>4} {'rattle compiled':>16} {'flows/step':>10} {'rattle Python':>14} {'speed-up':>9} "
+              f"{'rod lie-verlet':>15} "
               f"{'Δt filament':>12} {'Δt rod':>10} {'Δt ratio':>9}")
         for r in step_costs(sizes):
-            print(f"{r['n']:>4} {r['rattle_compiled_us']:>16.1f} {r['rattle_python_us']:>14.0f} "
+            print(f"{r['n']:>4} {r['rattle_compiled_us']:>16.1f} {r['flows']:>10.2f} {r['rattle_python_us']:>14.0f} "
                   f"{r['speedup']:>9.0f} {r['rod_lie_verlet_us']:>15.2f} {r['dt_filament']:>12.3e} "
                   f"{r['dt_rod']:>10.3e} {r['dt_ratio']:>9.1f}")
         print()

@@ -13,14 +13,24 @@ step is RATTLE (Andersen 1983; Leimkuhler & Skeel 1994) on the lie-verlet splitt
 
 1. half kick with the position multiplier ν:  S½ = Sₙ + ½Δt(Wₙ + B_c(Φₙ)ᵀν/w);
 2. lie-verlet's exact split free flow over Δt from (Φₙ, S½), giving Φₙ₊₁(ν);
-3. ν solves c(Φₙ₊₁(ν)) = 0 — a chord iteration from the force-level multiplier (the one that
-   keeps the constraints' acceleration at zero) with the matrix ½Δt·Δt·B_c(Φₙ) P B_c(Φₙ)ᵀ
+3. ν solves c(Φₙ₊₁(ν)) = 0 — a chord iteration from the prediction λₙ + (ν − λ)ₙ₋₁: λₙ the
+   force-level multiplier (the one that keeps the constraints' acceleration at zero), plus the
+   last step's offset between its ν and its λ, which changes by O(Δt) of itself from step to
+   step (ν is the force-level multiplier to O(Δt): the offset is smooth, the step-to-step
+   variation of λ, fast waves included, is in λₙ).  The offset travels in ``State.memory``
+   (``rattle_offset``, with the Δt that left it, ``rattle_offset_dt``; checkpoints carry it, so
+   restarts stay bit for bit); it is used only when it was left by a step of the same Δt, and
+   not after a configuration projection.  The stored ν gets one more correction with the last
+   matrix (a solve, no flow): the converged ν is fixed to the tolerance only, and that noise
+   would otherwise enter the next prediction.  The prediction changes where the iteration
+   starts, not where it ends.  The chord matrix is ½Δt·Δt·B_c(Φₙ) P B_c(Φₙ)ᵀ
    (P = M⁺/w per node on the unknowns), the matrix the predictor factors anyway; it is the
    flow's Jacobian to O(Δt|N|), so an iteration gains one to three digits.  Should one gain
    less than a factor 4, the iteration turns to the quasi-Newton matrix
    ½Δt B_c(Φ̃) D B_c(Φₙ)ᵀ (Φ̃ the current trial, D = dexp(−ΔtÑ)·Δt·M⁺/w per node).  Converged
-   to round-off (|c| ≤ 1e-13, or stagnating below 1e-10, times max(1, |value|)); three to
-   four trial flows per step, two to three once the motion is slow;
+   to round-off (|c| ≤ 1e-13, or stagnating below 1e-10, times max(1, |value|)); two trial
+   flows per step on the damped relaxation of ``benchmarks/filament_speed.py`` (one to two once
+   the motion is slow), four to five near the time step's limit;
 4. closing half kick with the velocity multiplier μ:  Sₙ₊₁ = S½ + ½Δt(Wₙ₊₁ + B_c(Φₙ₊₁)ᵀμ/w),
    μ such that B_c(Φₙ₊₁)Nₙ₊₁ = 0 — one linear solve (with ``Damping`` loads the kick is
    implicit in the damping as in lie-verlet, and μ is solved with it).
@@ -62,6 +72,32 @@ _MAX_ITERATIONS = 40
 _SLOW = 0.25
 #: the predictor's one-sided difference of the rows along exp(εN): ε = _EPS/max|N|
 _EPS = 1e-5
+
+
+#: the keys of ``State.memory`` that carry the multipliers' offset ν − λ of the last step and its Δt
+_OFFSET = "rattle_offset"
+_OFFSET_DT = "rattle_offset_dt"
+
+
+def _offset(state: State, ncon: int, dt: float) -> np.ndarray | None:
+    """The last step's ν − λ ``(ncon,)`` from ``state.memory`` when it was left by a step of
+    this Δt on these rows, else None (the predictor is then λ alone)."""
+    off, at = state.memory.get(_OFFSET), state.memory.get(_OFFSET_DT)
+    if off is None or at is None or off.shape != (ncon,) or at.shape != (1,) or float(at[0]) != dt:
+        return None
+    return off
+
+
+def _memory(state: State, ncon: int) -> tuple[np.ndarray, np.ndarray]:
+    """The arrays ``(ν − λ (ncon,), its Δt (1,))`` of ``state.memory`` that the compiled loop
+    reads and updates in place; zeros (no offset: Δt = 0) when the state holds none that fit."""
+    off, at = state.memory.get(_OFFSET), state.memory.get(_OFFSET_DT)
+    if off is None or at is None or np.shape(off) != (ncon,) or np.shape(at) != (1,):
+        off, at = np.zeros(ncon), np.zeros(1)
+    off = np.require(off, dtype=float, requirements=["C", "W"])
+    at = np.require(at, dtype=float, requirements=["C", "W"])
+    state.memory[_OFFSET], state.memory[_OFFSET_DT] = off, at
+    return off, at
 
 
 class Rattle(LieVerlet):
@@ -136,13 +172,14 @@ class Rattle(LieVerlet):
             return super().compiled_loop(scheme, state, dt)
         velocity_free, pieces, fracs, closing, comp, value, scale = static
         r = scheme.group.dim
+        offset, offset_dt = _memory(state, (int(scheme.grid.shape[0]) - 1) * comp.size)
         key = (id(state), state.t, state.scalars.get("nstep", 0))
         have = self._fsal is not None and self._fsal[0] == key  # (lie-verlet's first-same-as-last force)
         W = (np.array(self._fsal[1], dtype=float) if have else np.zeros(state.S.shape)).reshape(-1, r)
         status = np.zeros(2, dtype=np.int64)
         info = np.zeros(1)
-        return "rattle_loop", (W, bool(have), velocity_free, pieces, fracs, closing, comp, value, scale, status,
-                               info)
+        return "rattle_loop", (W, bool(have), velocity_free, pieces, fracs, closing, comp, value, scale,
+                               offset.reshape(-1, comp.size), offset_dt, status, info)
 
     def _loop_static(self, scheme: Scheme, state: State, dt: float) -> tuple | str | None:
         """The arguments of ``rattle_loop`` fixed by (scheme, problem, Δt): ``(velocity_free,
@@ -301,7 +338,8 @@ class Rattle(LieVerlet):
 
     def _predict(self, scheme: Scheme, state: State, B, W: np.ndarray, c0: np.ndarray, held: tuple,
                  lu) -> np.ndarray:
-        """The force-level multiplier λ at the step's start, a guess of the step's ν: the one
+        """The force-level multiplier λ at the step's start, the guess of the step's ν (plus
+        the last step's offset ν − λ, :func:`_offset`): the one
         that keeps the constraints' acceleration at zero, ``d/dt(B_c N) = 0`` with
         ``Ṡ = ad_NᵀS + W + B_cᵀλ/w``, i.e. ``(B P B_cᵀ)λ = −B[M⁺(ad_NᵀS + W)] − Ḃ_c N``, where
         ``Ḃ_c N = d²c(Φ exp(εN))/dε²`` (N constant along the drift) by the one-sided difference
@@ -359,10 +397,12 @@ class Rattle(LieVerlet):
         half = 0.5 * dt
         # the step starts on the manifold, with a tangent velocity
         c0 = con.values(state)
+        offset = _offset(state, con.ncon, dt)
         if np.max(np.abs(c0), initial=0.0) > 1e-10 * scale:
             self._project_configuration(scheme, state, held)
             c0 = con.values(state)
             self._fsal = self._matrix_at = None
+            offset = None
         key = (id(state), state.t, state.scalars.get("nstep", 0))
         B0 = self._matrix_at[1] if self._matrix_at is not None and self._matrix_at[0] == key else con.matrix(state)
         self._project_velocity(scheme, state, B0, None, half, held, skip_tangent=True)
@@ -371,7 +411,8 @@ class Rattle(LieVerlet):
         arrays0 = {k: v.copy() for k, v in state.arrays.items()}
         # B₀ P B₀ᵀ: the predictor's matrix and, times ½Δt·Δt, the chord matrix of the iteration
         lu0 = spla.splu((B0 @ self._metric(scheme, nodes, unknown, None) @ B0.T).tocsc())
-        nu = self._predict(scheme, state, B0, W0, c0, held, lu0)
+        lam = self._predict(scheme, state, B0, W0, c0, held, lu0)
+        nu = lam if offset is None else lam + offset
         lu = None
         prev = np.inf
         for it in range(_MAX_ITERATIONS + 1):
@@ -396,6 +437,11 @@ class Rattle(LieVerlet):
             nu = nu - (lu0.solve(c) / (half * dt) if lu is None else lu.solve(c))
             prev = err
         self.niter += it
+        # the next step's offset ν − λ, ν with one more correction of the last matrix (no flow: the
+        # converged ν is fixed to the tolerance only, the corrected one to its square)
+        nu = nu - (lu0.solve(c) / (half * dt) if lu is None else lu.solve(c))
+        state.memory[_OFFSET] = nu - lam
+        state.memory[_OFFSET_DT] = np.array([dt])
         t1 = state.t + dt
         W1 = self._closing_kick(scheme, state, dt, t1)
         self._fsal = ((id(state), t1, state.scalars.get("nstep", 0) + 1), W1)

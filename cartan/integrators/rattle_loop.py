@@ -18,15 +18,17 @@ factored and solved in O(E c³) (:mod:`cartan.compiled.banded`).
 
 Per step: the rows at the start (the previous step's closing rows), the start's velocity
 projection (skipped when tangent), the force (first-same-as-last when no force depends on N),
-the predicted multiplier (its factorization of ``B₀ P B₀ᵀ`` is the chord matrix of the
-iteration), three to four trial flows (a quasi-Newton factorization only when the chord gains
-less than a factor ``SLOW_``), the rows at the end and the closing kick with its velocity
-projection (one factorization, reused by the next step's start when no load depends on N, or
-when the damping is proportional to the inertia: the closing matrix is then s·I on the live
-block and ``B P_closing Bᵀ = s·B P Bᵀ``).  With damping the force a step starts from is the
-one the closing kick left, ``W(N = 0) − ΓN`` (the damping is linear), and a call that starts
-without it (the first, or after a restart) evaluates it the same way: the steps do not depend
-on how they are grouped into calls.
+the predicted multiplier λ + (ν − λ) of the last step (``offset``,
+:class:`~cartan.state.State`'s ``memory``; its factorization of ``B₀ P B₀ᵀ`` is the chord
+matrix of the iteration), two to five trial flows (a quasi-Newton factorization only when the
+chord gains less than a factor ``SLOW_``), the next step's offset (ν with one more correction,
+a solve), the rows at the end and the closing kick with its velocity projection (one
+factorization, reused by the next step's start when no load depends on N, or when the damping
+is proportional to the inertia: the closing matrix is then s·I on the live block and ``B
+P_closing Bᵀ = s·B P Bᵀ``). With damping the force a step starts from is the one the closing
+kick left, ``W(N = 0) − ΓN`` (the damping is linear), and a call that starts without it (the
+first, or after a restart) evaluates it the same way: the steps do not depend on how they are
+grouped into calls.
 ``status`` ``[2]`` int64 returns the outcome (0: steps done, 1: the multipliers' iteration
 failed, 2: the initial configuration could not be projected; the state is then the one the
 failing step started from) and the iterations summed over the steps; ``info`` ``[1]`` the
@@ -373,12 +375,14 @@ def _rattle_factors(ne, c):
 
 
 # ---------------------------------------------------------------------------- the loop
-def rattle_loop(D, C, S, W, have_w, velocity_free, pieces, fracs, closing, comp, value, scale, status, info, t, dt,
-                nsteps, diss, ext, check, limit):
+def rattle_loop(D, C, S, W, have_w, velocity_free, pieces, fracs, closing, comp, value, scale, offset, offset_dt,
+                status, info, t, dt, nsteps, diss, ext, check, limit):
     """``rattle`` (see the module docstring): ``W`` ``[n, r]`` carries the force between steps
     (first-same-as-last when ``velocity_free``), ``pieces``/``fracs`` lie-verlet's split free flow,
     ``closing`` ``(I + ½ΔtΓM⁺)⁻¹`` ``[r, r]``, ``comp``/``value`` ``[c]`` the held components and
-    their values, ``scale`` max(1, max|value|) (the tolerances' unit)."""
+    their values, ``scale`` max(1, max|value|) (the tolerances' unit), ``offset`` ``[E, c]`` the
+    last step's ν − λ and ``offset_dt`` ``[1]`` its Δt (``State.memory``: read, and written after
+    every step; the predictor adds the offset when ``offset_dt[0]`` is this Δt)."""
     K = op_work(D)  # noqa: F821
     n = S.shape[0]
     ne = D.tail.shape[0]
@@ -401,6 +405,7 @@ def rattle_loop(D, C, S, W, have_w, velocity_free, pieces, fracs, closing, comp,
     cres = np.empty((ne, nc))  # the rows' values at the trial (at the end of a step: at C)
     pres = np.empty((ne, nc))
     nu = np.empty((ne, nc))
+    lam = np.empty((ne, nc))
     mu = np.empty((ne, nc))
     dnu = np.empty((ne, nc))
     eye = np.zeros((R_, R_))  # noqa: F821
@@ -461,7 +466,9 @@ def rattle_loop(D, C, S, W, have_w, velocity_free, pieces, fracs, closing, comp,
                     err0 = max(err0, abs(cres[e, a]))
         else:
             err0 = rattle_values(D, C, comp, value, c0)
+        use_offset = offset_dt[0] == dt
         if err0 > 1e-10 * scale:
+            use_offset = False
             err0 = _rattle_project_config(D, C, comp, value, scale, Bt0, Bh0, Pm, pm_diag, Fs, cres, dnu, imp, K)
             if err0 < 0.0:
                 status[0] = 2
@@ -503,6 +510,11 @@ def rattle_loop(D, C, S, W, have_w, velocity_free, pieces, fracs, closing, comp,
                 break
             have_fs = True
         _rattle_predict(D, C, Ct, S, N, W, Bt0, Bh0, Fs, c0, comp, value, work, acc, nu, cp, bn, K)
+        for e in range(ne):  # λ, and the predictor λ + (ν − λ) of the last step
+            for a in range(nc):
+                lam[e, a] = nu[e, a]
+                if use_offset:
+                    nu[e, a] += offset[e, a]
         # the position multipliers: c(Φₙ₊₁(ν)) = 0 by quasi-Newton steps
         prev = np.inf
         factored = False
@@ -553,6 +565,18 @@ def rattle_loop(D, C, S, W, have_w, velocity_free, pieces, fracs, closing, comp,
             status[0] = 1
             break
         niter += it
+        # the next step's offset ν − λ, ν with one more correction of the last matrix (no flow)
+        if factored:
+            bt_solve(Fq[2], Fq[3], Fq[4], cres, dnu)
+            for e in range(ne):
+                for a in range(nc):
+                    offset[e, a] = nu[e, a] - dnu[e, a] / half - lam[e, a]
+        else:
+            bt_solve(Fs[2], Fs[3], Fs[4], cres, dnu)
+            for e in range(ne):
+                for a in range(nc):
+                    offset[e, a] = nu[e, a] - dnu[e, a] / (half * dt) - lam[e, a]
+        offset_dt[0] = dt
         # the closing kick and its velocity multiplier
         t1 = t + dt
         bmax = rattle_rows(D, C, comp, Bt0, Bh0)
