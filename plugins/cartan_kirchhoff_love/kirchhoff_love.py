@@ -324,16 +324,18 @@ class KirchhoffLove(CosseratSurface):
     #: the initial-state builders' frame gauge and umbilic rule (defaults of subclasses that do not set them)
     gauge: str = "coordinate"
     umbilic: str = "error"
+    #: :meth:`outputs` measures the resultants from the problem's reference (its nodal rest strains)
+    outputs_read_reference: ClassVar[bool] = True
     output_fields: ClassVar[dict[str, tuple[str, str]]] = {
         "normal_x": ("unit normal e3 (Gauss map), x component", "1"),
         "normal_y": ("unit normal e3 (Gauss map), y component", "1"),
         "normal_z": ("unit normal e3 (Gauss map), z component", "1"),
-        "membrane_force_uu": ("membrane force n^uu (thickness-integrated, contravariant)", "N m-1"),
-        "membrane_force_uv": ("membrane force n^uv (thickness-integrated, contravariant)", "N m-1"),
-        "membrane_force_vv": ("membrane force n^vv (thickness-integrated, contravariant)", "N m-1"),
-        "bending_moment_uu": ("bending moment m^uu (thickness-integrated, contravariant)", "N"),
-        "bending_moment_uv": ("bending moment m^uv (thickness-integrated, contravariant)", "N"),
-        "bending_moment_vv": ("bending moment m^vv (thickness-integrated, contravariant)", "N"),
+        "membrane_force_uu": ("membrane force N^uu (thickness-integrated, physical component)", "N m-1"),
+        "membrane_force_uv": ("membrane force N^uv (thickness-integrated, physical component)", "N m-1"),
+        "membrane_force_vv": ("membrane force N^vv (thickness-integrated, physical component)", "N m-1"),
+        "bending_moment_uu": ("bending moment M^uu (thickness-integrated, physical component)", "N"),
+        "bending_moment_uv": ("bending moment M^uv (thickness-integrated, physical component)", "N"),
+        "bending_moment_vv": ("bending moment M^vv (thickness-integrated, physical component)", "N"),
         "gauss_curvature": ("Gauss curvature K = det b / det a", "m-2"),
         "mean_curvature": ("mean curvature H = tr(a^-1 b)/2, positive where the surface bends away from e3",
                            "m-1"),
@@ -488,14 +490,30 @@ class KirchhoffLove(CosseratSurface):
         z = np.zeros(f.shape[:-1] + (2,))
         return np.concatenate([f[..., :3], z, f[..., 3:8]], axis=-1)
 
-    def outputs(self, q: np.ndarray, X: np.ndarray, N: np.ndarray, grid: Any) -> dict[str, np.ndarray]:
-        """Normal, resultants, curvatures and energy densities at the nodes (relative to the
-        medium's rest strain)."""
-        f = self.fields(X)
+    def outputs(self, q: np.ndarray, X: np.ndarray, N: np.ndarray, grid: Any,
+                reference: dict[str, np.ndarray] | None = None) -> dict[str, np.ndarray]:
+        """Normal, resultants, curvatures and energy densities at the nodes ``[*shape]`` each.
+
+        The strains are measured from the problem's stress-free reference (``reference["X0"]``
+        ``[*shape, 2, 6]``, the nodal rest strains, :attr:`outputs_read_reference`), else from the
+        medium's constant :meth:`rest_strain`, as the energy measures them (the energy densities
+        per unit chart area carry the reference's √a⁰).  The resultants are reported in physical
+        components on the reference chart's unit tangents t_α = θ⁰_α/|θ⁰_α|, |θ⁰_α| = √a⁰_αα
+        (the tangential components, as the metric): N^αβ = n^αβ|θ⁰_α||θ⁰_β|,
+        M^αβ = m^αβ|θ⁰_α||θ⁰_β| (force and moment per unit reference length; the contravariant
+        chart components themselves, to the bit, on plates and cylinders by arclength, |θ⁰_α| = 1).
+        On the sphere by longitude and colatitude, |θ⁰_u| = R sin θ: the contravariant
+        n^uu ~ N/(R² sin² θ) would grow without bound towards the poles."""
+        X0 = self.rest_strain() if reference is None else np.asarray(reference["X0"], dtype=float)
+        f = self.fields(X, X0)
+        X0 = np.broadcast_to(X0, np.shape(X))
+        s = np.sqrt(X0[..., 0] ** 2 + X0[..., 1] ** 2)           # |θ⁰_α| = √a⁰_αα [*shape, 2]
+        scale = np.stack([s[..., 0] ** 2, s[..., 0] * s[..., 1], s[..., 1] ** 2], axis=-1)
+        f[..., 0:3] *= scale
+        f[..., 3:6] *= scale
         names = ["membrane_force_uu", "membrane_force_uv", "membrane_force_vv", "bending_moment_uu",
                  "bending_moment_uv", "bending_moment_vv", "gauss_curvature", "mean_curvature",
                  "bending_energy_density", "membrane_energy_density"]
         out = {name: f[..., i] for i, name in enumerate(names)}
         out["normal_x"], out["normal_y"], out["normal_z"] = q[..., 1, 3], q[..., 2, 3], q[..., 3, 3]
         return out
-
