@@ -53,7 +53,8 @@ constrained θ_α,3 (their multipliers are the transverse shear forces) nor on t
 gauge held at zero by the statics).
 
 The tension of the membrane (the isotropic in-plane stress conjugate to the area at fixed
-shape) is σ + K_a(j − 1), written as the output ``surface_tension``.
+shape) is σ + K_a(j − 1), written as the output ``surface_tension`` (j, the output
+``area_stretch``, measured from the problem's reference as the energy measures it).
 """
 
 from __future__ import annotations
@@ -226,6 +227,8 @@ class HelfrichMembrane(KirchhoffLove):
     """
 
     name: ClassVar[str] = "helfrich-membrane"
+    #: :meth:`outputs` measures the area stretch from the problem's reference (its nodal rest strains)
+    outputs_read_reference: ClassVar[bool] = True
     output_fields: ClassVar[dict[str, tuple[str, str]]] = {
         "normal_x": ("unit normal e3 (Gauss map), x component", "1"),
         "normal_y": ("unit normal e3 (Gauss map), y component", "1"),
@@ -315,10 +318,20 @@ class HelfrichMembrane(KirchhoffLove):
         """Not defined for a fluid membrane (no thickness-integrated moments): use :meth:`fields`."""
         raise NotImplementedError("helfrich-membrane: use fields() (H, K, energy density, area stretch, tension)")
 
-    def outputs(self, q: np.ndarray, X: np.ndarray, N: np.ndarray, grid: Any) -> dict[str, np.ndarray]:
+    def outputs(self, q: np.ndarray, X: np.ndarray, N: np.ndarray, grid: Any,
+                reference: dict[str, np.ndarray] | None = None) -> dict[str, np.ndarray]:
         """Normal, curvatures, Helfrich energy density, area stretch and tension at the nodes
-        (relative to the medium's rest strain)."""
-        f = self.fields(X)
+        ``[*shape]`` each.
+
+        The area stretch j = √(det a / det a⁰) and the tension σ + K_a(j − 1) are measured from the
+        problem's stress-free reference (``reference["X0"]`` ``[*shape, 2, 6]``, the nodal rest
+        strains, :attr:`outputs_read_reference`), else from the medium's :meth:`rest_strain` (the
+        unit metric of a chart by arc length), as the energy's area term measures them: a sphere of
+        radius R by longitude and colatitude at its own reference has j = 1 and the tension σ at
+        every node (from the flat metric, j would be its chart area element R² sin θ).  H, K and the
+        Helfrich energy density (per unit deformed area) do not depend on the reference.  All are
+        scalars: no chart components to convert."""
+        f = self.fields(X, None if reference is None else reference["X0"])
         names = ["mean_curvature", "gauss_curvature", "helfrich_energy_density", "area_stretch", "surface_tension"]
         out = {name: f[..., i] for i, name in enumerate(names)}
         out["normal_x"], out["normal_y"], out["normal_z"] = q[..., 1, 3], q[..., 2, 3], q[..., 3, 3]
