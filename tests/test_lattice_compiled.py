@@ -65,10 +65,12 @@ SLOW_TESTS = {"test_sigma_model_d2_agrees_with_python", "test_d2_clamped_and_loa
 
 
 def slow_when(item) -> bool:
-    """``make test`` runs the lie-verlet loops of rods (d = 1: the SE(3) loop of the demo and the
-    generated loops of the other groups); the other integrators' loops in ``make test-slow``."""
-    name = params_of(item).get("name", "lie-verlet")
-    return item.originalname in SLOW_TESTS or name != "lie-verlet"
+    """``make test`` runs the lie-verlet loops of SE(3) and SE(2) rods (d = 1: the SE(3) loop of
+    the demo and the generated loop the planar rods share); the other integrators' loops and the
+    SO(2), SO(3) toys' generated loops (one module each, ≈ 30–60 s to compile) in ``make test-slow``."""
+    params = params_of(item)
+    name = params.get("name", "lie-verlet")
+    return item.originalname in SLOW_TESTS or name != "lie-verlet" or params.get("group") in ("SO2", "SO3")
 
 
 def assert_close_states(a, b, tol=TOL):
