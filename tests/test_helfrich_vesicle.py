@@ -193,20 +193,8 @@ def test_volume_pressure_is_the_exact_gradient_of_the_held_volume():
 def _clifford_on_a_graded_meridian(nv: int, eps: float, nu: int = 4) -> float:
     """W/2π² − 1 of the lattice on the exact Clifford torus (R/r = √2, adapted frames in the
     coordinate gauge) whose meridian nodes sit at ψ_j = s_j + ε sin s_j, s_j = 2πj/nv."""
-    a = math.sqrt(2.0)
-    t = 2 * np.pi * np.arange(nu) / nu
-    s = 2 * np.pi * np.arange(nv) / nv
-    T, S = np.meshgrid(t, s, indexing="ij")
-    psi = S + eps * np.sin(S)
-    n = np.stack([np.cos(psi) * np.cos(T), np.cos(psi) * np.sin(T), np.sin(psi)], axis=-1)
-    e1 = np.stack([-np.sin(T), np.cos(T), 0 * T], axis=-1)
-    Phi = np.zeros((nu, nv, 4, 4))
-    Phi[..., 0, 0] = 1.0
-    Phi[..., 1:, 0] = np.stack([a * np.cos(T), a * np.sin(T), 0 * T], axis=-1) + n
-    Phi[..., 1:, 1], Phi[..., 1:, 2], Phi[..., 1:, 3] = e1, np.cross(n, e1), n
-    grid = cartan.Grid((nu, nv), length=(2 * np.pi * a, 2 * np.pi), periodic=(True, True))
-    m = cartan.medium("helfrich-membrane")
-    pb = cartan.Problem(m, grid, cartan.InitialState(Phi=Phi))
+    pb = vesicle.graded_torus(nv, eps, nu=nu)
+    Phi = np.asarray(pb.initial.Phi)
     return vesicle.bending_energy(pb, Phi) / 2.0 / vesicle.clifford_energy() - 1.0
 
 

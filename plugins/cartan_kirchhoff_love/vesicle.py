@@ -660,6 +660,25 @@ def willmore_torus_problem(nv: int, *, nu: int = 4, aspect: float = 2.0, area_mo
     return Problem(m, grid, m.initial_state(grid, "torus"), name="willmore-clifford-torus")
 
 
+def graded_torus(nv: int, grading: float = 0.0, *, nu: int = 4, aspect: float = math.sqrt(2.0)) -> Problem:
+    """The exact torus of revolution (r = 1, R = ``aspect``; default the Clifford torus) of
+    ``helfrich-membrane`` on nu × nv nodes, frames adapted in the coordinate gauge, with its
+    meridian nodes graded: ψ_j = s_j + ``grading``·sin s_j, s_j = 2πj/nv (0: uniform).  A test
+    surface for tangential moves: every grading is the same surface."""
+    t = 2 * np.pi * np.arange(nu) / nu
+    s = 2 * np.pi * np.arange(nv) / nv
+    T, S = np.meshgrid(t, s, indexing="ij")
+    psi = S + grading * np.sin(S)
+    n = np.stack([np.cos(psi) * np.cos(T), np.cos(psi) * np.sin(T), np.sin(psi)], axis=-1)
+    e1 = np.stack([-np.sin(T), np.cos(T), 0 * T], axis=-1)
+    Phi = np.zeros((nu, nv, 4, 4))
+    Phi[..., 0, 0] = 1.0
+    Phi[..., 1:, 0] = np.stack([aspect * np.cos(T), aspect * np.sin(T), 0 * T], axis=-1) + n
+    Phi[..., 1:, 1], Phi[..., 1:, 2], Phi[..., 1:, 3] = e1, np.cross(n, e1), n
+    grid = cartan.Grid((nu, nv), length=(2 * np.pi * aspect, 2 * np.pi), periodic=(True, True))
+    return Problem(cartan.medium("helfrich-membrane"), grid, cartan.InitialState(Phi=Phi))
+
+
 def clifford_errors(ds: xr.Dataset, problem: Problem) -> dict[str, float]:
     """The end shape of a Willmore flow against the Clifford torus, measured on its equal-arc-length
     mesh (:func:`redistribute_mesh` of the last step; a tangential move, the same surface):

@@ -24,21 +24,9 @@ SQRT2 = math.sqrt(2.0)
 
 
 def _clifford(nv: int, eps: float, nu: int = 4, aspect: float = SQRT2) -> tuple[cartan.Problem, np.ndarray]:
-    """The exact torus (R = aspect, r = 1; adapted frames, coordinate gauge) with its meridian
-    nodes graded, ψ_j = s_j + ε sin s_j, s_j = 2πj/nv."""
-    t = 2 * np.pi * np.arange(nu) / nu
-    s = 2 * np.pi * np.arange(nv) / nv
-    T, S = np.meshgrid(t, s, indexing="ij")
-    psi = S + eps * np.sin(S)
-    n = np.stack([np.cos(psi) * np.cos(T), np.cos(psi) * np.sin(T), np.sin(psi)], axis=-1)
-    e1 = np.stack([-np.sin(T), np.cos(T), 0 * T], axis=-1)
-    Phi = np.zeros((nu, nv, 4, 4))
-    Phi[..., 0, 0] = 1.0
-    Phi[..., 1:, 0] = np.stack([aspect * np.cos(T), aspect * np.sin(T), 0 * T], axis=-1) + n
-    Phi[..., 1:, 1], Phi[..., 1:, 2], Phi[..., 1:, 3] = e1, np.cross(n, e1), n
-    grid = cartan.Grid((nu, nv), length=(2 * np.pi * aspect, 2 * np.pi), periodic=(True, True))
-    m = cartan.medium("helfrich-membrane")
-    return cartan.Problem(m, grid, cartan.InitialState(Phi=Phi)), Phi
+    """The exact torus (R = aspect, r = 1) with its meridian nodes graded by ε (vesicle.graded_torus)."""
+    pb = vesicle.graded_torus(nv, eps, nu=nu, aspect=aspect)
+    return pb, np.asarray(pb.initial.Phi)
 
 
 def _measures(pb: cartan.Problem, Phi: np.ndarray) -> np.ndarray:
