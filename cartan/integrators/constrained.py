@@ -79,21 +79,25 @@ _OFFSET = "rattle_offset"
 _OFFSET_DT = "rattle_offset_dt"
 
 
+def _stored(state: State, ncon: int) -> tuple[np.ndarray, np.ndarray] | None:
+    """``(ν − λ (ncon,), its Δt (1,))`` of ``state.memory`` when it holds a pair that fits these rows."""
+    off, at = state.memory.get(_OFFSET), state.memory.get(_OFFSET_DT)
+    if off is None or at is None or np.shape(off) != (ncon,) or np.shape(at) != (1,):
+        return None
+    return off, at
+
+
 def _offset(state: State, ncon: int, dt: float) -> np.ndarray | None:
     """The last step's ν − λ ``(ncon,)`` from ``state.memory`` when it was left by a step of
     this Δt on these rows, else None (the predictor is then λ alone)."""
-    off, at = state.memory.get(_OFFSET), state.memory.get(_OFFSET_DT)
-    if off is None or at is None or off.shape != (ncon,) or at.shape != (1,) or float(at[0]) != dt:
-        return None
-    return off
+    stored = _stored(state, ncon)
+    return stored[0] if stored is not None and float(stored[1][0]) == dt else None
 
 
 def _memory(state: State, ncon: int) -> tuple[np.ndarray, np.ndarray]:
     """The arrays ``(ν − λ (ncon,), its Δt (1,))`` of ``state.memory`` that the compiled loop
     reads and updates in place; zeros (no offset: Δt = 0) when the state holds none that fit."""
-    off, at = state.memory.get(_OFFSET), state.memory.get(_OFFSET_DT)
-    if off is None or at is None or np.shape(off) != (ncon,) or np.shape(at) != (1,):
-        off, at = np.zeros(ncon), np.zeros(1)
+    off, at = _stored(state, ncon) or (np.zeros(ncon), np.zeros(1))
     off = np.require(off, dtype=float, requirements=["C", "W"])
     at = np.require(at, dtype=float, requirements=["C", "W"])
     state.memory[_OFFSET], state.memory[_OFFSET_DT] = off, at
