@@ -29,6 +29,16 @@ Critical points
 Branch switching
     At the first bifurcation the path leaves along the null vector φ of K (the eigenvector of
     the eigenvalue nearest zero): predictor ``x_c + Δs·(φ, 0)``, corrector orthogonal to it.
+Loads with a global part
+    A load with :meth:`~cartan.problem.Load.jacobian_parts` makes K above the whole Jacobian
+    ``K_s + U Vᵀ``: the sparse stencil part K_s and a rank-k part (U, V ``(m, k)``), never
+    formed.  The corrector and the tangent solve the bordered system by the sparse LU of the
+    bordered K_s and the Sherman–Morrison–Woodbury identity
+    (:func:`cartan.statics._low_rank_solve`); det K is the matrix determinant lemma on the LU
+    of K_s, ``det(K_s + U Vᵀ) = det K_s · det(I_k + Vᵀ K_s⁻¹ U)``; the eigenvalue of smallest
+    magnitude of ``sym K = sym K_s + ½(U Vᵀ + V Uᵀ)`` comes from shift-invert Lanczos on a
+    LinearOperator whose inverse is Woodbury on the LU of sym K_s (rank 2k).  Without such a
+    load the computation is the sparse one above, unchanged.
 Pins
     ``pins`` holds spatial position components of chosen nodes (the ends of a rod, any node of a
     lattice) at their initial values (a pinned end: position held, rotation free; a roller: one
@@ -53,6 +63,7 @@ from .statics import (
     _Equilibrium,
     _factorise,
     _initial_phi,
+    _low_rank_slogdet,
     _low_rank_solve,
     _newton,
     _Point,
@@ -80,9 +91,12 @@ def _perm_parity(p: np.ndarray) -> int:
     return sign
 
 
-def _log_det(K) -> tuple[int, float]:
-    """(sign, log|det K|) from the sparse LU: the signs of U's diagonal and of the row and
-    column permutations (L has a unit diagonal); (0, −inf) when K is singular."""
+def _log_det(K, low: tuple[np.ndarray, np.ndarray] | None = None) -> tuple[int, float]:
+    """(sign, log|det J|) of ``J = K + U Vᵀ`` from the sparse LU of K: the signs of its U
+    factor's diagonal and of the row and column permutations (L has a unit diagonal), times
+    ``det(I_k + Vᵀ K⁻¹ U)`` by the matrix determinant lemma (:func:`cartan.statics._low_rank_slogdet`)
+    when the loads have a rank-k part ``low`` = (U, V) ``(m, k)`` each; (0, −inf) when J (or K)
+    is singular."""
     import scipy.sparse.linalg as spla
 
     try:
@@ -94,15 +108,23 @@ def _log_det(K) -> tuple[int, float]:
     if np.any(d == 0) or not np.all(np.isfinite(d)):
         return 0, -math.inf
     sign = int(np.prod(np.sign(d))) * _perm_parity(lu.perm_r) * _perm_parity(lu.perm_c)
-    return sign, float(np.sum(np.log(np.abs(d))))
+    logabs = float(np.sum(np.log(np.abs(d))))
+    if low is None:
+        return sign, logabs
+    s_low, l_low = _low_rank_slogdet(lu.solve, low)
+    return (sign * s_low, logabs + l_low) if s_low else (0, -math.inf)
 
 
-def _eig_min(K, with_vector: bool = False):
-    """Eigenvalue of smallest magnitude of the symmetric part of K (and its eigenvector)."""
+def _eig_min(K, with_vector: bool = False, low: tuple[np.ndarray, np.ndarray] | None = None):
+    """Eigenvalue of smallest magnitude of the symmetric part of ``J = K + U Vᵀ`` (and its
+    eigenvector); ``low`` = (U, V) ``(m, k)`` each, the loads' rank-k part, or None (J = K)."""
     import scipy.sparse.linalg as spla
 
     S = (0.5 * (K + K.T)).tocsc()
     n = S.shape[0]
+    sym = None if low is None else _symmetric_low_rank(*low)
+    if sym is not None:
+        return _eig_min_low_rank(S, sym, with_vector)
     if n <= 12:
         vals, vecs = np.linalg.eigh(S.toarray())
         i = int(np.argmin(np.abs(vals)))
@@ -113,6 +135,100 @@ def _eig_min(K, with_vector: bool = False):
     except (RuntimeError, spla.ArpackNoConvergence):
         vals, vecs = spla.eigsh(S, k=1, sigma=1e-9 * spla.norm(S, 1), which="LM", v0=v0, tol=1e-12)
     return (float(vals[0]), vecs[:, 0]) if with_vector else float(vals[0])
+
+
+def _symmetric_low_rank(U: np.ndarray, V: np.ndarray, rtol: float = 1e-13
+                        ) -> tuple[np.ndarray, np.ndarray] | None:
+    """The symmetric part ``½(U Vᵀ + V Uᵀ)`` of a rank-k matrix as ``B Λ Bᵀ`` with B ``(m, p)``
+    orthonormal, p ≤ 2k: (B Λ, B), or None when it vanishes (e.g. a load scaled by λ = 0).
+    From the QR factorisation ``[U V] = Q [R_U R_V]`` it is ``Q M Qᵀ``,
+    ``M = ½(R_U R_Vᵀ + R_V R_Uᵀ)`` ``(2k, 2k)``, whose eigenvalues below ``rtol`` of the largest
+    are dropped: well scaled whatever the sizes of U and V (the plain split
+    ``(U, V)/2 · (V, U)ᵀ`` is not when one of them is small)."""
+    k = U.shape[1]
+    Q, R = np.linalg.qr(np.hstack([U, V]))
+    M = 0.5 * (R[:, :k] @ R[:, k:].T + R[:, k:] @ R[:, :k].T)
+    lam, P = np.linalg.eigh(M)
+    big = float(np.max(np.abs(lam), initial=0.0))
+    keep = np.abs(lam) > rtol * big
+    if big == 0.0 or not np.all(np.isfinite(lam)) or not keep.any():
+        return None
+    B = Q @ P[:, keep]
+    return B * lam[keep], B
+
+
+def _eig_min_low_rank(S, sym: tuple[np.ndarray, np.ndarray], with_vector: bool):
+    """:func:`_eig_min` of ``S + B Λ Bᵀ`` (``sym`` = (BΛ, B), :func:`_symmetric_low_rank`):
+    shift-invert Lanczos (``eigsh``, σ = 0, else a small shift as for the sparse one) on a
+    LinearOperator whose inverse is the sparse LU of S − σI and the rank-p part by
+    Sherman–Morrison–Woodbury, never forming the matrix (dense only for m ≤ 12)."""
+    import scipy.sparse as sp
+    import scipy.sparse.linalg as spla
+
+    Ut, B = sym
+    n = S.shape[0]
+    if n <= 12:
+        vals, vecs = np.linalg.eigh(S.toarray() + Ut @ B.T)
+        i = int(np.argmin(np.abs(vals)))
+        return (vals[i], vecs[:, i]) if with_vector else vals[i]
+    op = spla.LinearOperator((n, n), matvec=lambda x: S @ np.ravel(x) + Ut @ (B.T @ np.ravel(x)), dtype=float)
+    v0 = np.ones(n) / math.sqrt(n)
+    error: Exception | None = None
+    for sigma in (0.0, 1e-9 * spla.norm(S, 1)):
+        try:
+            with np.errstate(all="ignore"):
+                lu = spla.splu((S - sigma * sp.identity(n, format="csc")).tocsc())
+            Z = np.column_stack([lu.solve(Ut[:, j]) for j in range(Ut.shape[1])])
+            Cinv = np.linalg.inv(np.eye(Ut.shape[1]) + B.T @ Z)  # (p, p), p ≤ 2k
+
+            def inv(x: np.ndarray, lu=lu, Z=Z, Cinv=Cinv) -> np.ndarray:
+                y = lu.solve(np.ravel(x))
+                return y - Z @ (Cinv @ (B.T @ y))
+
+            opinv = spla.LinearOperator((n, n), matvec=inv, dtype=float)
+            vals, vecs = spla.eigsh(op, k=1, sigma=sigma, which="LM", v0=v0, tol=1e-12, OPinv=opinv)
+        except (RuntimeError, np.linalg.LinAlgError, spla.ArpackNoConvergence) as exc:
+            error = exc
+            continue
+        return (float(vals[0]), vecs[:, 0]) if with_vector else float(vals[0])
+    raise error
+
+
+def _bordered_lu(K, f: np.ndarray, row: np.ndarray, corner: float):
+    """Sparse LU (``splu``) of the bordered matrix ``[[K, f], [rowᵀ, corner]]`` ``(m + 1, m + 1)``."""
+    import scipy.sparse as sp
+    import scipy.sparse.linalg as spla
+
+    B = sp.bmat([[K, sp.csc_matrix(f[:, None])], [sp.csr_matrix(row[None, :]), np.array([[corner]])]])
+    with np.errstate(all="ignore"):
+        return spla.splu(B.tocsc())
+
+
+def _tangent(K, low: tuple[np.ndarray, np.ndarray] | None, f: np.ndarray, wv: np.ndarray, wl: float,
+             tu_prev: np.ndarray, tl_prev: float) -> tuple[np.ndarray, float]:
+    """Unit tangent (t_δ, t_λ) ``(m,)``, scalar of the path at a point: the solve of the bordered
+    system ``[[J, f], [W t_prevᵀ]]·t = (0, 1)`` with ``J = K + U Vᵀ`` (the sparse LU of the
+    bordered K and the loads' rank-k part ``low`` by :func:`cartan.statics._low_rank_solve`,
+    the same as the corrector; the bordered K's alone when the rank-k part makes the bordered
+    matrix singular), normalised in the weighted norm ``‖δ‖²_W + w_λ λ²`` and oriented along the
+    previous tangent.  ``f`` = ∂r/∂λ ``(m,)``."""
+    m = K.shape[0]
+    lu = _bordered_lu(K, f, wv * tu_prev, wl * tl_prev)
+    if low is not None:  # the rank-k part, zero in the arclength row
+        low = tuple(np.concatenate([x, np.zeros((1, x.shape[1]))]) for x in low)
+    rhs = np.zeros(m + 1)
+    rhs[-1] = 1.0
+    try:
+        solve = _low_rank_solve(lu.solve, low)
+    except _Singular:  # the capacitance matrix is singular: the stencil part's tangent, a predictor only
+        solve = lu.solve
+    z = solve(rhs)
+    tu, tl = z[:m], z[m]
+    nz = math.sqrt(float(np.sum(wv * tu * tu)) + wl * tl * tl)
+    tu, tl = tu / nz, tl / nz
+    if float(np.sum(wv * tu * tu_prev)) + wl * tl * tl_prev < 0:
+        tu, tl = -tu, -tl
+    return tu, tl
 
 
 def continuation(
@@ -213,7 +329,8 @@ def continuation(
     -------
     xarray.Dataset
         Along ``path``: ``load_factor`` λ, ``monitor``, ``eig_min`` (the eigenvalue of smallest
-        magnitude of sym K), ``det_sign``, ``newton_iterations``, ``step`` (Δs), ``branch``
+        magnitude of sym K, K the whole Jacobian, a load's rank-k part included), ``det_sign``,
+        ``newton_iterations``, ``step`` (Δs), ``branch``
         (0 before the branch switch, 1 after), ``position`` (path, node, row) for affine
         groups, ``reaction`` (path, pin) when pinned.  Along ``critical``: ``critical_load``,
         ``critical_monitor``, ``critical_eig`` and ``critical_kind`` (``"fold"`` or
@@ -227,8 +344,6 @@ def continuation(
     ConvergenceError
         The step fell below ``ds_min`` or ``max_points`` was exceeded.
     """
-    import scipy.sparse as sp
-    import scipy.sparse.linalg as spla
     import xarray as xr
 
     start = time.perf_counter()
@@ -265,9 +380,6 @@ def continuation(
     scale = np.concatenate([sysm.delta_scale, np.zeros(sysm.nmult)])
     scale_l = np.concatenate([scale, [1.0 / lam_scale]])
 
-    def wnorm(u: np.ndarray, lam: float) -> float:
-        return math.sqrt(float(np.sum(wv * u * u)) + wl * lam * lam)
-
     npos = sysm.nunk + sysm.npin
 
     def small(r: np.ndarray) -> bool:
@@ -277,22 +389,10 @@ def continuation(
                 and sysm.constraints_met(r, tol))
 
     def bordered(K, f, tu, tl):
-        B = sp.bmat([[K, sp.csc_matrix(f[:, None])], [sp.csr_matrix((wv * tu)[None, :]), np.array([[wl * tl]])]])
-        with np.errstate(all="ignore"):
-            return spla.splu(B.tocsc())
+        return _bordered_lu(K, f, wv * tu, wl * tl)
 
     def tangent(state, mu, lam, K, tu_prev, tl_prev):
-        f = sysm.dlam(state)
-        lu = bordered(K, f, tu_prev, tl_prev)
-        rhs = np.zeros(m + 1)
-        rhs[-1] = 1.0
-        z = lu.solve(rhs)
-        tu, tl = z[:m], z[m]
-        nz = wnorm(tu, tl)
-        tu, tl = tu / nz, tl / nz
-        if float(np.sum(wv * tu * tu_prev)) + wl * tl * tl_prev < 0:
-            tu, tl = -tu, -tl
-        return tu, tl
+        return _tangent(K[0], K[1], sysm.dlam(state), wv, wl, tu_prev, tl_prev)
 
     def correct(state, mu, lam, tu, tl, ds, lam_target=None):
         """Predictor–corrector from (state, μ, λ) along (tu, tl): (state, μ, λ, K, iterations) or None.
@@ -339,7 +439,7 @@ def continuation(
         if not out.converged:
             return None
         pt = out.point
-        return pt.state, pt.mu, pt.lam, sysm.jacobian(pt.state, pt.mu, pt.lam), out.iterations
+        return pt.state, pt.mu, pt.lam, sysm.jacobian(pt.state, pt.mu, pt.lam, low_rank=True), out.iterations
 
     def snapshot(state) -> xr.Dataset:
         Phi = sysm.sch.frames(state).reshape(sysm.nnode, msize, msize)
@@ -375,7 +475,7 @@ def continuation(
     state, mu = first.point.state, first.point.mu
     iters0 = first.iterations
     total_iters += iters0
-    K = sysm.jacobian(state, mu, lam)
+    K = sysm.jacobian(state, mu, lam, low_rank=True)  # (K, low): the whole Jacobian K + U Vᵀ
     tu, tl = tangent(state, mu, lam, K, np.zeros(m), 1.0)
     points: list[dict[str, Any]] = []
     critical: list[dict[str, Any]] = []
@@ -384,8 +484,8 @@ def continuation(
         points.append({
             "load_factor": lam,
             "monitor": measure(state),
-            "eig_min": _eig_min(K) if detect else np.nan,
-            "det": _log_det(K) if detect else (0, 0.0),
+            "eig_min": _eig_min(K[0], low=K[1]) if detect else np.nan,
+            "det": _log_det(*K) if detect else (0, 0.0),
             "newton_iterations": iters,
             "step": ds,
             "branch": branch,
@@ -430,7 +530,7 @@ def continuation(
             if crit is not None:
                 cs, cmu, clam, cK = crit
                 kind = "fold" if tl * tl1 < 0 else "bifurcation"
-                eig, phi = _eig_min(cK, with_vector=True)
+                eig, phi = _eig_min(cK[0], with_vector=True, low=cK[1])
                 critical.append({"load": clam, "monitor": measure(cs), "eig": eig, "kind": kind,
                                  "index": len(points) - 1})
                 if kind == "bifurcation" and branch_switch and not switched:
@@ -502,7 +602,7 @@ def _locate(correct, state, mu, lam, tu, tl, s_hi, det_lo, det_hi, rtol):
         if res is None:
             return best
         st, mu_, lam_, K, _ = res
-        q = q_of(_log_det(K))
+        q = q_of(_log_det(*K))
         best = (st, mu_, lam_, K)
         if q == 0.0:
             return best

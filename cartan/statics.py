@@ -1517,6 +1517,22 @@ def _low_rank_solve(solve: Callable[[np.ndarray], np.ndarray], low: tuple[np.nda
     return lowrank
 
 
+def _low_rank_slogdet(solve: Callable[[np.ndarray], np.ndarray], low: tuple[np.ndarray, np.ndarray] | None
+                      ) -> tuple[int, float]:
+    """(sign, log|det|) of the capacitance matrix ``I_k + Vᵀ J⁻¹ U`` ``(k, k)`` from the solve of J,
+    ``low`` = (U, V) ``(m, k)`` each: by the matrix determinant lemma
+    ``det(J + U Vᵀ) = det J · det(I_k + Vᵀ J⁻¹ U)`` (k solves); (1, 0.0) for ``low`` None and
+    (0, −inf) when the capacitance matrix is singular or not finite."""
+    if low is None:
+        return 1, 0.0
+    U, V = low
+    C = np.eye(U.shape[1]) + V.T @ np.column_stack([solve(U[:, j]) for j in range(U.shape[1])])
+    if not np.all(np.isfinite(C)):
+        return 0, -math.inf
+    sign, logabs = np.linalg.slogdet(C)
+    return (int(sign), float(logabs)) if sign != 0 else (0, -math.inf)
+
+
 def _factorise(eq: _Equilibrium, state: Any, mu: np.ndarray, lam: float,
                offset: list[np.ndarray] | None) -> Callable[[np.ndarray], np.ndarray]:
     """The solve of the whole Jacobian of ``eq`` at (state, μ, λ): the sparse LU of
