@@ -243,10 +243,12 @@ def frame_record(scheme: Scheme, integrator: Integrator, state: State) -> dict[s
             sp = _space(scheme)
             q = sp.act(Phi, sp.q_r) if sp is not None else Phi
             X = np.asarray(scheme.nodal_strains(state))
+            keywords: dict[str, Any] = {}
             if getattr(med, "outputs_read_reference", False):
-                extra = med.outputs(q, X, np.asarray(N), scheme.grid, reference=_nodal_reference(scheme))
-            else:
-                extra = med.outputs(q, X, np.asarray(N), scheme.grid)
+                keywords["reference"] = _nodal_reference(scheme)
+            if getattr(med, "outputs_read_time", False):
+                keywords["time"] = float(state.t)
+            extra = med.outputs(q, X, np.asarray(N), scheme.grid, **keywords)
             if acc:  # the per-node accumulators of the state (cartan.accumulators)
                 extra = {**extra, **accumulators.values(med, scheme.grid, state)}
             missing = sorted(set(specs) - set(extra))

@@ -521,6 +521,8 @@ class Medium(abc.ABC):
     #: reference at the nodes, ``{"q": q_ref [*shape, *point_shape], "X0": [*shape, d, r]}``
     #: (the nodal rest strains, averaged as the strains are), or None without one
     outputs_read_reference: ClassVar[bool] = False
+    #: whether :meth:`outputs` takes the keyword ``time``: the run's time t of the frame (float)
+    outputs_read_time: ClassVar[bool] = False
 
     def outputs(self, q: np.ndarray, X: np.ndarray, N: np.ndarray, grid: Any) -> dict[str, np.ndarray]:
         """Medium-specific diagnostics recorded in every saved frame (default: none).
@@ -547,6 +549,18 @@ class Medium(abc.ABC):
             dimensions ``(time, *node dimensions, *dims)``.
         """
         return {}
+
+    def restart_record(self, recorded: dict[str, Any], arrays: list[str], path: str) -> dict[str, Any]:
+        """The problem record of the restart file ``path`` (its checkpoint's ``problem``) in the
+        form this medium records it now: :func:`cartan.simulate` compares it with the record of
+        the problem it continues (default: ``recorded`` unchanged).
+
+        A medium whose record changed form overrides it to read files written before — when
+        the older record determines the parameter — or to raise ``ValueError`` saying what the
+        file lacks and how to continue; never by guessing.  ``arrays`` are the names of the
+        state arrays the checkpoint holds.
+        """
+        return recorded
 
     def accumulators(self) -> dict[str, tuple[str, str]]:
         """Per-node accumulators the run integrates along the time: ``{name: (long_name, units)}``

@@ -958,7 +958,12 @@ def _resolve_run(
     problem_dict = problem.to_dict()
     problem_json = io.to_json(problem_dict)  # (now: a parameter that cannot be recorded fails before the run)
     if ck_info is not None:
-        if problem_json != io.to_json(ck_info.get("problem")):
+        # (a medium reads the record of a file written by an earlier version, or says why it cannot)
+        recorded = ck_info.get("problem")
+        upgrade = getattr(problem.medium, "restart_record", None)
+        if callable(upgrade) and isinstance(recorded, dict):
+            recorded = upgrade(recorded, sorted(ck_state.arrays), str(restart))
+        if problem_json != io.to_json(recorded):
             raise ValueError(
                 f"restart file {str(restart)!r} was written for a different problem "
                 f"({ck_info.get('problem', {}).get('medium')!r}, {ck_info.get('problem', {}).get('grid')})"

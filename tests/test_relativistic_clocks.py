@@ -3,7 +3,9 @@ cartan/accumulators.py).
 
 Fast: the law records (built-in, registered factory, registered fixed law, refusals), the refusal
 of an unregistered law before a run, a scene run with a registered non-default law continued from
-its checkpoint bit for bit (the accumulated proper time included), the rigidly rotating ring
+its checkpoint bit for bit (the accumulated proper time included), restarts of files written
+before laws were recorded by name (refused with what is missing, or continued bit for bit with
+the law and clocks=False given), the rigidly rotating ring
 against τ = t/γ, and the clock of a clamped end (τ = t exactly).  Slow: the observed order of the
 accumulated proper time against the Simpson quadrature over densely saved frames (breathing
 ring), and the Nambu–Goto loop against its closed form τ = R₀ sin(ct/R₀).
@@ -138,6 +140,97 @@ def test_restart_with_a_registered_law_continues_bit_for_bit(tmp_path):
     assert 0.0 < float(whole.proper_time.values[-1].min()) < 0.4  # the clocks ran slow, not stopped
 
 
+def test_law_from_repr_reads_only_the_built_in_presets_exactly():
+    """Files written before laws were recorded by name hold the law's repr: a preset's repr
+    determines it (floats by their exact repr), anything else determines nothing."""
+    law = E.law_from_repr("ElasticLaw(quartic(k=0.25, q=0.5))")
+    assert law.record == {"name": "quartic", "k": 0.25, "q": 0.5}
+    assert E.law_from_repr("quadratic(k=0.1)").record == {"name": "quadratic", "k": 0.1}
+    assert E.law_from_repr(repr(ElasticLaw.quartic(0.3, 1e-3))).record == {"name": "quartic", "k": 0.3, "q": 0.001}
+    for text in ("ElasticLaw(custom)", "ElasticLaw(soft)", "ElasticLaw(quartic(k=0.25))", "quadratic(k=.1)",
+                 "ElasticLaw(quadratic(k=0.1)", "quadratic(k=0.1, q=0.2)", ["<lambda>"] * 3, None):
+        assert E.law_from_repr(text) is None, text
+
+
+def _string_state(rod):
+    u = cartan.Grid(4, length=1.0).coordinates(0)
+    x = np.stack([1.1 * u, 0.05 * np.sin(np.pi * u), 0.0 * u], -1)
+    v = np.stack([0.2 * u, 0.3 * np.sin(np.pi * u / 2), 0.0 * u], -1)
+    return rod.state_from(x, v)
+
+
+@pytest.fixture(scope="module")
+def older_run(tmp_path_factory):
+    """A 2-step run of the quartic-law string (4 nodes, rkmk4, numpy path, Δt = 0.05) and a
+    function that rewrites a copy of it as files were written before laws were recorded by name
+    and before the clocks: the law recorded as a given repr, no accumulated proper time in the
+    checkpoint."""
+    import shutil
+
+    import netCDF4
+
+    rod = cartan.medium("relativistic-rod", energy="elastic", law=ElasticLaw.quartic(0.25, 0.5))
+    problem = cartan.Problem(rod, cartan.Grid(4, length=1.0), _string_state(rod))
+    root = tmp_path_factory.mktemp("older")
+    cartan.simulate(problem, integrator="rkmk4", dt=0.05, t_end=0.1, save_every=2, output=root / "run.nc",
+                    progress=False, compiled=False)
+
+    def older(law_record: str):
+        path = root / f"old-{len(list(root.iterdir()))}.nc"
+        shutil.copy(root / "run.nc", path)
+        with netCDF4.Dataset(path, "a") as nc:
+            ck = nc.groups["checkpoint"]
+            meta = json.loads(ck.getncattr("cartan_checkpoint"))
+            meta["problem"]["parameters"]["law"] = law_record
+            meta["arrays"] = [a for a in meta["arrays"] if not a.startswith("accumulator_")]
+            ck.setncattr("cartan_checkpoint", json.dumps(meta, sort_keys=True, ensure_ascii=False))
+        return path
+
+    return older
+
+
+def _restart(path, **medium):
+    rod = cartan.medium("relativistic-rod", energy="elastic", **medium)
+    problem = cartan.Problem(rod, cartan.Grid(4, length=1.0), _string_state(rod))
+    return cartan.simulate(problem, restart=path, t_end=0.2, output=path.with_suffix(".cont.nc"), progress=False,
+                           compiled=False)
+
+
+QUARTIC = {"name": "quartic", "k": 0.25, "q": 0.5}
+
+
+def test_restart_of_a_file_recorded_before_laws_by_name_is_refused_with_the_way_on(older_run):
+    """A file whose law is a preset's repr and whose checkpoint has no clocks: the restart with
+    the clocks on says they cannot be recovered and how to continue (clocks=False); with another
+    law than the repr names it names both; a law recorded as ``ElasticLaw(custom)`` (bare
+    callables) says nothing of the law, and without one given the restart says how to continue.
+    (Each refusal comes before any step.)"""
+    path = older_run("ElasticLaw(quartic(k=0.25, q=0.5))")
+    with pytest.raises(ValueError, match=r"no accumulated proper time.*clocks=False"):
+        _restart(path, law=QUARTIC)
+    with pytest.raises(ValueError, match=r"written with the law 'ElasticLaw\(quartic\(k=0.25, q=0.5\)\)'.*give law="):
+        _restart(path, law={**QUARTIC, "q": 0.4}, clocks=False)
+    custom = older_run("ElasticLaw(custom)")
+    with pytest.raises(ValueError, match=r"records its law as 'ElasticLaw\(custom\)'.*register_law.*law="):
+        _restart(custom, stiffness=0.25, clocks=False)
+
+
+def test_restart_of_a_file_recorded_before_laws_by_name_continues_with_the_law_given(older_run):
+    """With clocks=False and the law the preset's repr names, the restart continues bit for bit
+    the uninterrupted run (the clocks change no step); a law recorded as ``ElasticLaw(custom)``
+    continues with the law given explicitly, warning that the file cannot confirm it."""
+    cont = _restart(older_run("ElasticLaw(quartic(k=0.25, q=0.5))"), law=QUARTIC, clocks=False)
+    rod = cartan.medium("relativistic-rod", energy="elastic", law=QUARTIC, clocks=False)
+    whole = cartan.simulate(cartan.Problem(rod, cartan.Grid(4, length=1.0), _string_state(rod)), integrator="rkmk4",
+                            dt=0.05, t_end=0.2, save_every=2, progress=False, compiled=False)
+    assert float(cont.time[-1]) == float(whole.time[-1]) == 0.2
+    for name in ("position", "S"):
+        assert np.array_equal(whole[name].values[-1], cont[name].values[-1]), name
+    with pytest.warns(UserWarning, match="cannot confirm the law given"):
+        custom = _restart(older_run("ElasticLaw(custom)"), law=QUARTIC, clocks=False)
+    assert np.array_equal(custom.position.values[-1], cont.position.values[-1])
+
+
 # ---------------------------------------------------------------------------- proper time
 def test_rigidly_rotating_ring_clock_is_t_over_gamma():
     """The ring at its discrete relative equilibrium turns rigidly at v = ωR: every node's clock runs
@@ -168,14 +261,19 @@ def test_clamped_end_clock_runs_at_the_lab_time():
                          compiled=False)
     assert np.array_equal(ds.proper_time.values[:, 0], ds.time.values)
     assert np.all(ds.proper_time.values[-1, 1:] < ds.time.values[-1] - 1e-3)
-    # the outputs see the held node at rest (γ = 1, a finite stretch); its r⁰ is frozen by the clamp,
-    # so the quadrature over the frames has no worldline there (NaN); elsewhere the trapezoidal rule
-    # over the frames (Δt_s = 0.1) and over the steps (Δt = 0.05) differ by O(Δt_s²): 1.9e-6
-    # measured against lags up to 1.3e-2, bound 2e-5
+    # the outputs see the held node at rest in the lab (γ = 1, a finite stretch) at the lab time t: the
+    # core holds its r⁰ = 0, its worldline is (ct, x⃗₀), so its coordinate time is t exactly, as the
+    # moving nodes' r⁰/c is (the temporal gauge, to round-off: r⁰ is a sum of cΔt)
     assert np.all(ds.lorentz_factor.values[:, 0] == 1.0) and np.all(np.isfinite(ds.stretch.values))
+    assert np.array_equal(ds.coordinate_time.values[:, 0], ds.time.values)
+    assert np.abs(ds.coordinate_time.values - ds.time.values[:, None]).max() <= 1e-14
+    # the quadrature over the frames then has a worldline at every node: at the clamped node 1/γ = 1
+    # and the trapezoidal rule is exact (τ = t); elsewhere the rule over the frames (Δt_s = 0.1) and
+    # over the steps (Δt = 0.05) differ by O(Δt_s²): 1.9e-6 measured against lags up to 1.3e-2, bound 2e-5
     framed = proper_time(ds, "trapezoid")
-    assert np.all(np.isnan(framed[1:, 0])) and np.isfinite(framed[:, 1:]).all()
-    assert np.abs(framed[:, 1:] - ds.proper_time.values[:, 1:]).max() < 2e-5
+    assert np.isfinite(framed).all()
+    assert np.abs(framed[:, 0] - ds.time.values).max() <= 1e-15
+    assert np.abs(framed - ds.proper_time.values).max() < 2e-5
     from matplotlib.figure import Figure
 
     fig = Figure()

@@ -47,9 +47,10 @@ def proper_time(ds: Any, method: str = "simpson") -> np.ndarray:
     -------
     numpy.ndarray ``[time, *nodes]``
         τ, zero in the first frame, in the units of ``coordinate_time``; NaN after the first
-        frame at a node whose coordinate time does not increase from frame to frame (a clamped
-        end of the elastic string, whose r⁰ the core holds: its clock is the ``proper_time``
-        accumulated in the run, τ = t).
+        frame at a node whose coordinate time does not increase from frame to frame (no
+        worldline to integrate along: a clamped end of the elastic string in files written
+        before its ``coordinate_time`` advanced with the lab time; a clamped end of the
+        Nambu–Goto string, whose event the core holds).
 
     Raises
     ------
@@ -69,8 +70,8 @@ def proper_time(ds: Any, method: str = "simpson") -> np.ndarray:
         return tau
     shape = t_all.shape
     t, rate, out = t_all.reshape(shape[0], -1), rate_all.reshape(shape[0], -1), tau.reshape(shape[0], -1)
-    # a node whose coordinate time does not advance (a clamped end: the core holds its r⁰) has no
-    # worldline to integrate along: NaN (its clock is the accumulated proper_time of the run)
+    # a node whose coordinate time does not advance has no worldline to integrate along: NaN (a
+    # clamped end in files written before its coordinate_time advanced with the lab time)
     moving = np.all(np.diff(t, axis=0) > 0, axis=0)
     out[1:, ~moving] = np.nan
     t, rate = t[:, moving], rate[:, moving]

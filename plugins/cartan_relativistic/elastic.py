@@ -15,15 +15,16 @@ with T = ε′(λ) and n = (r′ + (B/A)ṙ)/λ the unit rest-frame tangent.
 from __future__ import annotations
 
 import inspect
+import re
 import threading
 from collections.abc import Callable, Mapping
 from typing import Any
 
 import numpy as np
 
-__all__ = ["ETA", "LAW_ENTRY_POINT_GROUP", "ElasticLaw", "as_law", "lagrangian", "law_names", "make_law",
-           "momentum_stress", "newtonian_expansion", "quadratic_law", "register_law", "stretch", "temporal_hessian",
-           "temporal_lagrangian", "temporal_momentum", "temporal_stress", "temporal_velocity"]
+__all__ = ["ETA", "LAW_ENTRY_POINT_GROUP", "ElasticLaw", "as_law", "lagrangian", "law_from_repr", "law_names",
+           "make_law", "momentum_stress", "newtonian_expansion", "quadratic_law", "register_law", "stretch",
+           "temporal_hessian", "temporal_lagrangian", "temporal_momentum", "temporal_stress", "temporal_velocity"]
 
 #: Minkowski metric η = diag(−1, 1, 1, 1)
 ETA = np.array([-1.0, 1.0, 1.0, 1.0])
@@ -369,6 +370,41 @@ def as_law(spec: Any) -> ElasticLaw:
 
 register_law("quadratic", _quadratic)
 register_law("quartic", _quartic)
+
+#: the built-in laws as files written before laws were recorded by name hold them: their ``repr``,
+#: ``ElasticLaw(quadratic(k=…))`` or ``ElasticLaw(quartic(k=…, q=…))`` (floats by their exact repr)
+_PRESET_REPR = re.compile(r"^(?:ElasticLaw\()?(quadratic|quartic)\(k=([^,()\s]+)(?:, q=([^,()\s]+))?\)\)?$")
+
+
+def law_from_repr(text: Any) -> ElasticLaw | None:
+    """The built-in law a record written before laws were recorded by name holds, or None.
+
+    Such a record is the law's ``repr``: ``"ElasticLaw(quartic(k=0.25, q=0.5))"`` for a preset
+    (:meth:`ElasticLaw.quadratic`, :meth:`ElasticLaw.quartic`), which determines the law exactly
+    (every parameter written as the ``repr`` of its float, checked to read back to the same
+    text); ``"ElasticLaw(custom)"`` or the names of bare functions for any other law, which
+    determine nothing (None).
+    """
+    if not isinstance(text, str):
+        return None
+    m = _PRESET_REPR.match(text)
+    if m is None or text.startswith("ElasticLaw(") != text.endswith("))"):
+        return None
+    name, *args = m.groups()
+    if (name == "quartic") != (args[1] is not None):
+        return None
+    values = []
+    for a in args:
+        if a is None:
+            continue
+        try:
+            v = float(a)
+        except ValueError:
+            return None
+        if repr(v) != a:  # (not the exact repr of a float: not written by ElasticLaw's repr)
+            return None
+        values.append(v)
+    return make_law(name, **dict(zip(("k", "q"), values, strict=False)))
 
 
 # ---------------------------------------------------------------------------- temporal gauge

@@ -31,12 +31,14 @@ from typing import Any, ClassVar
 
 import numpy as np
 
+from cartan import accumulators
 from cartan.medium import check_finite, check_keywords, check_positive
 from cartan.problem import InitialState
 
 from .elastic import (
     ElasticLaw,
     as_law,
+    law_from_repr,
     quadratic_law,
     stretch,
     temporal_lagrangian,
@@ -91,6 +93,8 @@ class ElasticRelativisticRod(RelativisticRod):
     """
 
     coupled_lagrangian: ClassVar[bool] = True
+    #: :meth:`outputs` takes the run's time t: the lab time of a clamped node (at rest in the lab)
+    outputs_read_time: ClassVar[bool] = True
     initial_kinds: ClassVar[tuple[str, ...]] = ("straight", "ring")
     output_fields: ClassVar[dict[str, tuple[str, str]]] = {
         "energy": ("total energy E = Σ w (H + μc²) (lab frame, nodal quadrature)", "J"),
@@ -100,7 +104,8 @@ class ElasticRelativisticRod(RelativisticRod):
         "angular_momentum_x": ("total angular momentum J₁ = Σ w (y p_z − z p_y) about the origin", "kg m2 s-1"),
         "angular_momentum_y": ("total angular momentum J₂ = Σ w (z p_x − x p_z) about the origin", "kg m2 s-1"),
         "angular_momentum_z": ("total angular momentum J₃ = Σ w (x p_y − y p_x) about the origin", "kg m2 s-1"),
-        "coordinate_time": ("lab (coordinate) time r⁰/c of each node", "s"),
+        "coordinate_time": ("lab (coordinate) time of each node's event: r⁰/c (= t in the temporal gauge), "
+                            "r⁰/c + t at a clamped node (at rest in the lab)", "s"),
         "lab_x": ("lab position x of each node", "m"),
         "lab_y": ("lab position y of each node", "m"),
         "lab_z": ("lab position z of each node", "m"),
@@ -162,6 +167,62 @@ class ElasticRelativisticRod(RelativisticRod):
         if not self.clocks:
             out["clocks"] = False
         return out
+
+    def restart_record(self, recorded: dict[str, Any], arrays: list[str], path: str) -> dict[str, Any]:
+        """The record of a restart file written before laws were recorded by name and before the
+        clocks, read against this medium (:meth:`cartan.medium.Medium.restart_record`).
+
+        * A law recorded as its ``repr`` (not ``{"name": ..., **parameters}``): a built-in
+          preset's repr determines it (:func:`cartan_relativistic.elastic.law_from_repr`) and is
+          read as its record when it is this medium's law (``ValueError`` naming both when it is
+          not); any other (``"ElasticLaw(custom)"``, bare functions) determines nothing, and the
+          restart goes on only with a law given explicitly — as a registered law, ``law=...`` —
+          with a warning that the file cannot confirm it, else ``ValueError`` saying so.
+        * No accumulated proper time in the checkpoint (written before the clocks): the time
+          already run cannot be recovered, so the restart goes on only with ``clocks=False``
+          (``ValueError`` saying so); then the record reads as ``clocks = False``.
+
+        Records of the current form are returned unchanged.
+        """
+        params = recorded.get("parameters")
+        if recorded.get("medium") != self.name or not isinstance(params, dict) or params.get("energy") != "elastic":
+            return recorded
+        out = dict(params)
+        where = f"restart file {path!r}"
+        if "law" in params and not (isinstance(params["law"], dict) and isinstance(params["law"].get("name"), str)):
+            old = params["law"]
+            mine = self.elastic_law.record if self.stiffness is None else None
+            preset = law_from_repr(old)
+            if preset is not None:
+                if mine != preset.record:
+                    raise ValueError(f"{where} was written with the law {old!r} (recorded before laws were recorded "
+                                     f"by name), the problem to continue has "
+                                     f"{mine if mine is not None else {'stiffness': self.stiffness}}: give "
+                                     f"law={preset.record!r}")
+                out["law"] = mine
+            elif mine is None:
+                raise ValueError(
+                    f"{where} records its law as {old!r}: written before laws were recorded by name, it does not "
+                    "say which law ε(λ) the run used, so the medium cannot be rebuilt from it. To continue the run, "
+                    "register the law (cartan_relativistic.elastic.register_law('my-law', factory)) and pass the "
+                    "problem with it given explicitly: cartan.simulate(cartan.Problem(cartan.medium("
+                    "'relativistic-rod', energy='elastic', law={'name': 'my-law', ...}, ...), ...), restart=...)")
+            else:
+                import warnings
+
+                warnings.warn(f"{where} records its law as {old!r} (written before laws were recorded by name), "
+                              f"which cannot confirm the law given, {mine!r}: continuing with it", stacklevel=3)
+                out["law"] = mine
+        if accumulators.key("proper_time") not in arrays and "clocks" not in params:
+            if self.clocks:
+                raise ValueError(
+                    f"{where} holds no accumulated proper time (written before the elastic string's clocks): the "
+                    "proper time of the part already run cannot be recovered. Continue it without clocks: pass the "
+                    "problem with cartan.medium('relativistic-rod', energy='elastic', ..., clocks=False) (a scene: "
+                    "clocks = false in its [parameters]); cartan_relativistic.clocks.proper_time(ds) gives τ from "
+                    "the saved frames afterwards")
+            out["clocks"] = False
+        return {**recorded, "parameters": out}
 
     def accumulator_rates(self, q: np.ndarray, X: np.ndarray, N: np.ndarray, grid: Any) -> dict[str, np.ndarray]:
         """``dτ/dt = √(1 − |v⃗|²/c²)`` per node, ``[*grid.shape]``, v⃗ = N[..., 1:4]: the run's time is
@@ -295,12 +356,22 @@ class ElasticRelativisticRod(RelativisticRod):
         return o + R * er, w * R * et + vr * er
 
     # ------------------------------------------------------------------ outputs
-    def outputs(self, q: np.ndarray, X: np.ndarray, N: np.ndarray, grid: Any) -> dict[str, np.ndarray]:
+    def outputs(self, q: np.ndarray, X: np.ndarray, N: np.ndarray, grid: Any,
+                time: float = 0.0) -> dict[str, np.ndarray]:
         """Lab positions and times, γ, λ and T per node, and the charges by nodal quadrature
         (S = S(N, X) at the nodal strains; the exactly conserved discrete charges are the core's
-        ``total_momentum`` and ``kinetic_energy + potential_energy``, docs §3)."""
+        ``total_momentum`` and ``kinetic_energy + potential_energy``, docs §3).
+
+        ``coordinate_time`` is the lab time of each node's event at the run's ``time`` t: r⁰/c
+        at a moving node (r⁰ = ct + r⁰(0), the temporal gauge), and r⁰(0)/c + t at a clamped
+        node (N = 0 while the other nodes have N₀ = c: the core holds its whole Φ, r⁰ included,
+        while the node is at rest in the lab at x⃗₀, its worldline (c(t₀ + t), x⃗₀)), docs §3."""
         c = self.c
         r, rdot = self.lab_events(q, N)
+        Nf = np.asarray(N, dtype=float)
+        # a clamped node: N = 0 where the other nodes move at N₀ = c (the temporal gauge; a run whose
+        # integrator prescribes N₀ = 0 everywhere, ``overdamped``, has no lab time to follow)
+        held = np.all(Nf == 0.0, axis=-1) & bool(np.any(Nf[..., 0] != 0.0))
         rdot[..., 0] = c  # (temporal gauge ṙ = (c, v⃗); a clamped node, N = 0, is at rest in the lab)
         x = np.asarray(X, dtype=float)
         S = self.momentum_at(N, x)
@@ -316,7 +387,7 @@ class ElasticRelativisticRod(RelativisticRod):
         return {
             "energy": E, "momentum_x": P[0], "momentum_y": P[1], "momentum_z": P[2],
             "angular_momentum_x": J[0], "angular_momentum_y": J[1], "angular_momentum_z": J[2],
-            "coordinate_time": r[..., 0] / c,
+            "coordinate_time": r[..., 0] / c + np.where(held, float(time), 0.0),
             "lab_x": r[..., 1], "lab_y": r[..., 2], "lab_z": r[..., 3],
             "lorentz_factor": gamma, "stretch": lam, "tension": self.law[1](lam),
         }
