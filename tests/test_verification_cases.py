@@ -43,7 +43,9 @@ RUNS = [(name, integ, scheme) for name, case in sorted(CASES.items()) if case.ki
 SLOW_ALL_LEVELS = {"rod-euler-buckling", "rod-cantilever-elastica", "plate-buckling-column",
                    "plate-buckling-wide-column", "plate-navier-thick", "plate-navier-thin", "solid-uniaxial-stress",
                    "plate-buckling-column-kl", "shell-scordelis-lo", "shell-pinched-cylinder", "solid-cylinder-torsion",
-                   "relativistic-newtonian-limit", "shell-sphere-breathing"}
+                   "relativistic-newtonian-limit", "shell-sphere-breathing",
+                   # Willmore flows of 10-16 steps to the Clifford torus, nv = 12 … 96 (15-70 s each)
+                   "willmore-clifford-torus"}
 #: cases whose every level runs in their own test file already (tests/test_kirchhoff_love_modes.py,
 #: tests/test_kirchhoff_love_gauge.py: the same runs, minutes each in Python rattle on 2D grids)
 OWN_ALL_LEVELS = {"plate-modes-kl", "principal-gauge-kl"}
@@ -57,7 +59,9 @@ SLOW_QUICK = {"shell-scordelis-lo", "shell-pinched-cylinder",
               # rattle in Python on 2D plates and tubes of 16² – 64² nodes (≈ 30 s each; test_kirchhoff_love_*.py)
               "plate-modes-kl", "principal-gauge-kl",
               # the closed sphere in Python (glued grids decline the compiled loops), 512 nodes (≈ 30 s)
-              "shell-sphere-breathing"}
+              "shell-sphere-breathing",
+              # two Willmore flows of 11 steps (nv = 24, 48: about 15 s and 30 s)
+              "willmore-clifford-torus"}
 
 
 def _slow_poincare(run: tuple) -> bool:

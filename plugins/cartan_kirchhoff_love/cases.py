@@ -657,6 +657,6 @@ def all_cases() -> list[Case]:
     """The cases this plugin registers."""
     from .gauge_case import GaugeInvarianceKL
     from .plate_modes import SimplySupportedPlateModesKL
-    from .vesicle import GaussBonnetTorus
+    from .vesicle import GaussBonnetTorus, WillmoreCliffordTorus
 
-    return [*CASES, SimplySupportedPlateModesKL(), GaugeInvarianceKL(), GaussBonnetTorus()]
+    return [*CASES, SimplySupportedPlateModesKL(), GaugeInvarianceKL(), GaussBonnetTorus(), WillmoreCliffordTorus()]

@@ -28,7 +28,8 @@ def cartan_register_cases(register):
 def helfrich(problem, *, steps: int = 30, tau: float = 0.05, growth: float = 1.3, tau_max: float = 50.0,
              hold: tuple[str, ...] = ("area", "volume"), targets: dict[str, float] | None = None,
              hold_tol: float = 1e-10, tol: float = 1e-10, stop: float = 0.0, max_hold_iterations: int = 12,
-             max_retries: int = 6, mesh: str = "step", redistribute: int = 1):
+             max_retries: int = 6, mesh: str = "step", redistribute: int = 1, motion: str = "free",
+             tangential_penalty: float = 1e3):
     """The ``helfrich`` flow of a scene's ``[flow]`` table:
     :func:`cartan_kirchhoff_love.vesicle.helfrich_flow` of the scene's problem (same options)."""
     from .vesicle import helfrich_flow
@@ -36,7 +37,7 @@ def helfrich(problem, *, steps: int = 30, tau: float = 0.05, growth: float = 1.3
     return helfrich_flow(problem, steps=steps, tau=tau, growth=growth, tau_max=tau_max, hold=hold,
                          targets=targets, hold_tol=hold_tol, tol=tol, stop=stop,
                          max_hold_iterations=max_hold_iterations, max_retries=max_retries, mesh=mesh,
-                         redistribute=redistribute)
+                         redistribute=redistribute, motion=motion, tangential_penalty=tangential_penalty)
 
 
 def _check_helfrich(problem, options: dict) -> None:
@@ -59,6 +60,12 @@ def _check_helfrich(problem, options: dict) -> None:
             raise ValueError(f"{name} must be an integer in [{low}, 1000], got {options[name]!r}")
     if options.get("mesh", "step") not in ("step", "initial"):
         raise ValueError(f"mesh must be 'step' or 'initial', got {options['mesh']!r}")
+    if options.get("motion", "free") not in ("free", "normal"):
+        raise ValueError(f"motion must be 'free' or 'normal', got {options['motion']!r}")
+    if "tangential_penalty" in options:
+        v = options["tangential_penalty"]
+        if not math.isfinite(v) or v < 1.0:
+            raise ValueError(f"tangential_penalty must be ≥ 1, got {v!r}")
     hold = tuple(options.get("hold", ("area", "volume")))
     if not set(hold) <= {"area", "volume"} or len(set(hold)) != len(hold):
         raise ValueError(f"hold must list distinct entries of 'area', 'volume', got {list(hold)!r}")
