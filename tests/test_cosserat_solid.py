@@ -284,6 +284,43 @@ def test_momentum_of_the_free_box_is_conserved(free_box_runs):
     assert np.max(np.abs(P - P[0])) <= 1e-11 * max(1.0, np.max(np.abs(P)))
 
 
+# ---------------------------------------------------------------------------- point kernels
+@pytest.mark.slow  # compiles the medium's batch kernels (medium_batch)
+def test_point_kernels_equal_the_numpy_stiffness_to_round_off(solid):
+    """The compiled point kernels (stress_at, potential_at) are the 18 × 18 stiffness's energy and
+    gradient, U = ½ DᵀCD with D the deviation in the orthonormal frame of the reference directors,
+    on the identity chart and on general charts (Q[α] = det Θ₀ Σ_j (Θ₀⁻¹)_{jα} Q_phys[j]), at
+    small and large strains; the difference is summation-order round-off (a few ulps of the
+    largest term, hence the tolerances 1e-14 and 1e-13 relative to the largest term)."""
+    C = micropolar_stiffness(**solid.constants)
+    rng = np.random.default_rng(11)
+    P = 200
+    X0 = np.broadcast_to(solid.rest_strain(), (P, 3, 6)).copy()
+    Theta = np.eye(3) + 0.3 * rng.standard_normal((P, 3, 3))
+    Theta[np.linalg.det(Theta) < 0, 0] *= -1.0
+    X0c = np.zeros((P, 3, 6))
+    X0c[:, :, :3] = Theta
+    X0c[:, :, 3:] = 0.2 * rng.standard_normal((P, 3, 3))
+    for amplitude in (1e-3, 0.5):
+        X = X0 + amplitude * rng.standard_normal((P, 3, 6))
+        D = (X - X0).reshape(P, 18)
+        Q_ref = (D @ C).reshape(P, 3, 6)
+        scale = np.max(np.abs(C)) * np.max(np.abs(D))
+        assert np.max(np.abs(solid.stress_at(X, X0) - Q_ref)) <= 1e-14 * scale
+        assert np.max(np.abs(solid.potential_at(X, X0) - 0.5 * np.einsum("pi,ij,pj->p", D, C, D))) <= (
+            1e-14 * scale * np.max(np.abs(D)))
+        Xc = X0c + amplitude * rng.standard_normal((P, 3, 6))
+        T = np.linalg.inv(Theta)
+        det = np.linalg.det(Theta)
+        Dc = (T @ (Xc - X0c)).reshape(P, 18)
+        Q_phys = (Dc @ C).reshape(P, 3, 6)
+        Q_ref = det[:, None, None] * np.swapaxes(T, -1, -2) @ Q_phys
+        scale = np.max(np.abs(Q_ref))
+        assert np.max(np.abs(solid.stress_at(Xc, X0c) - Q_ref)) <= 1e-13 * scale
+        U_ref = det * 0.5 * np.einsum("pi,ij,pj->p", Dc, C, Dc)
+        assert np.max(np.abs(solid.potential_at(Xc, X0c) - U_ref)) <= 1e-13 * np.max(np.abs(U_ref))
+
+
 # ---------------------------------------------------------------------------- compiled = reference
 @pytest.mark.slow  # the solid's own lie-verlet loop: ≈ 25 s to compile on a fresh cache
 def test_compiled_matches_reference_on_periodic_and_loaded_boxes(solid):
