@@ -20,8 +20,10 @@ Per step: the rows at the start (the previous step's closing rows), the start's 
 projection (skipped when tangent), the force (first-same-as-last when no force depends on N),
 the predicted multiplier λ + (ν − λ) of the last step (``offset``,
 :class:`~cartan.state.State`'s ``memory``; its factorization of ``B₀ P B₀ᵀ`` is the chord
-matrix of the iteration), two to five trial flows (a quasi-Newton factorization only when the
-chord gains less than a factor ``SLOW_``), the next step's offset (ν with one more correction,
+matrix of the iteration; Ḃ_c N in closed form from the rows' ``dexp⁻¹`` that
+:func:`rattle_rows` keeps, :func:`_rattle_rate`), two to five trial flows (a quasi-Newton
+factorization only when the chord gains less than a factor ``SLOW_``), the next step's offset
+(ν with one more correction,
 a solve), the rows at the end and the closing kick with its velocity projection (one
 factorization, reused by the next step's start when no load depends on N, or when the damping
 is proportional to the inertia: the closing matrix is then s·I on the live block and ``B
@@ -41,7 +43,6 @@ import numpy as np
 
 from ..compiled.banded import bt_factor, bt_solve, small_inverse
 from ..compiled.codegen import Fragment, njit_source
-from .constrained import _EPS as EPS
 from .constrained import _MAX_ITERATIONS as MAX_ITERATIONS
 from .constrained import _SLOW as SLOW
 
@@ -67,11 +68,12 @@ def rattle_values(D, C, comp, value, out):
     return big if finite else np.nan
 
 
-def rattle_rows(D, C, comp, Bt, Bh):
+def rattle_rows(D, C, comp, Bt, Bh, Ae, Xe):
     """The rows of B_c at C: ``Bt[e] = −dexp⁻¹(hX_e)[comp]/h``, ``Bh[e] = dexp⁻¹(−hX_e)[comp]/h``
     ``[E, c, r]``; returns the largest entry on the unknowns (live components, free nodes).
     ``dexp⁻¹(−ξ)`` is ``dexp⁻¹(ξ) + ad_ξ`` (``x/(eˣ − 1)`` at −x is ``x/(eˣ − 1) + x``): one
-    ``g_dexp_inv`` per edge."""
+    ``g_dexp_inv`` per edge.  Keeps ``hX_e`` in ``Xe`` ``[E, r]`` and all of ``dexp⁻¹(hX_e)`` in
+    ``Ae`` ``[E, r, r]``, for the rows' rate :func:`_rattle_rate`."""
     G = C[0]
     xi = np.empty(R_)  # noqa: F821
     A = np.empty((R_, R_))  # noqa: F821
@@ -84,6 +86,10 @@ def rattle_rows(D, C, comp, Bt, Bh):
         free_i = not (D.any_clamped and D.clamped[i])
         free_j = not (D.any_clamped and D.clamped[j])
         g_dexp_inv(xi, A)  # noqa: F821
+        for k in range(R_):  # noqa: F821
+            Xe[e, k] = xi[k]
+            for m in range(R_):  # noqa: F821
+                Ae[e, k, m] = A[k, m]
         for a in range(comp.shape[0]):
             for k in range(R_):  # noqa: F821
                 v = -A[comp[a], k] * ih
@@ -292,7 +298,7 @@ def rattle_project_velocity(D, S, N, Bt, Bh, bmax, F, factored, P, pdiag, fscale
     return True, factored, True
 
 
-def _rattle_project_config(D, C, comp, value, scale, Bt, Bh, P, pdiag, F, cres, y, delta, K):
+def _rattle_project_config(D, C, comp, value, scale, Bt, Bh, Ae, Xe, P, pdiag, F, cres, y, delta, K):
     """Bring C onto c = 0 by Gauss–Newton steps ``δ = −P Bᵀ(B P Bᵀ)⁻¹c`` along the drift (the
     Python step's ``_project_configuration``); returns the residual, or −1 when it did not
     converge in ``MAX_ITERATIONS_`` steps (the Python step's limit)."""
@@ -301,7 +307,7 @@ def _rattle_project_config(D, C, comp, value, scale, Bt, Bh, P, pdiag, F, cres, 
     for _ in range(MAX_ITERATIONS_):  # noqa: F821
         if err <= 1e-13 * scale:
             return err
-        rattle_rows(D, C, comp, Bt, Bh)
+        rattle_rows(D, C, comp, Bt, Bh, Ae, Xe)
         if not rattle_factor(D, Bt, Bh, P, Bt, Bh, F, pdiag):
             return -1.0
         bt_solve(F[2], F[3], F[4], cres, y)
@@ -322,16 +328,55 @@ def _rattle_project_config(D, C, comp, value, scale, Bt, Bh, P, pdiag, F, cres, 
     return err if err <= 1e-13 * scale else -1.0
 
 
-def _rattle_predict(D, C, Ct, S, N, W, Bt, Bh, F, c0, comp, value, work, acc, nu, cp, bn, K):
-    """The force-level multiplier at the step's start (the Python step's ``_predict``):
-    ``(B P Bᵀ)λ = −B[M⁺(ad_NᵀS + W)] − Ḃ_c N``, ``Ḃ_c N`` by the one-sided difference
-    ``2(c(Φ exp(εN)) − c − εB_cN)/ε²`` (ε = ``EPS_``/max|N|), ``F`` the factors of ``B P Bᵀ``;
-    λ into ``nu``; ``cp``, ``bn`` ``[E, c]`` are scratch."""
-    n = S.shape[0]
-    size = 0.0
-    for i in range(n):
+def _rattle_rate(D, N, comp, Ae, Xe, out):
+    """``out[e, a]`` = (Ḃ_c N)_{e,a} ``[E, c]``, the rows' second derivative along the drift
+    Φ ← Φ exp(εN) (the Python step's ``_rows_rate``): ``ξ'' = ½[ξ', N_i + N_j] +
+    (1/12)(ad_ξ ad_ξ' + ad_ξ' ad_ξ)(N_j − N_i)`` over h, with ξ = hX_e, ξ' = dexp⁻¹(−ξ)N_j −
+    dexp⁻¹(ξ)N_i (from ``Ae``, ``Xe`` of :func:`rattle_rows` at the same configuration)."""
+    xi = np.empty(R_)  # noqa: F821
+    u = np.empty(R_)  # noqa: F821
+    sm = np.empty(R_)  # noqa: F821
+    df = np.empty(R_)  # noqa: F821
+    w1 = np.empty(R_)  # noqa: F821
+    w2 = np.empty(R_)  # noqa: F821
+    adx = np.empty((R_, R_))  # noqa: F821
+    adu = np.empty((R_, R_))  # noqa: F821
+    for e in range(Ae.shape[0]):
+        i, j = D.tail[e], D.head[e]
         for k in range(R_):  # noqa: F821
-            size = max(size, abs(N[i, k]))
+            xi[k] = Xe[e, k]
+        g_ad(xi, adx)  # noqa: F821
+        for k in range(R_):  # noqa: F821
+            v = 0.0
+            for m in range(R_):  # noqa: F821
+                v += (Ae[e, k, m] + adx[k, m]) * N[j, m] - Ae[e, k, m] * N[i, m]
+            u[k] = v
+            sm[k] = N[i, k] + N[j, k]
+            df[k] = N[j, k] - N[i, k]
+        g_ad(u, adu)  # noqa: F821
+        for k in range(R_):  # noqa: F821
+            p = 0.0
+            q = 0.0
+            for m in range(R_):  # noqa: F821
+                p += adu[k, m] * df[m]
+                q += adx[k, m] * df[m]
+            w1[k] = p
+            w2[k] = q
+        for a in range(comp.shape[0]):
+            k = comp[a]
+            p = 0.0
+            q = 0.0
+            for m in range(R_):  # noqa: F821
+                p += adu[k, m] * sm[m]
+                q += adx[k, m] * w1[m] + adu[k, m] * w2[m]
+            out[e, a] = (0.5 * p + (1.0 / 12.0) * q) * D.einvh[e]
+
+
+def _rattle_predict(D, S, N, W, Bt, Bh, F, comp, Ae, Xe, work, acc, nu, rate):
+    """The force-level multiplier at the step's start (the Python step's ``_predict``):
+    ``(B P Bᵀ)λ = −B[M⁺(ad_NᵀS + W)] − Ḃ_c N`` (:func:`_rattle_rate`), ``F`` the factors of
+    ``B P Bᵀ``; λ into ``nu``; ``rate`` ``[E, c]`` is scratch."""
+    n = S.shape[0]
     _lie_poisson(N, S, W, work)  # noqa: F821 - W + ad_NᵀS (cartan.integrators.loops)
     for i in range(n):
         for k in range(R_):  # noqa: F821
@@ -340,18 +385,10 @@ def _rattle_predict(D, C, Ct, S, N, W, Bt, Bh, F, c0, comp, value, work, acc, nu
                 s += D.inv_metric[k, j] * work[i, j]
             acc[i, k] = 0.0 if (D.any_clamped and D.clamped[i]) or not D.live[k] else s
     rattle_apply(D, Bt, Bh, acc, nu)
-    if size > 0.0:
-        eps = EPS_ / size  # noqa: F821
-        for i in range(n):  # N on the unknowns (the Python step's B @ N[unknown])
-            for k in range(R_):  # noqa: F821
-                acc[i, k] = 0.0 if (D.any_clamped and D.clamped[i]) or not D.live[k] else N[i, k]
-        rattle_apply(D, Bt, Bh, acc, bn)
-        _rattle_copy(C, Ct)
-        op_drift(D, Ct, eps, N, K)  # noqa: F821
-        rattle_values(D, Ct, comp, value, cp)
-        for e in range(nu.shape[0]):
-            for a in range(nu.shape[1]):
-                nu[e, a] += 2.0 * (cp[e, a] - c0[e, a] - eps * bn[e, a]) / (eps * eps)
+    _rattle_rate(D, N, comp, Ae, Xe, rate)
+    for e in range(nu.shape[0]):
+        for a in range(nu.shape[1]):
+            nu[e, a] += rate[e, a]
     bt_solve(F[2], F[3], F[4], nu, nu)
     for e in range(nu.shape[0]):
         for a in range(nu.shape[1]):
@@ -396,7 +433,6 @@ def rattle_loop(D, C, S, W, have_w, velocity_free, pieces, fracs, closing, comp,
     imp = np.empty((n, R_))  # noqa: F821
     S0 = S.copy()
     C0 = op_new_config(C)  # noqa: F821
-    Ct = op_new_config(C)  # noqa: F821
     Bt0 = np.zeros((ne, nc, R_))  # noqa: F821 - rows at the step's start (the last step's closing rows)
     Bh0 = np.zeros((ne, nc, R_))  # noqa: F821
     Bt1 = np.zeros((ne, nc, R_))  # noqa: F821 - rows at the first trial
@@ -441,7 +477,8 @@ def rattle_loop(D, C, S, W, have_w, velocity_free, pieces, fracs, closing, comp,
             uniform = False
     Z = np.zeros((n, R_))  # noqa: F821 - N = 0: the velocity-free part of the force
     cp = np.empty((ne, nc))
-    bn = np.empty((ne, nc))
+    Ae = np.empty((ne, R_, R_))  # noqa: F821 - dexp⁻¹(hX_e) and hX_e of the last rows (_rattle_rate)
+    Xe = np.empty((ne, R_))  # noqa: F821
     Fs = _rattle_factors(ne, nc)  # B₀ P B₀ᵀ (start)
     Fc = _rattle_factors(ne, nc)  # B⁺ P_closing B⁺ᵀ (closing kick)
     Fq = _rattle_factors(ne, nc)  # B₁ J B₀ᵀ (quasi-Newton)
@@ -469,17 +506,17 @@ def rattle_loop(D, C, S, W, have_w, velocity_free, pieces, fracs, closing, comp,
         use_offset = offset_dt[0] == dt
         if err0 > 1e-10 * scale:
             use_offset = False
-            err0 = _rattle_project_config(D, C, comp, value, scale, Bt0, Bh0, Pm, pm_diag, Fs, cres, dnu, imp, K)
+            err0 = _rattle_project_config(D, C, comp, value, scale, Bt0, Bh0, Ae, Xe, Pm, pm_diag, Fs, cres, dnu, imp,
+                                          K)
             if err0 < 0.0:
                 status[0] = 2
                 info[0] = rattle_values(D, C, comp, value, c0)
                 break
-            rattle_values(D, C, comp, value, c0)
             have_w = False
             have_b = False
             have_fs = False
         if not have_b:
-            bmax = rattle_rows(D, C, comp, Bt0, Bh0)
+            bmax = rattle_rows(D, C, comp, Bt0, Bh0, Ae, Xe)
             have_fs = False
         # ... with a tangent velocity
         op_velocity(D, S, N)  # noqa: F821
@@ -509,7 +546,7 @@ def rattle_loop(D, C, S, W, have_w, velocity_free, pieces, fracs, closing, comp,
                 info[0] = np.nan
                 break
             have_fs = True
-        _rattle_predict(D, C, Ct, S, N, W, Bt0, Bh0, Fs, c0, comp, value, work, acc, nu, cp, bn, K)
+        _rattle_predict(D, S, N, W, Bt0, Bh0, Fs, comp, Ae, Xe, work, acc, nu, cp)
         for e in range(ne):  # λ, and the predictor λ + (ν − λ) of the last step
             for a in range(nc):
                 lam[e, a] = nu[e, a]
@@ -537,7 +574,7 @@ def rattle_loop(D, C, S, W, have_w, velocity_free, pieces, fracs, closing, comp,
                 info[0] = err
                 break
             if not factored and it > 0 and err > SLOW_ * prev:  # noqa: F821 - the chord gains too little
-                rattle_rows(D, C, comp, Bt1, Bh1)
+                rattle_rows(D, C, comp, Bt1, Bh1, Ae, Xe)
                 op_velocity(D, S, N)  # noqa: F821
                 _rattle_flow_jacobian(D, N, dt, Pj)
                 if not rattle_factor(D, Bt1, Bh1, Pj, Bt0, Bh0, Fq, no):
@@ -579,7 +616,7 @@ def rattle_loop(D, C, S, W, have_w, velocity_free, pieces, fracs, closing, comp,
         offset_dt[0] = dt
         # the closing kick and its velocity multiplier
         t1 = t + dt
-        bmax = rattle_rows(D, C, comp, Bt0, Bh0)
+        bmax = rattle_rows(D, C, comp, Bt0, Bh0, Ae, Xe)
         have_b = True
         if velocity_free:
             op_velocity(D, S, N)  # noqa: F821
@@ -634,9 +671,9 @@ def rattle_loop(D, C, S, W, have_w, velocity_free, pieces, fracs, closing, comp,
 def loop_fragment() -> Fragment:
     """The rattle loop, its helpers and the block-tridiagonal solver as one fragment of a
     generated module (it uses ``_lie_poisson``, ``_damped`` and ``_book`` of :mod:`cartan.integrators.loops`)."""
-    return Fragment(constants={"MAX_ITERATIONS_": MAX_ITERATIONS, "EPS_": EPS, "SLOW_": SLOW},
+    return Fragment(constants={"MAX_ITERATIONS_": MAX_ITERATIONS, "SLOW_": SLOW},
                     source=njit_source(small_inverse, bt_factor, bt_solve, rattle_values, rattle_rows, rattle_metric,
                                        _rattle_flow_jacobian, _rattle_diagonal, _rattle_right, _rattle_left,
                                        rattle_factor, rattle_apply, rattle_impulse, rattle_project_velocity,
-                                       _rattle_project_config, _rattle_predict, _rattle_copy, _rattle_factors,
-                                       rattle_loop))
+                                       _rattle_project_config, _rattle_rate, _rattle_predict, _rattle_copy,
+                                       _rattle_factors, rattle_loop))
