@@ -131,9 +131,19 @@ def _inline(name: str) -> str:
     compiling them once (``"never"``, LLVM still inlines them when the caller is optimised)
     takes a third less time to compile a loop (lattice ``lie-verlet``, SE(3) rod: 29 → 17 s;
     sigma model on SO(4): 36 → 21 s of CPU time), at 0–1.6× the cost per step (the SO(4)
-    kernels, which fill small work arrays, lose most).
+    kernels, which fill small work arrays, lose most).  The exceptions, :data:`INLINED_KERNELS`,
+    are small kernels called once per node and piece from one call site: an out-of-line call
+    costs more than their arithmetic (≈ 16 ns against ≈ 7 ns for SE(3)'s ``g_axis_flow``, and
+    ≈ 38 ns when a tuple of work arrays is passed).  (IR-inlining ``g_compose`` and ``g_inverse``
+    into the lattice's edge update, ``op_move``, takes it from 112 to 51 ns per node on the SE(3)
+    rod but adds ≈ 1.6 s of CPU time to every lattice loop's compile, ≈ 7 %: not taken.)
     """
-    return "never" if name.startswith("g_") else "always"
+    return "never" if name.startswith("g_") and name not in INLINED_KERNELS else "always"
+
+
+#: group kernels compiled into their callers (numba IR inlining) although they are group
+#: kernels (see :func:`_inline`)
+INLINED_KERNELS = frozenset({"g_axis_flow"})
 
 
 def _render(fragments: Iterable[Fragment]) -> str:

@@ -98,11 +98,32 @@ def g_coad_exp(xi, s, E, work):
         s[k] = out[k]
 """
 
+#: ``E = exp(t b_k)``, ``s ← Ad_Eᵀ s`` and ``acc ← acc E`` in place: the free flow along one basis
+#: axis k (a piece of ``lie-verlet``'s free flow with a diagonal kinetic metric), ``s`` ``(r,)``,
+#: ``acc`` ``(m, m)``; here from ``g_exp``, ``g_Ad_T`` and ``g_compose`` (closed forms:
+#: ``so3_axis_flow_point``, ``se3_axis_flow_point``)
+FUSED_OPS["axis_flow"] = """
+def g_axis_flow(k, t, s, acc, work):
+    E, tmp, vec = work[0], work[3], work[4]
+    xi, out = vec[0], vec[1]
+    for j in range(R_):
+        xi[j] = 0.0
+    xi[k] = t
+    g_exp(xi, E)
+    g_Ad_T(E, s, out)
+    for j in range(R_):
+        s[j] = out[j]
+    g_compose(acc, E, tmp)
+    for a in range(M_):
+        for b in range(M_):
+            acc[a, b] = tmp[a, b]
+"""
+
 #: the scratch of the default fused operations, allocated once by their callers and passed as
-#: ``work`` (closed forms ignore it): ``(m × m, r × r, r × r)``
+#: ``work`` (closed forms ignore it): ``(m × m, r × r, r × r, m × m, 2 × r)``
 _WORK = """
 def g_work():
-    return (np.empty((M_, M_)), np.empty((R_, R_)), np.empty((R_, R_)))
+    return (np.empty((M_, M_)), np.empty((R_, R_)), np.empty((R_, R_)), np.empty((M_, M_)), np.empty((2, R_)))
 """
 
 
@@ -136,6 +157,7 @@ def group_fragment(module: str, prefix: str, ops=GROUP_OPS) -> Fragment | None:
     ``g_E_apply(tau, xi, V, out, work)``       ``out[a] = 𝓔(τ, ξ) V[a]``, V and out ``(k, r)``
     ``g_dexp_inv_apply(xi, v, out, work)``     ``out = dexp⁻¹(ξ) v``
     ``g_coad_exp(xi, s, E, work)``             ``E = exp(ξ)``, ``s ← Ad_Eᵀs`` in place
+    ``g_axis_flow(k, t, s, acc, work)``        ``E = exp(t b_k)``, ``s ← Ad_Eᵀs``, ``acc ← acc E`` in place
 
     ``work`` is the scratch ``g_work()`` returns (allocated once by the caller; closed forms do
     not touch it); ``out`` must not alias the inputs."""

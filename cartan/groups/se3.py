@@ -65,6 +65,7 @@ __all__ = [
     "se3_E_apply_point",
     "se3_E_point",
     "se3_act_point",
+    "se3_axis_flow_point",
     "se3_ad_point",
     "se3_bracket_point",
     "se3_compose_point",
@@ -361,6 +362,37 @@ def se3_dexp_inv_point(xi, out):
         for j in range(3):
             out[i + 3, j + 3] = Jinv[i, j]
             out[i + 3, j] = 0.0
+
+
+@njit(cache=True, inline='always')
+def se3_axis_flow_point(k, t, s, acc, work):
+    """The free flow along one basis axis: ``E = exp(t b_k)``, ``s ← Ad_Eᵀ s`` and ``acc ← acc E``
+    for ``s`` (6,) and ``acc`` (4, 4) in place, without the matrices; ``work`` is unused.
+
+    A translation (``k < 3``): ``E = (t e_k; I)``, so ``Ad_Eᵀ(P; L) = (P; L − t e_k × P)`` and
+    ``acc`` moves by ``t`` times its rotation's column k.  A rotation about ``e_j``
+    (``j = k − 3``): ``E = (0; R)`` with R turning the plane ``(e_p, e_q)``, ``p = j + 1``,
+    ``q = j + 2`` (mod 3), by cosine ``1 − Bt²`` and sine ``At`` (:func:`se3_exp_coeffs`, the
+    entries of :func:`se3_exp_point` at ``ξ = t b_k``), so ``Ad_Eᵀ(P; L) = (RᵀP; RᵀL)`` and the
+    rotation of ``acc`` turns its columns p and q."""
+    j = k if k < 3 else k - 3
+    p = j + 1 if j < 2 else 0
+    q = j + 2 if j < 1 else j - 1
+    if k < 3:
+        s[3 + p] += t * s[q]
+        s[3 + q] -= t * s[p]
+        for i in range(1, 4):
+            acc[i, 0] += t * acc[i, 1 + j]
+        return
+    a, b, _ = se3_exp_coeffs(t * t)
+    c, sn = 1.0 - b * (t * t), a * t
+    x, y = s[p], s[q]
+    s[p], s[q] = c * x + sn * y, c * y - sn * x
+    x, y = s[3 + p], s[3 + q]
+    s[3 + p], s[3 + q] = c * x + sn * y, c * y - sn * x
+    for i in range(1, 4):
+        x, y = acc[i, 1 + p], acc[i, 1 + q]
+        acc[i, 1 + p], acc[i, 1 + q] = c * x + sn * y, c * y - sn * x
 
 
 @njit(cache=True, inline='always')

@@ -42,6 +42,7 @@ __all__ = [
     "SO3",
     "so3_Ad_inv_apply_point",
     "so3_Ad_point",
+    "so3_axis_flow_point",
     "so3_act_point",
     "so3_ad_point",
     "so3_bracket_point",
@@ -411,6 +412,25 @@ def so3_E_point(dt, w, out):
     x, y, z = dt * w[0], dt * w[1], dt * w[2]
     b, c = so3_dexp_coeffs(x * x + y * y + z * z)
     so3_poly_point(x, y, z, b, c, dt, out)
+
+
+@njit(cache=True, inline='always')
+def so3_axis_flow_point(k, t, s, acc, work):
+    """The free flow about one basis axis: ``E = exp(t b_k)``, ``s ← Ad_Eᵀ s = Eᵀ s`` and
+    ``acc ← acc E``, for ``s`` (3,) and ``acc`` (3, 3) in place (``k`` in 0..2, ``t`` the angle),
+    without the matrix.  ``E`` turns the plane ``(e_p, e_q)``, ``p = k + 1``, ``q = k + 2``
+    (mod 3), by cosine ``1 − Bt²`` and sine ``At`` (:func:`so3_exp_coeffs`, the entries of
+    :func:`so3_exp_point` at ``w = t e_k``); ``work`` is unused (the scratch of the generic
+    form, ``cartan.compiled.kernels.FUSED_OPS["axis_flow"]``)."""
+    a, b = so3_exp_coeffs(t * t)
+    c, sn = 1.0 - b * (t * t), a * t
+    p = k + 1 if k < 2 else 0
+    q = k + 2 if k < 1 else k - 1
+    x, y = s[p], s[q]
+    s[p], s[q] = c * x + sn * y, c * y - sn * x
+    for i in range(3):
+        x, y = acc[i, p], acc[i, q]
+        acc[i, p], acc[i, q] = c * x + sn * y, c * y - sn * x
 
 
 # ---------------------------------------------------------------------- numba batch loops

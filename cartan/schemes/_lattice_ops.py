@@ -244,20 +244,16 @@ def op_move(D, C, Dn, K):
     G, Phi = C
     Di = K[1]
     tmp = np.empty((M_, M_))  # noqa: F821
-    tmp2 = np.empty((M_, M_))  # noqa: F821
     for i in range(Dn.shape[0]):
         g_inverse(Dn[i], Di[i])  # noqa: F821
     for e in range(G.shape[0]):
         g_compose(Di[D.tail[e]], G[e], tmp)  # noqa: F821
-        g_compose(tmp, Dn[D.head[e]], tmp2)  # noqa: F821
-        for a in range(M_):  # noqa: F821
-            for b in range(M_):  # noqa: F821
-                G[e, a, b] = tmp2[a, b]
+        g_compose(tmp, Dn[D.head[e]], G[e])  # noqa: F821 - G_e is not an input of this product
     for i in range(Phi.shape[0]):
-        g_compose(Phi[i], Dn[i], tmp)  # noqa: F821
         for a in range(M_):  # noqa: F821
             for b in range(M_):  # noqa: F821
-                Phi[i, a, b] = tmp[a, b]
+                tmp[a, b] = Phi[i, a, b]
+        g_compose(tmp, Dn[i], Phi[i])  # noqa: F821
 
 
 def op_free_flow(D, C, S, pieces, fracs, dt, Dn, K):
@@ -265,15 +261,28 @@ def op_free_flow(D, C, S, pieces, fracs, dt, Dn, K):
     ``S ← Ad*_{exp(τN_p)}S`` with ``N_p = P_p S`` (``pieces[p]``, zero at clamped nodes) over
     ``τ = fracs[p]·Δt``; returns whether anything moved and leaves each node's total motion
     ``Π_p exp(τN_p)`` in ``Dn``; the free flow is node-local, so the edges and frames then follow
-    in one :func:`op_move` by ``Dn``.  ``N_p = P_p S`` runs over the nonzero entries of each row
-    of ``P_p`` only (a piece of a diagonal metric is one direction or one commuting block).
-    Each node's momentum row and motion are held in local arrays through its pieces, and each
-    piece calls ``g_exp`` and ``g_Ad_T`` directly (the kernels of ``g_coad_exp``, the same
-    arithmetic, without an out-of-line call and array views per piece)."""
+    in one :func:`op_move` by ``Dn``.
+
+    A piece of a diagonal metric is one basis direction or a block of mutually commuting ones
+    (``P_p`` diagonal; ``LieVerlet._sequence`` makes the blocks of ``_abelian_pieces``, which
+    commute: the flow of a diagonal block of directions that do not commute would not be
+    ``exp(τN_p)`` either): its flow is the product of one flow per direction k of the block,
+    ``exp(τN_p) = Π_k exp(t_k b_k)`` with ``t_k = τ(P_p)_kk S_k`` (the directions commute, and
+    the flow along one leaves the block's components of S unchanged), each by the group's
+    ``g_axis_flow`` — a closed form (a turn in one plane, a shift) where the group has one, else
+    ``g_exp``, ``g_Ad_T`` and ``g_compose``.  Any other piece (an eigenvector of a non-diagonal
+    metric) runs ``g_exp``, ``g_Ad_T`` and ``g_compose``, with ``N_p = P_p S`` over the nonzero
+    entries of each row of ``P_p`` only.  Each node's momentum row and motion are held in local
+    arrays through its pieces (``g_axis_flow`` is compiled into this loop:
+    ``codegen.INLINED_KERNELS``)."""
     npieces = pieces.shape[0]
     cnt = np.zeros((npieces, R_), dtype=np.int64)  # noqa: F821
     col = np.empty((npieces, R_, R_), dtype=np.int64)  # noqa: F821
     tau = np.empty(npieces)
+    axial = np.ones(npieces, dtype=np.bool_)
+    naxes = np.zeros(npieces, dtype=np.int64)  # an axial piece: its directions and (P_p)_kk
+    axes = np.empty((npieces, R_), dtype=np.int64)  # noqa: F821
+    coef = np.empty((npieces, R_))  # noqa: F821
     for p in range(npieces):
         tau[p] = fracs[p] * dt
         for k in range(R_):  # noqa: F821
@@ -281,52 +290,69 @@ def op_free_flow(D, C, S, pieces, fracs, dt, Dn, K):
                 if pieces[p, k, j] != 0.0:
                     col[p, k, cnt[p, k]] = j
                     cnt[p, k] += 1
+                    if j != k:
+                        axial[p] = False
+            if cnt[p, k]:
+                axes[p, naxes[p]] = k
+                coef[p, naxes[p]] = pieces[p, k, k]
+                naxes[p] += 1
     xi = np.zeros(R_)  # noqa: F821
-    s = np.empty(R_)  # noqa: F821
+    tk = np.empty(R_)  # noqa: F821
     out = np.empty(R_)  # noqa: F821
     E = np.empty((M_, M_))  # noqa: F821
-    acc = np.empty((M_, M_))  # noqa: F821
     tmp = np.empty((M_, M_))  # noqa: F821
     eye = np.empty((M_, M_))  # noqa: F821
+    wk = g_work()  # noqa: F821
     g_exp(xi, eye)  # noqa: F821 - the identity (a node that does not move)
+    s = np.empty(R_)  # noqa: F821
+    acc = np.empty((M_, M_))  # noqa: F821
     moved = False
     for i in range(S.shape[0]):
-        first = True
-        if not (D.any_clamped and D.clamped[i]):
-            for k in range(R_):  # noqa: F821
-                s[k] = S[i, k]
-            for p in range(npieces):
-                moving = False
-                for k in range(R_):  # noqa: F821
-                    v = 0.0
-                    for c in range(cnt[p, k]):
-                        j = col[p, k, c]
-                        v += pieces[p, k, j] * s[j]
-                    xi[k] = tau[p] * v
-                    if v != 0.0:
-                        moving = True
-                if not moving:
-                    continue
-                moved = True
-                g_exp(xi, E)  # noqa: F821
-                g_Ad_T(E, s, out)  # noqa: F821
-                for k in range(R_):  # noqa: F821
-                    s[k] = out[k]
-                if first:
-                    for a in range(M_):  # noqa: F821
-                        for b in range(M_):  # noqa: F821
-                            acc[a, b] = E[a, b]
-                    first = False
-                else:
-                    g_compose(acc, E, tmp)  # noqa: F821
-                    acc, tmp = tmp, acc
-            if not first:
-                for k in range(R_):  # noqa: F821
-                    S[i, k] = s[k]
-        src = eye if first else acc
+        if D.any_clamped and D.clamped[i]:
+            for a in range(M_):  # noqa: F821
+                for b in range(M_):  # noqa: F821
+                    Dn[i, a, b] = eye[a, b]
+            continue
+        for k in range(R_):  # noqa: F821
+            s[k] = S[i, k]
         for a in range(M_):  # noqa: F821
             for b in range(M_):  # noqa: F821
-                Dn[i, a, b] = src[a, b]
+                acc[a, b] = eye[a, b]
+        for p in range(npieces):
+            if axial[p]:
+                na = naxes[p]
+                for c in range(na):
+                    tk[c] = tau[p] * (coef[p, c] * s[axes[p, c]])
+                for c in range(na):
+                    if tk[c] != 0.0:
+                        g_axis_flow(axes[p, c], tk[c], s, acc, wk)  # noqa: F821
+                        moved = True
+                continue
+            moving = False
+            for k in range(R_):  # noqa: F821
+                v = 0.0
+                for c in range(cnt[p, k]):
+                    j = col[p, k, c]
+                    v += pieces[p, k, j] * s[j]
+                xi[k] = tau[p] * v
+                if v != 0.0:
+                    moving = True
+            if not moving:
+                continue
+            moved = True
+            g_exp(xi, E)  # noqa: F821
+            g_Ad_T(E, s, out)  # noqa: F821
+            for k in range(R_):  # noqa: F821
+                s[k] = out[k]
+            g_compose(acc, E, tmp)  # noqa: F821
+            for a in range(M_):  # noqa: F821
+                for b in range(M_):  # noqa: F821
+                    acc[a, b] = tmp[a, b]
+        for k in range(R_):  # noqa: F821
+            S[i, k] = s[k]
+        for a in range(M_):  # noqa: F821
+            for b in range(M_):  # noqa: F821
+                Dn[i, a, b] = acc[a, b]
     if moved:
         op_move(D, C, Dn, K)
     return moved
