@@ -112,28 +112,12 @@ def _median(call, reps: int = 7, inner: int = 3) -> float:
 
 
 def profile(run: Run) -> dict[str, float]:
-    """ns per node of each operator of one generated ``lie-verlet`` step of ``run``."""
-    scheme, integrator, state, dt = run.scheme, run.integrator, run.state, run.dt
-    ops = scheme.compiled_operators()
-    module = ops.generated()
-    D = ops.data
-    C = ops.pack(state)
-    K = module.op_work(D)
-    n, r, m = ops.nodes, D.r, D.m
-    S = np.ascontiguousarray(state.S, dtype=float).reshape(n, -1).copy()
-    N, W = np.empty((n, r)), np.empty((n, r))
-    module.op_velocity(D, S, N)
-    pieces, fracs = integrator.compiled_loop(scheme, state, dt)[1][3:5]
-    Dn = np.empty((n, m, m))
-    tiny = 1e-9 * dt  # the free flow barely moves S (and C) between repetitions
-    module.op_free_flow(D, C, S.copy(), pieces, fracs, tiny, Dn, K)
-    cost = {
-        "force": _median(lambda: module.op_force(D, C, 0.0, N, W, K)),
-        "free flow": _median(lambda: module.op_free_flow(D, C, S.copy(), pieces, fracs, tiny, Dn, K)),
-        "move": _median(lambda: module.op_move(D, C, Dn, K)),
-        "velocity": _median(lambda: module.op_velocity(D, S, N)),
-    }
-    return {k: v / n * 1e9 for k, v in cost.items()}
+    """ns per node of each operator of one generated ``lie-verlet`` step of ``run``
+    (:func:`profile_generated.profile_run`, in CPU time)."""
+    import profile_generated
+
+    profile_generated.CLOCK = time.process_time
+    return profile_generated.profile_run(run.scheme, run.integrator, run.state, run.dt, inner=3)
 
 
 _PASSES = """
@@ -148,7 +132,7 @@ def pass_logs(D, C, K):
             QE[e, k] = 0.0
 
 
-def pass_corners(D, K):
+def pass_corners(D, K, uniform):
     XI, QE = K[2], K[3]
     X = np.empty((D_, R_))
     Q = np.empty((D_, R_))
@@ -157,7 +141,7 @@ def pass_corners(D, K):
             e = D.cedge[c, b]
             for k in range(R_):
                 X[b, k] = XI[e, k] * D.einvh[e]
-        m_stress(X, D.cX0[c], D.params, Q)
+        m_stress(X, D.cX0[0 if uniform else c], D.params, Q)
         for b in range(D_):
             e = D.cedge[c, b]
             f = D.cw[c] * D.einvh[e]
@@ -168,24 +152,6 @@ def pass_corners(D, K):
 def pass_kernel(D, Xc, Qc):
     for c in range(Xc.shape[0]):
         m_stress(Xc[c], D.cX0[c], D.params, Qc[c])
-
-
-def pass_corners_uniform(D, K):
-    XI, QE = K[2], K[3]
-    X = np.empty((D_, R_))
-    Q = np.empty((D_, R_))
-    X0 = D.cX0[0]
-    for c in range(D.cw.shape[0]):
-        for b in range(D_):
-            e = D.cedge[c, b]
-            for k in range(R_):
-                X[b, k] = XI[e, k] * D.einvh[e]
-        m_stress(X, X0, D.params, Q)
-        for b in range(D_):
-            e = D.cedge[c, b]
-            f = D.cw[c] * D.einvh[e]
-            for k in range(R_):
-                QE[e, k] += f * Q[b, k]
 
 
 def pass_nodes(D, W, K):
@@ -233,12 +199,12 @@ def force_passes(run: Run) -> dict[str, float]:
     Qc = np.empty_like(Xc)
     cost = {
         "logs": _median(lambda: passes.pass_logs(D, C, K)),
-        "corners": _median(lambda: passes.pass_corners(D, K)),
+        "corners": _median(lambda: passes.pass_corners(D, K, False)),
         "to nodes": _median(lambda: passes.pass_nodes(D, W, K)),
         "kernel": _median(lambda: passes.pass_kernel(D, Xc, Qc)),
     }
     if not D.cX0.size or np.all(D.cX0 == D.cX0[0]):  # what a rest strain read once would save
-        cost["corners, one X0"] = _median(lambda: passes.pass_corners_uniform(D, K))
+        cost["corners, one X0"] = _median(lambda: passes.pass_corners(D, K, True))
     return {k: v / n * 1e9 for k, v in cost.items()}
 
 

@@ -77,7 +77,13 @@ def _scheme(case: str, scheme_name: str = "lattice"):
 
 def profile(case: str, scheme_name: str = "lattice") -> dict[str, float]:
     """ns per node of each operator of one lie-verlet step of ``case`` on ``scheme_name``."""
-    scheme, integrator, state, dt = _scheme(case, scheme_name)
+    return profile_run(*_scheme(case, scheme_name), scheme_name=scheme_name)
+
+
+def profile_run(scheme, integrator, state, dt: float, scheme_name: str = "lattice",
+                inner: int = 10) -> dict[str, float]:
+    """ns per node of each operator of one generated lie-verlet step of a built problem
+    (``inner`` calls per timed repetition, on :data:`CLOCK`)."""
     ops = scheme.compiled_operators()
     module = ops.generated() if hasattr(ops, "generated") else ops.module
     D = ops.data
@@ -98,14 +104,14 @@ def profile(case: str, scheme_name: str = "lattice") -> dict[str, float]:
             return module._free_flow(D, S.copy(), pieces, fracs, tiny, Dn)
     flow()
     cost = {
-        "force": _median(lambda: module.op_force(D, C, 0.0, N, W, K)),
-        "free flow": _median(flow),
+        "force": _median(inner=inner, call=lambda: module.op_force(D, C, 0.0, N, W, K)),
+        "free flow": _median(flow, inner=inner),
     }
     if scheme_name == "lattice":
-        cost["move"] = _median(lambda: module.op_move(D, C, Dn, K))
+        cost["move"] = _median(inner=inner, call=lambda: module.op_move(D, C, Dn, K))
     else:
-        cost["drift"] = _median(lambda: module.op_drift(D, C, tiny, N, K))
-    cost["velocity"] = _median(lambda: module.op_velocity(D, S, N))
+        cost["drift"] = _median(inner=inner, call=lambda: module.op_drift(D, C, tiny, N, K))
+    cost["velocity"] = _median(inner=inner, call=lambda: module.op_velocity(D, S, N))
     return {k: v / n * 1e9 for k, v in cost.items()}
 
 

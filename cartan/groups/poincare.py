@@ -58,6 +58,7 @@ import scipy.linalg
 from numba import njit
 from numba.extending import register_jitable
 
+from ..compiled.linalg import solve_augmented
 from ._batch import kernel_table
 from ._generic_kernels import vanloan_E_point
 from .base import SymmetryGroup
@@ -324,31 +325,16 @@ def poincare_exp_point(xi, out):
 
 @njit(cache=True)
 def _solve4(V, t, out):
-    """``out`` (4,) ← ``V⁻¹ t`` by Gaussian elimination with partial pivoting (``V`` a tuple)."""
+    """``out`` (4,) ← ``V⁻¹ t`` (``V`` a tuple; :func:`cartan.compiled.linalg.solve_augmented`);
+    NaN where V is singular."""
     M = np.empty((4, 5))
     for i in range(4):
         for j in range(4):
             M[i, j] = V[4 * i + j]
         M[i, 4] = t[i]
-    for k in range(4):
-        piv = k
-        for i in range(k + 1, 4):
-            if abs(M[i, k]) > abs(M[piv, k]):
-                piv = i
-        if piv != k:
-            for j in range(5):
-                tmp = M[k, j]
-                M[k, j] = M[piv, j]
-                M[piv, j] = tmp
-        for i in range(k + 1, 4):
-            f = M[i, k] / M[k, k]
-            for j in range(k, 5):
-                M[i, j] -= f * M[k, j]
-    for i in range(3, -1, -1):
-        s = M[i, 4]
-        for j in range(i + 1, 4):
-            s -= M[i, j] * out[j]
-        out[i] = s / M[i, i]
+    if not solve_augmented(M, out):
+        for i in range(4):
+            out[i] = np.nan
 
 
 @njit(cache=True)

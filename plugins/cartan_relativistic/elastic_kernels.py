@@ -27,6 +27,8 @@ from typing import Any
 import numpy as np
 from numba import njit
 
+from cartan.compiled.linalg import solve_augmented
+
 __all__ = ["hamiltonian_point", "law_kernel", "law_point", "momentum_hessian_point", "stress_point",
            "velocity_batch", "velocity_point"]
 
@@ -99,32 +101,13 @@ def _momentum_hessian(v, x, kind, prm, mc2, c, p, J, dl):  # pragma: no cover - 
 
 @njit(cache=True)
 def _solve3(J, r, out, A):  # pragma: no cover - compiled
-    """``out = J⁻¹r`` (3 × 3, Gaussian elimination with partial pivoting, ``A`` (3, 4) work);
+    """``out = J⁻¹r`` (3 × 3, ``A`` (3, 4) work; :func:`cartan.compiled.linalg.solve_augmented`);
     False if singular."""
     for i in range(3):
         for j in range(3):
             A[i, j] = J[i, j]
         A[i, 3] = r[i]
-    for k in range(3):
-        piv = k
-        for i in range(k + 1, 3):
-            if abs(A[i, k]) > abs(A[piv, k]):
-                piv = i
-        if not abs(A[piv, k]) > 0.0:
-            return False
-        if piv != k:
-            for j in range(4):
-                A[k, j], A[piv, j] = A[piv, j], A[k, j]
-        for i in range(k + 1, 3):
-            f = A[i, k] / A[k, k]
-            for j in range(k, 4):
-                A[i, j] -= f * A[k, j]
-    for i in range(2, -1, -1):
-        s = A[i, 3]
-        for j in range(i + 1, 3):
-            s -= A[i, j] * out[j]
-        out[i] = s / A[i, i]
-    return True
+    return solve_augmented(A, out)
 
 
 @njit(cache=True)
