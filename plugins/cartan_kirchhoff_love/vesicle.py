@@ -828,6 +828,7 @@ class WillmoreCliffordTorus(StaticCase):
                         "1.63, 1.86, 1.96 per doubling from nv = 12), the meridian's roundness 3.8e-2 … 8.9e-4 "
                         "(orders 1.54, 1.89, 1.97), |W/2π² − 1| 9.0e-5, 5.9e-6, 2.7e-7, 1.5e-8 (order 4); "
                         "the bound holds from nv = 48 on (the quick levels nv = 24, 48: order 1.86)")
+    solver = staticmethod(helfrich_flow)
     #: the flow's options (docs/media/kirchhoff-love.md, "Normal motion")
     flow = {"steps": 16, "tau": 0.2, "growth": 1.5, "tau_max": 5.0, "hold": ("area",), "stop": 1e-8,
             "motion": "normal", "tangential_penalty": 1e3}

@@ -229,6 +229,10 @@ class StaticCase(Case):
     static = True
     refine = "space"
     time_order_of = None
+    #: the function whose keyword arguments the settings are, when :meth:`solve` calls another
+    #: solver than :func:`~cartan.statics.solve_static` or :func:`~cartan.continuation.continuation`
+    #: (a flow of equilibria, say); None for those two
+    solver: Any = None
     default_integrators = (NEWTON,)
     default_schemes = ("lattice",)
 
