@@ -101,7 +101,7 @@ def g_coad_exp(xi, s, E, work):
 #: ``E = exp(t b_k)``, ``s ← Ad_Eᵀ s`` and ``acc ← acc E`` in place: the free flow along one basis
 #: axis k (a piece of ``lie-verlet``'s free flow with a diagonal kinetic metric), ``s`` ``(r,)``,
 #: ``acc`` ``(m, m)``; here from ``g_exp``, ``g_Ad_T`` and ``g_compose`` (closed forms:
-#: ``so3_axis_flow_point``, ``se3_axis_flow_point``)
+#: ``so3_axis_flow_point``, ``se3_axis_flow_point``, ``poincare_axis_flow_point``)
 FUSED_OPS["axis_flow"] = """
 def g_axis_flow(k, t, s, acc, work):
     E, tmp, vec = work[0], work[3], work[4]

@@ -46,7 +46,9 @@ Kernels
 -------
 numba kernels (:attr:`Poincare._kernels`): hat, vee, compose, inverse, act, exp, log, Ad, ad,
 bracket.  ``dexp``, ``dexp_inv`` and ``E`` use the numpy path on both backends (the ``Q``
-block needs a matrix exponential).
+block needs a matrix exponential).  The generated loops also bind the fused one-axis free flow
+:func:`poincare_axis_flow_point` (lattice ``lie-verlet``: a shift, a boost or a turn in one
+plane, every axis in closed form).
 """
 
 from __future__ import annotations
@@ -96,6 +98,7 @@ __all__ = [
     "poincare_V_coeffs",
     "poincare_act_point",
     "poincare_ad_point",
+    "poincare_axis_flow_point",
     "poincare_bracket_point",
     "poincare_compose_point",
     "poincare_dexp_inv_T_pair_point",
@@ -828,3 +831,59 @@ def poincare_Ad_T_point(g, v, out):
         for j in range(10):
             s += A[j, k] * v[j]
         out[k] = s
+
+
+@njit(cache=True, inline='always')
+def poincare_axis_flow_point(k, t, s, acc, work):
+    """The free flow along one basis axis: ``E = exp(t b_k)``, ``s ← Ad_Eᵀ s`` and ``acc ← acc E``
+    for ``s`` (10,) and ``acc`` (5, 5) in place, without the matrices; ``work`` is unused (the
+    scratch of the generic form, ``cartan.compiled.kernels.FUSED_OPS["axis_flow"]``).
+
+    Every axis is closed-form; ``ad_{b_k}`` is sparse, and ``Ad_E = exp(t ad_{b_k})``:
+
+    * a translation ``{e_μ; 0}`` (``k = μ < 4``): ``ad² = 0``, ``E = (t e_μ; I)``, so
+      ``Ad_Eᵀ s = s + t ad_{b_k}ᵀ s`` (:func:`poincare_Ad_T_point`: ``s_Z ← s_Z − N(t e_μ)ᵀ s_y``,
+      ``N(y)ᵀ s_y = (y⃗ s₀ + y₀ s⃗; y⃗ × s⃗)``) and ``acc``'s translation moves by ``t`` times its
+      Lorentz block's column μ;
+    * a boost ``{0; K_j}`` (``k = 4 + j``): ``Λ`` boosts the plane ``(e₀, e_{1+j})`` by
+      ``cosh t``, ``sinh t``; ``Ad_E`` does the same on the pairs ``(s₀, s_{1+j})``,
+      ``(c_p, d_q)`` (sign −) and ``(c_q, d_p)`` (sign +), ``p = j + 1``, ``q = j + 2`` (mod 3);
+    * a rotation ``{0; J_j}`` (``k = 7 + j``): ``Λ`` turns the plane ``(e_{1+p}, e_{1+q})`` by
+      ``cos t``, ``sin t``, and ``Ad_Eᵀ`` turns ``(s⃗_p, s⃗_q)``, ``(c_p, c_q)`` and
+      ``(d_p, d_q)`` back (``Λᵀ``, as SE(3)'s :func:`~cartan.groups.se3.se3_axis_flow_point`).
+    """
+    j = k - 1 if k < 4 else (k - 4 if k < 7 else k - 7)
+    p = j + 1 if j < 2 else 0
+    q = j + 2 if j < 1 else j - 1
+    if k == 0:
+        for i in range(3):
+            s[4 + i] -= t * s[1 + i]
+        for i in range(1, 5):
+            acc[i, 0] += t * acc[i, 1]
+        return
+    if k < 4:
+        s[4 + j] -= t * s[0]
+        s[7 + p] += t * s[1 + q]
+        s[7 + q] -= t * s[1 + p]
+        for i in range(1, 5):
+            acc[i, 0] += t * acc[i, 1 + k]
+        return
+    if k < 7:
+        ch, sh = math.cosh(t), math.sinh(t)
+        x, y = s[0], s[1 + j]
+        s[0], s[1 + j] = ch * x + sh * y, sh * x + ch * y
+        x, y = s[4 + p], s[7 + q]
+        s[4 + p], s[7 + q] = ch * x - sh * y, ch * y - sh * x
+        x, y = s[4 + q], s[7 + p]
+        s[4 + q], s[7 + p] = ch * x + sh * y, ch * y + sh * x
+        for i in range(1, 5):
+            x, y = acc[i, 1], acc[i, 2 + j]
+            acc[i, 1], acc[i, 2 + j] = ch * x + sh * y, sh * x + ch * y
+        return
+    c, sn = math.cos(t), math.sin(t)
+    for o in (1, 4, 7):
+        x, y = s[o + p], s[o + q]
+        s[o + p], s[o + q] = c * x + sn * y, c * y - sn * x
+    for i in range(1, 5):
+        x, y = acc[i, 2 + p], acc[i, 2 + q]
+        acc[i, 2 + p], acc[i, 2 + q] = c * x + sn * y, c * y - sn * x
