@@ -87,7 +87,7 @@ def _advance(scheme, integrator, state, dt: float, steps: int, threads: int) -> 
     with cartan.use_threads(threads):
         t0 = time.perf_counter()
         # the compiled path cartan.simulate takes: the SE(3) rod's hand-written loop, else the
-        # integrator's generated loop (the sigma model, serial at any thread count)
+        # integrator's generated loop (the sigma model: its threaded build with threads > 1)
         if not (scheme.compiled_advance(integrator, state, dt, steps)
                 or integrator.run_compiled_loop(scheme, state, dt, steps)):
             raise RuntimeError("no compiled loop runs the problem")

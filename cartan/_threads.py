@@ -16,7 +16,10 @@ or ``workqueue``); ``k`` can be at most ``NUMBA_NUM_THREADS``, which numba fixes
 starts (default: the number of cores).
 
 :func:`threaded_twins` makes the threaded variants of a module's kernels from the serial
-ones, so that each pass is written once.
+ones, so that each pass is written once (the hand-written SE(3) rod loops).  The generated
+loops' threaded build is a generated module of its own, in which an operator set's threaded
+passes replace its serial operators (:meth:`cartan.compiled.operators.OperatorSet.generated`,
+``threaded=True``; the lattice's in :mod:`cartan.schemes._lattice_ops`).
 """
 
 from __future__ import annotations
@@ -98,20 +101,24 @@ def use_threads(k: int) -> Iterator[None]:
         _override = previous
 
 
-def loop_threads(nodes: int) -> int:
+def loop_threads(nodes: int, count: bool = True) -> int:
     """Threads for a loop over a grid of ``nodes`` nodes: :func:`get_threads` when it is more
     than 1 and ``nodes ≥ MIN_NODES``, else 1.  Every compiled loop that has a threaded build
-    asks here before it runs (counted by :func:`thread_queries`)."""
+    asks here before it runs; the hand-written loops are counted by :func:`thread_queries`,
+    the generated ones (``count=False``) are not: ``cartan warm`` compiles the threaded builds of
+    the first only (a generated loop's threaded build compiles on its first threaded run)."""
     global _queries
-    _queries += 1
+    if count:
+        _queries += 1
     k = get_threads()
     return k if k > 1 and nodes >= MIN_NODES else 1
 
 
 def thread_queries() -> int:
     """How many times compiled loops have asked :func:`loop_threads` for their thread count in
-    this process: a workload that leaves it unchanged never reaches a loop with a threaded
-    build (``cartan warm`` runs only the others threaded)."""
+    this process (the generated loops, which ask with ``count=False``, left out): a workload
+    that leaves it unchanged never reaches a hand-written loop with a threaded build
+    (``cartan warm`` runs only the others threaded)."""
     return _queries
 
 

@@ -52,6 +52,12 @@ class OperatorSet:
         Why the scheme declined (then every other field is empty).
     module : module or None
         The generated module of these operators and the integrators' loops, once imported.
+    threaded : list of Fragment
+        The operators' threaded build (empty: none): fragments that define ``prange`` variants
+        of the passes over nodes and edges and rebind the operators' names to them (see
+        :meth:`generated`).
+    threaded_module : module or None
+        The generated module of the threaded build, once imported.
     """
 
     label: str = ""
@@ -64,6 +70,8 @@ class OperatorSet:
     nodes: int = 0
     reason: str | None = None
     module: Any = None
+    threaded: list[Fragment] = field(default_factory=list)
+    threaded_module: Any = None
 
     @classmethod
     def declined(cls, reason: str) -> OperatorSet:
@@ -74,12 +82,24 @@ class OperatorSet:
     def ok(self) -> bool:
         return self.reason is None
 
-    def generated(self):
+    def generated(self, threaded: bool = False):
         """The generated module of these operators with every loop of :data:`LOOP_SOURCES`
-        (written and imported once per operator set; its functions compile on first call)."""
-        if self.module is None:
-            import importlib
+        (written and imported once per operator set; its functions compile on first call).
 
+        With ``threaded`` (and a set that has a threaded build, :attr:`threaded`), the module of
+        the threaded build: the same fragments followed by :attr:`threaded`, whose functions
+        replace the operators the loops call (a module global bound last is the one numba
+        compiles into a loop), in a module of its own (its own file and numba cache).  The
+        serial module's text does not change with it.
+        """
+        import importlib
+
+        if threaded and self.threaded:
+            if self.threaded_module is None:
+                loops = [importlib.import_module(name).loop_fragment() for name in LOOP_SOURCES]
+                self.threaded_module = generate(f"ops-threaded-{self.key}", [*self.fragments, *loops, *self.threaded])
+            return self.threaded_module
+        if self.module is None:
             loops = [importlib.import_module(name).loop_fragment() for name in LOOP_SOURCES]
             self.module = generate(f"ops-{self.key}", [*self.fragments, *loops])
         return self.module

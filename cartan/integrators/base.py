@@ -152,7 +152,10 @@ class Integrator(abc.ABC):
         ``kinetic_limit``.  The first run of a combination on a machine compiles its module and
         says so on stderr; later runs load it from the cache (:mod:`cartan.compiled.codegen`).
         """
+        import contextlib
+
         from .._backend import get_backend
+        from .._threads import loop_threads, numba_threads
         from ..compiled.codegen import first_call
 
         if get_backend() != "numba" or getattr(scheme, "coupled_lagrangian", False):
@@ -165,12 +168,18 @@ class Integrator(abc.ABC):
         if spec is None:
             return False
         name, args = spec
-        module = self.compiled_module(ops)
+        # the threaded build (cartan._threads) of the operator set's own module, on a large
+        # enough grid with threads requested; an integrator with a module of its own runs serially
+        threads = 1
+        if ops.threaded and type(self).compiled_module is Integrator.compiled_module:
+            threads = loop_threads(ops.nodes, count=False)
+        module = ops.generated(threaded=True) if threads > 1 else self.compiled_module(ops)
         t_start = time.perf_counter()
         config = ops.pack(state)
         S = np.ascontiguousarray(state.S, dtype=float).reshape(ops.nodes, -1).copy()
         check = 1 if self.uses_momentum else 2
-        with first_call(module, name, f"the {self.name} loop for {ops.label}"):
+        what = f"the {self.name} loop for {ops.label}" + (" (threaded build)" if threads > 1 else "")
+        with first_call(module, name, what), numba_threads(threads) if threads > 1 else contextlib.nullcontext():
             done, nforce, t, diss, ext = getattr(module, name)(
                 ops.data, config, S, *args, float(state.t), float(dt), int(nsteps),
                 float(state.scalars.get("dissipated_energy", 0.0)), float(state.scalars.get("external_work", 0.0)),

@@ -32,6 +32,13 @@ Operators (``D`` the data, ``C`` the configuration, ``K`` the work arrays of :fu
 ``op_copy_config(C, C2)``         C2 ← C (RKMK stages)
 ``op_new_config(C)``              a copy of C
 
+Threaded build (``docs/performance.md``, "Threads"): :func:`threaded_fragment` adds
+``op_x_threaded`` variants of ``op_work``, ``op_velocity``, ``op_constrain``, ``op_force``,
+``op_move``, ``op_free_flow``, ``op_drift`` and ``op_kinetic`` (``prange`` over fixed chunks,
+the force gathered per node instead of scattered per edge) and rebinds those names to them, in
+the set's threaded module only (``OperatorSet.threaded``); the results are the serial ones bit
+for bit.
+
 Data fields every set provides (beside its own): ``d``, ``r``, ``m``, ``track``, ``shape``
 (the grid shape, a tuple of ints), ``coords`` ``[n, d]`` (node coordinates in C order:
 ``np.stack(np.meshgrid(*[grid.coordinates(a) for a in range(d)], indexing="ij"), -1)``
@@ -519,6 +526,411 @@ _OPERATORS = (op_work, op_velocity, op_constrain, _dead_to_body, _field_force, _
               op_finite_config, op_copy_config, op_new_config)
 
 
+# ---------------------------------------------------------------------------- threaded build
+# The operators' passes over nodes, edges and corners as ``prange`` loops over fixed chunks of
+# ``TCHUNK_`` items (compiled with ``parallel=True`` in the threaded module only,
+# ``OperatorSet.generated(threaded=True)``; ``cartan._threads``).  Each chunk has its own work
+# arrays, and no pass writes what another chunk writes: the force, which the serial
+# ``op_force`` scatters from each edge to both its nodes, is computed per edge into edge arrays
+# and gathered per node over the node's edges in increasing edge order (the corner stresses of a
+# coupled lattice likewise, per corner and gathered per edge in increasing corner order), so that
+# every sum is taken in the serial order: the results are those of the serial operators bit for
+# bit, whatever the number of threads.  The powers stay serial (a sum over the grid in node
+# order); the kinetic energy of the blow-up test adds per-chunk sums in chunk order.
+
+def _t_chunks(count):
+    return (count + TCHUNK_ - 1) // TCHUNK_  # noqa: F821
+
+
+def _t_incidence(keys, count, rows):
+    """CSR of ``rows`` lists: ``(ptr [rows + 1], item [len(keys)])`` with item ``p`` listed in
+    row ``keys[p]``, each row's items in increasing p."""
+    ptr = np.zeros(rows + 1, dtype=np.int64)
+    for p in range(count):
+        ptr[keys[p] + 1] += 1
+    for i in range(rows):
+        ptr[i + 1] += ptr[i]
+    pos = ptr[:rows].copy()
+    item = np.empty(count, dtype=np.int64)
+    for p in range(count):
+        item[pos[keys[p]]] = p
+        pos[keys[p]] += 1
+    return ptr, item
+
+
+def op_work_threaded(D):
+    """The work arrays of :func:`op_work` and those of the threaded passes: the edges' end
+    forces ``VT``, ``VH`` ``[E, r]``, each node's edges (``2e`` as tail, ``2e + 1`` as head,
+    CSR ``nptr``/``nedge``), the corner stresses ``QC`` ``[C, d, r]`` and each edge's corners
+    (``c·d + b``, CSR ``cptr``/``ccorner``)."""
+    n = D.winv.shape[0]
+    ne = D.tail.shape[0]
+    nc = D.cw.shape[0] if D.coupled else 0
+    ends = np.empty(2 * ne, dtype=np.int64)
+    for e in range(ne):
+        ends[2 * e] = D.tail[e]
+        ends[2 * e + 1] = D.head[e]
+    nptr, nedge = _t_incidence(ends, 2 * ne, n)
+    sides = np.empty(nc * D_, dtype=np.int64)  # noqa: F821
+    for c in range(nc):
+        for b in range(D_):  # noqa: F821
+            sides[c * D_ + b] = D.cedge[c, b]  # noqa: F821
+    cptr, ccorner = _t_incidence(sides, nc * D_, ne if D.coupled else 0)  # noqa: F821
+    nce = ne if D.coupled else 0
+    return (np.empty((n, M_, M_)), np.empty((n, M_, M_)), np.empty((nce, R_)), np.empty((nce, R_)),  # noqa: F821
+            np.empty((ne, R_)), np.empty((ne, R_)), nptr, nedge, np.empty((nc, D_, R_)), cptr, ccorner)  # noqa: F821
+
+
+def op_velocity_threaded(D, S, N):
+    # (the data's fields as locals: a prange body takes arrays and numbers, not the named tuple)
+    d_any_clamped = D.any_clamped
+    d_clamped = D.clamped
+    d_inv_metric = D.inv_metric
+    n = S.shape[0]
+    for ch in prange(_t_chunks(n)):  # noqa: F821
+        for i in range(ch * TCHUNK_, min(n, (ch + 1) * TCHUNK_)):  # noqa: F821
+            if d_any_clamped and d_clamped[i]:
+                for k in range(R_):  # noqa: F821
+                    N[i, k] = 0.0
+            else:
+                for k in range(R_):  # noqa: F821
+                    v = 0.0
+                    for j in range(R_):  # noqa: F821
+                        v += d_inv_metric[k, j] * S[i, j]
+                    N[i, k] = v
+
+
+def op_constrain_threaded(D, S):
+    # (the data's fields as locals: a prange body takes arrays and numbers, not the named tuple)
+    d_any_clamped = D.any_clamped
+    d_clamped = D.clamped
+    d_live = D.live
+    n = S.shape[0]
+    for ch in prange(_t_chunks(n)):  # noqa: F821
+        for i in range(ch * TCHUNK_, min(n, (ch + 1) * TCHUNK_)):  # noqa: F821
+            zero = d_any_clamped and d_clamped[i]
+            for k in range(R_):  # noqa: F821
+                if zero or not d_live[k]:
+                    S[i, k] = 0.0
+
+
+def op_force_threaded(D, C, t, N, W, K):
+    """:func:`op_force` in threaded passes: per edge (and corner), then per node."""
+    # (the data's fields as locals: a prange body takes arrays and numbers, not the named tuple)
+    d_X0e = D.X0e
+    d_any_clamped = D.any_clamped
+    d_cX0 = D.cX0
+    d_cedge = D.cedge
+    d_clamped = D.clamped
+    d_coupled = D.coupled
+    d_cw = D.cw
+    d_damp = D.damp
+    d_eaxis = D.eaxis
+    d_einvh = D.einvh
+    d_end_div = D.end_div
+    d_end_follow = D.end_follow
+    d_end_idx = D.end_idx
+    d_end_load = D.end_load
+    d_escale = D.escale
+    d_field = D.field
+    d_has_field = D.has_field
+    d_live = D.live
+    d_params = D.params
+    d_ubody = D.ubody
+    d_winv = D.winv
+    G, Phi = C
+    VT, VH, nptr, nedge = K[4], K[5], K[6], K[7]
+    ne = G.shape[0]
+    n = W.shape[0]
+    if d_coupled:
+        XI, QC, cptr, ccorner = K[2], K[8], K[9], K[10]
+        for ch in prange(_t_chunks(ne)):  # noqa: F821
+            xi = np.empty(R_)  # noqa: F821
+            for e in range(ch * TCHUNK_, min(ne, (ch + 1) * TCHUNK_)):  # noqa: F821
+                g_log(G[e], xi)  # noqa: F821
+                for k in range(R_):  # noqa: F821
+                    XI[e, k] = xi[k]
+        nc = d_cw.shape[0]
+        for ch in prange(_t_chunks(nc)):  # noqa: F821
+            X = np.empty((D_, R_))  # noqa: F821
+            Q = np.empty((D_, R_))  # noqa: F821
+            for c in range(ch * TCHUNK_, min(nc, (ch + 1) * TCHUNK_)):  # noqa: F821
+                for b in range(D_):  # noqa: F821
+                    e = d_cedge[c, b]
+                    for k in range(R_):  # noqa: F821
+                        X[b, k] = XI[e, k] * d_einvh[e]
+                m_stress(X, d_cX0[c], d_params, Q)  # noqa: F821
+                for b in range(D_):  # noqa: F821
+                    for k in range(R_):  # noqa: F821
+                        QC[c, b, k] = Q[b, k]
+        for ch in prange(_t_chunks(ne)):  # noqa: F821
+            xi = np.empty(R_)  # noqa: F821
+            q = np.empty(R_)  # noqa: F821
+            vec = np.empty(R_)  # noqa: F821
+            vec2 = np.empty(R_)  # noqa: F821
+            for e in range(ch * TCHUNK_, min(ne, (ch + 1) * TCHUNK_)):  # noqa: F821
+                for k in range(R_):  # noqa: F821
+                    q[k] = 0.0
+                for p in range(cptr[e], cptr[e + 1]):
+                    c = ccorner[p] // D_  # noqa: F821
+                    b = ccorner[p] - c * D_  # noqa: F821
+                    f = d_cw[c] * d_einvh[e]
+                    for k in range(R_):  # noqa: F821
+                        q[k] += f * QC[c, b, k]
+                for k in range(R_):  # noqa: F821
+                    xi[k] = XI[e, k]
+                g_dexp_inv_T_pair(xi, q, vec, vec2)  # noqa: F821
+                for k in range(R_):  # noqa: F821
+                    VT[e, k] = 1.0 * vec[k]
+                    VH[e, k] = 1.0 * vec2[k]
+    else:
+        for ch in prange(_t_chunks(ne)):  # noqa: F821
+            xi = np.empty(R_)  # noqa: F821
+            vec = np.empty(R_)  # noqa: F821
+            vec2 = np.empty(R_)  # noqa: F821
+            X = np.empty((D_, R_))  # noqa: F821
+            Q = np.empty((D_, R_))  # noqa: F821
+            q = np.empty(R_)  # noqa: F821
+            for e in range(ch * TCHUNK_, min(ne, (ch + 1) * TCHUNK_)):  # noqa: F821
+                a = d_eaxis[e]
+                g_log(G[e], xi)  # noqa: F821
+                for b in range(D_):  # noqa: F821
+                    for k in range(R_):  # noqa: F821
+                        X[b, k] = d_X0e[e, b, k]
+                for k in range(R_):  # noqa: F821
+                    X[a, k] = xi[k] * d_einvh[e]
+                m_stress(X, d_X0e[e], d_params, Q)  # noqa: F821
+                for k in range(R_):  # noqa: F821
+                    q[k] = Q[a, k]
+                g_dexp_inv_T_pair(xi, q, vec, vec2)  # noqa: F821
+                s = d_escale[e]
+                for k in range(R_):  # noqa: F821
+                    VT[e, k] = s * vec[k]
+                    VH[e, k] = s * vec2[k]
+    nf = d_field.shape[0]
+    for ch in prange(_t_chunks(n)):  # noqa: F821
+        for i in range(ch * TCHUNK_, min(n, (ch + 1) * TCHUNK_)):  # noqa: F821
+            for k in range(R_):  # noqa: F821
+                W[i, k] = 0.0
+            for p in range(nptr[i], nptr[i + 1]):
+                e = nedge[p] // 2
+                if nedge[p] - 2 * e == 0:
+                    for k in range(R_):  # noqa: F821
+                        W[i, k] += VT[e, k]
+                else:
+                    for k in range(R_):  # noqa: F821
+                        W[i, k] -= VH[e, k]
+            for k in range(R_):  # noqa: F821
+                W[i, k] = W[i, k] * d_winv[i] - d_damp[k] * N[i, k] + d_ubody[k]
+            if d_has_field:
+                for k in range(nf):
+                    s = 0.0
+                    for b in range(nf):
+                        s += Phi[i, b + 1, k + 1] * d_field[b]
+                    W[i, k] += s
+    if d_end_idx.shape[0]:
+        vec = np.empty(R_)  # noqa: F821
+        for p in range(d_end_idx.shape[0]):
+            i = d_end_idx[p]
+            if d_end_follow[p]:
+                for k in range(R_):  # noqa: F821
+                    W[i, k] += d_end_load[p, k] * d_end_div[p]
+            else:
+                _dead_to_body(D, Phi[i], d_end_load[p], vec)
+                for k in range(R_):  # noqa: F821
+                    W[i, k] += vec[k] * d_end_div[p]
+    for ch in prange(_t_chunks(n)):  # noqa: F821
+        for i in range(ch * TCHUNK_, min(n, (ch + 1) * TCHUNK_)):  # noqa: F821
+            zero = d_any_clamped and d_clamped[i]
+            for k in range(R_):  # noqa: F821
+                if zero or not d_live[k]:
+                    W[i, k] = 0.0
+
+
+def op_move_threaded(D, C, Dn, K):
+    """:func:`op_move` in threaded passes (the edges read the nodes' motions only)."""
+    # (the data's fields as locals: a prange body takes arrays and numbers, not the named tuple)
+    d_head = D.head
+    d_tail = D.tail
+    G, Phi = C
+    Di = K[1]
+    n = Dn.shape[0]
+    ne = G.shape[0]
+    nf = Phi.shape[0]
+    for ch in prange(_t_chunks(n)):  # noqa: F821
+        for i in range(ch * TCHUNK_, min(n, (ch + 1) * TCHUNK_)):  # noqa: F821
+            g_inverse(Dn[i], Di[i])  # noqa: F821
+    for ch in prange(_t_chunks(ne)):  # noqa: F821
+        tmp = np.empty((M_, M_))  # noqa: F821
+        for e in range(ch * TCHUNK_, min(ne, (ch + 1) * TCHUNK_)):  # noqa: F821
+            g_compose(Di[d_tail[e]], G[e], tmp)  # noqa: F821
+            g_compose(tmp, Dn[d_head[e]], G[e])  # noqa: F821
+    for ch in prange(_t_chunks(nf)):  # noqa: F821
+        tmp = np.empty((M_, M_))  # noqa: F821
+        for i in range(ch * TCHUNK_, min(nf, (ch + 1) * TCHUNK_)):  # noqa: F821
+            for a in range(M_):  # noqa: F821
+                for b in range(M_):  # noqa: F821
+                    tmp[a, b] = Phi[i, a, b]
+            g_compose(tmp, Dn[i], Phi[i])  # noqa: F821
+
+
+def op_free_flow_threaded(D, C, S, pieces, fracs, dt, Dn, K):
+    """:func:`op_free_flow` with its pass over the nodes threaded (the same per-node steps)."""
+    # (the data's fields as locals: a prange body takes arrays and numbers, not the named tuple)
+    d_any_clamped = D.any_clamped
+    d_clamped = D.clamped
+    npieces = pieces.shape[0]
+    cnt = np.zeros((npieces, R_), dtype=np.int64)  # noqa: F821
+    col = np.empty((npieces, R_, R_), dtype=np.int64)  # noqa: F821
+    tau = np.empty(npieces)
+    axial = np.ones(npieces, dtype=np.bool_)
+    naxes = np.zeros(npieces, dtype=np.int64)
+    axes = np.empty((npieces, R_), dtype=np.int64)  # noqa: F821
+    coef = np.empty((npieces, R_))  # noqa: F821
+    for p in range(npieces):
+        tau[p] = fracs[p] * dt
+        for k in range(R_):  # noqa: F821
+            for j in range(R_):  # noqa: F821
+                if pieces[p, k, j] != 0.0:
+                    col[p, k, cnt[p, k]] = j
+                    cnt[p, k] += 1
+                    if j != k:
+                        axial[p] = False
+            if cnt[p, k]:
+                axes[p, naxes[p]] = k
+                coef[p, naxes[p]] = pieces[p, k, k]
+                naxes[p] += 1
+    eye = np.empty((M_, M_))  # noqa: F821
+    g_exp(np.zeros(R_), eye)  # noqa: F821 - the identity (a node that does not move)
+    n = S.shape[0]
+    nch = _t_chunks(n)
+    moved_chunk = np.zeros(nch, dtype=np.bool_)
+    for ch in prange(nch):  # noqa: F821
+        xi = np.zeros(R_)  # noqa: F821
+        tk = np.empty(R_)  # noqa: F821
+        out = np.empty(R_)  # noqa: F821
+        E = np.empty((M_, M_))  # noqa: F821
+        tmp = np.empty((M_, M_))  # noqa: F821
+        wk = g_work()  # noqa: F821
+        s = np.empty(R_)  # noqa: F821
+        acc = np.empty((M_, M_))  # noqa: F821
+        moved = False
+        for i in range(ch * TCHUNK_, min(n, (ch + 1) * TCHUNK_)):  # noqa: F821
+            if d_any_clamped and d_clamped[i]:
+                for a in range(M_):  # noqa: F821
+                    for b in range(M_):  # noqa: F821
+                        Dn[i, a, b] = eye[a, b]
+                continue
+            for k in range(R_):  # noqa: F821
+                s[k] = S[i, k]
+            for a in range(M_):  # noqa: F821
+                for b in range(M_):  # noqa: F821
+                    acc[a, b] = eye[a, b]
+            for p in range(npieces):
+                if axial[p]:
+                    na = naxes[p]
+                    for c in range(na):
+                        tk[c] = tau[p] * (coef[p, c] * s[axes[p, c]])
+                    for c in range(na):
+                        if tk[c] != 0.0:
+                            g_axis_flow(axes[p, c], tk[c], s, acc, wk)  # noqa: F821
+                            moved = True
+                    continue
+                moving = False
+                for k in range(R_):  # noqa: F821
+                    v = 0.0
+                    for c in range(cnt[p, k]):
+                        j = col[p, k, c]
+                        v += pieces[p, k, j] * s[j]
+                    xi[k] = tau[p] * v
+                    if v != 0.0:
+                        moving = True
+                if not moving:
+                    continue
+                moved = True
+                g_exp(xi, E)  # noqa: F821
+                g_Ad_T(E, s, out)  # noqa: F821
+                for k in range(R_):  # noqa: F821
+                    s[k] = out[k]
+                g_compose(acc, E, tmp)  # noqa: F821
+                for a in range(M_):  # noqa: F821
+                    for b in range(M_):  # noqa: F821
+                        acc[a, b] = tmp[a, b]
+            for k in range(R_):  # noqa: F821
+                S[i, k] = s[k]
+            for a in range(M_):  # noqa: F821
+                for b in range(M_):  # noqa: F821
+                    Dn[i, a, b] = acc[a, b]
+        moved_chunk[ch] = moved
+    any_moved = False
+    for ch in range(nch):
+        if moved_chunk[ch]:
+            any_moved = True
+    if any_moved:
+        op_move_threaded(D, C, Dn, K)
+    return any_moved
+
+
+def op_drift_threaded(D, C, tau, N, K):
+    Dn = K[0]
+    n = N.shape[0]
+    for ch in prange(_t_chunks(n)):  # noqa: F821
+        xi = np.empty(R_)  # noqa: F821
+        for i in range(ch * TCHUNK_, min(n, (ch + 1) * TCHUNK_)):  # noqa: F821
+            for k in range(R_):  # noqa: F821
+                xi[k] = tau * N[i, k]
+            g_exp(xi, Dn[i])  # noqa: F821
+    op_move_threaded(D, C, Dn, K)
+
+
+def op_kinetic_threaded(D, S):
+    """:func:`op_kinetic` as per-chunk sums added in chunk order (the same for any number of
+    threads; it differs from the serial sum by round-off, and only decides the blow-up test)."""
+    # (the data's fields as locals: a prange body takes arrays and numbers, not the named tuple)
+    d_any_clamped = D.any_clamped
+    d_clamped = D.clamped
+    d_diagonal = D.diagonal
+    d_inv_metric = D.inv_metric
+    d_w = D.w
+    n = S.shape[0]
+    nch = _t_chunks(n)
+    part = np.zeros(nch)
+    for ch in prange(nch):  # noqa: F821
+        e = 0.0
+        for i in range(ch * TCHUNK_, min(n, (ch + 1) * TCHUNK_)):  # noqa: F821
+            if d_any_clamped and d_clamped[i]:
+                continue
+            for k in range(R_):  # noqa: F821
+                if d_diagonal:
+                    e += 0.5 * d_w[i] * S[i, k] * S[i, k] * d_inv_metric[k, k]
+                else:
+                    v = 0.0
+                    for j in range(R_):  # noqa: F821
+                        v += d_inv_metric[k, j] * S[i, j]
+                    e += 0.5 * d_w[i] * S[i, k] * v
+        part[ch] = e
+    total = 0.0
+    for ch in range(nch):
+        total += part[ch]
+    return total
+
+
+_THREADED = (_t_chunks, _t_incidence, op_work_threaded, op_velocity_threaded, op_constrain_threaded,
+             op_force_threaded, op_move_threaded, op_free_flow_threaded, op_drift_threaded, op_kinetic_threaded)
+#: the operators the threaded build replaces (``op_x = op_x_threaded`` after the loops)
+_REPLACED = ("op_work", "op_velocity", "op_constrain", "op_force", "op_move", "op_free_flow", "op_drift",
+             "op_kinetic")
+#: items (nodes, edges, corners) per chunk of a threaded pass
+THREAD_CHUNK = 512
+
+
+def threaded_fragment() -> Fragment:
+    """The threaded build's operators (see above) and the rebinding of the operators' names."""
+    rebind = "\n".join(f"{name} = {name}_threaded" for name in _REPLACED)
+    return Fragment(constants={"TCHUNK_": THREAD_CHUNK}, source=njit_source(*_THREADED) + "\n\n\n" + rebind + "\n",
+                    parallel=tuple(f.__name__ for f in _THREADED if "prange" in f.__code__.co_names))
+
+
 # ---------------------------------------------------------------------------- building the set
 def _field_loads(scheme) -> np.ndarray | None:
     """``ρf`` ``(k,)`` summed over the ``ConstantFieldPotential`` loads (``(0,)`` without one), or
@@ -726,4 +1138,5 @@ def lattice_operators(scheme, reference: type):
                  Fragment(imports={"LatticeData": (__name__, "LatticeData")}, constants={"D_": d, "R_": r, "M_": m},
                           source=njit_source(*_OPERATORS))]
     return OperatorSet(label=f"lattice × {group!r} × {medium.name}", key=f"lattice-{group!r}-{kernel_stem(kernels)}",
-                       fragments=fragments, data=data, pack=pack, unpack=unpack, accepts=accepts, nodes=n)
+                       fragments=fragments, data=data, pack=pack, unpack=unpack, accepts=accepts, nodes=n,
+                       threaded=[threaded_fragment()])
