@@ -655,8 +655,10 @@ CASES = [NavierPlateKL(), PlateColumnBucklingKL(), HelfrichCylinderEnergy(), Hel
 
 def all_cases() -> list[Case]:
     """The cases this plugin registers."""
+    from .cases_vesicle import ProlateVesicleEnergy
     from .gauge_case import GaugeInvarianceKL
     from .plate_modes import SimplySupportedPlateModesKL
     from .vesicle import GaussBonnetTorus, WillmoreCliffordTorus
 
-    return [*CASES, SimplySupportedPlateModesKL(), GaugeInvarianceKL(), GaussBonnetTorus(), WillmoreCliffordTorus()]
+    return [*CASES, SimplySupportedPlateModesKL(), GaugeInvarianceKL(), GaussBonnetTorus(), WillmoreCliffordTorus(),
+            ProlateVesicleEnergy()]

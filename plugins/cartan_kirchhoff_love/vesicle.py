@@ -3,7 +3,10 @@ Helfrich/Willmore gradient flow with held total area and enclosed volume (paper 
 
 Everything here reads only the lattice (edge strains, corners, node frames) and the medium's
 point kernels: a *vesicle* is any closed chart (both axes periodic, identity holonomies, e.g. the
-``torus`` initial state; a sphere chart plugs in the same way) with the two global constraints.
+``torus`` initial state; or the sphere's chart, u periodic and v glued across the poles, whose glue
+the measures and the flow carry — :mod:`cartan_kirchhoff_love.vesicle_sphere`; there the lattice V of
+the (φ, θ) chart is −V, the chart being negatively oriented against the outward e₃) with the two
+global constraints.
 
 Global measures (the lattice's corner quadrature, :class:`cartan.schemes.lattice.Lattice`)
     At a corner c (node i, one incident edge per axis) the strain X_c gives the area element
@@ -115,14 +118,23 @@ HOLDS = ("area", "volume")
 def _lattice(problem: Problem, Phi: np.ndarray):
     from cartan.schemes.lattice import Lattice
 
-    scheme = Lattice(Problem(problem.medium, problem.grid, InitialState(Phi=Phi), problem.boundaries))
+    scheme = Lattice(Problem(problem.medium, problem.grid, InitialState(Phi=Phi, glue=problem.initial.glue),
+                             problem.boundaries))
     return scheme, scheme.initial_state()
 
 
+def _is_sphere_chart(grid: Any) -> bool:
+    """The sphere's chart: u periodic, v glued across the poles onto u's half-turn
+    (``Grid((N, n), …, periodic=(True, False), glued=(None, 0))``)."""
+    return (grid.d == 2 and bool(grid.periodic[0]) and not grid.periodic[1] and grid.glued is not None
+            and grid.glued[1] == 0)
+
+
 def _check_closed(grid: Any) -> None:
-    if grid.d != 2 or not all(grid.periodic):
-        raise ValueError(f"grid: a closed surface needs a d = 2 grid with both axes periodic (identity holonomies), "
-                         f"got d = {grid.d}, periodic = {tuple(grid.periodic)}")
+    if grid.d != 2 or not (all(grid.periodic) or _is_sphere_chart(grid)):
+        raise ValueError(f"grid: a closed surface needs a d = 2 grid with both axes periodic (identity holonomies) "
+                         f"or the sphere's chart (periodic u, v glued across the poles), got d = {grid.d}, "
+                         f"periodic = {tuple(grid.periodic)}, glued = {grid.glued}")
 
 
 def _corner_data(problem: Problem, Phi: np.ndarray) -> tuple[Any, np.ndarray, np.ndarray]:
@@ -167,6 +179,9 @@ def plaquette_curvature(problem: Problem, Phi: np.ndarray | None = None) -> np.n
     """Ω_p = −∮_p π_3 ``[nu, nv]``, the circulation of the edge drill angles hπ_e,3 around each
     plaquette (i, j) → (i+1, j) → (i+1, j+1) → (i, j+1): ∫_p K dA to O(h²) (module docstring)."""
     _check_closed(problem.grid)
+    if _is_sphere_chart(problem.grid):
+        raise ValueError("grid: the plaquette form is built for doubly periodic charts (a torus); the sphere's "
+                         "chart has frame singularities at its poles")
     scheme, state = _lattice(problem, np.asarray(problem.initial.Phi if Phi is None else Phi, dtype=float))
     hu, hv = problem.grid.spacing
     Xu, Xv = scheme.edge_strains(state)       # [nu, nv, 6] each on a doubly periodic grid
@@ -180,18 +195,20 @@ def gauss_bonnet(problem: Problem, Phi: np.ndarray | None = None) -> dict[str, f
     Returns
     -------
     dict
-        ``plaquette`` Σ_p Ω_p (zero to round-off on a regular frame field), ``curvature`` Σ_c w_c K_c J_c
+        ``plaquette`` Σ_p Ω_p (zero to round-off on a regular frame field; NaN on the sphere's chart,
+        whose frame field is singular at the poles), ``curvature`` Σ_c w_c K_c J_c
         (the medium's K at the corners), ``absolute`` Σ_c w_c |K_c| J_c (the scale of both),
-        ``expected`` 2πχ = 0 (a torus chart: a regular frame field).
+        ``expected`` 2πχ: 0 on a torus chart, 4π on the sphere's chart.
     """
     Phi = np.asarray(problem.initial.Phi if Phi is None else Phi, dtype=float)
     c, Xc, J = _corner_data(problem, Phi)
     b = Xc[:, :, None, 0] * Xc[:, None, :, 4] - Xc[:, :, None, 1] * Xc[:, None, :, 3]
     bs = 0.5 * (b + np.swapaxes(b, -1, -2))
     K = np.linalg.det(bs) / J ** 2
-    return {"plaquette": float(np.sum(plaquette_curvature(problem, Phi))),
+    sphere = _is_sphere_chart(problem.grid)
+    return {"plaquette": math.nan if sphere else float(np.sum(plaquette_curvature(problem, Phi))),
             "curvature": float(np.sum(c["weight"] * K * J)),
-            "absolute": float(np.sum(c["weight"] * np.abs(K) * J)), "expected": 0.0}
+            "absolute": float(np.sum(c["weight"] * np.abs(K) * J)), "expected": 4.0 * math.pi if sphere else 0.0}
 
 
 def bending_energy(problem: Problem, Phi: np.ndarray) -> float:
@@ -200,7 +217,7 @@ def bending_energy(problem: Problem, Phi: np.ndarray) -> float:
     m = problem.medium
     pure = cartan.medium("helfrich-membrane", bending_modulus=m.kb, gaussian_modulus=m.kg,
                          spontaneous_curvature=m.c0, tension=0.0, area_modulus=0.0, shear_modulus=0.0)
-    scheme, state = _lattice(Problem(pure, problem.grid, InitialState(Phi=Phi)), Phi)
+    scheme, state = _lattice(Problem(pure, problem.grid, InitialState(Phi=Phi, glue=problem.initial.glue)), Phi)
     return float(scheme.potential_energy(state))
 
 
@@ -417,8 +434,12 @@ def helfrich_flow(problem: Problem, *, steps: int = 30, tau: float = 0.05, growt
     Parameters
     ----------
     problem : Problem
-        ``helfrich-membrane`` on a doubly periodic grid; ``problem.initial`` is Φ_0 (its K_a, μ are
-        the in-plane viscosity of a step, its σ the starting tension multiplier).
+        ``helfrich-membrane`` (or a subclass) on a doubly periodic grid or on the sphere's chart (periodic
+        u, v glued across the poles; the initial state's glue is carried through every solve, only the
+        parallels are redistributed; the core's strain constraints refuse a glued axis, so there the
+        medium must hold the adaptation otherwise, e.g.
+        :class:`cartan_kirchhoff_love.vesicle_sphere.PenalisedHelfrichMembrane`); ``problem.initial`` is
+        Φ_0 (its K_a, μ are the in-plane viscosity of a step, its σ the starting tension multiplier).
     steps : int
         Minimizing-movement steps (≥ 1).
     tau, growth, tau_max : float
@@ -484,8 +505,10 @@ def helfrich_flow(problem: Problem, *, steps: int = 30, tau: float = 0.05, growt
     """
     from cartan_cosserat_surface.surface import VolumePressure
 
+    from .helfrich import HelfrichMembrane
+
     medium = problem.medium
-    if getattr(medium, "name", None) != "helfrich-membrane":
+    if not isinstance(medium, HelfrichMembrane):
         raise ValueError(f"problem: helfrich_flow needs a helfrich-membrane, got {getattr(medium, 'name', medium)!r}")
     _check_closed(problem.grid)
     hold = tuple(hold)
@@ -509,6 +532,9 @@ def helfrich_flow(problem: Problem, *, steps: int = 30, tau: float = 0.05, growt
                          f"got {redistribute!r}")
 
     grid = problem.grid
+    glue = problem.initial.glue
+    # the sphere's chart: only its parallels (axis u) are closed grid lines to redistribute along
+    lines = (0,) if _is_sphere_chart(grid) else (0, 1)
     Phi = np.asarray(problem.initial.Phi, dtype=float)
     m0 = surface_measures(problem, Phi)
     goal = {h: float((targets or {}).get(h, m0[h])) for h in hold}
@@ -532,7 +558,7 @@ def helfrich_flow(problem: Problem, *, steps: int = 30, tau: float = 0.05, growt
     def advance(Phi: np.ndarray, dt: float, mult: dict[str, float], jac: np.ndarray | None):
         """One minimizing-movement step of length dt: (result, Φ_{n+1}, multipliers, Jacobian,
         relative constraint residuals, static solves)."""
-        start = InitialState(Phi=Phi)
+        start = InitialState(Phi=Phi, glue=glue)
         tether = (Tether(Phi[..., 1:, 0], 1.0 / dt) if motion == "free"
                   else NormalTether(Phi[..., 1:, 0], Phi[..., 1:, 3], 1.0 / dt, tangential_penalty))
         solves = 0
@@ -543,7 +569,7 @@ def helfrich_flow(problem: Problem, *, steps: int = 30, tau: float = 0.05, growt
             med = type(medium)(**{**base, **step_params}).with_tension(m["area"])
             loads = [tether] + ([VolumePressure(m["volume"])] if m["volume"] != 0.0 else [])
             pb = Problem(med, grid, start, reference=start if mesh == "step" else problem.initial, loads=loads)
-            out = cartan.solve_static(pb, tol=tol, initial=InitialState(Phi=guess))
+            out = cartan.solve_static(pb, tol=tol, initial=InitialState(Phi=guess, glue=glue))
             P = _frames_of(out)
             meas = surface_measures(problem, P)
             return out, P, np.array([meas[h] / goal[h] - 1.0 for h in hold])
@@ -579,7 +605,7 @@ def helfrich_flow(problem: Problem, *, steps: int = 30, tau: float = 0.05, growt
     for n in range(int(steps)):
         shift = 0.0
         if redistribute and n > 0 and n % int(redistribute) == 0:
-            Phi, shift = redistribute_mesh(Phi)
+            Phi, shift = redistribute_mesh(Phi, axes=lines)
         for attempt in range(max_retries + 1):
             try:
                 out, P, new_mult, new_jac, res, solves = advance(Phi, dt, mult, jac)
