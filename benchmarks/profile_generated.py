@@ -9,14 +9,21 @@ and frames follow the nodes), ``op_drift`` (collocation: one exact drift, strain
 and ``op_velocity``; each is reported in ns per node, the median of several repetitions.  A
 report for the terminal::
 
-    python benchmarks/profile_generated.py [--scheme lattice|collocation] [--cpu] [case ...]
+    python benchmarks/profile_generated.py [--scheme lattice|collocation] [--wall] [--gross] [case ...]
 
 On the collocation scheme the T1 rod takes ``fd4`` with stepped frames (the scheme options of
-``compare.T5_FD4``), the other cases ``fd2``.  ``--cpu`` times with the process's CPU time
-instead of the wall clock (steadier on a shared machine).  Each operator is called from
-Python, so every figure includes the call's unboxing of the problem data (tens of
-microseconds per call: tens of ns per node at n = 1000), which the loops, calling the operators
-from compiled code, do not pay.
+``compare.T5_FD4``), the other cases ``fd2``.  The clock is the process's CPU time
+(``time.process_time``: every thread of the process, steadier than the wall clock on a shared
+machine); ``--wall`` times with the wall clock instead (``--cpu``, the former switch, is
+accepted and is the default).
+
+Each operator is called from Python, which costs what the loops, calling the operators from
+compiled code, do not pay: the dispatch and the unboxing of the arguments (the problem data
+``D`` is a tuple of tens of arrays: 10–50 µs per call, 10–50 ns per node at n = 1000).  That
+cost is measured for each operator by calling a compiled function that does nothing with the
+same arguments (:func:`call_cost`), and subtracted from the operator's figure; the report
+states it (``call``: one call's cost in ns per node, the largest over the operators).
+``--gross`` reports the figures with the call included.
 """
 
 from __future__ import annotations
@@ -27,6 +34,7 @@ import sys
 import time
 
 import numpy as np
+from numba import njit
 
 import cartan
 
@@ -39,8 +47,9 @@ CASES = ["t1-rod", "so3-quadratic-gen", "so3-quartic", "se3-coupled", "s3-sigma"
 SCHEMES = ("lattice", "collocation")
 
 
-#: the clock of :func:`_median` (``main`` sets ``time.process_time`` for ``--cpu``)
-CLOCK = time.perf_counter
+#: the clock of :func:`_median`: CPU time of the process (``main`` sets ``time.perf_counter`` for
+#: ``--wall``)
+CLOCK = time.process_time
 
 
 def _median(call, reps: int = 7, inner: int = 10) -> float:
@@ -51,6 +60,44 @@ def _median(call, reps: int = 7, inner: int = 10) -> float:
             call()
         times.append((CLOCK() - t0) / inner)
     return float(np.median(times))
+
+
+@njit
+def _null3(a, b, c):  # pragma: no cover - compiled
+    return None
+
+
+@njit
+def _null4(a, b, c, d):  # pragma: no cover - compiled
+    return None
+
+
+@njit
+def _null5(a, b, c, d, e):  # pragma: no cover - compiled
+    return None
+
+
+@njit
+def _null6(a, b, c, d, e, f):  # pragma: no cover - compiled
+    return None
+
+
+@njit
+def _null8(a, b, c, d, e, f, g, h):  # pragma: no cover - compiled
+    return None
+
+
+#: a compiled function that does nothing, by number of arguments
+_NULL = {3: _null3, 4: _null4, 5: _null5, 6: _null6, 8: _null8}
+
+
+def call_cost(args, inner: int = 10) -> float:
+    """Seconds (on :data:`CLOCK`) of one call from Python of a compiled function that does nothing
+    with the arguments ``args()`` (a callable, so that copies made per call are counted too): the
+    dispatch and unboxing that every operator call of :func:`profile_run` pays."""
+    null = _NULL[len(args())]
+    null(*args())  # compile for these types
+    return _median(lambda: null(*args()), inner=inner)
 
 
 def _scheme(case: str, scheme_name: str = "lattice"):
@@ -75,15 +122,20 @@ def _scheme(case: str, scheme_name: str = "lattice"):
     return scheme, integrator, state, dt
 
 
-def profile(case: str, scheme_name: str = "lattice") -> dict[str, float]:
-    """ns per node of each operator of one lie-verlet step of ``case`` on ``scheme_name``."""
-    return profile_run(*_scheme(case, scheme_name), scheme_name=scheme_name)
+def profile(case: str, scheme_name: str = "lattice", subtract_call: bool = True) -> dict[str, float]:
+    """ns per node of each operator of one lie-verlet step of ``case`` on ``scheme_name``
+    (:func:`profile_run`)."""
+    return profile_run(*_scheme(case, scheme_name), scheme_name=scheme_name, subtract_call=subtract_call)
 
 
 def profile_run(scheme, integrator, state, dt: float, scheme_name: str = "lattice",
-                inner: int = 10) -> dict[str, float]:
+                inner: int = 10, subtract_call: bool = True) -> dict[str, float]:
     """ns per node of each operator of one generated lie-verlet step of a built problem
-    (``inner`` calls per timed repetition, on :data:`CLOCK`)."""
+    (``inner`` calls per timed repetition, on :data:`CLOCK`).
+
+    With ``subtract_call`` (the default) each figure is net of the cost of calling the operator
+    from Python (:func:`call_cost` with the operator's arguments), and the entry ``"call"`` is
+    that cost, per node, the largest over the operators; without, the figures include it."""
     ops = scheme.compiled_operators()
     module = ops.generated() if hasattr(ops, "generated") else ops.module
     D = ops.data
@@ -96,38 +148,50 @@ def profile_run(scheme, integrator, state, dt: float, scheme_name: str = "lattic
     pieces, fracs = integrator.compiled_loop(scheme, state, dt)[1][3:5]
     Dn = np.empty((n, m, m))
     tiny = 1e-9 * dt  # the free flow barely moves S (and C) between repetitions
+    # each operator: (the compiled function, its arguments made per call)
+    calls = {"force": (module.op_force, lambda: (D, C, 0.0, N, W, K))}
     if hasattr(module, "op_free_flow"):
-        def flow():
-            return module.op_free_flow(D, C, S.copy(), pieces, fracs, tiny, Dn, K)
+        calls["free flow"] = (module.op_free_flow, lambda: (D, C, S.copy(), pieces, fracs, tiny, Dn, K))
     else:
-        def flow():
-            return module._free_flow(D, S.copy(), pieces, fracs, tiny, Dn)
-    flow()
-    cost = {
-        "force": _median(inner=inner, call=lambda: module.op_force(D, C, 0.0, N, W, K)),
-        "free flow": _median(flow, inner=inner),
-    }
+        calls["free flow"] = (module._free_flow, lambda: (D, S.copy(), pieces, fracs, tiny, Dn))
     if scheme_name == "lattice":
-        cost["move"] = _median(inner=inner, call=lambda: module.op_move(D, C, Dn, K))
+        calls["move"] = (module.op_move, lambda: (D, C, Dn, K))
     else:
-        cost["drift"] = _median(inner=inner, call=lambda: module.op_drift(D, C, tiny, N, K))
-    cost["velocity"] = _median(inner=inner, call=lambda: module.op_velocity(D, S, N))
-    return {k: v / n * 1e9 for k, v in cost.items()}
+        calls["drift"] = (module.op_drift, lambda: (D, C, tiny, N, K))
+    calls["velocity"] = (module.op_velocity, lambda: (D, S, N))
+    cost, overhead = {}, {}
+    for name, (func, args) in calls.items():
+        func(*args())  # compiled (or loaded) before timing
+        cost[name] = _median(lambda func=func, args=args: func(*args()), inner=inner)
+        if subtract_call:
+            overhead[name] = call_cost(args, inner=inner)
+            cost[name] -= overhead[name]
+    out = {k: v / n * 1e9 for k, v in cost.items()}
+    if subtract_call:
+        out["call"] = max(overhead.values()) / n * 1e9
+    return out
 
 
 def main(argv: list[str] | None = None) -> None:  # pragma: no cover - a report for the terminal
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--scheme", choices=SCHEMES, default="lattice")
-    parser.add_argument("--cpu", action="store_true", help="time with the process's CPU time")
+    clock = parser.add_mutually_exclusive_group()
+    clock.add_argument("--wall", action="store_true", help="time with the wall clock (default: CPU time)")
+    clock.add_argument("--cpu", action="store_true", help="time with the process's CPU time (the default)")
+    parser.add_argument("--gross", action="store_true",
+                        help="include the cost of calling each operator from Python (default: subtracted)")
     parser.add_argument("cases", nargs="*", default=CASES)
     args = parser.parse_args(argv)
-    if args.cpu:
-        global CLOCK
-        CLOCK = time.process_time
+    global CLOCK
+    CLOCK = time.perf_counter if args.wall else time.process_time
+    what = ("wall" if args.wall else "CPU") + " time, ns per node" + (
+        ", the Python call included" if args.gross else ", net of the Python call")
     for case in args.cases:
-        cost = profile(case, args.scheme)
+        cost = profile(case, args.scheme, subtract_call=not args.gross)
+        call = cost.pop("call", None)
         parts = "  ".join(f"{k} {v:7.1f}" for k, v in cost.items())
-        print(f"{case:20s} {parts}  (ns per node)")
+        tail = f"  (call {call:5.1f} subtracted)" if call is not None else ""
+        print(f"{case:20s} {parts}{tail}  ({what})")
 
 
 if __name__ == "__main__":

@@ -17,7 +17,8 @@ __all__ = ["solve_augmented"]
 def solve_augmented(A, out):  # pragma: no cover - compiled
     """``out`` (n,) ← the solution of ``A[:, :n] x = A[:, n]``, by Gaussian elimination with
     partial pivoting; ``A`` (n, n + 1) is overwritten.  Returns False (``out`` undefined) when
-    a pivot is zero or not finite."""
+    a pivot is zero or NaN (an infinite entry is not detected: it gives non-finite or wrong
+    values in ``out``)."""
     n = A.shape[0]
     for k in range(n):
         piv = k

@@ -13,14 +13,15 @@ written once here as plain Python over the operators of a scheme
 kernels (``g_exp``, ``g_Ad``, ``g_dexp_inv_T``, ``g_hat``); :func:`loop_fragment` puts them in
 the generated module of each (scheme, group, medium), so they run on every scheme with an
 operator set and every group with point kernels.  ``B(ξ)ᵀW`` is solved per node by Gaussian
-elimination with partial pivoting (:func:`_im_solve_T`).
+elimination with partial pivoting (:func:`_im_solve_T`, :func:`cartan.compiled.linalg.solve_augmented`).
 
 Compiled functions of the generated module (``ImplicitMidpoint`` drives them):
 
 ``im_residual(D, C0, Cw, S, xi, dt, t, mass, dom, radius, B, K) -> bool``
     R(ξ) and its pieces ``B = [N, W, μ, BW, Dmu, R]`` (``[6, n, r]``) for the step's
     configuration ``C0`` (read only; ``Cw`` a work copy left at the midpoint); False when ξ
-    is outside the domain of dexp⁻¹ (``dom``: how the group measures it, :func:`domain_rule`).
+    is outside the domain of dexp⁻¹ (``dom``: how the group measures it, :func:`domain_rule`)
+    or ``I + Ad_{exp(ξ/2)}`` is singular at a node (a zero pivot; not met inside that domain).
 ``im_momentum(xi, mu, W, BW, dt, out)``
     The end-of-step momentum.
 ``im_norm(w, idx, y)``, ``im_lu_solve(...)``
@@ -75,44 +76,21 @@ def _im_in_domain(xi, dom, radius):
 
 
 def _im_solve_T(A, w, out, Mw):
-    """``out = (I + A)⁻ᵀ w`` for one ``r × r`` matrix by Gaussian elimination with partial
-    pivoting (``Mw`` ``[r, r + 1]`` work: the augmented matrix)."""
+    """``out = (I + A)⁻ᵀ w`` for one ``r × r`` matrix (``Mw`` ``[r, r + 1]`` work: the augmented
+    matrix) by :func:`cartan.compiled.linalg.solve_augmented`; False on a zero or NaN pivot."""
     r = w.shape[0]
     for a in range(r):
         for b in range(r):
             Mw[a, b] = A[b, a]
         Mw[a, a] += 1.0
         Mw[a, r] = w[a]
-    for k in range(r):
-        p = k
-        big = abs(Mw[k, k])
-        for a in range(k + 1, r):
-            v = abs(Mw[a, k])
-            if v > big:
-                big = v
-                p = a
-        if p != k:
-            for b in range(k, r + 1):
-                tmp = Mw[k, b]
-                Mw[k, b] = Mw[p, b]
-                Mw[p, b] = tmp
-        piv = Mw[k, k]
-        for a in range(k + 1, r):
-            f = Mw[a, k] / piv
-            if f != 0.0:
-                for b in range(k + 1, r + 1):
-                    Mw[a, b] -= f * Mw[k, b]
-    for a in range(r - 1, -1, -1):
-        acc = Mw[a, r]
-        for b in range(a + 1, r):
-            acc -= Mw[a, b] * out[b]
-        out[a] = acc / Mw[a, a]
+    return solve_augmented(Mw, out)  # noqa: F821
 
 
 def im_residual(D, C0, Cw, S, xi, dt, t, mass, dom, radius, B, K):
     """The stage residual at ξ ``[n, r]`` into ``B`` ``[6, n, r]`` (N = ξ/Δt, W, μ, BW, Dmu, R);
     ``Cw`` ← the midpoint configuration ``C0·exp(ξ/2)``; False (nothing computed) outside the
-    domain of dexp⁻¹."""
+    domain of dexp⁻¹, False (``B`` partly computed) where ``I + Ad_{exp(ξ/2)}`` is singular."""
     if not _im_in_domain(xi, dom, radius):
         return False
     op_copy_config(C0, Cw)  # noqa: F821
@@ -138,7 +116,8 @@ def im_residual(D, C0, Cw, S, xi, dt, t, mass, dom, radius, B, K):
             m[k] = mu[i, k]
         g_exp(h, E)  # noqa: F821
         g_Ad(E, A)  # noqa: F821
-        _im_solve_T(A, W[i], BW[i], Mw)
+        if not _im_solve_T(A, W[i], BW[i], Mw):
+            return False
         g_dexp_inv_T(x, m, vec)  # noqa: F821
         for k in range(R_):  # noqa: F821
             Dmu[i, k] = vec[k]
@@ -394,7 +373,8 @@ def implicit_loop(D, C, Cw, S, mass, dom, radius, unk, w_over_m, w_times_m, lu, 
 
 def loop_fragment() -> Fragment:
     """The residual, the end of a step and Newton's loop as one fragment of a generated module."""
-    return Fragment(source=njit_source(_im_in_domain, _im_solve_T, im_residual, im_momentum, im_norm, im_lu_solve,
+    return Fragment(imports={"solve_augmented": ("cartan.compiled.linalg", "solve_augmented")},
+                    source=njit_source(_im_in_domain, _im_solve_T, im_residual, im_momentum, im_norm, im_lu_solve,
                                        _im_slot, _im_norms, implicit_loop))
 
 
