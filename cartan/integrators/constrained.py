@@ -13,14 +13,17 @@ step is RATTLE (Andersen 1983; Leimkuhler & Skeel 1994) on the lie-verlet splitt
 
 1. half kick with the position multiplier ν:  S½ = Sₙ + ½Δt(Wₙ + B_c(Φₙ)ᵀν/w);
 2. lie-verlet's exact split free flow over Δt from (Φₙ, S½), giving Φₙ₊₁(ν);
-3. ν solves c(Φₙ₊₁(ν)) = 0 — a chord iteration from the prediction λₙ + (ν − λ)ₙ₋₁: λₙ the
+3. ν solves c(Φₙ₊₁(ν)) = 0 — a chord iteration from the prediction λₙ + (ν − λ)*: λₙ the
    force-level multiplier (the one that keeps the constraints' acceleration at zero), plus the
-   last step's offset between its ν and its λ, which changes by O(Δt) of itself from step to
-   step (ν is the force-level multiplier to O(Δt): the offset is smooth, the step-to-step
-   variation of λ, fast waves included, is in λₙ).  The offset travels in ``State.memory``
-   (``rattle_offset``, with the Δt that left it, ``rattle_offset_dt``; checkpoints carry it, so
-   restarts stay bit for bit); it is used only when it was left by a step of the same Δt, and
-   not after a configuration projection.  The stored ν gets one more correction with the last
+   offset between ν and λ extrapolated from the last three steps, 3oₙ₋₁ − 3oₙ₋₂ + oₙ₋₃
+   (oₖ = (ν − λ)ₖ; linear or constant when only two or one are at hand). The offset changes by
+   O(Δt) of itself from step to step (ν is the force-level multiplier to O(Δt): the offset is
+   smooth, the step-to-step variation of λ, fast waves included, is in λₙ), so its quadratic
+   extrapolation is 3–15 times closer to the converged ν than the last offset alone.  The
+   offsets travel in ``State.memory`` (``rattle_offset`` ``(3, ncon)``, newest first, with the
+   Δt that left each, ``rattle_offset_dt`` ``(3,)``; checkpoints carry them, so restarts stay
+   bit for bit); the leading ones left by steps of the same Δt are used, none after a
+   configuration projection.  The stored ν gets one more correction with the last
    matrix (a solve, no flow): the converged ν is fixed to the tolerance only, and that noise
    would otherwise enter the next prediction.  The prediction changes where the iteration
    starts, not where it ends.  The chord matrix is ½Δt·Δt·B_c(Φₙ) P B_c(Φₙ)ᵀ
@@ -72,30 +75,59 @@ _MAX_ITERATIONS = 40
 _SLOW = 0.25
 
 
-#: the keys of ``State.memory`` that carry the multipliers' offset ν − λ of the last step and its Δt
+#: the keys of ``State.memory`` that carry the multipliers' offsets ν − λ of the last steps and their Δt
 _OFFSET = "rattle_offset"
 _OFFSET_DT = "rattle_offset_dt"
 
 
+#: the offsets ν − λ kept: the predictor extrapolates up to this many (quadratically for three)
+_HISTORY = 3
+
+
 def _stored(state: State, ncon: int) -> tuple[np.ndarray, np.ndarray] | None:
-    """``(ν − λ (ncon,), its Δt (1,))`` of ``state.memory`` when it holds a pair that fits these rows."""
+    """``(ν − λ (3, ncon), their Δt (3,))`` of ``state.memory`` (the last three steps, newest
+    first; Δt = 0: none) when it holds a pair that fits these rows."""
     off, at = state.memory.get(_OFFSET), state.memory.get(_OFFSET_DT)
-    if off is None or at is None or np.shape(off) != (ncon,) or np.shape(at) != (1,):
+    if off is None or at is None or np.shape(off) != (_HISTORY, ncon) or np.shape(at) != (_HISTORY,):
         return None
     return off, at
 
 
-def _offset(state: State, ncon: int, dt: float) -> np.ndarray | None:
-    """The last step's ν − λ ``(ncon,)`` from ``state.memory`` when it was left by a step of
-    this Δt on these rows, else None (the predictor is then λ alone)."""
+def _offset(state: State, ncon: int, dt: float) -> tuple[np.ndarray | None, int]:
+    """``(the predicted offset (ncon,), k)``: the offsets ν − λ of the last k steps taken with
+    this Δt (the leading run of ``state.memory``'s, at most three) extrapolated to this step —
+    o₀, 2o₀ − o₁ or 3o₀ − 3o₁ + o₂ (o₀ the newest: constant, linear or quadratic in the step
+    number); ``(None, 0)`` when there is none (the predictor is then λ alone)."""
     stored = _stored(state, ncon)
-    return stored[0] if stored is not None and float(stored[1][0]) == dt else None
+    if stored is None:
+        return None, 0
+    off, at = stored
+    k = 0
+    while k < _HISTORY and float(at[k]) == dt:
+        k += 1
+    if k == 0:
+        return None, 0
+    if k == 1:
+        return off[0], 1
+    if k == 2:
+        return 2.0 * off[0] - off[1], 2
+    return 3.0 * off[0] - 3.0 * off[1] + off[2], 3
+
+
+def _remember(state: State, ncon: int, new: np.ndarray, dt: float, keep: bool) -> None:
+    """Put this step's offset ``new`` (ncon,) first in ``state.memory``'s, the older ones moved
+    down (``keep`` False: they no longer count, their Δt is cleared — after a projection)."""
+    off, at = _stored(state, ncon) or (np.zeros((_HISTORY, ncon)), np.zeros(_HISTORY))
+    off = np.concatenate([new[None, :], off[:-1]])
+    at = np.concatenate([[dt], at[:-1] if keep else np.zeros(_HISTORY - 1)])
+    state.memory[_OFFSET], state.memory[_OFFSET_DT] = off, at
 
 
 def _memory(state: State, ncon: int) -> tuple[np.ndarray, np.ndarray]:
-    """The arrays ``(ν − λ (ncon,), its Δt (1,))`` of ``state.memory`` that the compiled loop
-    reads and updates in place; zeros (no offset: Δt = 0) when the state holds none that fit."""
-    off, at = _stored(state, ncon) or (np.zeros(ncon), np.zeros(1))
+    """The arrays ``(ν − λ (3, ncon), their Δt (3,))`` of ``state.memory`` that the compiled
+    loop reads and updates in place; zeros (no offset: Δt = 0) when the state holds none that
+    fit."""
+    off, at = _stored(state, ncon) or (np.zeros((_HISTORY, ncon)), np.zeros(_HISTORY))
     off = np.require(off, dtype=float, requirements=["C", "W"])
     at = np.require(at, dtype=float, requirements=["C", "W"])
     state.memory[_OFFSET], state.memory[_OFFSET_DT] = off, at
@@ -181,7 +213,7 @@ class Rattle(LieVerlet):
         status = np.zeros(2, dtype=np.int64)
         info = np.zeros(1)
         return "rattle_loop", (W, bool(have), velocity_free, pieces, fracs, closing, comp, value, scale,
-                               offset.reshape(-1, comp.size), offset_dt, status, info)
+                               offset.reshape(_HISTORY, -1, comp.size), offset_dt, status, info)
 
     def _loop_static(self, scheme: Scheme, state: State, dt: float) -> tuple | str | None:
         """The arguments of ``rattle_loop`` fixed by (scheme, problem, Δt): ``(velocity_free,
@@ -417,11 +449,11 @@ class Rattle(LieVerlet):
         half = 0.5 * dt
         # the step starts on the manifold, with a tangent velocity
         c0 = con.values(state)
-        offset = _offset(state, con.ncon, dt)
+        offset, nprev = _offset(state, con.ncon, dt)
         if np.max(np.abs(c0), initial=0.0) > 1e-10 * scale:
             self._project_configuration(scheme, state, held)
             self._fsal = self._matrix_at = None
-            offset = None
+            offset, nprev = None, 0
         key = (id(state), state.t, state.scalars.get("nstep", 0))
         B0 = self._matrix_at[1] if self._matrix_at is not None and self._matrix_at[0] == key else con.matrix(state)
         self._project_velocity(scheme, state, B0, None, half, held, skip_tangent=True)
@@ -459,8 +491,7 @@ class Rattle(LieVerlet):
         # the next step's offset ν − λ, ν with one more correction of the last matrix (no flow: the
         # converged ν is fixed to the tolerance only, the corrected one to its square)
         nu = nu - (lu0.solve(c) / (half * dt) if lu is None else lu.solve(c))
-        state.memory[_OFFSET] = nu - lam
-        state.memory[_OFFSET_DT] = np.array([dt])
+        _remember(state, con.ncon, nu - lam, dt, nprev > 0)
         t1 = state.t + dt
         W1 = self._closing_kick(scheme, state, dt, t1)
         self._fsal = ((id(state), t1, state.scalars.get("nstep", 0) + 1), W1)

@@ -14,17 +14,18 @@ node j (``[E, c, r]``, columns of every component; the node operators ``P`` ``[n
 zero on the gauge components and at clamped nodes, so only the unknowns enter).  On a chain of
 nodes (d = 1, open; edge e from node e to node e + 1) the multiplier matrices
 ``L P Rᵀ`` couple an edge with its neighbours only: block-tridiagonal, ``[E, c, c]`` blocks,
-factored and solved in O(E c³) (:mod:`cartan.compiled.banded`).
+factored and solved in O(E c³) (:mod:`cartan.compiled.banded`; the symmetric positive definite
+``B P Bᵀ`` by the block Cholesky factorisation, the quasi-Newton matrix by the block LU).
 
 Per step: the rows at the start (the previous step's closing rows), the start's velocity
 projection (skipped when tangent), the force (first-same-as-last when no force depends on N),
-the predicted multiplier λ + (ν − λ) of the last step (``offset``,
-:class:`~cartan.state.State`'s ``memory``; its factorization of ``B₀ P B₀ᵀ`` is the chord
-matrix of the iteration; Ḃ_c N in closed form from the rows' ``dexp⁻¹`` that
+the predicted multiplier λ plus the offset ν − λ extrapolated from the last three steps
+(``offset``, :class:`~cartan.state.State`'s ``memory``; its factorization of ``B₀ P B₀ᵀ`` is
+the chord matrix of the iteration; Ḃ_c N in closed form from the rows' ``dexp⁻¹`` that
 :func:`rattle_rows` keeps, :func:`_rattle_rate`), two to five trial flows (a quasi-Newton
 factorization only when the chord gains less than a factor ``SLOW_``), the next step's offset
-(ν with one more correction,
-a solve), the rows at the end and the closing kick with its velocity projection (one
+(ν with one more correction, a solve), the rows at the end (from the last trial's logarithms,
+which :func:`rattle_values` keeps) and the closing kick with its velocity projection (one
 factorization, reused by the next step's start when no load depends on N, or when the damping
 is proportional to the inertia: the closing matrix is then s·I on the live block and ``B
 P_closing Bᵀ = s·B P Bᵀ``). With damping the force a step starts from is the one the closing
@@ -41,7 +42,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..compiled.banded import bt_factor, bt_solve, small_inverse
+from ..compiled.banded import bs_factor, bs_solve, bt_factor, bt_solve, small_inverse
 from ..compiled.codegen import Fragment, njit_source
 from .constrained import _MAX_ITERATIONS as MAX_ITERATIONS
 from .constrained import _SLOW as SLOW
@@ -50,14 +51,18 @@ __all__ = ["loop_fragment"]
 
 
 # ---------------------------------------------------------------------------- the rows
-def rattle_values(D, C, comp, value, out):
-    """``out[e, a] = log(G_e)[comp_a]/h − value_a`` ``[E, c]``; returns max |out| (NaN if any is NaN)."""
+def rattle_values(D, C, comp, value, out, Xe):
+    """``out[e, a] = log(G_e)[comp_a]/h − value_a`` ``[E, c]``; returns max |out| (NaN if any is
+    NaN).  Keeps the logarithms ``hX_e = log(G_e)`` in ``Xe`` ``[E, r]``: the rows at the same
+    configuration (:func:`rattle_rows` with ``have_log``) take them instead of a second log."""
     G = C[0]
     xi = np.empty(R_)  # noqa: F821
     big = 0.0
     finite = True
     for e in range(G.shape[0]):
         g_log(G[e], xi)  # noqa: F821
+        for k in range(R_):  # noqa: F821
+            Xe[e, k] = xi[k]
         for a in range(comp.shape[0]):
             v = xi[comp[a]] * D.einvh[e] - value[a]
             out[e, a] = v
@@ -68,9 +73,11 @@ def rattle_values(D, C, comp, value, out):
     return big if finite else np.nan
 
 
-def rattle_rows(D, C, comp, Bt, Bh, Ae, Xe):
+def rattle_rows(D, C, comp, Bt, Bh, Ae, Xe, have_log):
     """The rows of B_c at C: ``Bt[e] = −dexp⁻¹(hX_e)[comp]/h``, ``Bh[e] = dexp⁻¹(−hX_e)[comp]/h``
     ``[E, c, r]``; returns the largest entry on the unknowns (live components, free nodes).
+    With ``have_log``, ``Xe`` already holds ``hX_e`` at C (:func:`rattle_values` at the same
+    configuration was the last to write it): no logarithm is taken again.
     ``dexp⁻¹(−ξ)`` is ``dexp⁻¹(ξ) + ad_ξ`` (``x/(eˣ − 1)`` at −x is ``x/(eˣ − 1) + x``): one
     ``g_dexp_inv`` per edge.  Keeps ``hX_e`` in ``Xe`` ``[E, r]`` and all of ``dexp⁻¹(hX_e)`` in
     ``Ae`` ``[E, r, r]``, for the rows' rate :func:`_rattle_rate`."""
@@ -80,7 +87,11 @@ def rattle_rows(D, C, comp, Bt, Bh, Ae, Xe):
     ad = np.empty((R_, R_))  # noqa: F821
     big = 0.0
     for e in range(G.shape[0]):
-        g_log(G[e], xi)  # noqa: F821
+        if have_log:
+            for k in range(R_):  # noqa: F821
+                xi[k] = Xe[e, k]
+        else:
+            g_log(G[e], xi)  # noqa: F821
         ih = D.einvh[e]
         i, j = D.tail[e], D.head[e]
         free_i = not (D.any_clamped and D.clamped[i])
@@ -223,6 +234,34 @@ def rattle_factor(D, Lt, Lh, P, Rt, Rh, F, pdiag):
     return bt_factor(sub, dia, sup, inv, mult)
 
 
+def rattle_factor_sym(D, B_t, B_h, P, F, pdiag):
+    """Assemble and factor the symmetric positive definite ``B P Bᵀ`` on the chain by the block
+    Cholesky factorisation (:func:`~cartan.compiled.banded.bs_factor`; ``F = (sub, diag, -, L,
+    M)``, each ``[E, c, c]``, solved by ``bs_solve(F[3], F[4], ·, ·)``): the lower triangle of
+    the diagonal ``Bt_e P_i Bt_eᵀ + Bh_e P_j Bh_eᵀ`` and the block below it
+    ``Bt_e P_i Bh_{e−1}ᵀ`` (node i = tail of e = head of e − 1; the block above is its
+    transpose, P symmetric), each node's ``P Bᵀ`` formed once; returns False when the matrix is
+    not positive definite to working precision (``pdiag`` as in :func:`rattle_factor`)."""
+    sub, dia = F[0], F[1]
+    ne = B_t.shape[0]
+    c = B_t.shape[1]
+    Tt = np.empty((R_, c))  # noqa: F821
+    Th = np.empty((R_, c))  # noqa: F821
+    for e in range(ne):
+        i, j = D.tail[e], D.head[e]
+        _rattle_right(P, i, B_t, e, Tt, pdiag)
+        _rattle_right(P, j, B_h, e, Th, pdiag)
+        for a in range(c):
+            for b in range(a + 1):
+                s = 0.0
+                for k in range(R_):  # noqa: F821
+                    s += B_t[e, a, k] * Tt[k, b] + B_h[e, a, k] * Th[k, b]
+                dia[e, a, b] = s
+        if e < ne - 1:
+            _rattle_left(B_t, e + 1, Th, sub, e + 1, False)
+    return bs_factor(sub, dia, F[3], F[4])
+
+
 def rattle_apply(D, Bt, Bh, V, out):
     """``out[e] = Bt_e V_i + Bh_e V_j`` ``[E, c]`` (B_c applied to a nodal field ``V`` ``[n, r]``)."""
     for e in range(Bt.shape[0]):
@@ -257,9 +296,10 @@ def rattle_impulse(D, Bt, Bh, nu, out):
 def rattle_project_velocity(D, S, N, Bt, Bh, bmax, F, factored, P, pdiag, fscale, closing, use_closing, half, skip,
                             res, mu, imp):
     """Add the impulse ``½Δt·closing·B_cᵀμ/w`` that makes ``B_c N = 0``: ``(B P Bᵀ)μ = −B N/(½Δt)``
-    with ``F`` the factors of ``B P Bᵀ/fscale`` (built here, with ``fscale`` = 1, unless
-    ``factored``); with ``skip``, nothing when ``max|B N| ≤ 1e-13·max|B|·max|N|`` (tangent to
-    round-off).  ``N`` is the velocity of ``S`` on entry.  Returns ``(projected, factored, ok)``."""
+    with ``F`` the block Cholesky factors of ``B P Bᵀ/fscale`` (:func:`rattle_factor_sym`; built
+    here, with ``fscale`` = 1, unless ``factored``); with ``skip``, nothing when
+    ``max|B N| ≤ 1e-13·max|B|·max|N|`` (tangent to round-off).  ``N`` is the velocity of ``S``
+    on entry.  Returns ``(projected, factored, ok)``."""
     rattle_apply(D, Bt, Bh, N, res)
     if skip:
         rmax = 0.0
@@ -273,10 +313,10 @@ def rattle_project_velocity(D, S, N, Bt, Bh, bmax, F, factored, P, pdiag, fscale
         if rmax <= 1e-13 * bmax * nmax:
             return False, factored, True
     if not factored:
-        if not rattle_factor(D, Bt, Bh, P, Bt, Bh, F, pdiag):
+        if not rattle_factor_sym(D, Bt, Bh, P, F, pdiag):
             return False, False, False
         factored = True
-    bt_solve(F[2], F[3], F[4], res, mu)
+    bs_solve(F[3], F[4], res, mu)
     for e in range(mu.shape[0]):
         for a in range(mu.shape[1]):
             mu[e, a] = -mu[e, a] / (half * fscale)
@@ -303,14 +343,14 @@ def _rattle_project_config(D, C, comp, value, scale, Bt, Bh, Ae, Xe, P, pdiag, F
     Python step's ``_project_configuration``); returns the residual, or −1 when it did not
     converge in ``MAX_ITERATIONS_`` steps (the Python step's limit)."""
     row = np.empty(R_)  # noqa: F821
-    err = rattle_values(D, C, comp, value, cres)
+    err = rattle_values(D, C, comp, value, cres, Xe)
     for _ in range(MAX_ITERATIONS_):  # noqa: F821
         if err <= 1e-13 * scale:
             return err
-        rattle_rows(D, C, comp, Bt, Bh, Ae, Xe)
-        if not rattle_factor(D, Bt, Bh, P, Bt, Bh, F, pdiag):
+        rattle_rows(D, C, comp, Bt, Bh, Ae, Xe, err >= 0.0)
+        if not rattle_factor_sym(D, Bt, Bh, P, F, pdiag):
             return -1.0
-        bt_solve(F[2], F[3], F[4], cres, y)
+        bs_solve(F[3], F[4], cres, y)
         rattle_impulse(D, Bt, Bh, y, delta)  # (B_cᵀy)_i / w_i
         for i in range(delta.shape[0]):  # δ_i = −w_i P_i (B_cᵀy)_i / w_i (P carries the 1/w)
             for k in range(R_):  # noqa: F821
@@ -321,7 +361,7 @@ def _rattle_project_config(D, C, comp, value, scale, Bt, Bh, Ae, Xe, P, pdiag, F
             for k in range(R_):  # noqa: F821
                 delta[i, k] = row[k]
         op_drift(D, C, 1.0, delta, K)  # noqa: F821
-        nxt = rattle_values(D, C, comp, value, cres)
+        nxt = rattle_values(D, C, comp, value, cres, Xe)
         if nxt > 0.5 * err and nxt <= 1e-10 * scale:
             return nxt
         err = nxt
@@ -374,8 +414,8 @@ def _rattle_rate(D, N, comp, Ae, Xe, out):
 
 def _rattle_predict(D, S, N, W, Bt, Bh, F, comp, Ae, Xe, work, acc, nu, rate):
     """The force-level multiplier at the step's start (the Python step's ``_predict``):
-    ``(B P Bᵀ)λ = −B[M⁺(ad_NᵀS + W)] − Ḃ_c N`` (:func:`_rattle_rate`), ``F`` the factors of
-    ``B P Bᵀ``; λ into ``nu``; ``rate`` ``[E, c]`` is scratch."""
+    ``(B P Bᵀ)λ = −B[M⁺(ad_NᵀS + W)] − Ḃ_c N`` (:func:`_rattle_rate`), ``F`` the block Cholesky
+    factors of ``B P Bᵀ`` (:func:`rattle_factor_sym`); λ into ``nu``; ``rate`` ``[E, c]`` is scratch."""
     n = S.shape[0]
     _lie_poisson(N, S, W, work)  # noqa: F821 - W + ad_NᵀS (cartan.integrators.loops)
     for i in range(n):
@@ -389,7 +429,7 @@ def _rattle_predict(D, S, N, W, Bt, Bh, F, comp, Ae, Xe, work, acc, nu, rate):
     for e in range(nu.shape[0]):
         for a in range(nu.shape[1]):
             nu[e, a] += rate[e, a]
-    bt_solve(F[2], F[3], F[4], nu, nu)
+    bs_solve(F[3], F[4], nu, nu)
     for e in range(nu.shape[0]):
         for a in range(nu.shape[1]):
             nu[e, a] = -nu[e, a]
@@ -417,9 +457,11 @@ def rattle_loop(D, C, S, W, have_w, velocity_free, pieces, fracs, closing, comp,
     """``rattle`` (see the module docstring): ``W`` ``[n, r]`` carries the force between steps
     (first-same-as-last when ``velocity_free``), ``pieces``/``fracs`` lie-verlet's split free flow,
     ``closing`` ``(I + ½ΔtΓM⁺)⁻¹`` ``[r, r]``, ``comp``/``value`` ``[c]`` the held components and
-    their values, ``scale`` max(1, max|value|) (the tolerances' unit), ``offset`` ``[E, c]`` the
-    last step's ν − λ and ``offset_dt`` ``[1]`` its Δt (``State.memory``: read, and written after
-    every step; the predictor adds the offset when ``offset_dt[0]`` is this Δt)."""
+    their values, ``scale`` max(1, max|value|) (the tolerances' unit), ``offset`` ``[3, E, c]``
+    the last three steps' ν − λ, newest first, and ``offset_dt`` ``[3]`` their Δt (0: none;
+    ``State.memory``: read, and written after every step); the predictor extrapolates the
+    offsets of the leading run of those taken with this Δt (constant, linear or quadratic in
+    the step for one, two or three)."""
     K = op_work(D)  # noqa: F821
     n = S.shape[0]
     ne = D.tail.shape[0]
@@ -479,8 +521,8 @@ def rattle_loop(D, C, S, W, have_w, velocity_free, pieces, fracs, closing, comp,
     cp = np.empty((ne, nc))
     Ae = np.empty((ne, R_, R_))  # noqa: F821 - dexp⁻¹(hX_e) and hX_e of the last rows (_rattle_rate)
     Xe = np.empty((ne, R_))  # noqa: F821
-    Fs = _rattle_factors(ne, nc)  # B₀ P B₀ᵀ (start)
-    Fc = _rattle_factors(ne, nc)  # B⁺ P_closing B⁺ᵀ (closing kick)
+    Fs = _rattle_factors(ne, nc)  # B₀ P B₀ᵀ (start; block Cholesky, rattle_factor_sym)
+    Fc = _rattle_factors(ne, nc)  # B⁺ P_closing B⁺ᵀ (closing kick; block Cholesky)
     Fq = _rattle_factors(ne, nc)  # B₁ J B₀ᵀ (quasi-Newton)
     # run-time booleans (not literals: a literal argument would compile the callee once per value)
     yes = nsteps >= 0
@@ -502,21 +544,24 @@ def rattle_loop(D, C, S, W, have_w, velocity_free, pieces, fracs, closing, comp,
                     c0[e, a] = cres[e, a]
                     err0 = max(err0, abs(cres[e, a]))
         else:
-            err0 = rattle_values(D, C, comp, value, c0)
-        use_offset = offset_dt[0] == dt
+            err0 = rattle_values(D, C, comp, value, c0, Xe)
+        # the offsets of the last steps taken with this Δt, newest first (at most three)
+        nprev = 0
+        while nprev < 3 and offset_dt[nprev] == dt:
+            nprev += 1
         if err0 > 1e-10 * scale:
-            use_offset = False
+            nprev = 0
             err0 = _rattle_project_config(D, C, comp, value, scale, Bt0, Bh0, Ae, Xe, Pm, pm_diag, Fs, cres, dnu, imp,
                                           K)
             if err0 < 0.0:
                 status[0] = 2
-                info[0] = rattle_values(D, C, comp, value, c0)
+                info[0] = rattle_values(D, C, comp, value, c0, Xe)
                 break
             have_w = False
             have_b = False
             have_fs = False
-        if not have_b:
-            bmax = rattle_rows(D, C, comp, Bt0, Bh0, Ae, Xe)
+        if not have_b:  # (the last values, c0 or the projection's, were taken at C: their logs)
+            bmax = rattle_rows(D, C, comp, Bt0, Bh0, Ae, Xe, yes)
             have_fs = False
         # ... with a tangent velocity
         op_velocity(D, S, N)  # noqa: F821
@@ -541,17 +586,21 @@ def rattle_loop(D, C, S, W, have_w, velocity_free, pieces, fracs, closing, comp,
                 S0[i, k] = S[i, k]
         _rattle_copy(C, C0)
         if not have_fs:
-            if not rattle_factor(D, Bt0, Bh0, Pm, Bt0, Bh0, Fs, pm_diag):
+            if not rattle_factor_sym(D, Bt0, Bh0, Pm, Fs, pm_diag):
                 status[0] = 1
                 info[0] = np.nan
                 break
             have_fs = True
         _rattle_predict(D, S, N, W, Bt0, Bh0, Fs, comp, Ae, Xe, work, acc, nu, cp)
-        for e in range(ne):  # λ, and the predictor λ + (ν − λ) of the last step
+        for e in range(ne):  # λ, and the predictor λ + (ν − λ) extrapolated from the last steps
             for a in range(nc):
                 lam[e, a] = nu[e, a]
-                if use_offset:
-                    nu[e, a] += offset[e, a]
+                if nprev == 1:
+                    nu[e, a] += offset[0, e, a]
+                elif nprev == 2:
+                    nu[e, a] += 2.0 * offset[0, e, a] - offset[1, e, a]
+                elif nprev == 3:
+                    nu[e, a] += 3.0 * offset[0, e, a] - 3.0 * offset[1, e, a] + offset[2, e, a]
         # the position multipliers: c(Φₙ₊₁(ν)) = 0 by quasi-Newton steps
         prev = np.inf
         factored = False
@@ -566,7 +615,7 @@ def rattle_loop(D, C, S, W, have_w, velocity_free, pieces, fracs, closing, comp,
             _rattle_copy(C0, C)
             op_free_flow(D, C, S, pieces, fracs, dt, Dn, K)  # noqa: F821
             op_constrain(D, S)  # noqa: F821
-            err = rattle_values(D, C, comp, value, cres)
+            err = rattle_values(D, C, comp, value, cres, Xe)
             if err <= 1e-13 * scale or (err <= 1e-10 * scale and err > 0.5 * prev):
                 break
             if not np.isfinite(err) or it == MAX_ITERATIONS_:  # noqa: F821
@@ -574,7 +623,7 @@ def rattle_loop(D, C, S, W, have_w, velocity_free, pieces, fracs, closing, comp,
                 info[0] = err
                 break
             if not factored and it > 0 and err > SLOW_ * prev:  # noqa: F821 - the chord gains too little
-                rattle_rows(D, C, comp, Bt1, Bh1, Ae, Xe)
+                rattle_rows(D, C, comp, Bt1, Bh1, Ae, Xe, yes)
                 op_velocity(D, S, N)  # noqa: F821
                 _rattle_flow_jacobian(D, N, dt, Pj)
                 if not rattle_factor(D, Bt1, Bh1, Pj, Bt0, Bh0, Fq, no):
@@ -588,7 +637,7 @@ def rattle_loop(D, C, S, W, have_w, velocity_free, pieces, fracs, closing, comp,
                     for a in range(nc):
                         nu[e, a] -= dnu[e, a] / half
             else:  # the chord ½Δt·Δt B₀ P B₀ᵀ
-                bt_solve(Fs[2], Fs[3], Fs[4], cres, dnu)
+                bs_solve(Fs[3], Fs[4], cres, dnu)
                 for e in range(ne):
                     for a in range(nc):
                         nu[e, a] -= dnu[e, a] / (half * dt)
@@ -602,21 +651,27 @@ def rattle_loop(D, C, S, W, have_w, velocity_free, pieces, fracs, closing, comp,
             status[0] = 1
             break
         niter += it
-        # the next step's offset ν − λ, ν with one more correction of the last matrix (no flow)
+        # the next step's offset ν − λ, ν with one more correction of the last matrix (no flow),
+        # the older ones moved down (after a projection they do not count: their Δt is cleared)
+        for m in range(2, 0, -1):
+            offset_dt[m] = offset_dt[m - 1] if nprev > 0 else 0.0
+            for e in range(ne):
+                for a in range(nc):
+                    offset[m, e, a] = offset[m - 1, e, a]
         if factored:
             bt_solve(Fq[2], Fq[3], Fq[4], cres, dnu)
             for e in range(ne):
                 for a in range(nc):
-                    offset[e, a] = nu[e, a] - dnu[e, a] / half - lam[e, a]
+                    offset[0, e, a] = nu[e, a] - dnu[e, a] / half - lam[e, a]
         else:
-            bt_solve(Fs[2], Fs[3], Fs[4], cres, dnu)
+            bs_solve(Fs[3], Fs[4], cres, dnu)
             for e in range(ne):
                 for a in range(nc):
-                    offset[e, a] = nu[e, a] - dnu[e, a] / (half * dt) - lam[e, a]
+                    offset[0, e, a] = nu[e, a] - dnu[e, a] / (half * dt) - lam[e, a]
         offset_dt[0] = dt
         # the closing kick and its velocity multiplier
         t1 = t + dt
-        bmax = rattle_rows(D, C, comp, Bt0, Bh0, Ae, Xe)
+        bmax = rattle_rows(D, C, comp, Bt0, Bh0, Ae, Xe, yes)  # (the last trial's logs: at C)
         have_b = True
         if velocity_free:
             op_velocity(D, S, N)  # noqa: F821
@@ -672,8 +727,8 @@ def loop_fragment() -> Fragment:
     """The rattle loop, its helpers and the block-tridiagonal solver as one fragment of a
     generated module (it uses ``_lie_poisson``, ``_damped`` and ``_book`` of :mod:`cartan.integrators.loops`)."""
     return Fragment(constants={"MAX_ITERATIONS_": MAX_ITERATIONS, "SLOW_": SLOW},
-                    source=njit_source(small_inverse, bt_factor, bt_solve, rattle_values, rattle_rows, rattle_metric,
-                                       _rattle_flow_jacobian, _rattle_diagonal, _rattle_right, _rattle_left,
-                                       rattle_factor, rattle_apply, rattle_impulse, rattle_project_velocity,
-                                       _rattle_project_config, _rattle_rate, _rattle_predict, _rattle_copy,
-                                       _rattle_factors, rattle_loop))
+                    source=njit_source(small_inverse, bt_factor, bt_solve, bs_factor, bs_solve, rattle_values,
+                                       rattle_rows, rattle_metric, _rattle_flow_jacobian, _rattle_diagonal,
+                                       _rattle_right, _rattle_left, rattle_factor, rattle_factor_sym, rattle_apply,
+                                       rattle_impulse, rattle_project_velocity, _rattle_project_config, _rattle_rate,
+                                       _rattle_predict, _rattle_copy, _rattle_factors, rattle_loop))
