@@ -2,7 +2,8 @@
 
 ``cartan.simulate``, ``cartan.open``, ``cartan.load_scene``, ``cartan.scene``,
 ``cartan.medium`` and the problem-building classes (``Problem``, ``Grid``,
-``InitialState``, ``Free``, ``Clamped``, ``Symmetry``, ``Damping``, ``UniformForce``, ``NodeForce``, ``PotentialLoad``),
+``InitialState``, ``Free``, ``Clamped``, ``Held``, ``Symmetry``, ``Damping``, ``UniformForce``, ``NodeForce``,
+``PotentialLoad``),
 with the errors and warnings a run can raise (``InstabilityError``, ``StabilityWarning``,
 ``SceneError``).  Importing this module does not import xarray (that happens on the first
 run or read).
@@ -28,6 +29,7 @@ from .problem import (
     ConstantFieldPotential,
     Damping,
     Free,
+    Held,
     InitialState,
     NodeForce,
     PotentialLoad,
@@ -47,6 +49,7 @@ __all__ = [
     "Damping",
     "Free",
     "Grid",
+    "Held",
     "InitialState",
     "InstabilityError",
     "PotentialLoad",

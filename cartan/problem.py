@@ -35,6 +35,7 @@ __all__ = [
     "ConstantFieldPotential",
     "Damping",
     "Free",
+    "Held",
     "InitialState",
     "Load",
     "NodeForce",
@@ -110,6 +111,99 @@ class Clamped(Boundary):
     kind: str = field(default="clamped", init=False)
 
 
+@dataclass
+class Held(Boundary):
+    """End whose node holds chosen components of its body velocity N at zero: a support for any
+    medium (paper §IV.D), exact, not a penalty.
+
+    At the end node (every node of the face for d ≥ 2) the components ``components`` of N, of
+    the momentum S and of the force are zero (the reaction); the other components obey the end
+    node's balance with no applied load (the natural condition n_α Q^α = 0 on them, as on a
+    free end).  The node moves by Φ̇ = ΦN with N in 𝔥 = span{e_k : k free and live} (live: the
+    non-gauge components, :meth:`cartan.medium.Medium.gauge_mask`), which must be a
+    subalgebra: the node then stays on the coset Φ̄·exp(𝔥) of its initial Φ̄, a holonomic
+    support (a set of held components whose free ones do not close under the bracket would be
+    a non-holonomic constraint, refused).  Clamped is the case of every component held.
+
+    Examples: SE(3) ``(0, 1, 2)``, a pinned end (a ball joint: the position held, the frame
+    free; ``(3, 4, 5)``: the frame held, the position free).  Poincaré (``relativistic-rod``)
+    ``(1, 2, 3)``: an end fixed in space in its frame Λ whose time component r⁰ evolves (the
+    Lorentz part of the Nambu–Goto string is gauge): the fixed end of the Nambu–Goto string
+    (docs/media/relativistic-rod.md, "Fixed ends").
+
+    Parameters
+    ----------
+    components : sequence of int
+        The indices k ∈ [0, r) of N held at zero (r = the group's dimension), at least one,
+        no repeats; in the body frame of the end node (its structure field's frame, which the
+        held components keep when they include the frame's rotations).
+
+    Notes
+    -----
+    The scheme holds the components like a clamp holds all of them (the ``lattice``'s numpy
+    path: every integrator there, ``solve_static``); the compiled loops and the ``collocation``
+    scheme decline it.  The held momentum components are those of the reaction only when the
+    kinetic metric does not couple them with the free live ones (checked).
+    """
+
+    components: Any = None
+    kind: str = field(default="held", init=False)
+
+    def __post_init__(self):
+        c = self.components
+        if isinstance(c, numbers.Integral) and not isinstance(c, bool | np.bool_):
+            c = [c]
+        try:
+            items = list(c)
+        except TypeError:
+            items = None
+        if (not items or any(isinstance(k, bool | np.bool_) or not isinstance(k, numbers.Integral) for k in items)
+                or any(int(k) < 0 for k in items) or len(set(int(k) for k in items)) != len(items)):
+            raise ValueError(f"components must be a non-empty sequence of distinct integers k ≥ 0 (indices of N held "
+                             f"at zero), got {self.components!r}")
+        self.components = tuple(sorted(int(k) for k in items))
+
+    def mask(self, medium: Medium, name: str = "held") -> np.ndarray:
+        """The held components ``(r,)`` bool for ``medium``'s group, checked.
+
+        Raises
+        ------
+        ValueError
+            A component outside [0, r); free live components that do not span a subalgebra;
+            a kinetic metric coupling held and free live components.
+        """
+        g = medium.group
+        r = g.dim
+        bad = [k for k in self.components if k >= r]
+        if bad:
+            raise ValueError(f"boundaries[{name!r}]: components must be in [0, {r}) (the dimension of {g.name}), "
+                             f"got {bad}")
+        held = np.zeros(r, dtype=bool)
+        held[list(self.components)] = True
+        live = ~np.asarray(medium.gauge_mask(), dtype=bool)
+        free = np.flatnonzero(live & ~held)
+        if free.size > 1:
+            # ad_{e_a} for every basis element, [r(a), r, r] (the group's numpy reference: no kernel
+            # is compiled for a check run once per problem)
+            ad = np.asarray(g._ad(np.eye(r)), dtype=float)
+            outside = np.flatnonzero(~np.isin(np.arange(r), free))
+            leak = np.abs(ad[np.ix_(free, outside, free)])  # components of [e_a, e_b] off the free span
+            if leak.size and float(np.max(leak)) > 1e-12:
+                a, k, b = np.unravel_index(np.argmax(leak), leak.shape)
+                raise ValueError(
+                    f"boundaries[{name!r}]: the free components {free.tolist()} do not span a subalgebra "
+                    f"([e_{int(free[a])}, e_{int(free[b])}] has a component along e_{int(outside[k])}); a Held end "
+                    "must leave free a set closed under the bracket (a holonomic support)")
+        metric = np.asarray(medium.kinetic_metric(), dtype=float)
+        if metric.shape == (r, r) and np.any(metric[np.ix_(held & live, free)]):
+            raise ValueError(f"boundaries[{name!r}]: the kinetic metric of {medium.name!r} couples the held components "
+                             "with the free ones; not supported")
+        return held
+
+    def to_dict(self) -> dict[str, Any]:
+        return {"kind": "held", "components": list(self.components)}
+
+
 _AXES = {"x": (1.0, 0.0, 0.0), "y": (0.0, 1.0, 0.0), "z": (0.0, 0.0, 1.0)}
 
 
@@ -173,26 +267,35 @@ class Symmetry(Boundary):
 
 
 def held_components(problem: Problem) -> np.ndarray | None:
-    """The body-velocity components held at zero by the problem's :class:`Symmetry` faces,
-    ``(*grid.shape, r)`` bool (clamped ends not included), or None without symmetry faces.
+    """The body-velocity components held at zero by the problem's :class:`Symmetry` faces and
+    :class:`Held` ends, ``(*grid.shape, r)`` bool (clamped ends not included), or None without
+    either.
 
     At a node of a symmetry face with body-frame normal m = R̄ᵀn = ±e_k (R̄ its initial frame):
-    the translation component k and the rotation components j ≠ k (:class:`Symmetry`).  A node
-    on several faces holds the union (on the edge of two planes it moves along the edge only).
+    the translation component k and the rotation components j ≠ k (:class:`Symmetry`); at a
+    node of a held end, its ``components`` (:class:`Held`).  A node on several faces holds the
+    union (on the edge of two planes it moves along the edge only).
     """
     grid = problem.grid
     faces = [(axis, side, problem.boundary(axis, side)) for axis in range(grid.d)
              if not (grid.periodic[axis] or grid.is_glued(axis)) for side in ("start", "end")]
+    held_ends = [(axis, side, b) for axis, side, b in faces if isinstance(b, Held)]
     faces = [(axis, side, b) for axis, side, b in faces if isinstance(b, Symmetry)]
-    if not faces:
+    if not faces and not held_ends:
         return None
     g = problem.medium.group
+    held = np.zeros((*grid.shape, g.dim), dtype=bool)
+    for axis, side, b in held_ends:
+        sl = [slice(None)] * grid.d
+        sl[axis] = 0 if side == "start" else -1
+        held[tuple(sl)] |= b.mask(problem.medium, f"{grid.axis_names[axis]}-{side}")
+    if not faces:
+        return held
     if g.dim != 6 or g.matrix_size != 4 or not getattr(g, "affine", False):
         raise ValueError(f"boundaries: a Symmetry face needs a medium on SE(3) (positions and rotations); medium "
                          f"{problem.medium.name!r} is on {g.name}")
     metric = np.asarray(problem.medium.kinetic_metric(), dtype=float)
     Phi = np.asarray(problem.initial.Phi, dtype=float)
-    held = np.zeros((*grid.shape, 6), dtype=bool)
     X0 = np.asarray(problem.medium.rest_strain(), dtype=float).reshape(grid.d, -1)[:, :3]
     for axis, side, b in faces:
         name = f"{grid.axis_names[axis]}-{side}"
@@ -776,7 +879,10 @@ class Problem:
             if key not in valid:
                 raise ValueError(f"boundaries: unknown end {key!r}; this grid has ends {sorted(valid) or 'none'}")
             if not isinstance(b, Boundary):
-                raise ValueError(f"boundaries[{key!r}] must be Free(...), Clamped() or Symmetry(...), got {b!r}")
+                raise ValueError(f"boundaries[{key!r}] must be Free(...), Clamped(), Held(...) or Symmetry(...), "
+                                 f"got {b!r}")
+            if isinstance(b, Held):
+                b.mask(self.medium, key)
             if isinstance(b, Free) and b.load is not None:
                 b.load = check_finite(f"boundaries[{key!r}].load", b.load, (g.dim,))
         ends = {}

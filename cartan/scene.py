@@ -119,7 +119,7 @@ from .limits import (  # noqa: F401 - re-exported: the limits' home is cartan.li
     step_limit,
 )
 from .plugins import get_registry
-from .problem import Clamped, Damping, Free, NodeForce, Problem, Symmetry, UniformForce
+from .problem import Clamped, Damping, Free, Held, NodeForce, Problem, Symmetry, UniformForce
 
 __all__ = [
     "MAX_ITERATIONS",
@@ -673,6 +673,12 @@ def _boundaries(reader: _Reader, data: Mapping) -> dict:
             if not isinstance(follower, bool):
                 raise reader.fail(f"{key}.follower", f"must be true or false, got {follower!r}")
             out[end] = Free(load=spec.get("load"), follower=follower)
+        elif kind == "held":
+            reader.no_extra(spec, {"kind", "components"}, key)
+            try:
+                out[end] = Held(components=spec.get("components"))
+            except ValueError as exc:
+                raise reader.fail(f"{key}.components", str(exc)) from None
         elif kind == "symmetry":
             reader.no_extra(spec, {"kind", "normal"}, key)
             try:
@@ -680,7 +686,8 @@ def _boundaries(reader: _Reader, data: Mapping) -> dict:
             except ValueError as exc:
                 raise reader.fail(f"{key}.normal", str(exc)) from None
         else:
-            raise reader.fail(f"{key}.kind", f"unknown boundary kind {kind!r}; choose 'clamped', 'free' or 'symmetry'")
+            raise reader.fail(f"{key}.kind", f"unknown boundary kind {kind!r}; choose 'clamped', 'free', 'held' or "
+                              "'symmetry'")
     return out
 
 

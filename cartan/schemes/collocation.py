@@ -315,8 +315,8 @@ class Collocation(Scheme):
         # the other axes (1 for d = 1).
         self._free_ends: list[tuple[int, tuple, float, float, Free, np.ndarray]] = []
         if any(type(b) not in (Free, Clamped) for b in problem.boundaries.values()):
-            raise ValueError("the collocation scheme takes Free and Clamped boundaries; a Symmetry face runs on "
-                             "scheme='lattice'")
+            raise ValueError("the collocation scheme takes Free and Clamped boundaries; a Symmetry face or a Held "
+                             "end runs on scheme='lattice'")
         for axis in range(d):
             if grid.periodic[axis]:
                 continue

@@ -98,7 +98,8 @@ class Lattice(Scheme):
     def __init__(self, problem, track_frames: bool | None = None):
         super().__init__(problem)
         if self._clamped.ndim > self.grid.d and self.coupled_lagrangian:
-            raise ValueError("a Symmetry face is not supported with a coupled Lagrangian (Medium.coupled_lagrangian)")
+            raise ValueError("a Symmetry face or a Held end is not supported with a coupled Lagrangian "
+                             "(Medium.coupled_lagrangian)")
         self.track = problem.needs_structure_field if track_frames is None else bool(track_frames)
         d = self.grid.d
         #: True when the potential is evaluated at the corners (d ≥ 2, axes coupled)
@@ -201,7 +202,7 @@ class Lattice(Scheme):
                 from ..compiled.operators import OperatorSet
 
                 ops = self._operators = OperatorSet.declined(
-                    "symmetry faces (cartan.Symmetry: held body components) run on the numpy path")
+                    "held body components (cartan.Symmetry faces, cartan.Held ends) run on the numpy path")
                 return ops
             if any(f is not None for f in self._end_factors):
                 from ..compiled.operators import OperatorSet
@@ -499,11 +500,12 @@ class Lattice(Scheme):
         return F
 
     def _clamp_mask(self) -> np.ndarray:
-        """The clamped nodes ``(*shape)``, or with :class:`~cartan.problem.Symmetry` faces the
-        held body components ``(*shape, r)`` (:func:`~cartan.problem.held_components`, all six
-        at clamped nodes): either indexes the ``(*shape, r)`` velocities, momenta and forces
-        that are zeroed there.  The compiled loops and operators take clamps only and decline
-        symmetry faces (their boundary check), so this mask reaches the numpy path only."""
+        """The clamped nodes ``(*shape)``, or with :class:`~cartan.problem.Symmetry` faces or
+        :class:`~cartan.problem.Held` ends the held body components ``(*shape, r)``
+        (:func:`~cartan.problem.held_components`, all r at clamped nodes): either indexes the
+        ``(*shape, r)`` velocities, momenta and forces that are zeroed there.  The compiled
+        loops and operators take clamps only and decline held components (their boundary
+        check), so this mask reaches the numpy path only."""
         mask = super()._clamp_mask()
         held = held_components(self.problem)
         if held is None:

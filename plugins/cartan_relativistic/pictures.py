@@ -4,7 +4,7 @@
 <cartan_relativistic.string.RelativisticRod.draw>` (the medium's picture hook,
 :meth:`cartan.medium.Medium.draw`), and so does ``python -m cartan_relativistic.pictures RUN.nc
 OUT.png``: side by side, the string at equal lab times in the x–y plane (a closed string with a
-dot on its material point u = 0) and the worldlines of
+dot on its material point u = 0, an open one with squares on its ends held in space) and the worldlines of
 a few material points.  For a closed string the worldlines are drawn as lab time against the
 distance from the centre of the string, with the inward light ray for reference; for an open
 string as the Minkowski diagram (lab time against lab x), with the saved frames — the slices of
@@ -77,9 +77,15 @@ def draw_figure(ds: Any, fig: Any, nodes: int = 8) -> bool:
         xs, ys = (np.append(sx[k], sx[k, 0]), np.append(sy[k], sy[k, 0])) if closed else (sx[k], sy[k])
         if stacked:
             ys = np.full_like(xs, snap_t[k])
-        a1.plot(xs, ys, color=cmap(norm(snap_t[k])), lw=1.0 if closed else 2.0, marker=None if closed else "|")
+        a1.plot(xs, ys, color=cmap(norm(snap_t[k])), lw=1.0 if closed else 2.0,
+                marker=None if closed or sx.shape[1] > 40 else "|")
         if closed:  # the material point u = 0: a rotation shows
             a1.plot(sx[k, 0], sy[k, 0], "o", ms=3.5, color=cmap(norm(snap_t[k])), mec="k", mew=0.4)
+    held = [i for key, i in (("start", 0), ("end", -1))
+            if (problem.get("boundaries", {}).get(key) or {}).get("kind") in ("held", "clamped")]
+    if held and not closed and not stacked:  # the ends held in space (cartan.Held, cartan.Clamped)
+        a1.plot(sx[0, held], sy[0, held], "ks", ms=5, label="fixed end")
+        a1.legend(loc="upper right", fontsize=8)
     if stacked:
         a1.set_ylabel("lab time t (the string lies along x)")
     else:

@@ -163,7 +163,7 @@ class RelativisticRod(KernelMedium):
 
     name: ClassVar[str] = "relativistic-rod"
     material_dim: ClassVar[int] = 1
-    initial_kinds: ClassVar[tuple[str, ...]] = ("loop", "straight")
+    initial_kinds: ClassVar[tuple[str, ...]] = ("loop", "plucked", "standing", "straight")
     output_fields: ClassVar[dict[str, tuple[str, str]]] = {
         "energy": ("total energy E = c P⁰ (lab frame)", "J"),
         "momentum_x": ("total momentum P¹ (lab frame)", "kg m s-1"),
@@ -269,12 +269,22 @@ class RelativisticRod(KernelMedium):
 
         ``"straight"``: a straight segment along e₁ at rest, |∂_u x| = 1 (the rest strain),
         with ``origin`` (3,); its free ends are not a solution of the constraints (the ends of a
-        free Nambu–Goto string move at c), so it is for clamped ends or kinematics.  ``boost``
+        free Nambu–Goto string move at c), so it is for fixed ends
+        (:func:`cartan_relativistic.fixed.fixed_end`: at rest, an equilibrium) or kinematics.  ``boost``
         β ∈ (−1, 1) (default 0) gives the same rod seen from a frame moving at −βc along e₁:
         Φ = B(η)·Φ_rest with B(η) the boost of rapidity η = atanh β (the frame Λ = B(η) is the
         rod's rest frame, the events r = B(η)(0, u, 0, 0) are simultaneous in it, not in the
         lab) and N = {U; 0}, U = (c, 0, 0, 0): the rod in inertial motion at βc along its axis,
         for the ``kinematic`` integrator in proper time (lab length L₀/γ, energy γμc²L₀).
+
+        ``"standing"`` (open grid, for fixed ends, :func:`cartan_relativistic.fixed.fixed_end`):
+        the exact standing wave of :func:`cartan_relativistic.fixed.fixed_standing_wave` at
+        t = 0, released from rest with the tangent angle ``angle`` θ₀ cos(πu/L) (θ₀ ∈ (0, 1],
+        default 0.8), its ends at ``origin`` and origin + L J₀(θ₀) e₁.
+
+        ``"plucked"`` (open grid, for fixed ends): the triangle of
+        :func:`cartan_relativistic.fixed.plucked` at rest, apex ``height`` H (default 0.2 L) at
+        u = ``at``·L (default 0.5), from ``origin``.
 
         Parameters
         ----------
@@ -291,7 +301,13 @@ class RelativisticRod(KernelMedium):
         """
         if grid.d != 1:
             raise ValueError(f"{self.name} needs a grid with d = 1, got d = {grid.d}")
-        if kind == "loop":
+        if kind in ("standing", "plucked"):
+            if grid.periodic[0]:
+                raise ValueError(f"initial kind {kind!r} needs an open grid (a string between two fixed ends)")
+            build = self._standing if kind == "standing" else self._plucked
+            check_keywords(kind, build, params)
+            x, v = build(grid, **params)
+        elif kind == "loop":
             check_keywords(kind, self._loop, params)
             x, v = self._loop(grid, **params)
         elif kind == "straight":
@@ -341,6 +357,25 @@ class RelativisticRod(KernelMedium):
         R = grid.length[0] / (2 * math.pi * gamma)
         x, v = loop_exact(grid.coordinates(0), 0.0, R, self.c, psi, beta)
         return x + o, v
+
+    def _standing(self, grid, angle=0.8, origin=None):
+        from .fixed import fixed_standing_wave
+
+        theta0 = float(check_finite("angle", angle, ()))
+        if not 0.0 < theta0 <= 1.0:
+            raise ValueError(f"angle must be in (0, 1] (the tangent angle at the ends, radians), got {angle!r}")
+        o = np.zeros(3) if origin is None else check_finite("origin", origin, (3,))
+        x, v = fixed_standing_wave(grid.coordinates(0), 0.0, theta0, grid.length[0], self.c)
+        return x + o, v
+
+    def _plucked(self, grid, height=None, at=0.5, origin=None):
+        from .fixed import plucked
+
+        L = grid.length[0]
+        H = 0.2 * L if height is None else float(check_finite("height", height, ()))
+        o = np.zeros(3) if origin is None else check_finite("origin", origin, (3,))
+        x = plucked(grid.coordinates(0), L, H, float(check_finite("at", at, ())))
+        return x + o, np.zeros_like(x)
 
     def _straight(self, grid, origin=None):
         o = np.zeros(3) if origin is None else check_finite("origin", origin, (3,))
