@@ -58,11 +58,13 @@ The lattice's first critical pressure
 ``VolumePressure`` (Newton at increasing p, rigid motions held by six gauge pins that carry no
 force) and locates the first load at which the symmetric stiffness −J (J the statics' whole
 Jacobian, the stencil part plus the volume's rank-6 part, :meth:`VolumePressure.jacobian_parts`),
-with the pins as penalties, acquires a negative eigenvalue: the smallest algebraic eigenvalue
-by shift-invert Lanczos below the spectrum, a continuous function of p (the minimum over the
-branches of the 2l + 1 split modes), whose zero is found by an Illinois secant.  The 2l + 1
-modes of a degree are split by the chart (the poles), so a change of the sign of det J alone can
-straddle several crossings; the smallest eigenvalue cannot.
+with the pins as penalties, acquires a negative eigenvalue: its six lowest eigenvalues by
+shift-invert Lanczos below the spectrum, matched from point to point by their eigenvectors and
+extrapolated linearly to zero, approached from the stable side.  The 2l + 1 modes of a degree are
+split by the chart (the poles), so a change of the sign of det J alone can straddle several
+crossings, and Newton fails close to the critical load (the pole rows are an imperfection along
+the even-l, m = 0 modes).  Measured (h/R = 0.1): p = 0.0094241, 0.0101231, 0.0103971 at
+N = 24, 32, 40, errors 13.4 %, 7.0 %, 4.5 % against p₅, observed order 2.27, 2.00.
 """
 
 from __future__ import annotations
