@@ -31,7 +31,8 @@ step is RATTLE (Andersen 1983; Leimkuhler & Skeel 1994) on the lie-verlet splitt
    flow's Jacobian to O(Δt|N|), so an iteration gains one to three digits.  Should one gain
    less than a factor 4, the iteration turns to the quasi-Newton matrix
    ½Δt B_c(Φ̃) D B_c(Φₙ)ᵀ (Φ̃ the current trial, D = dexp(−ΔtÑ)·Δt·M⁺/w per node).  Converged
-   to round-off (|c| ≤ 1e-13, or stagnating below 1e-10, times max(1, |value|)); two trial
+   to round-off (|c| ≤ 1e-13, or stagnating below 1e-10 with the quasi-Newton matrix, times
+   max(1, |value|): a stall of the chord iteration is not round-off, it turns to that matrix); two trial
    flows per step on the damped relaxation of ``benchmarks/filament_speed.py`` (one to two once
    the motion is slow), four to five near the time step's limit;
 4. closing half kick with the velocity multiplier μ:  Sₙ₊₁ = S½ + ½Δt(Wₙ₊₁ + B_c(Φₙ₊₁)ᵀμ/w),
@@ -473,7 +474,8 @@ class Rattle(LieVerlet):
             self._free_flow(scheme, state, dt)
             c = con.values(state)
             err = float(np.max(np.abs(c), initial=0.0))
-            if err <= 1e-13 * scale or (err <= 1e-10 * scale and err > 0.5 * prev):
+            # a stall means round-off only with Newton's matrix; the chord's stalls turn to it below
+            if err <= 1e-13 * scale or (lu is not None and err <= 1e-10 * scale and err > 0.5 * prev):
                 break
             if not np.isfinite(err) or it == _MAX_ITERATIONS:
                 state.S, state.arrays = S0, arrays0

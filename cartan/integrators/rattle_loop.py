@@ -616,7 +616,7 @@ def rattle_loop(D, C, S, W, have_w, velocity_free, pieces, fracs, closing, comp,
             op_free_flow(D, C, S, pieces, fracs, dt, Dn, K)  # noqa: F821
             op_constrain(D, S)  # noqa: F821
             err = rattle_values(D, C, comp, value, cres, Xe)
-            if err <= 1e-13 * scale or (err <= 1e-10 * scale and err > 0.5 * prev):
+            if err <= 1e-13 * scale or (factored and err <= 1e-10 * scale and err > 0.5 * prev):
                 break
             if not np.isfinite(err) or it == MAX_ITERATIONS_:  # noqa: F821
                 failed = True
