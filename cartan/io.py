@@ -83,6 +83,7 @@ __all__ = [
     "check_output",
     "check_run_info",
     "checkpoint_dataset",
+    "complete_records",
     "frame_record",
     "history_line",
     "lastgood_path",
@@ -167,6 +168,17 @@ def _kinetic_energy(scheme: Scheme, state: State, N: np.ndarray | None) -> float
     return float(np.sum(scheme.weights * scheme.medium.kinetic(N)))
 
 
+def _potential_energy(scheme: Scheme, state: State, edge: list[np.ndarray] | None) -> float:
+    """``scheme.potential_energy(state)``, from the edge strains ``edge`` (:func:`_edge_strains`,
+    or None) already built when the scheme keeps the lattice's formula: the same numbers
+    without a second logarithm of every edge."""
+    from .schemes.lattice import Lattice
+
+    if edge is None or type(scheme).potential_energy is not Lattice.potential_energy:
+        return scheme.potential_energy(state)
+    return scheme._potential_energy(state, edge)
+
+
 def _edge_strains(scheme: Scheme, state: State) -> list[np.ndarray] | None:
     """``scheme.edge_strains(state)`` for a d = 1 lattice that keeps the lattice's ``strains``
     (its edge strains with an axis slot), else None: one evaluation serves the frame's ``X``
@@ -178,7 +190,112 @@ def _edge_strains(scheme: Scheme, state: State) -> list[np.ndarray] | None:
     return scheme.edge_strains(state)
 
 
-def frame_record(scheme: Scheme, integrator: Integrator, state: State) -> dict[str, Any]:
+#: the diagnostics a frame may leave to the assembly (:func:`frame_record` with ``defer``)
+DEFERRED = ("integrability_residual", "group_defect", "total_momentum")
+#: frames of at most this many entries of Φ (nodes × m², 4096 SE(3) nodes) leave them: below it a
+#: frame's cost is the Python around its kernels, which one batched call pays once; above it the
+#: arithmetic dominates, and the frames kept for the assembly (Φ, the edges) would cost memory
+DEFER_MAX = 1 << 16
+
+
+class _Pending:
+    """The diagnostics :data:`DEFERRED` of one saved frame, left to the assembly of the run
+    (:func:`complete_records`), and what they are computed from: the frames ``Phi``
+    ``[*shape, m, m]``, the momentum ``S`` and, for the lattice's own integrability residual,
+    its edge elements (copies).  ``values`` holds them once computed."""
+
+    __slots__ = ("Phi", "S", "edges", "values")
+
+    def __init__(self, Phi: np.ndarray, S: np.ndarray, edges: list[np.ndarray] | None):
+        self.Phi, self.S, self.edges = Phi, S, edges
+        self.values: dict[str, Any] | None = None
+
+
+def _batched(scheme: Scheme, state: State) -> tuple[bool, bool]:
+    """``(integrability, momentum)``: whether :func:`complete_records` computes the frame's
+    integrability residual (the lattice's own, frames tracked) and total momentum (the
+    core's formula) for many frames at once; the group defect it always does."""
+    kinds = scheme.__dict__.get("_batched_frames")
+    if kinds is None:  # (the scheme's own methods: found once per scheme)
+        from .schemes.base import Scheme
+        from .schemes.lattice import Lattice
+
+        kinds = scheme._batched_frames = (
+            isinstance(scheme, Lattice) and type(scheme).integrability_residual is Lattice.integrability_residual
+            and type(scheme).frames is Lattice.frames,  # (the frames recorded are then the stepped ones)
+            type(scheme).total_momentum is Scheme.total_momentum
+            and type(scheme).total_momentum_of is Scheme.total_momentum_of)
+    return kinds[0] and "Phi" in state.arrays, kinds[1]
+
+
+def complete_records(scheme: Scheme, records: Mapping[str, list], start: int = 0) -> None:
+    """Compute, in place, the diagnostics that :func:`frame_record` left to the assembly.
+
+    The frames' :data:`DEFERRED` values (:class:`_Pending` entries of ``records``) are computed
+    in one batched call of each formula over the frames instead of one call per frame: the group
+    defect ``max_i d(Φ_i)``, the total momentum ``Σ_i w_i Ad_{Φ_i}⁻ᵀ S_i``
+    (:meth:`~cartan.schemes.base.Scheme.total_momentum_of`) and the lattice's integrability
+    residual (:meth:`~cartan.schemes.lattice.Lattice.integrability_residuals`): pointwise kernels
+    and per-frame reductions, the numbers of the per-frame methods.
+
+    Parameters
+    ----------
+    scheme : Scheme
+        The scheme of the run that recorded the frames.
+    records : mapping of str → list
+        ``{name: [value per frame]}``; its lists are updated in place.
+    start : int
+        The first frame looked at (the earlier ones are complete).
+    """
+    pending: list[_Pending] = []
+    seen: set[int] = set()
+    for name in DEFERRED:
+        for value in records.get(name, ())[start:]:
+            if isinstance(value, _Pending) and value.values is None and id(value) not in seen:
+                seen.add(id(value))
+                pending.append(value)
+    if pending:
+        g = scheme.group
+        values: list[dict[str, Any]] = [{} for _ in pending]
+        with np.errstate(all="ignore"):
+            Phi = np.stack([p.Phi for p in pending])  # [T, *shape, m, m]
+            if Phi[0].size:
+                D = g.defect(Phi).reshape(len(pending), -1)
+                for v, row in zip(values, D, strict=True):
+                    v["group_defect"] = float(np.max(row))
+            else:
+                for v in values:
+                    v["group_defect"] = 0.0
+            some = [k for k, p in enumerate(pending) if p.S is not None]
+            if some:
+                Adinv = g.Ad(g.inverse(Phi if len(some) == len(pending) else Phi[some]))
+                spatial = np.einsum("...ji,...j->...i", Adinv, np.stack([pending[k].S for k in some]))
+                # Σ_i w_i (…)_i per frame: np.tensordot(w, ·, axes=w.ndim)'s product, (1, N)·(N, r)
+                w = np.asarray(scheme.weights).reshape(1, -1)
+                r = spatial.shape[-1]
+                for k, sp in zip(some, spatial, strict=True):
+                    values[k]["total_momentum"] = np.array(np.dot(w, sp.reshape(-1, r)).reshape(r), dtype=float)
+            some = [k for k, p in enumerate(pending) if p.edges is not None]
+            if some:
+                d = scheme.grid.d
+                edges = [np.stack([pending[k].edges[a] for k in some], axis=d) for a in range(d)]
+                frames = np.moveaxis(Phi if len(some) == len(pending) else Phi[some], 0, d)  # (nodes first)
+                res = scheme.integrability_residuals(frames, edges)
+                for k, r in zip(some, res, strict=True):
+                    values[k]["integrability_residual"] = float(r)
+        for p, v in zip(pending, values, strict=True):
+            p.values = v
+    for name in DEFERRED:
+        values_of = records.get(name)
+        if values_of is None:
+            continue
+        for i in range(start, len(values_of)):
+            value = values_of[i]
+            if isinstance(value, _Pending):
+                values_of[i] = value.values[name]
+
+
+def frame_record(scheme: Scheme, integrator: Integrator, state: State, defer: bool = False) -> dict[str, Any]:
     """The output of one saved frame: fields (copied) and scalar diagnostics.
 
     Parameters
@@ -188,6 +305,13 @@ def frame_record(scheme: Scheme, integrator: Integrator, state: State) -> dict[s
         Supplies N for integrators that prescribe it (``uses_momentum = False``).
     state : State
         Not modified.
+    defer : bool
+        Leave the diagnostics :data:`DEFERRED` that can be computed for many frames at once
+        (the group defect always; the total momentum and the lattice's integrability residual
+        when the scheme keeps the core's formulas), for frames of at most :data:`DEFER_MAX`
+        entries of Φ, to :func:`complete_records`, which
+        :func:`build_dataset` calls: their entries are placeholders until then (a run's save
+        loop; the energies and fields its blow-up test reads are computed here).
 
     Returns
     -------
@@ -221,20 +345,32 @@ def frame_record(scheme: Scheme, integrator: Integrator, state: State) -> dict[s
             else:
                 rec["field"] = np.array(q, dtype=float)
         rec["kinetic_energy"] = _kinetic_energy(scheme, state, N if integrator.uses_momentum else None)
-        rec["potential_energy"] = float(scheme.potential_energy(state))
+        rec["potential_energy"] = float(_potential_energy(scheme, state, edge))
         rec["dissipated_energy"] = float(state.scalars.get("dissipated_energy", 0.0))
         rec["external_work"] = float(state.scalars.get("external_work", 0.0))
-        rec["integrability_residual"] = float(scheme.integrability_residual(state))
+        defer = defer and Phi.size <= DEFER_MAX  # (a large frame gains nothing: its arithmetic dominates)
+        integ, momentum = _batched(scheme, state) if defer else (False, False)
+        pending = None
+        if defer:
+            edges = [np.array(state.arrays[scheme._key(a)], dtype=float) for a in range(d)] if integ else None
+            pending = _Pending(np.array(Phi, dtype=float), rec["S"] if momentum else None, edges)
+        rec["integrability_residual"] = pending if integ else float(scheme.integrability_residual(state))
         closure = getattr(scheme, "closure_residual", None)
         rec["closure_residual"] = float(closure(state)) if closure is not None else 0.0
         if scheme.grid.d > 1:
             rec["spatial_residual"] = float(scheme.spatial_residual(state))
-        rec["group_defect"] = float(np.max(g.defect(Phi))) if Phi.size else 0.0
+        if pending is not None:
+            rec["group_defect"] = pending
+        else:
+            rec["group_defect"] = float(np.max(g.defect(Phi))) if Phi.size else 0.0
         held = getattr(integrator, "constraint_residual", None)
         if held is not None:
             reuse = edge is not None and getattr(integrator, "residual_from_edge_strains", False)
             rec["constraint_residual"] = float(held(scheme, state, edge_strains=edge) if reuse else held(scheme, state))
-        rec["total_momentum"] = np.array(_total_momentum(scheme, state, Phi), dtype=float)
+        if momentum:
+            rec["total_momentum"] = pending
+        else:
+            rec["total_momentum"] = np.array(_total_momentum(scheme, state, Phi), dtype=float)
         med = scheme.medium
         acc = accumulators.declared(med)
         if getattr(med, "output_fields", None) or acc:
@@ -473,6 +609,7 @@ def build_dataset(
     -------
     xarray.Dataset
     """
+    complete_records(scheme, records)
     problem = scheme.problem
     data_vars = {}
     sizes: dict[str, int] = {}

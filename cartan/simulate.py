@@ -385,6 +385,9 @@ def _advance(
 
 #: the reason :func:`_advance` gives for a whole block whose compiled loop stopped early
 _EARLY = "stopped early"
+#: the save loop completes the frames' deferred diagnostics (:func:`cartan.io.complete_records`)
+#: every this many frames, in one batched call, and at the assembly of the Dataset
+_COMPLETE_EVERY = 32
 
 
 def _make_guard(scheme: Scheme, integrator: Integrator, growth: float | None, e0: float, scale: list[float]):
@@ -1105,7 +1108,7 @@ def _resolve_run(
         scale = [float(ck_info["scale"]), int(ck_info.get("scale_set", nsaves > 0))]
     else:
         records = {}
-        rec = io.frame_record(scheme_obj, integ_obj, state)
+        rec = io.frame_record(scheme_obj, integ_obj, state, defer=True)
         reason = _check_frame(rec, 0.0, None, 0.0)
         if reason is not None:
             raise ValueError(f"the initial state is not usable: {reason}")
@@ -1189,6 +1192,7 @@ def _execute_run(run: _ResolvedRun) -> xr.Dataset:
         return io.checkpoint_dataset(st, info)
 
     guard = _make_guard(scheme_obj, integ_obj, growth, e0, scale)
+    completed = 0  # the frames before this one have their deferred diagnostics (cartan.io.complete_records)
     bar = None
     if _show_progress(run.progress) and step < total:
         from tqdm.auto import tqdm
@@ -1215,14 +1219,14 @@ def _execute_run(run: _ResolvedRun) -> xr.Dataset:
             counters = integ_obj.counters() if whole else None
             done, reason = _advance(integ_obj, scheme_obj, state, dt, n, guard, compiled=run.compiled, whole=whole)
             if reason is None:
-                rec = io.frame_record(scheme_obj, integ_obj, state)
+                rec = io.frame_record(scheme_obj, integ_obj, state, defer=True)
                 reason = _check_frame(rec, e0, growth, scale[0])
             if reason is not None and whole:
                 state = good.copy()
                 integ_obj.set_counters(counters)
                 done, reason = _advance(integ_obj, scheme_obj, state, dt, n, guard, compiled=run.compiled)
                 if reason is None:
-                    rec = io.frame_record(scheme_obj, integ_obj, state)
+                    rec = io.frame_record(scheme_obj, integ_obj, state, defer=True)
                     reason = _check_frame(rec, e0, growth, scale[0])
             step += done
             if reason is not None:
@@ -1249,6 +1253,9 @@ def _execute_run(run: _ResolvedRun) -> xr.Dataset:
                     path=path,
                 )
             _append(records, rec)
+            if len(records["time"]) - completed >= _COMPLETE_EVERY:  # (what frames keep for it stays bounded)
+                io.complete_records(scheme_obj, records, start=completed)
+                completed = len(records["time"])
             nsaves += 1
             _raise_scale(scale, rec, e0)
             if bar is not None:

@@ -110,8 +110,9 @@ def _kernel_sources(imports: Iterable[tuple[str, str]]) -> list[str]:
 @functools.cache
 def _kernel_files(module_name: str, name: str) -> tuple[str, ...]:
     """:func:`_kernel_sources` of one import, found once per process (``inspect`` looks up every
-    function of the module: tens of milliseconds per run of a generated loop); the files are read
-    at every :func:`generate`, so that an edited kernel still makes a new module."""
+    function of the module: tens of milliseconds per run of a generated loop); :func:`generate`
+    checks their stamps at every call and reads them again when one changed, so that an edited
+    kernel still makes a new module."""
     module = importlib.import_module(module_name)
     func = getattr(getattr(module, name), "py_func", getattr(module, name))
     try:
@@ -151,7 +152,32 @@ def _inline(name: str) -> str:
 INLINED_KERNELS = frozenset({"g_axis_flow"})
 
 
+#: the text of each rendered module by the content of its fragments (:func:`_render_key`)
+_rendered: dict[tuple, str] = {}
+
+
+def _render_key(fragments: list[Fragment]) -> tuple:
+    """What the text of :func:`_render` depends on, in order: per fragment its source, imports,
+    constants (as their exact literals) and parallel functions (hashable, and cheap beside
+    the dedent and decoration of thousands of source lines that it saves at every run)."""
+    return tuple((frag.source, tuple(frag.imports.items()),
+                  tuple((name, _literal(value)) for name, value in frag.constants.items()), tuple(frag.parallel))
+                 for frag in fragments)
+
+
 def _render(fragments: Iterable[Fragment]) -> str:
+    """The module's text (rendered once per content and process, :data:`_rendered`)."""
+    fragments = list(fragments)
+    key = _render_key(fragments)
+    text = _rendered.get(key)
+    if text is None:
+        if len(_rendered) > 64:
+            _rendered.clear()
+        text = _rendered[key] = _render_text(fragments)
+    return text
+
+
+def _render_text(fragments: Iterable[Fragment]) -> str:
     imports: dict[str, tuple[str, str]] = {}
     constants: dict[str, Any] = {}
     sources: list[str] = []
@@ -192,6 +218,17 @@ def _render(fragments: Iterable[Fragment]) -> str:
     return "\n".join(lines) + "\n"
 
 
+#: the name hash of a module by (text, the kernels' files and their stamps, :func:`_stamp`)
+_digests: dict[tuple, str] = {}
+
+
+def _stamp(path: str) -> tuple[int, int]:
+    """``(modification time in ns, size)`` of a kernel's source file: a file edited in place
+    changes it, and :func:`generate` then reads the files again."""
+    st = os.stat(path)
+    return st.st_mtime_ns, st.st_size
+
+
 def generate(kind: str, fragments: Iterable[Fragment]) -> ModuleType:
     """Write (once) and import the generated module made of ``fragments``.
 
@@ -208,11 +245,19 @@ def generate(kind: str, fragments: Iterable[Fragment]) -> ModuleType:
     """
     fragments = list(fragments)
     text = _render(fragments)
-    digest = hashlib.sha256(text.encode())
-    for path in _kernel_sources(imp for f in fragments for imp in f.imports.values()):
-        digest.update(Path(path).read_bytes())
+    sources = _kernel_sources(imp for f in fragments for imp in f.imports.values())
+    # the hash of the text and the kernels' files, again only when a file changed (its stat)
+    key = (text, tuple((path, *_stamp(path)) for path in sources))
+    hexdigest = _digests.get(key)
+    if hexdigest is None:
+        digest = hashlib.sha256(text.encode())
+        for path in sources:
+            digest.update(Path(path).read_bytes())
+        if len(_digests) > 64:
+            _digests.clear()
+        hexdigest = _digests[key] = digest.hexdigest()
     stem = "".join(c if c.isalnum() else "_" for c in kind)[:80]
-    name = f"{stem}_{digest.hexdigest()[:16]}"
+    name = f"{stem}_{hexdigest[:16]}"
     if name in _loaded:
         return _loaded[name]
     folder = cache_dir() / "generated"
@@ -233,6 +278,12 @@ def generate(kind: str, fragments: Iterable[Fragment]) -> ModuleType:
     return module
 
 
+#: the markers :class:`first_call` has seen on disk in this process
+_compiled: set[Path] = set()
+#: the marker of each (module, function) (:class:`first_call`; a path is built once)
+_markers: dict[tuple[Path, str], Path] = {}
+
+
 class first_call:  # noqa: N801 - used as a function: ``with first_call(...):``
     """Around the first call of ``module.function``: announce on stderr that ``what`` compiles,
     and compile it in one process at a time.
@@ -246,13 +297,18 @@ class first_call:  # noqa: N801 - used as a function: ``with first_call(...):``
     """
 
     def __init__(self, module: ModuleType, function: str, what: str):
-        self.marker: Path = module.__cartan_marker__.with_suffix(f".{function}.compiled")
+        key = (module.__cartan_marker__, function)
+        marker = _markers.get(key)
+        if marker is None:
+            marker = _markers[key] = module.__cartan_marker__.with_suffix(f".{function}.compiled")
+        self.marker: Path = marker
         self.what = what
         self._lock: Any = None
         self._t0 = 0.0
 
     def __enter__(self) -> first_call:
-        if self.marker.exists():
+        if self.marker in _compiled or self.marker.exists():
+            _compiled.add(self.marker)  # (a marker once seen stays: no file check at later calls)
             return self
         try:
             import fcntl

@@ -129,10 +129,17 @@ def _memory(state: State, ncon: int) -> tuple[np.ndarray, np.ndarray]:
     loop reads and updates in place; zeros (no offset: Δt = 0) when the state holds none that
     fit."""
     off, at = _stored(state, ncon) or (np.zeros((_HISTORY, ncon)), np.zeros(_HISTORY))
-    off = np.require(off, dtype=float, requirements=["C", "W"])
-    at = np.require(at, dtype=float, requirements=["C", "W"])
+    off, at = _writable(off), _writable(at)
     state.memory[_OFFSET], state.memory[_OFFSET_DT] = off, at
     return off, at
+
+
+def _writable(a: np.ndarray) -> np.ndarray:
+    """``np.require(a, dtype=float, requirements=["C", "W"])``, checked first (the array
+    itself when it is one already: the usual case, at every call of the compiled loop)."""
+    if isinstance(a, np.ndarray) and a.dtype == np.float64 and a.flags.c_contiguous and a.flags.writeable:
+        return a
+    return np.require(a, dtype=float, requirements=["C", "W"])
 
 
 class Rattle(LieVerlet):

@@ -59,6 +59,7 @@ Energies (paper §VI.C)
 
 from __future__ import annotations
 
+import math
 from typing import NamedTuple
 
 import numpy as np
@@ -1126,7 +1127,7 @@ def lattice_operators(scheme, reference: type):
         start = 0
         for k in keys:
             shape_k = state.arrays[k].shape
-            count = int(np.prod(shape_k[:-2]))
+            count = math.prod(shape_k[:-2])
             state.arrays[k] = G[start:start + count].reshape(shape_k).copy()
             start += count
         state.arrays[frame_key] = Phi.reshape(state.arrays[frame_key].shape).copy()

@@ -217,7 +217,10 @@ class Lattice(Scheme):
 
     # ------------------------------------------------------------------ layout helpers
     def _key(self, axis: int) -> str:
-        return f"G_{self.grid.axis_names[axis]}"
+        keys = self.__dict__.get("_keys")
+        if keys is None:  # (built once: read several times per step on the numpy path and per frame)
+            keys = self._keys = tuple(f"G_{name}" for name in self.grid.axis_names)
+        return keys[axis]
 
     def _ends(self, a: np.ndarray, axis: int, kind: str | None = None,
               glue: dict[int, np.ndarray] | None = None) -> tuple[np.ndarray, np.ndarray]:
@@ -358,15 +361,23 @@ class Lattice(Scheme):
         return cache[axis]
 
     def _axis_stress(self, X: np.ndarray, axis: int) -> np.ndarray:
+        full, X0 = self._axis_full(X, axis)
+        if X0 is None:
+            return self.medium.stress(full)[..., axis, :], full
+        return self.medium.stress_at(full, X0)[..., axis, :], full
+
+    def _axis_full(self, X: np.ndarray, axis: int) -> tuple[np.ndarray, np.ndarray | None]:
+        """``(full, X0)``: the edge strains ``X`` ``[*edge_shape, r]`` along ``axis`` in the slot
+        ``axis`` of the edges' full strains ``[*edge_shape, d, r]`` (the other slots at rest), and
+        the edges' rest strains (:meth:`edge_rest_strains`, None without a reference)."""
         d = self.grid.d
         X0 = self.edge_rest_strains(axis)
         if X0 is None:
             full = np.broadcast_to(self.medium.rest_strain(), (*X.shape[:-1], d, X.shape[-1])).copy()
-            full[..., axis, :] = X
-            return self.medium.stress(full)[..., axis, :], full
-        full = X0.copy()
+        else:
+            full = X0.copy()
         full[..., axis, :] = X
-        return self.medium.stress_at(full, X0)[..., axis, :], full
+        return full, X0
 
     def edge_nodes(self) -> tuple[list[np.ndarray], list[np.ndarray]]:
         """Per axis, the flat (C-order) nodes at the tail and at the head of each edge, in the
@@ -624,14 +635,20 @@ class Lattice(Scheme):
         return res
 
     def potential_energy(self, state: State) -> float:
+        return self._potential_energy(state, None if self.coupled else self.edge_strains(state))
+
+    def _potential_energy(self, state: State, edges: list[np.ndarray] | None) -> float:
+        """:meth:`potential_energy` with the edge strains ``edges`` (:meth:`edge_strains` of
+        ``state``; unused for a coupled lattice) given: a saved frame has them already."""
         V = 0.0
-        cell = float(np.prod(self.h))
+        cell = self.__dict__.get("_cell")
+        if cell is None:
+            cell = self._cell = float(np.prod(self.h))
         if self.coupled:
             _, Xc = self._corner_strains(state)
             V += float(np.sum(self.corners()["weight"] * self._corner_energy(Xc)))
-        for axis, X in enumerate(self.edge_strains(state) if not self.coupled else ()):
-            X0 = self.edge_rest_strains(axis)
-            _, full = self._axis_stress(X, axis)
+        for axis, X in enumerate(edges if not self.coupled else ()):
+            full, X0 = self._axis_full(X, axis)  # (the energy only: no stress evaluated)
             V += cell * float(np.sum(self.medium.potential(full) if X0 is None
                                      else self.medium.potential_at(full, X0)))
         conservative = [load for load in self.problem.loads if load.conservative]
@@ -655,6 +672,33 @@ class Lattice(Scheme):
             G = state.arrays[self._key(axis)]
             mismatch = g.log(g.compose(g.inverse(G), g.compose(inv_tail, head)))
             res = max(res, float(np.max(np.abs(mismatch))) / self.h[axis])
+        return res
+
+    def integrability_residuals(self, Phi: np.ndarray, edges: list[np.ndarray]) -> np.ndarray:
+        """:meth:`integrability_residual` of a batch of tracked states at once, the same numbers.
+
+        Parameters
+        ----------
+        Phi : numpy.ndarray, shape ``[*shape, *batch, m, m]``
+            The stepped frames, the batch axes after the node axes.
+        edges : list of numpy.ndarray
+            Per axis α the stored edge elements ``[*edge_shape_α, *batch, m, m]``.
+
+        Returns
+        -------
+        numpy.ndarray, shape ``[*batch]``
+            Per state, ``max_e |X_e(stored) − log(Φ_i⁻¹Φ_j)/h|`` (the pointwise kernels and
+            the exact maxima of :meth:`integrability_residual`: bit for bit its values).
+        """
+        g = self.group
+        d = self.grid.d
+        res = np.zeros(Phi.shape[d:-2])
+        for axis in range(d):
+            inv_tail, _ = self._ends(g.inverse(Phi), axis, "inverse")
+            _, head = self._ends(Phi, axis, "frame")
+            mismatch = g.log(g.compose(g.inverse(edges[axis]), g.compose(inv_tail, head)))
+            worst = np.max(np.abs(mismatch), axis=(*range(d), mismatch.ndim - 1)) / self.h[axis]
+            res = np.where(worst > res, worst, res)  # (as max(res, worst): a NaN is not taken)
         return res
 
     def closure_residual(self, state: State) -> float:
