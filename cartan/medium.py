@@ -308,6 +308,12 @@ class Medium(abc.ABC):
         ``(nnode·r, nnode·r)`` matrix over all node components; :func:`cartan.solve_static`
         then needs no coloured finite-difference Jacobian (it may still add a small
         finite-difference correction between iterations).  Default: None (not provided).
+
+    Supports (optional)
+        :meth:`check_support` may refuse a boundary condition that the medium's equations do
+        not admit at an end (a ``ValueError`` saying what to use instead); the
+        :class:`~cartan.problem.Problem` calls it for every end when it is built.  Default:
+        every support is accepted.
     """
 
     name: ClassVar[str] = ""
@@ -467,6 +473,30 @@ class Medium(abc.ABC):
         Returns
         -------
         None, or (components, values) : int array ``(c,)`` and float array ``(c,)``
+        """
+        return None
+
+    def check_support(self, support: Any, end: str) -> None:
+        """Refuse a support that this medium's equations do not admit (default: accept every one).
+
+        Called by :class:`~cartan.problem.Problem` for each entry of its ``boundaries``, after
+        the core's own checks (a :class:`~cartan.problem.Held` end's components are valid for
+        the group).  A medium overrides it when a support is well formed but not a solution of
+        its equations at an end (paper §IV.D: the end condition must be compatible with the
+        medium's constraints), e.g. a ``Clamped`` end of the Nambu–Goto string, which would
+        hold the time component of the worldsheet too.
+
+        Parameters
+        ----------
+        support : Boundary
+            The condition (``Free``, ``Clamped``, ``Held`` or ``Symmetry``).
+        end : str
+            Its key in ``boundaries`` (``"start"``, ``"u-end"``, ...).
+
+        Raises
+        ------
+        ValueError
+            Naming ``boundaries[end]`` and the support to use instead.
         """
         return None
 

@@ -885,6 +885,7 @@ class Problem:
                 b.mask(self.medium, key)
             if isinstance(b, Free) and b.load is not None:
                 b.load = check_finite(f"boundaries[{key!r}].load", b.load, (g.dim,))
+            self.medium.check_support(b, key)
         ends = {}
         for key in self.boundaries:  # "start" and "u-start" are the same end (d = 1)
             end = f"{self.grid.axis_names[0]}-{key}" if key in ("start", "end") else key

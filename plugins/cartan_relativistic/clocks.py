@@ -50,7 +50,8 @@ def proper_time(ds: Any, method: str = "simpson") -> np.ndarray:
         frame at a node whose coordinate time does not increase from frame to frame (no
         worldline to integrate along: a clamped end of the elastic string in files written
         before its ``coordinate_time`` advanced with the lab time; a clamped end of the
-        Nambu–Goto string, whose event the core holds).
+        Nambu–Goto string, whose event the core holds, in files written before the medium
+        refused it).
 
     Raises
     ------

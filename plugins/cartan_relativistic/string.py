@@ -259,6 +259,34 @@ class RelativisticRod(KernelMedium):
     def point_kernels(self) -> MediumKernels:
         return MediumKernels(nambu_goto_energy, nambu_goto_stress, np.array([self.tension]))
 
+    def check_support(self, support: Any, end: str) -> None:
+        """Refuse an end of the Nambu–Goto string that holds the time component U₀ = ∂_t r⁰.
+
+        A :class:`cartan.Clamped` end (N = 0), or a :class:`cartan.Held` end whose components
+        include 0, holds the end's event r = (ct, x⃗) instead of its position x⃗: r⁰ stops while
+        the rest of the string runs on in the temporal gauge r⁰ = ct, which breaks the Virasoro
+        constraints (residual ≈ 1, docs/media/relativistic-rod.md §3 "Fixed ends") and the
+        energy balance.  The fixed end is ``cartan.Held(components=(1, …, 9))``
+        (:func:`cartan_relativistic.fixed.fixed_end`).  The elastic string (``energy="elastic"``,
+        temporal gauge with the run's time the lab time) accepts every support.
+
+        Raises
+        ------
+        ValueError
+            For such an end of the Nambu–Goto string, naming ``boundaries[end]``.
+        """
+        if self.energy != "nambu-goto":
+            return
+        holds_time = isinstance(support, cartan.Clamped) or (
+            isinstance(support, cartan.Held) and 0 in support.components)
+        if holds_time:
+            raise ValueError(
+                f"boundaries[{end!r}]: a {support.kind} end of the Nambu–Goto string (relativistic-rod, "
+                "energy='nambu-goto') holds the time component U₀ = ∂_t r⁰ (component 0), which is not a solution "
+                "(Virasoro residual ≈ 1, energy not conserved); an end fixed in space is "
+                "cartan.Held(components=(1, 2, 3, 4, 5, 6, 7, 8, 9)) = cartan_relativistic.fixed.fixed_end() "
+                "(scene: { kind = \"held\", components = [1, 2, 3, 4, 5, 6, 7, 8, 9] })")
+
     # ------------------------------------------------------------------ initial states
     def initial_state(self, grid, kind: str, **params: Any) -> InitialState:
         """Initial Φ and N of a string in conformal–temporal gauge (r⁰ = 0, ∂_t r⁰ = c).
