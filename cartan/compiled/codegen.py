@@ -280,8 +280,6 @@ def generate(kind: str, fragments: Iterable[Fragment]) -> ModuleType:
 
 #: the markers :class:`first_call` has seen on disk in this process
 _compiled: set[Path] = set()
-#: the marker of each (module, function) (:class:`first_call`; a path is built once)
-_markers: dict[tuple[Path, str], Path] = {}
 
 
 class first_call:  # noqa: N801 - used as a function: ``with first_call(...):``
@@ -297,11 +295,7 @@ class first_call:  # noqa: N801 - used as a function: ``with first_call(...):``
     """
 
     def __init__(self, module: ModuleType, function: str, what: str):
-        key = (module.__cartan_marker__, function)
-        marker = _markers.get(key)
-        if marker is None:
-            marker = _markers[key] = module.__cartan_marker__.with_suffix(f".{function}.compiled")
-        self.marker: Path = marker
+        self.marker: Path = module.__cartan_marker__.with_suffix(f".{function}.compiled")
         self.what = what
         self._lock: Any = None
         self._t0 = 0.0

@@ -661,18 +661,11 @@ class Lattice(Scheme):
     def integrability_residual(self, state: State) -> float:
         """max_e |X_e(stored) − log(Φ_i⁻¹Φ_j)/h| with Φ the stepped frames (or, when frames are
         rebuilt from the edges, the closure defect of periodic axes)."""
-        g = self.group
         if "Phi" not in state.arrays:
             return self.closure_residual(state)
-        Phi = state.arrays["Phi"]
-        res = 0.0
-        for axis in range(self.grid.d):
-            inv_tail, _ = self._ends(g.inverse(Phi), axis, "inverse")
-            _, head = self._ends(Phi, axis, "frame")
-            G = state.arrays[self._key(axis)]
-            mismatch = g.log(g.compose(g.inverse(G), g.compose(inv_tail, head)))
-            res = max(res, float(np.max(np.abs(mismatch))) / self.h[axis])
-        return res
+        one = (..., None, slice(None), slice(None))  # (a batch of one state)
+        edges = [state.arrays[self._key(axis)][one] for axis in range(self.grid.d)]
+        return float(self.integrability_residuals(state.arrays["Phi"][one], edges)[0])
 
     def integrability_residuals(self, Phi: np.ndarray, edges: list[np.ndarray]) -> np.ndarray:
         """:meth:`integrability_residual` of a batch of tracked states at once, the same numbers.
