@@ -59,7 +59,10 @@ The reductions
     constrained step costs more than a free one, so for a dynamic scene the twin is
     recommended only when a measured pilot (``check=True``, each model warmed up untimed) is
     faster over the same simulated time, and the report states the measured ratios (whole
-    runs, and steps alone), not the CFL ratio.
+    runs, and steps alone), not the CFL ratio.  The check compares the two runs at the full
+    pilot's last step (the twin's step shortened to end there) and predicts what it measures:
+    the model difference there plus the two runs' time-step errors, each by Richardson from a
+    run at half the step (:func:`_advise_held_dynamic`), all three listed in the report.
 ``SE(3) planar → SE(2)`` (exact; :mod:`cartan.reduction`)
     Detected by :func:`cartan.reduction.planar_reduction` (planar data, planar loads, a medium
     with an exact planar twin): the reduced run changes nothing but the cost, so the error
@@ -171,6 +174,19 @@ class ReductionAdvice:
         measured time ratio full / reduced; NaN otherwise.
     check_note : str
         What the check ran.
+    predicted_difference : float
+        With ``check=True``: the difference the check is predicted to measure, at the time and on
+        the quantity it measures.  A static solve or path: ``error_estimate``.  A dynamic run
+        (held-strain twin): the model difference at the pilot's end plus the two runs' time-step
+        errors (:func:`_advise_held_dynamic`).  NaN otherwise.
+    model_difference : float
+        With ``check=True``: the part of ``predicted_difference`` the reduction itself causes (a
+        dynamic run: the estimate at the pilot's last frame, where the check compares; the
+        largest over the frames is ``error_estimate``).
+    time_error, full_time_error : float
+        With ``check=True`` on a dynamic run: the estimated time-step error of the reduced and of
+        the full run at the pilot's end (largest over the nodes; Richardson from a second run at
+        half the step); NaN when there is none (static solves, paths) or it is not estimated.
     """
 
     name: str
@@ -186,6 +202,10 @@ class ReductionAdvice:
     measured_difference: float = math.nan
     time_ratio: float = math.nan
     check_note: str = ""
+    predicted_difference: float = math.nan
+    model_difference: float = math.nan
+    time_error: float = math.nan
+    full_time_error: float = math.nan
 
     @property
     def relative_error(self) -> float:
@@ -193,6 +213,15 @@ class ReductionAdvice:
         if not (math.isfinite(self.error_estimate) and math.isfinite(self.error_scale)) or self.error_scale <= 0:
             return math.nan
         return self.error_estimate / self.error_scale
+
+    @property
+    def prediction_ratio(self) -> float:
+        """``predicted_difference / measured_difference`` (NaN when either is missing or the
+        measured difference is 0): within [0.5, 2] the prediction holds to a factor 2."""
+        p, m = self.predicted_difference, self.measured_difference
+        if not (math.isfinite(p) and math.isfinite(m)) or m <= 0:
+            return math.nan
+        return p / m
 
 
 @dataclasses.dataclass
@@ -245,7 +274,8 @@ class Advice:
 
         out = {k: clean(v) for k, v in dataclasses.asdict(self).items() if k != "reductions"}
         out["reductions"] = [{k: clean(v) for k, v in dataclasses.asdict(r).items()} | {
-            "relative_error": clean(r.relative_error)} for r in self.reductions]
+            "relative_error": clean(r.relative_error), "prediction_ratio": clean(r.prediction_ratio)}
+            for r in self.reductions]
         return out
 
     def to_dataset(self) -> xr.Dataset:
@@ -256,8 +286,10 @@ class Advice:
         xarray.Dataset
             Variables ``admitted``, ``recommended`` (int 0/1), ``indicator``,
             ``error_estimate``, ``error_scale``, ``relative_error``, ``speedup_estimate``,
-            ``measured_difference``, ``time_ratio`` (float), ``kind``, ``indicator_name``,
-            ``note``, ``check_note`` (str), each ``[reduction]``.
+            ``measured_difference``, ``time_ratio``, ``predicted_difference``,
+            ``model_difference``, ``time_error``, ``full_time_error``, ``prediction_ratio``
+            (float), ``kind``, ``indicator_name``, ``note``, ``check_note`` (str), each
+            ``[reduction]``.
         """
         import xarray as xr
 
@@ -272,6 +304,12 @@ class Advice:
             "speedup_estimate": "estimated time ratio full / reduced",
             "measured_difference": "difference measured by running both models (check)",
             "time_ratio": "measured time ratio full / reduced (check)",
+            "predicted_difference": "difference the check is predicted to measure: model difference and time-step "
+                                    "errors (check)",
+            "model_difference": "part of the predicted difference the reduction causes (check)",
+            "time_error": "estimated time-step error of the reduced run at the check's end (check, dynamic)",
+            "full_time_error": "estimated time-step error of the full run at the check's end (check, dynamic)",
+            "prediction_ratio": "predicted_difference / measured_difference (check)",
         }
         data = {k: ("reduction", np.array([float(getattr(r, k)) for r in rs]), {"long_name": v})
                 for k, v in floats.items()}
@@ -302,8 +340,17 @@ class Advice:
                              f"(relative {f(r.relative_error)}, accepted {f(self.rtol)}); estimated speed-up "
                              f"{f(r.speedup_estimate, '.2f')}")
                 if self.checked:
-                    lines.append(f"  check: measured difference {f(r.measured_difference, '.5g')}, time ratio "
+                    pred = (f"predicted {f(r.predicted_difference, '.5g')} (exact: round-off)" if r.kind == "exact"
+                            else f"predicted {f(r.predicted_difference, '.5g')} (predicted / measured "
+                            f"{f(r.prediction_ratio, '.3g')})")
+                    lines.append(f"  check: measured difference {f(r.measured_difference, '.5g')}, {pred}, time ratio "
                                  f"{f(r.time_ratio, '.2f')}" + (f" ({r.check_note})" if r.check_note else ""))
+                    if math.isfinite(r.time_error) or math.isfinite(r.full_time_error):
+                        lines.append(f"  predicted = model difference {f(r.model_difference, '.5g')} at the "
+                                     f"pilot's end + time-step errors: reduced run {f(r.time_error, '.5g')}, full "
+                                     f"run {f(r.full_time_error, '.5g')} (Richardson, a second run of each at "
+                                     "Δt/2); x_full − x_reduced = model + e_full − e_reduced, and the sum of the "
+                                     "parts' sizes is its upper estimate")
             if r.note:
                 lines.append(f"  {r.note}")
         rec = self.recommended
@@ -799,8 +846,9 @@ def _held_surface_estimate(ds: Any, problem: Problem, comps: Sequence[int], valu
 
 
 def _advise_held(subject: _Subject, full_ds: Any, rtol: float, check: bool, full_time: float,
-                 pilot_t: float | None) -> ReductionAdvice:
-    """The held-strain twin the scene's medium declares (:meth:`~cartan.medium.Medium.held_strain_twins`)."""
+                 pilot_t: float | None, run: Any = None) -> ReductionAdvice:
+    """The held-strain twin the scene's medium declares (:meth:`~cartan.medium.Medium.held_strain_twins`);
+    ``run`` is the resolved full run of a dynamic scene (its integrator's order)."""
     out = ReductionAdvice(HELD_STRAINS, "approximate", indicator_name="max |X − X_held| (held strains)")
     problem = subject.problem
     try:
@@ -869,7 +917,8 @@ def _advise_held(subject: _Subject, full_ds: Any, rtol: float, check: bool, full
              "steps, an upper bound: a constrained step costs more than a free one" + (
                  "; measured with check)" if subject.mode == "dynamic" else "; a static solve does not gain it)"))
     if subject.mode == "dynamic":
-        return _advise_held_dynamic(out, subject, held, full_ds, full_time, pilot_t, within, what, rtol, check, k)
+        return _advise_held_dynamic(out, subject, held, full_ds, full_time, pilot_t, within, what, rtol, check, k,
+                                    field, run)
     out.recommended = within
     out.note = what + ("" if within else f"; relative error {out.relative_error:.3g} > rtol = {rtol:g}")
     if check:
@@ -881,6 +930,7 @@ def _advise_held(subject: _Subject, full_ds: Any, rtol: float, check: bool, full
             out.check_note = f"the held-strain {subject.mode} solve failed: {' '.join(str(exc).split())[:200]}"
             return out
         _measured(out, full_ds, fds, full_time, ftime, k, measure, _initial_positions(problem))
+        out.predicted_difference = out.model_difference = out.error_estimate  # no time step: the model alone
         what = "static solves" if subject.mode == "static" else "continuation paths"
         of = (f"|{measure.describe()}: full − held|" if measure is not None else
               "largest |x_full − x_held| over the nodes")
@@ -904,13 +954,65 @@ def _measured(out: ReductionAdvice, full_ds: Any, held_ds: Any, full_time: float
     out.time_ratio = full_time / held_time if held_time > 0 else math.nan
 
 
+def _last_positions(ds: Any, k: int) -> np.ndarray:
+    """Node positions of the last frame of ``ds`` ``[nodes, k]``."""
+    return np.asarray(ds["position"].values[-1], dtype=float).reshape(-1, k)
+
+
+def _time_error(problem: Problem, settings: Mapping[str, Any], t_end: float, ds: Any, k: int,
+                order: int) -> np.ndarray | None:
+    """The time-step error of the run ``ds`` (``settings``' Δt, a whole number of steps to
+    ``t_end``) at its last frame, by Richardson from a second, untimed run at Δt/2:
+    ``e(Δt) ≈ (x_Δt − x_Δt/2)·2ᵖ/(2ᵖ − 1)`` ``[nodes, k]``, p the integrator's ``order``.
+    None when that run fails or does not end at ``t_end``."""
+    from .simulate import InstabilityError
+    from .statics import ConvergenceError
+
+    half = dict(settings)
+    half["dt"] = 0.5 * float(settings["dt"])
+    try:
+        fine = _simulate(problem, half, t_end)
+    except (InstabilityError, ConvergenceError, ValueError, ArithmeticError):
+        return None
+    if not math.isclose(float(fine["time"].values[-1]), float(ds["time"].values[-1]), rel_tol=1e-9, abs_tol=1e-12):
+        return None
+    factor = 2.0 ** order / (2.0 ** order - 1.0)
+    return (_last_positions(ds, k) - _last_positions(fine, k)) * factor
+
+
+def _largest(field: np.ndarray | None) -> float:
+    """The largest norm over the nodes of ``field`` ``[nodes, k]`` (NaN for None)."""
+    return math.nan if field is None else float(np.max(np.linalg.norm(field, axis=-1)))
+
+
 def _advise_held_dynamic(out: ReductionAdvice, subject: _Subject, held: Problem, full_ds: Any, full_time: float,
-                             pilot_t: float | None, within: bool, what: str, rtol: float, check: bool,
-                             k: int) -> ReductionAdvice:
+                         pilot_t: float | None, within: bool, what: str, rtol: float, check: bool,
+                         k: int, field: np.ndarray | None = None, run: Any = None) -> ReductionAdvice:
     """The held-strain twin of a dynamic scene: it runs with ``rattle`` (the integrator that holds
     constrained strains) at its own CFL step; recommended only when its strains allow it and a
     measured pilot (``check``) shows it faster over the same simulated time — the CFL ratio alone
-    does not, since a constrained step costs more than a free one."""
+    does not, since a constrained step costs more than a free one.
+
+    The check compares the node positions at the full pilot's last step, t_c = N·Δt (N = ⌈T/Δt⌉
+    steps to the pilot's end T): the twin's step, its own (half its CFL estimate, as
+    :func:`cartan.simulate` picks it), is shortened so that a whole number of steps ends at t_c.
+    What it measures is
+
+        x_full,Δt − x_twin,Δt' = (x_full − x_twin) + e_full(Δt) − e_twin(Δt'),
+
+    the model difference and the two runs' time-step errors.  The prediction estimates each
+    part, as its largest norm over the nodes: the model difference by ``field`` ``[nodes, k]``,
+    the displacement the held strains carry at t_c (:func:`_filament_estimate`,
+    :func:`_held_surface_estimate`); each time-step error by Richardson from a second run of the
+    model at half its step and the order p of its integrator (:func:`_time_error`; ``run`` is the
+    resolved full run, None skips the full model's).  ``predicted_difference`` is the sum of the
+    three sizes, the upper estimate of the norm of the sum (triangle inequality).  Their
+    directions are not combined: the model field is the first-order displacement of the held
+    strains, right in size but not in direction in a moving rod, where the twin's different
+    dynamics turn it (the stiff swing at n = 41: 9.4e-6 against the converged 1.22e-5, at 65° at
+    the tip), so a node-by-node sum, or a root sum of squares (parts at right angles), can cancel
+    what the runs do not.  The two runs share their grid, so their spatial errors cancel to
+    leading order and are not part of the prediction."""
     out.note = what
     if not check:
         out.note += (". In time the twin runs with rattle at its own step; not recommended unmeasured: the time "
@@ -921,28 +1023,46 @@ def _advise_held_dynamic(out: ReductionAdvice, subject: _Subject, held: Problem,
     from .simulate import InstabilityError, StabilityWarning, _resolve_run
     from .statics import ConvergenceError
 
+    t_check = float(full_ds["time"].values[-1])  # the full pilot's last step (≥ pilot_t)
     try:
         with warnings.catch_warnings():
             warnings.simplefilter("ignore", StabilityWarning)
-            twin_run = _resolve_run(held, "rattle", settings.get("scheme"), None, float(pilot_t), None, None, None,
+            twin_run = _resolve_run(held, "rattle", settings.get("scheme"), None, t_check, None, None, None,
                                     None, None, settings.get("scheme_options"), False, 1e3, compiled=True, command="",
                                     max_steps=None)
-        settings["dt"] = float(twin_run.dt)  # its own step: half its CFL estimate, as simulate picks it
+        dt_own = float(twin_run.dt)  # half its CFL estimate, as simulate picks it
+        settings["dt"] = t_check / max(1, math.ceil(t_check / dt_own * (1.0 - 1e-12)))  # ends at t_check
         with contextlib.suppress(InstabilityError):  # the warm-up compiles (or loads) its loop: not timed
             _simulate(held, settings, 2.0 * settings["dt"])
-        fds, ftime = _timed(_simulate, held, settings, float(pilot_t))
+        fds, ftime = _timed(_simulate, held, settings, t_check)
     except (ConvergenceError, InstabilityError, ValueError) as exc:
         out.check_note = f"the held-strain pilot (rattle) failed: {' '.join(str(exc).split())[:200]}"
         return out
     _measured(out, full_ds, fds, full_time, ftime, k)
+    # the prediction: the model difference at t_check and the two runs' time-step errors
+    p_twin = int(getattr(twin_run.integrator, "order", 0))
+    e_twin = _time_error(held, settings, t_check, fds, k, p_twin) if p_twin > 0 else None
+    p_full = int(getattr(getattr(run, "integrator", None), "order", 0))
+    e_full = _time_error(subject.problem, subject.run_settings, t_check, full_ds, k, p_full) if p_full > 0 else None
+    model = np.zeros_like(_last_positions(full_ds, k)) if field is None else np.asarray(field, float).reshape(-1, k)
+    out.model_difference, out.time_error, out.full_time_error = _largest(model), _largest(e_twin), _largest(e_full)
+    out.predicted_difference = out.model_difference + sum(e for e in (out.time_error, out.full_time_error)
+                                                          if math.isfinite(e))
     steps, full_steps = int(fds["step"].values[-1]), int(full_ds["step"].values[-1])
     stepping = _step_time(full_ds, full_time) / max(_step_time(fds, ftime), 1e-300)
-    out.check_note = (f"pilot runs to t = {float(pilot_t):g} after an untimed warm-up of each: full "
-                      f"{full_time:.3g} s ({full_steps} steps of Δt = {float(subject.run_settings['dt']):.3g}"
-                      f"), held (rattle, {steps} steps of Δt = {settings['dt']:.3g}) {ftime:.3g} s; time ratio of the "
-                      f"whole runs {out.time_ratio:.3g}×, of their steps alone {stepping:.3g}×; difference = largest "
-                      "|x_full − x_held| over the nodes at the pilot's end (it includes the two runs' different "
-                      "time-step errors)")
+    dt_full = float(subject.run_settings["dt"])
+    out.check_note = (f"pilot runs to t = {t_check:.6g} after an untimed warm-up of each: full "
+                      f"{full_time:.3g} s ({full_steps} steps of Δt = {dt_full:.3g}), held (rattle, {steps} steps of "
+                      f"Δt = {settings['dt']:.4g}) {ftime:.3g} s; time ratio of the whole runs {out.time_ratio:.3g}×, "
+                      f"of their steps alone {stepping:.3g}×; difference = largest |x_full − x_held| over the nodes "
+                      "at the full run's last step (the twin's step shortened to end there); it contains the "
+                      "two runs' time-step errors, estimated from runs at Δt/2 (rattle order "
+                      f"{p_twin}, {getattr(getattr(run, 'integrator', None), 'name', 'the scene’s integrator')} "
+                      f"order {p_full})")
+    if e_twin is not None and out.time_error > max(out.model_difference, 1e-300):
+        dt_even = settings["dt"] * (out.model_difference / out.time_error) ** (1.0 / p_twin)
+        out.check_note += (f"; the twin's time-step error {out.time_error:.3g} exceeds the model difference "
+                           f"{out.model_difference:.3g}: at Δt ≈ {dt_even:.2g} they would be equal")
     out.recommended = within and out.time_ratio > 1.0
     r = out.time_ratio
     pace = (f"{r:.3g}× faster than" if r >= 1.0 else f"{1.0 / r:.3g}× slower than" if r > 0 else "no faster than")
@@ -954,6 +1074,9 @@ def _advise_held_dynamic(out: ReductionAdvice, subject: _Subject, held: Problem,
         out.note += "; its strains allow it but the pilot is not faster"
     elif not within:
         out.note += f"; relative error {out.relative_error:.3g} > rtol = {rtol:g}"
+    if within and math.isfinite(out.time_error) and out.time_error > rtol * out.error_scale:
+        out.note += (f"; at its own step the twin's time-step error, {out.time_error:.3g}, exceeds rtol of the "
+                     f"scale {out.error_scale:.3g}: run it with a smaller Δt")
     return out
 
 
@@ -997,6 +1120,7 @@ def _advise_planar(subject: _Subject, full_ds: Any, full_time: float, run: Any, 
                     f"difference at its end {diff(full_ds, rds):.2g}")
         if check:
             out.measured_difference, out.time_ratio = diff(full_ds, rds), out.speedup_estimate
+            out.predicted_difference = out.model_difference = 0.0
             out.check_note = f"the same {what}s (the analysis runs the full one)"
         return out
     pays = reduction_pays(run)
@@ -1177,7 +1301,17 @@ def _advise_sphere(subject: _Subject, full_ds: Any, full_time: float, rtol: floa
         pds, pt = _run(subject, plane, t_end, warm=False)
         out.measured_difference = float(np.max(np.abs(strains(fds, rod) - strains(pds, plane.medium))))
         out.time_ratio = ft / pt if pt > 0 else math.nan
-        out.check_note = f"full runs to t = {t_end:g}: sphere {ft:.3g} s, plane {pt:.3g} s"
+        # the prediction at the time the check compares: the pilot's estimate when the pilot is the whole run,
+        # else Richardson from r and 2r again at t_end (the same integrator and Δt on both models: their
+        # time-step errors differ by O((L/r)²) of themselves, and are not estimated apart)
+        same = math.isclose(float(fds["time"].values[-1]), float(ds1["time"].values[-1]), rel_tol=1e-9)
+        ds2_end = ds2 if same else _run(subject, double, t_end, warm=False)[0]
+        out.predicted_difference = out.model_difference = (
+            out.error_estimate if same else 4.0 / 3.0 * float(np.max(np.abs(strains(fds, rod)
+                                                                          - strains(ds2_end, double.medium)))))
+        out.check_note = (f"full runs to t = {t_end:g}: sphere {ft:.3g} s, plane {pt:.3g} s; predicted: Richardson "
+                          "from r and 2r at t = " + (f"{t_end:g} (the pilot's estimate)" if same else
+                                                     f"{t_end:g} (a run at 2r to that time too)"))
     if not out.recommended:
         out.note += f"; relative error {out.relative_error:.3g} > rtol = {rtol:g}"
     elif out.speedup_estimate < 1.0:
@@ -1270,7 +1404,7 @@ def advise(problem_or_scene: Any, check: bool = False, *, rtol: float = DEFAULT_
         pilot = (f"a pilot run to t = {pilot_t:g} ({round(pilot_t / dt)} steps of Δt = {dt:.3g}, {full_time:.3g} s; "
                  f"the scene runs to t = {float(run.info['run']['t_end']):g})")
     reductions = [
-        _advise_held(subject, full_ds, float(rtol), bool(check), full_time, pilot_t),
+        _advise_held(subject, full_ds, float(rtol), bool(check), full_time, pilot_t, run),
         _advise_planar(subject, full_ds, full_time, run, pilot_t, bool(check)),
         _advise_sphere(subject, full_ds, full_time, float(rtol), pilot_t, bool(check)),
     ]

@@ -5,7 +5,8 @@
     and prints which reductions it admits, each with the measured indicator, the estimated
     error and speed-up and whether it is recommended (:func:`cartan.advise.advise`);
     ``--check`` runs the full and the reduced model side by side and prints the measured
-    difference and time ratio beside the prediction; ``-o`` writes the table as netCDF;
+    difference and time ratio beside the prediction (a dynamic scene: the model difference plus
+    the two runs' time-step errors, each listed); ``-o`` writes the table as netCDF;
     ``--json`` prints the report as JSON; ``--scene NAME`` advises a registered scene.
 
 ``cartan advise SCENE.toml --tol 1e-4 [--chart wp.png] [--pilot-steps 200] [--json]``
