@@ -15,6 +15,8 @@ A scene file names a registered medium and gives, in plain tables, everything
     [boundaries]          # optional; ends "start"/"end" (d = 1) or "u-start", ...
     start = { kind = "clamped" }
     end = { kind = "free", load = [0, 0, -1, 0, 0, 0], follower = false }
+    # a held end may carry a load too (d = 1): start = { kind = "held", components = [0, 1, 2],
+    # load = [0, 0, 0, 0, 0, 1] } -- a node force at the end, its held components the reaction
     [[loads]]             # optional, repeated
     kind = "gravity"
     g = [0, 0, -9.81]
@@ -674,7 +676,7 @@ def _boundaries(reader: _Reader, data: Mapping) -> dict:
                 raise reader.fail(f"{key}.follower", f"must be true or false, got {follower!r}")
             out[end] = Free(load=spec.get("load"), follower=follower)
         elif kind == "held":
-            reader.no_extra(spec, {"kind", "components"}, key)
+            reader.no_extra(spec, {"kind", "components", "load", "follower"}, key)
             try:
                 out[end] = Held(components=spec.get("components"))
             except ValueError as exc:
@@ -688,6 +690,41 @@ def _boundaries(reader: _Reader, data: Mapping) -> dict:
         else:
             raise reader.fail(f"{key}.kind", f"unknown boundary kind {kind!r}; choose 'clamped', 'free', 'held' or "
                               "'symmetry'")
+    return out
+
+
+def _held_loads(reader: _Reader, data: Mapping, medium, grid: Grid) -> list:
+    """The loads of ``held`` ends (``load``, ``follower``): a :class:`~cartan.problem.NodeForce`
+    on the end node per loaded end, with the meaning of a free end's ``load`` (P ∈ 𝔤*, r = the
+    group's dimension components, a dead load fixed in the spatial frame, or with
+    ``follower = true`` in the body frame).  The held components of P are the support's reaction
+    and change nothing; the free ones load the end.  d = 1 only (the end is one node).  Each
+    load carries ``held_end`` (the end's name), for :func:`_external_loads`."""
+    out = []
+    b = data.get("boundaries", {})
+    for end, spec in (b.items() if isinstance(b, Mapping) else ()):
+        if not isinstance(spec, Mapping) or spec.get("kind") != "held":
+            continue
+        key = f"boundaries.{end}"
+        follower = spec.get("follower", False)
+        if not isinstance(follower, bool):
+            raise reader.fail(f"{key}.follower", f"must be true or false, got {follower!r}")
+        if "load" not in spec:
+            continue
+        load, r = spec["load"], medium.group.dim
+        if not (isinstance(load, list) and len(load) == r and all(_is_number(v) and math.isfinite(v) for v in load)):
+            raise reader.fail(f"{key}.load", f"must be a list of {r} finite numbers (the load's components on "
+                                             f"{medium.group.name}, as a free end's load), got {load!r}")
+        if grid.d != 1:
+            raise reader.fail(f"{key}.load", "a load on a held end is read on d = 1 grids (one end node); on a "
+                                             "face of a d ≥ 2 grid give [[loads]] node-force tables on its nodes")
+        if end not in ("start", "end"):
+            continue  # not an end of this grid: the problem names it
+        force = NodeForce(grid, [float(v) for v in load], node=0 if end == "start" else -1,
+                          frame="body" if follower else "spatial")
+        force.bind(medium)
+        force.held_end = end
+        out.append(force)
     return out
 
 
@@ -939,8 +976,12 @@ def _external_loads(problem: Problem) -> list[str]:
 
     names = [f"boundaries.{end}" for end, b in problem.boundaries.items()
              if isinstance(b, Free) and b.load is not None and np.any(np.asarray(b.load) != 0)]
+    # a held end's load (_held_loads) is named by its end, after the [[loads]] tables
+    names += [f"boundaries.{load.held_end}" for load in problem.loads
+              if getattr(load, "held_end", None) is not None and np.any(load.force_components != 0)]
     names += [f"loads[{i}]" for i, load in enumerate(problem.loads)
-              if not (isinstance(load, Damping) or getattr(load, "velocity_dependent", False))]
+              if not (isinstance(load, Damping) or getattr(load, "velocity_dependent", False)
+                      or getattr(load, "held_end", None) is not None)]
     return names
 
 
@@ -1446,7 +1487,7 @@ def load_scene(path_or_dict: str | pathlib.Path | Mapping[str, Any]) -> Scene:
     medium = _building(reader, "parameters", params, cls, **params)
     grid = _grid(reader, data, medium)
     boundaries = _boundaries(reader, data)
-    loads = _loads(reader, data, medium, grid)
+    loads = _loads(reader, data, medium, grid) + _held_loads(reader, data, medium, grid)
     initial = _initial(reader, data, medium, grid)
     try:
         with np.errstate(over="raise", invalid="raise", divide="raise"):

@@ -1239,6 +1239,10 @@ class _Outcome:
     point: _Point
     converged: bool
     reason: str = ""
+    #: how a converged iteration ended: "residual" (the residual test), "increment" (a full
+    #: Newton step below xtol) or "stagnation" (no damped step passed the monotonicity test and
+    #: the step was below 1e4·xtol): the last two at the residual's round-off floor
+    by: str = ""
     singular_start: bool = False
     residuals: list[float] = field(default_factory=list)
     corrections: list[float] = field(default_factory=list)
@@ -1335,7 +1339,7 @@ def _newton(
             out.reason = "the residual is not finite"
             return out
         if k >= min_iter and converged(point, r):
-            out.converged = True
+            out.converged, out.by = True, "residual"
             return out
         if k >= max_iter:
             out.reason = f"the iteration limit max_iter = {max_iter} was reached"
@@ -1411,7 +1415,7 @@ def _newton(
             if not alpha_new >= alpha_min:
                 out.alphas.append(0.0)
                 if step_max <= 1e4 * xtol:
-                    out.converged = True  # the increment is negligible: the residual's round-off floor
+                    out.converged, out.by = True, "stagnation"  # the increment is negligible: the round-off floor
                     return out
                 out.reason = (f"the residual stagnates: no damped Newton step passed the natural monotonicity test "
                               f"down to the step length 2^-{max_halvings} (max|δ| = {step_max:.3e}, "
@@ -1430,7 +1434,7 @@ def _newton(
         out.residuals.append(float(np.linalg.norm(r[:nunk])))
         k += 1
         if step_max <= xtol:
-            out.converged = True
+            out.converged, out.by = True, "increment"
             return out
 
 
@@ -1697,8 +1701,14 @@ def solve_static(
         ``newton_step_length``; along ``load_step`` ``load_step_factor`` (the λ aimed at),
         ``load_step_iterations`` and ``load_step_converged``.  Attributes
         ``newton_iterations``, ``newton_load_steps`` (converged load steps),
-        ``newton_load_step_failures``, ``newton_wall_time`` and ``newton_jacobian``
-        (``"analytic"`` or ``"fd"``, the Jacobian used).  For a medium with constrained strains
+        ``newton_load_step_failures``, ``newton_wall_time``, ``newton_jacobian``
+        (``"analytic"`` or ``"fd"``, the Jacobian used), ``newton_converged_by`` (how the last
+        load step ended: ``"residual"``, the residual test; ``"increment"``, a full Newton step
+        with ``‖δ‖_∞ ≤ xtol·max(1, L)``; ``"stagnation"``, no damped step passed the monotonicity
+        test and ‖δ‖_∞ was below 1e4 times that: the last two at the residual's round-off floor,
+        e.g. ``EA·ε_mach·|X|`` per node of a stiff rod, which can lie far above ``tol·f``),
+        ``newton_residual_max`` (the final ‖r‖_∞) and ``newton_residual_tol`` (``tol·f`` of the
+        last load step).  For a medium with constrained strains
         also ``constraint_force`` ``[time, constrained_edge, constrained_component]`` (the
         multipliers: edge stresses conjugate to the constrained components; NaN on edges between
         fixed nodes), ``constraint_residual`` ``[time]`` and the attributes
@@ -1750,6 +1760,7 @@ def solve_static(
     corrections: list[float] = []
     alphas: list[float] = []
     attempts: list[tuple[float, int, int]] = []
+    modes: list[str] = []  # how each load step ended ("" failed; see _Outcome.by)
 
     def fail(reason: str) -> ConvergenceError:
         rnorm = history[-1] if history else float("nan")
@@ -1785,6 +1796,7 @@ def solve_static(
         r0 = internal + lam_try * ext_forces
         scale = ext * lam_try if ext > 0 else float(np.max(np.abs(r0), initial=0.0))
         atol = tol * scale if scale > 0 else tol
+        last_atol = atol
 
         def converged(pt: _Point, r: np.ndarray, atol: float = atol) -> bool:
             # the increments' round-off floor, xtol, ends the iteration in any case
@@ -1801,6 +1813,7 @@ def solve_static(
         corrections.extend(out.corrections + [math.nan] * (len(out.residuals) - len(out.corrections)))
         alphas.extend(out.alphas)
         attempts.append((lam_try, out.iterations, int(out.converged)))
+        modes.append(out.by)
         if out.converged:
             state, mu, lam = out.point.state, out.point.mu, lam_try
             if adaptive_load and not cut and out.iterations <= fast:
@@ -1903,6 +1916,10 @@ def solve_static(
     ds.attrs["newton_jacobian"] = eq.kind
     ds.attrs["newton_residual_final"] = float(history[-1]) if history else 0.0
     ds.attrs["newton_converged"] = 1
+    # how the last load step (λ = 1) converged, and its residual against the tolerance tol·f
+    ds.attrs["newton_converged_by"] = modes[-1]
+    ds.attrs["newton_residual_max"] = float(np.max(np.abs(eq.residual(state, mu, lam)[:nunk]), initial=0.0))
+    ds.attrs["newton_residual_tol"] = float(last_atol)
     if eq.ncon:
         _constraint_outputs(ds, eq, state, mu)
     if eq.npin:  # the pins' multipliers: spatial reactions at the pinned nodes

@@ -6,8 +6,8 @@ point force-and-moment at the pin (``NodeForce`` on node 0): the force on the he
 changes nothing (bit for bit), the pin stays put exactly, and the moment turns the end; the
 angular momentum about the pin grows as M t (the reaction, a force through the pin, has no
 moment about it; Lie–Verlet's kicks add exactly Δt·M per step).  In statics the pinned end of
-a propped cantilever turns by the closed form under a moment.  A ``Held`` end takes no
-``load`` of its own: in a scene file that key is refused."""
+a propped cantilever turns by the closed form under a moment.  In a scene file a held end
+takes a ``load`` (and ``follower``) with a free end's meaning: a node force on the end node."""
 
 from __future__ import annotations
 
@@ -58,8 +58,11 @@ def test_propped_cantilever_end_moment_statics():
     moment M at the pin turns it by θ = ML(1 + φ)/(EI(4 + φ)), φ = 12EI/(GA L²) (the Timoshenko
     propped cantilever; 4EI/L the end's rotational stiffness without shear).  Measured errors
     −1.17e-2, −2.93e-3 at 9, 17 nodes (the lattice's O(h²), ratio 4.01); M = 1e-3 keeps the
-    geometric nonlinearity at θ² ≈ 6e-8.  A force on the held components is the pin's reaction
-    and changes nothing."""
+    geometric nonlinearity small: both ends hold their positions, so the deflection stretches
+    the rod and its tension N = GA(ML/EI)²/240 = 4.2e-5 stiffens the end by 1.4e-6 (relative);
+    at GA = 1e9 the tension is 3.2 and the angle 9.2 % below the closed form
+    (tests/test_statics_stiff.py).  A force on the held components is the pin's reaction and
+    changes nothing."""
     EI, GA, M, L = 1.0, 1e4, 1e-3, 1.0
     phi = 12.0 * EI / (GA * L * L)
     exact = M * L * (1.0 + phi) / (EI * (4.0 + phi))
@@ -84,11 +87,61 @@ def test_propped_cantilever_end_moment_statics():
     assert np.log2(errors[0] / errors[1]) == pytest.approx(2.0, abs=0.1)
 
 
-def test_a_held_end_takes_no_load_key_in_a_scene(tmp_path):
+_SCENE = ('medium = "cosserat-rod"\n[parameters]\nE = 1e6\nG = 1e4\nradius = 0.25\ndensity = 5000.0\n'
+          '[grid]\nn = 5\nlength = 1.0\n[initial]\nkind = "straight"\n'
+          '[boundaries]\nstart = {{ kind = "held", components = [0, 1, 2], load = {load}{extra} }}\n'
+          '[run]\nintegrator = "lie-verlet"\ndt = 1e-4\nt_end = 2e-3\nsave_every = 5\n')
+
+
+@pytest.mark.parametrize("follower", [False, True])
+def test_a_held_end_load_in_a_scene_is_the_node_force(tmp_path, follower):
+    """``{ kind = "held", components = [...], load = [...] }``: the same run as the Python
+    ``NodeForce`` on the end node (``frame="body"`` for ``follower = true``), bit for bit."""
+    load = [1e3, 2e3, 3e3, 0.0, 0.0, MOMENT]
     path = tmp_path / "held.toml"
-    path.write_text('medium = "cosserat-rod"\n[parameters]\nE = 1e6\nG = 1e4\nradius = 0.25\ndensity = 5000.0\n'
-                    '[grid]\nn = 5\nlength = 1.0\n[initial]\nkind = "straight"\n'
-                    '[boundaries]\nstart = { kind = "held", components = [0, 1, 2], load = [0, 0, 0, 0, 0, 1] }\n'
-                    '[run]\nintegrator = "lie-verlet"\ndt = 1e-4\nt_end = 2e-4\nsave_every = 1\n')
-    with pytest.raises(cartan.SceneError, match=r"boundaries\.start\.load: unknown key; allowed: components, kind"):
+    path.write_text(_SCENE.format(load=load, extra=", follower = true" if follower else ""))
+    scene = cartan.load_scene(path)
+    assert isinstance(scene.problem.boundaries["start"], cartan.Held)
+    ds = scene.simulate(progress=False)
+    rod = cartan.medium("cosserat-rod", E=1e6, G=1e4, radius=0.25, density=5000.0)
+    grid = cartan.Grid(5, length=1.0)
+    force = NodeForce(grid, load, node=0, frame="body" if follower else "spatial")
+    problem = cartan.Problem(rod, grid, rod.initial_state(grid, "straight"),
+                             boundaries={"start": cartan.Held(components=(0, 1, 2))}, loads=[force])
+    ref = cartan.simulate(problem, integrator="lie-verlet", dt=1e-4, t_end=2e-3, save_every=5, progress=False)
+    assert np.array_equal(ds.position.values, ref.position.values)
+    assert np.array_equal(ds.frame.values, ref.frame.values)
+    assert np.array_equal(ds.N.values, ref.N.values)
+    assert np.all(ds.N.values[1:, 0, 5] > 0.0)  # the moment turns the pinned end
+
+
+@pytest.mark.parametrize("load", ["[0, 0, 1]", '"up"', "[0, 0, 0, 0, 0, true]", "[0, 0, 0, 0, 0, 1, 0]"])
+def test_a_malformed_held_end_load_is_a_scene_error(tmp_path, load):
+    path = tmp_path / "held.toml"
+    path.write_text(_SCENE.format(load=load, extra=""))
+    with pytest.raises(cartan.SceneError, match=r"boundaries\.start\.load"):
         cartan.load_scene(path)
+
+
+def test_a_held_end_rejects_unknown_keys_and_a_bad_follower(tmp_path):
+    path = tmp_path / "held.toml"
+    path.write_text(_SCENE.format(load="[0, 0, 0, 0, 0, 1]", extra=", force = 1"))
+    with pytest.raises(cartan.SceneError, match=r"boundaries\.start\.force: unknown key; allowed: components, "
+                                                r"follower, kind, load"):
+        cartan.load_scene(path)
+    path.write_text(_SCENE.format(load="[0, 0, 0, 0, 0, 1]", extra=", follower = 1"))
+    with pytest.raises(cartan.SceneError, match=r"boundaries\.start\.follower: must be true or false"):
+        cartan.load_scene(path)
+
+
+def test_a_loaded_held_end_is_a_continuation_parameter():
+    """The held end's load is an external load λ scales, named by its end (``parameter = "end"``)."""
+    data = {"medium": "cosserat-rod", "parameters": {"E": 1e6, "G": 1e4, "radius": 0.25, "density": 5000.0},
+            "grid": {"n": 5}, "initial": {"kind": "straight"}, "mode": "continuation",
+            "boundaries": {"start": {"kind": "clamped"},
+                           "end": {"kind": "held", "components": [0, 1, 2], "load": [0, 0, 0, 0, 0, 1e-3]}},
+            "continuation": {"lambda_max": 1.0, "parameter": "end"}}
+    assert cartan.load_scene(data).parameter == "end"
+    data["boundaries"]["end"]["load"] = [0.0] * 6  # an unloaded held end is no parameter
+    with pytest.raises(cartan.SceneError, match=r"continuation"):
+        cartan.load_scene(data)
