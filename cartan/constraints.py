@@ -20,6 +20,18 @@ integrator (:mod:`cartan.integrators.constrained`) keeps them in time.
 :class:`StrainConstraints` holds the rows of one problem on one lattice: which edges are
 constrained (every edge with an unknown at either end), the values, the Jacobian ``B_c`` and
 the edge stresses of given multipliers.  It knows no medium beyond the declaration.
+
+Glued axes (a chart closed over poles, :class:`~cartan.grid.Grid` ``glued``; the sphere's)
+    The edges across the ends are rows like the others: the strain of an edge whose end is a
+    ghost, ``G_e = Φ_i⁻¹Φ_j'Γ`` (or ``Γ⁻¹Φ_j'⁻¹Φ_i``), moves with the node j' it stands for by
+    ``Ad_{Γ⁻¹}δ_j'`` (:class:`~cartan.schemes.lattice.Lattice`, "Glued axes"), so that end's
+    block of ``B_c`` is ``±dexp⁻¹(∓hX_e) Ad_{Γ⁻¹}/h``, and the reaction goes back to j' through
+    ``Ad_{Γ⁻¹}ᵀ`` as the lattice's forces do.  Every physical edge across an end is stored
+    twice (lines i_β and i_β + n_β/2), the copies related by ``X' = −Ad_Γ X``: the rows are
+    held on the first copy only (the second would repeat them and make ``B_c`` rank
+    deficient), which requires ``−Ad_Γ`` to map the constrained components onto themselves
+    with their values (θ_α,3 = 0 under the sphere's half-turn about e₃: θ_3 → −θ_3); another
+    glue is refused (``ValueError``).  ``rattle`` does not take glued axes yet.
 """
 
 from __future__ import annotations
@@ -75,14 +87,16 @@ class StrainConstraints:
         self.active: list[np.ndarray] = []
         self.tails: list[np.ndarray] = []
         self.heads: list[np.ndarray] = []
+        self.ghost_tails: list[np.ndarray] = []
+        self.ghost_heads: list[np.ndarray] = []
+        self.copy: list[np.ndarray] = []
+        self.original: list[np.ndarray] = []
+        self.copy_map: dict[int, np.ndarray] = {}
         self.unit = -1.0 / float(np.prod(scheme.h))
         self.ncon = 0
         spec = medium.constrained_strains() if hasattr(medium, "constrained_strains") else None
         if spec is None:
             return
-        if scheme.grid.glued is not None:  # the rows are built on the grid's own edges
-            raise ValueError("strain constraints (Medium.constrained_strains) do not support a glued axis yet "
-                             "(Grid.glued, the sphere's chart)")
         comp, val = spec
         comp = np.atleast_1d(np.asarray(comp)).astype(np.int64)
         val = np.atleast_1d(np.asarray(val, dtype=float))
@@ -97,9 +111,55 @@ class StrainConstraints:
         tails, heads = scheme.edge_nodes()
         live_node = flat.any(axis=1)
         self.tails, self.heads = tails, heads
-        self.active = [live_node[t] | live_node[h] for t, h in zip(tails, heads, strict=True)]
+        self.ghost_tails, self.ghost_heads = scheme.ghost_ends()
         self.comp, self.value = comp, val
+        self._glued_copies(scheme)
+        self.active = [(live_node[t] | live_node[h]) & ~copy
+                       for t, h, copy in zip(tails, heads, self.copy, strict=True)]
         self.ncon = int(sum(int(a.sum()) for a in self.active)) * comp.size
+
+    # ------------------------------------------------------------------ glued axes
+    def _glued_copies(self, scheme: Any) -> None:
+        """The second copies of the edges across the ends of glued axes (module docstring,
+        "Glued axes"): ``copy`` per axis ``[E_α]`` bool, ``original`` ``[E_α]`` the edge each copy
+        repeats (−1 elsewhere), ``copy_map`` ``{axis: T (c, c)}`` with ``X'[comp] = T X[comp]``.
+
+        Every physical edge across an end of an axis glued half way round β is stored twice,
+        on the lines i_β and i_β + n_β/2, the copies related by ``G' = ΓG⁻¹Γ``, i.e.
+        ``X' = −Ad_Γ X`` (Γ² = I).  The rows are kept on the copy with ``i_β < n_β/2`` only:
+        the other copy's rows are the same constraint when ``−Ad_Γ`` maps the constrained
+        components onto themselves, ``X'[comp] = T X[comp]``, and ``T·value = value``
+        (otherwise the two copies would hold different, generally incompatible, conditions
+        on one edge: ``ValueError``)."""
+        g, grid, r = self.g, scheme.grid, self.r_dim
+        comp, val = self.comp, self.value
+        for axis in range(grid.d):
+            es = grid.edge_shape(axis)
+            ne = int(np.prod(es))
+            copy = np.zeros(ne, dtype=bool)
+            original = -np.ones(ne, dtype=np.int64)
+            if grid.is_glued(axis):
+                beta = grid.glued[axis]
+                half = grid.shape[beta] // 2
+                M = -np.asarray(g.Ad(np.asarray(scheme._glue[axis], dtype=float)), dtype=float)  # X' = M X
+                rest = np.setdiff1d(np.arange(r), comp)
+                T = M[np.ix_(comp, comp)]
+                scale = max(1.0, float(np.max(np.abs(val), initial=0.0)))
+                if (float(np.max(np.abs(M[np.ix_(comp, rest)]), initial=0.0)) > 1e-10
+                        or float(np.max(np.abs(T @ val - val), initial=0.0)) > 1e-10 * scale):
+                    raise ValueError(
+                        f"constrained_strains: the glue of axis {axis} (initial.glue Γ, X' = −Ad_Γ X across the "
+                        f"ends) does not map the constrained components {comp.tolist()} with values "
+                        f"{val.tolist()} onto themselves: the two copies of an edge across the ends would hold "
+                        "different conditions")
+                idx = np.arange(ne).reshape(es)
+                ends = self.ghost_tails[axis] | self.ghost_heads[axis]
+                upper = (np.indices(es)[beta] >= half).ravel()
+                copy = ends & upper
+                original[copy] = np.roll(idx, half, axis=beta).ravel()[copy]
+                self.copy_map[axis] = T
+            self.copy.append(copy)
+            self.original.append(original)
 
     # ------------------------------------------------------------------ the medium's side
     def check_stress(self, state: Any, comp: np.ndarray) -> None:
@@ -177,9 +237,14 @@ class StrainConstraints:
             h = sch.h[axis]
             ne = xi.shape[0]
             row = start + np.arange(ne * c).reshape(ne, c)
-            for node, M in ((self.tails[axis][active], -g.dexp_inv(xi) / h),
-                            (self.heads[axis][active], g.dexp_inv(-xi) / h)):
+            # a ghost end (glued axis) moves by Ad_{Γ⁻¹}δ of the node it stands for (Lattice, "Glued axes")
+            A = g.Ad(g.inverse(sch._glue[axis])) if axis in self.copy_map else None
+            for node, ghost, M in ((self.tails[axis][active], self.ghost_tails[axis][active], -g.dexp_inv(xi) / h),
+                                   (self.heads[axis][active], self.ghost_heads[axis][active], g.dexp_inv(-xi) / h)):
                 Mk = M[:, self.comp, :]  # [ne, c, r]
+                if A is not None and np.any(ghost):
+                    Mk = Mk.copy()
+                    Mk[ghost] = Mk[ghost] @ A
                 col = self.index[node]  # [ne, r]
                 cc = np.broadcast_to(col[:, None, :], Mk.shape)
                 rr = np.broadcast_to(row[:, :, None], Mk.shape)
@@ -217,10 +282,16 @@ class StrainConstraints:
 
     def edge_multipliers(self, nu: np.ndarray, edge_shapes: list[tuple[int, ...]]) -> np.ndarray:
         """The edge stresses of :meth:`stress` on every edge ``[E, c]`` (NaN on edges between
-        fixed nodes)."""
+        fixed nodes).  The second copy of an edge across the ends of a glued axis (which holds
+        no row, :meth:`_glued_copies`) shows its original's, seen from the copy:
+        ``T⁻ᵀ μ`` (the same work on ``X'[comp] = T X[comp]``)."""
         rows = []
-        for Q, active in zip(self.stress(nu, edge_shapes), self.active, strict=True):
+        for axis, (Q, active) in enumerate(zip(self.stress(nu, edge_shapes), self.active, strict=True)):
             q = Q.reshape(-1, self.r_dim)[:, self.comp].copy()
             q[~active] = np.nan
+            copy = self.copy[axis] if self.copy else None
+            if copy is not None and np.any(copy):
+                orig = self.original[axis][copy]
+                q[copy] = np.where(active[orig][:, None], q[orig] @ np.linalg.inv(self.copy_map[axis]), np.nan)
             rows.append(q)
         return np.concatenate(rows, axis=0)

@@ -178,6 +178,9 @@ class Rattle(LieVerlet):
         if not hasattr(scheme, "edge_nodes") or not hasattr(scheme, "edge_strains"):
             return f"scheme {scheme.name!r} has no edge strains (the Python step says so)"
         grid = scheme.grid
+        if np.ndim(getattr(scheme, "_clamped", False)) > grid.d:
+            return ("held components (cartan.Held ends, cartan.Symmetry faces): the loop's node operators hold "
+                    "whole clamped nodes only")
         if grid.d != 1:
             return (f"d = {grid.d}: the multiplier systems are block-tridiagonal for a chain of nodes only "
                     "(d = 1); a banded solve for d ≥ 2 is not written")
@@ -284,6 +287,10 @@ class Rattle(LieVerlet):
         unknown = np.broadcast_to(scheme.live, (*scheme.grid.shape, r)).copy()
         unknown[scheme._clamped] = False
         con = StrainConstraints(scheme, unknown, state)
+        if con.ncon and scheme.grid.glued is not None:
+            raise ValueError("integrator 'rattle' does not support strain constraints on a grid with a glued axis "
+                             "(Grid.glued, the sphere's chart): its multiplier systems take no ghost ends; use "
+                             "cartan.solve_static or a constraint-free medium")
         flat = unknown.reshape(-1, r)
         nodes = np.flatnonzero(flat.any(axis=1))
         scale = max(1.0, float(np.max(np.abs(con.value), initial=0.0)))

@@ -293,6 +293,27 @@ class HelfrichMembrane(KirchhoffLove):
     def point_kernels(self) -> MediumKernels:
         return MediumKernels(helfrich_energy, helfrich_stress, self.kernel_params)
 
+    # ------------------------------------------------------------------ initial states
+    initial_kinds: ClassVar[tuple[str, ...]] = (*KirchhoffLove.initial_kinds, "spheroid")
+
+    def initial_state(self, grid, kind: str, **params: Any):
+        """The initial states of ``kirchhoff-love`` and the closed ``"spheroid"`` on the sphere's
+        chart (``Grid((N, n), (L_u, L_v), periodic=(True, False), glued=(None, 0))``, N even): a
+        vesicle of area 4π (R₀ = 1) with ``reduced_volume`` v ∈ (0, 1) (default 0.9), ``shape``
+        ``"prolate"`` (default) or ``"oblate"``, or a given ``aspect`` c/a; ``spacing`` ``"angle"``
+        (default) or ``"arc"`` places the colatitude nodes
+        (:func:`cartan_kirchhoff_love.vesicle_sphere.spheroid_frames`).  Its glue is the sphere's."""
+        if kind != "spheroid":
+            return super().initial_state(grid, kind, **params)
+        from cartan.medium import check_keywords
+        from cartan.problem import InitialState
+
+        from .vesicle_sphere import spheroid_frames
+
+        check_keywords(kind, _spheroid_keywords, params)
+        sphere = super().initial_state(grid, "sphere")
+        return InitialState(Phi=spheroid_frames(grid, sphere.Phi, **params), glue=sphere.glue)
+
     def with_tension(self, tension: float) -> HelfrichMembrane:
         """A copy of the medium whose σ is ``tension`` of either sign (finite): the Lagrange
         multiplier of a held total area (:func:`cartan_kirchhoff_love.vesicle.helfrich_flow`), which
@@ -336,3 +357,8 @@ class HelfrichMembrane(KirchhoffLove):
         out = {name: f[..., i] for i, name in enumerate(names)}
         out["normal_x"], out["normal_y"], out["normal_z"] = q[..., 1, 3], q[..., 2, 3], q[..., 3, 3]
         return out
+
+
+def _spheroid_keywords(reduced_volume: float = 0.9, shape: str = "prolate", aspect: float | None = None,
+                       spacing: str = "angle") -> None:
+    """The keywords of the ``"spheroid"`` initial state (:meth:`HelfrichMembrane.initial_state`)."""

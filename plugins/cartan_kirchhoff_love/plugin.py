@@ -47,8 +47,12 @@ def _check_helfrich(problem, options: dict) -> None:
     medium = getattr(problem.medium, "name", None)
     if medium != "helfrich-membrane":
         raise ValueError(f"the helfrich flow needs medium = 'helfrich-membrane', got {medium!r}")
-    if not all(problem.grid.periodic) or problem.grid.d != 2:
-        raise ValueError("the helfrich flow needs a closed surface: a d = 2 grid periodic along both axes")
+    from .vesicle import _is_sphere_chart
+
+    grid = problem.grid
+    if grid.d != 2 or not (all(grid.periodic) or _is_sphere_chart(grid)):
+        raise ValueError("the helfrich flow needs a closed surface: a d = 2 grid periodic along both axes (a torus) "
+                         "or the sphere's chart (periodic = [true, false], glued = [-1, 0])")
     for name, low, strict in (("tau", 0.0, True), ("tau_max", 0.0, True), ("hold_tol", 0.0, True),
                               ("tol", 0.0, True), ("growth", 1.0, False), ("stop", 0.0, False)):
         if name in options:

@@ -298,7 +298,8 @@ def _equalise_line(x: np.ndarray, E: np.ndarray) -> tuple[np.ndarray, np.ndarray
     return xn, np.stack([e1, np.cross(e3, e1), e3], axis=-1), float(np.max(np.abs(t - j)))
 
 
-def redistribute_mesh(Phi: np.ndarray, axes: Sequence[int] = (0, 1)) -> tuple[np.ndarray, float]:
+def redistribute_mesh(Phi: np.ndarray, axes: Sequence[int] = (0, 1), glue: np.ndarray | None = None
+                      ) -> tuple[np.ndarray, float]:
     """Move the nodes of a closed surface tangentially to equal arc length along every grid line.
 
     Along each closed grid line of axis a (both chart axes periodic) the node positions r_j and
@@ -315,12 +316,22 @@ def redistribute_mesh(Phi: np.ndarray, axes: Sequence[int] = (0, 1)) -> tuple[np
     equal, the meridians are equalised).  The frames' adaptation θ_α,3 = 0 holds to the same
     interpolation error; the next static solve restores it exactly.
 
+    On the sphere's chart (``glue`` given: u periodic with an even number of nodes, v glued across
+    the poles) a meridian is closed through both poles: the nodes of longitude i from the north
+    pole to the south, then those of longitude i + n_u/2 back north, whose frames are read through
+    the glue, R Γ (the ghost frames of the lattice's edges across the poles), so that the frames
+    are continuous along the loop; the n_u/2 loops are equalised as the closed lines above and
+    the frames read back, R Γ⁻¹.  This holds the polar rings at their arc length from the poles.
+
     Parameters
     ----------
     Phi : array ``[nu, nv, 4, 4]``
-        A configuration on a doubly periodic chart.
+        A configuration on a doubly periodic chart or on the sphere's chart.
     axes : sequence of int
         The grid axes whose lines are equalised, in order.
+    glue : array ``[4, 4]``, optional
+        The glue Γ of the sphere's chart (``problem.initial.glue[1]``, a rotation: the half-turn
+        about e₃); None for a doubly periodic chart.
 
     Returns
     -------
@@ -335,13 +346,38 @@ def redistribute_mesh(Phi: np.ndarray, axes: Sequence[int] = (0, 1)) -> tuple[np
     if any(a not in (0, 1) for a in axes):
         raise ValueError(f"axes must be grid axes in (0, 1), got {tuple(axes)!r}")
     shift = 0.0
+    if glue is not None:
+        G = np.asarray(glue, dtype=float)
+        if G.shape != (4, 4) or np.max(np.abs(G[1:, 0])) > 1e-12 or Phi.shape[0] % 2:
+            raise ValueError("glue must be a rotation [4, 4] (the sphere's half-turn) on a chart with an even number "
+                             f"of longitudes, got shape {G.shape} on {Phi.shape[0]} longitudes")
     for a in axes:
+        if a == 1 and glue is not None:
+            shift = max(shift, _equalise_meridians(Phi, G[1:, 1:]))
+            continue
         P = np.moveaxis(Phi, a, 0)        # view: the lines of axis a are P[:, m]
         for m in range(P.shape[1]):
             x, E, moved = _equalise_line(P[:, m, 1:, 0], P[:, m, 1:, 1:])
             P[:, m, 1:, 0], P[:, m, 1:, 1:] = x, E
             shift = max(shift, moved)
     return Phi, shift
+
+
+def _equalise_meridians(Phi: np.ndarray, glue: np.ndarray) -> float:
+    """The meridians of the sphere's chart, closed through the poles, equalised in place
+    (:func:`redistribute_mesh`; ``glue`` the rotation Γ_R ``[3, 3]``); returns the largest move."""
+    nu, nv = Phi.shape[:2]
+    half = nu // 2
+    shift = 0.0
+    for i in range(half):
+        j = i + half
+        x = np.concatenate([Phi[i, :, 1:, 0], Phi[j, ::-1, 1:, 0]])
+        E = np.concatenate([Phi[i, :, 1:, 1:], Phi[j, ::-1, 1:, 1:] @ glue])
+        x, E, moved = _equalise_line(x, E)
+        Phi[i, :, 1:, 0], Phi[i, :, 1:, 1:] = x[:nv], E[:nv]
+        Phi[j, ::-1, 1:, 0], Phi[j, ::-1, 1:, 1:] = x[nv:], E[nv:] @ glue.T
+        shift = max(shift, moved)
+    return shift
 
 
 # ====================================================================== the flow
@@ -435,10 +471,10 @@ def helfrich_flow(problem: Problem, *, steps: int = 30, tau: float = 0.05, growt
     ----------
     problem : Problem
         ``helfrich-membrane`` (or a subclass) on a doubly periodic grid or on the sphere's chart (periodic
-        u, v glued across the poles; the initial state's glue is carried through every solve, only the
-        parallels are redistributed; the core's strain constraints refuse a glued axis, so there the
-        medium must hold the adaptation otherwise, e.g.
-        :class:`cartan_kirchhoff_love.vesicle_sphere.PenalisedHelfrichMembrane`); ``problem.initial`` is
+        u, v glued across the poles; the initial state's glue is carried through every solve, the meridians
+        redistributed through the poles; the adaptation θ_α,3 = 0 is held by the core's strain constraints on
+        every edge, those across the poles included, e.g.
+        :func:`cartan_kirchhoff_love.vesicle_sphere.ellipsoid_problem`); ``problem.initial`` is
         Φ_0 (its K_a, μ are the in-plane viscosity of a step, its σ the starting tension multiplier).
     steps : int
         Minimizing-movement steps (≥ 1).
@@ -533,8 +569,8 @@ def helfrich_flow(problem: Problem, *, steps: int = 30, tau: float = 0.05, growt
 
     grid = problem.grid
     glue = problem.initial.glue
-    # the sphere's chart: only its parallels (axis u) are closed grid lines to redistribute along
-    lines = (0,) if _is_sphere_chart(grid) else (0, 1)
+    # the sphere's chart: its meridians are closed through the poles, read through the glue
+    sphere_glue = np.asarray(glue[1], dtype=float) if _is_sphere_chart(grid) else None
     Phi = np.asarray(problem.initial.Phi, dtype=float)
     m0 = surface_measures(problem, Phi)
     goal = {h: float((targets or {}).get(h, m0[h])) for h in hold}
@@ -576,7 +612,9 @@ def helfrich_flow(problem: Problem, *, steps: int = 30, tau: float = 0.05, growt
 
         x = np.array([mult[h] for h in hold])
         out, P, res = solve(mult, Phi)
-        if hold and jac is None:  # finite differences; Broyden updates afterwards
+
+        def differences(mult: dict[str, float], P: np.ndarray, res: np.ndarray) -> np.ndarray:
+            """d(residuals)/d(multipliers) by forward differences from the solution P."""
             scale = max(abs(hist[-1]["bending_energy"]) / max(m0["area"], 1e-300), 1e-12)
             jac = np.zeros((len(hold), len(hold)))
             for k, h in enumerate(hold):
@@ -584,6 +622,11 @@ def helfrich_flow(problem: Problem, *, steps: int = 30, tau: float = 0.05, growt
                 trial = dict(mult)
                 trial[h] += step
                 jac[:, k] = (solve(trial, P)[2] - res) / step
+            return jac
+
+        fresh = hold and jac is None
+        if fresh:  # finite differences; Broyden updates afterwards
+            jac = differences(mult, P, res)
         it = 0
         while hold and np.max(np.abs(res)) > hold_tol:
             if it >= max_hold_iterations:
@@ -592,10 +635,15 @@ def helfrich_flow(problem: Problem, *, steps: int = 30, tau: float = 0.05, growt
             dx = -np.linalg.solve(jac, res)
             trial = dict(mult)
             trial.update({h: float(v) for h, v in zip(hold, x + dx, strict=True)})
-            out, P, res_new = solve(trial, P)
-            if np.max(np.abs(res_new)) > 2.0 * np.max(np.abs(res)):
+            out_new, P_new, res_new = solve(trial, P)
+            if np.max(np.abs(res_new)) > max(2.0 * np.max(np.abs(res)), 10.0 * hold_tol):
+                if not fresh:  # a Jacobian carried over from the last step: differences here, then again
+                    jac, fresh = differences(mult, P, res), True
+                    it += 1
+                    continue
                 raise RuntimeError(f"helfrich_flow: the held {', '.join(hold)} diverge (relative residual "
                                    f"{np.max(np.abs(res)):.3e} → {np.max(np.abs(res_new)):.3e})")
+            out, P = out_new, P_new
             jac = jac + np.outer(res_new - res - jac @ dx, dx) / float(dx @ dx)   # Broyden's good update
             x, res, mult = x + dx, res_new, trial
             it += 1
@@ -605,15 +653,18 @@ def helfrich_flow(problem: Problem, *, steps: int = 30, tau: float = 0.05, growt
     for n in range(int(steps)):
         shift = 0.0
         if redistribute and n > 0 and n % int(redistribute) == 0:
-            Phi, shift = redistribute_mesh(Phi, axes=lines)
+            Phi, shift = redistribute_mesh(Phi, glue=sphere_glue)
         for attempt in range(max_retries + 1):
             try:
                 out, P, new_mult, new_jac, res, solves = advance(Phi, dt, mult, jac)
                 break
-            except (RuntimeError, ValueError, np.linalg.LinAlgError):  # ConvergenceError is a RuntimeError;
-                # ValueError: a solve that left the chart (an edge turning by ~π)
+            except (RuntimeError, ValueError, np.linalg.LinAlgError) as exc:  # ConvergenceError is a
+                # RuntimeError; ValueError: a solve that left the chart (an edge turning by ~π)
                 if attempt == max_retries:
                     raise
+                if progress:
+                    print(f"helfrich_flow: step {len(hist)} retried with τ = {0.5 * dt:.4g}: "
+                          f"{str(exc).splitlines()[0][:160]}", flush=True)
                 dt, jac, rejected = 0.5 * dt, None, rejected + 1      # a shorter step from the same Φ_n
         mult, jac = new_mult, new_jac
         worst = max(worst, float(np.max(np.abs(res), initial=0.0)))
@@ -628,7 +679,10 @@ def helfrich_flow(problem: Problem, *, steps: int = 30, tau: float = 0.05, growt
                   f"E_H = {rec['bending_energy']:.12g}, {solves} solves, "
                   f"multipliers σ = {mult['area']:.6g}, p = {mult['volume']:.6g}", flush=True)
         Phi, ds_last = P, out
-        dt = min(dt * float(growth), float(tau_max))
+        dt_next = min(dt * float(growth), float(tau_max))
+        if jac is not None:  # the step's response to the multipliers grows with τ (the tether's 1/τ)
+            jac = jac * (dt_next / dt)
+        dt = dt_next
         if stop > 0.0 and abs(drop) < stop * abs(rec["bending_energy"]):
             break
     return _flow_dataset(ds_last, hist, frames, {"hold": ",".join(hold), "hold_residual_max": worst,

@@ -3,10 +3,12 @@
 A closed vesicle of genus 0 lives on the sphere's chart, longitude u (periodic, N nodes, N even)
 × colatitude v glued across the poles (``Grid((N, N/2), (2π, π), periodic=(True, False),
 glued=(None, 0))``, the ``"sphere"`` initial kind of ``cosserat-surface``; staggered colatitude
-nodes θ_k = (k + ½)π/n, none on a pole).  The core's strain constraints (the multipliers that
-hold θ_α,3 = 0 on every edge for ``helfrich-membrane``) do not support a glued axis, so here the
-adaptation is held by a **penalty**: :class:`PenalisedHelfrichMembrane` is ``helfrich-membrane``
-without constrained strains and with the energy
+nodes θ_k = (k + ½)π/n, none on a pole).  The core's strain constraints hold θ_α,3 = 0 on every
+edge of this chart, those across the poles included (:mod:`cartan.constraints`, "Glued axes"), so
+``helfrich-membrane`` runs here as on the torus (:func:`ellipsoid_problem`, the flow
+:func:`cartan_kirchhoff_love.vesicle.helfrich_flow`).  The adaptation can instead be held by a
+**penalty**: :class:`PenalisedHelfrichMembrane` is ``helfrich-membrane`` without constrained
+strains and with the energy
 
     U = U_Helfrich(X; X₀) + ½ k_n J₀ (θ_u,3² + θ_v,3²)        (per unit chart area),
 
@@ -65,8 +67,8 @@ def penalised_stress(X, X0, p, Q):  # pragma: no cover - compiled
 # ====================================================================== medium
 class PenalisedHelfrichMembrane(HelfrichMembrane):
     """``helfrich-membrane`` whose adaptation θ_α,3 = 0 is held by the penalty ½k_n J₀ θ_α,3²
-    instead of multipliers (module docstring): for charts the core's strain constraints do not
-    support (the sphere's, glued across the poles).
+    instead of multipliers (module docstring): the cross-medium limit of the constrained medium,
+    biased by O(1/k_n) (the multipliers hold the adaptation exactly on the sphere's chart too).
 
     Parameters
     ----------
@@ -153,37 +155,68 @@ def spheroid_energy(a: float, c: float, points: int = 20001) -> float:
     return float(simpson(f, x=th) / (16.0 * math.pi))
 
 
-def ellipsoid_problem(n: int, reduced_volume: float = 0.9, *, shape: str = "prolate", aspect: float | None = None,
-                      normal_stiffness: float = 1e5, area_modulus: float = 0.0, shear_modulus: float = 0.0
-                      ) -> Problem:
-    """A spheroid vesicle of :class:`PenalisedHelfrichMembrane` (κ_b = 1, c₀ = κ_G = 0) on the
-    sphere's chart with 2n × n nodes: r = (a sin θ cos φ, a sin θ sin φ, c cos θ) at the nodes'
-    longitude φ and colatitude θ, e₁ along the parallel, e₃ the outward normal, scaled to R₀ = 1
-    (A = 4π), with c/a = ``aspect`` or, by default, the spheroid of reduced volume v
-    (:func:`spheroid_aspect`).  The glue is the sphere's (the half-turn about e₃)."""
-    if isinstance(n, bool) or int(n) != n or n < 4 or n % 2:
-        raise ValueError(f"n must be an even integer ≥ 4 (colatitude nodes; 2n longitudes), got {n!r}")
+def spheroid_frames(grid: Any, Phi: np.ndarray, reduced_volume: float = 0.9, shape: str = "prolate",
+                    aspect: float | None = None, spacing: str = "angle") -> np.ndarray:
+    """The frames ``[N, n, 4, 4]`` of a spheroid of area 4π (R₀ = 1) on the sphere's chart: ``Phi``
+    (the unit sphere's frames on ``grid``, whose layout is kept) with r = (a sin θ cos φ,
+    a sin θ sin φ, c cos θ) at the nodes' longitude φ and colatitude θ, e₁ along the parallel, e₃
+    the outward normal; c/a = ``aspect`` or, by default, the spheroid of reduced volume v
+    (:func:`spheroid_aspect`, ``shape`` ``"prolate"`` or ``"oblate"``).  ``spacing``: the
+    colatitude nodes at the parameter θ_k = (k + ½)π/n (``"angle"``) or at equal arc length of the
+    meridian, s_k = (k + ½)L/n (``"arc"``, the law of :func:`revolved_problem`'s lattice)."""
+    if spacing not in ("angle", "arc"):
+        raise ValueError(f"spacing must be 'angle' or 'arc', got {spacing!r}")
+    if aspect is not None and not (np.isfinite(aspect) and 1e-3 <= aspect <= 1e3):
+        raise ValueError(f"aspect must be in [1e-3, 1e3] (c/a), got {aspect!r}")
     q = spheroid_aspect(reduced_volume, shape) if aspect is None else float(aspect)
     A, _ = spheroid_measures(1.0, q)
     a = 1.0 / math.sqrt(A / (4.0 * math.pi))
     c = q * a
-    grid = cartan.Grid((2 * int(n), int(n)), (2.0 * math.pi, math.pi), periodic=(True, False), glued=(None, 0))
-    med = PenalisedHelfrichMembrane(normal_stiffness=normal_stiffness, area_modulus=area_modulus,
-                                    shear_modulus=shear_modulus)
-    st = med.initial_state(grid, "sphere")
-    ph, th = np.meshgrid(grid.coordinates(0), grid.coordinates(1), indexing="ij")
+    theta = grid.coordinates(1) * (math.pi / grid.length[1])
+    if spacing == "arc":  # the parameter θ at equal meridian arc length ds = √(a² cos²θ + c² sin²θ) dθ
+        fine = np.linspace(0.0, math.pi, 20001)
+        ds = np.sqrt(a * a * np.cos(fine) ** 2 + c * c * np.sin(fine) ** 2)
+        s_fine = np.concatenate([[0.0], np.cumsum(0.5 * (ds[1:] + ds[:-1]) * np.diff(fine))])
+        theta = np.interp(theta / math.pi * s_fine[-1], s_fine, fine)
+    ph, th = np.meshgrid(grid.coordinates(0) * (2.0 * math.pi / grid.length[0]), theta, indexing="ij")
     pos = np.stack([a * np.sin(th) * np.cos(ph), a * np.sin(th) * np.sin(ph), c * np.cos(th)], axis=-1)
     nrm = np.stack([np.sin(th) * np.cos(ph) / a, np.sin(th) * np.sin(ph) / a, np.cos(th) / c], axis=-1)
     nrm /= np.linalg.norm(nrm, axis=-1, keepdims=True)
     e1 = np.stack([-np.sin(ph), np.cos(ph), 0.0 * ph], axis=-1)
-    Phi = np.array(st.Phi, dtype=float)
-    Phi[..., 1:, 0], Phi[..., 1:, 1], Phi[..., 1:, 2], Phi[..., 1:, 3] = pos, e1, np.cross(nrm, e1), nrm
-    return Problem(med, grid, InitialState(Phi=Phi, glue=st.glue), name="helfrich-vesicle-prolate")
+    out = np.array(Phi, dtype=float)
+    out[..., 1:, 0], out[..., 1:, 1], out[..., 1:, 2], out[..., 1:, 3] = pos, e1, np.cross(nrm, e1), nrm
+    return out
+
+
+def ellipsoid_problem(n: int, reduced_volume: float = 0.9, *, shape: str = "prolate", aspect: float | None = None,
+                      normal_stiffness: float | None = None, area_modulus: float = 0.0, shear_modulus: float = 0.0,
+                      spacing: str = "angle") -> Problem:
+    """A spheroid vesicle (κ_b = 1, c₀ = κ_G = 0) on the sphere's chart with 2n × n nodes
+    (:func:`spheroid_frames`; the ``"spheroid"`` initial state of ``helfrich-membrane``).  The glue is
+    the sphere's (the half-turn about e₃).  The medium is ``helfrich-membrane`` (default: the
+    adaptation θ_α,3 = 0 held by the core's strain constraints, the edges across the poles
+    included) or, given a ``normal_stiffness`` k_n > 0, :class:`PenalisedHelfrichMembrane` (held by
+    the penalty ½k_n J₀ θ_α,3²)."""
+    if isinstance(n, bool) or int(n) != n or n < 4 or n % 2:
+        raise ValueError(f"n must be an even integer ≥ 4 (colatitude nodes; 2n longitudes), got {n!r}")
+    if normal_stiffness is not None and not (np.isfinite(normal_stiffness) and normal_stiffness > 0.0):
+        raise ValueError(f"normal_stiffness must be None (multipliers) or > 0 (the penalty), got {normal_stiffness!r}")
+    grid = cartan.Grid((2 * int(n), int(n)), (2.0 * math.pi, math.pi), periodic=(True, False), glued=(None, 0))
+    med = (HelfrichMembrane(area_modulus=area_modulus, shear_modulus=shear_modulus) if normal_stiffness is None
+           else PenalisedHelfrichMembrane(normal_stiffness=normal_stiffness, area_modulus=area_modulus,
+                                          shear_modulus=shear_modulus))
+    st = med.initial_state(grid, "sphere")
+    Phi = spheroid_frames(grid, st.Phi, reduced_volume, shape, aspect, spacing)
+    return Problem(med, grid, InitialState(Phi=Phi, glue=st.glue), name=f"helfrich-vesicle-{shape}")
 
 
 def _chart_problem(n: int, pos: np.ndarray, nrm: np.ndarray, ph: np.ndarray, grid: Any, name: str,
-                   normal_stiffness: float) -> Problem:
-    med = PenalisedHelfrichMembrane(normal_stiffness=normal_stiffness, area_modulus=0.0, shear_modulus=0.0)
+                   normal_stiffness: float | None, area_modulus: float = 0.0, shear_modulus: float = 0.0) -> Problem:
+    if normal_stiffness is not None and not (np.isfinite(normal_stiffness) and normal_stiffness > 0.0):
+        raise ValueError(f"normal_stiffness must be None (multipliers) or > 0 (the penalty), got {normal_stiffness!r}")
+    med = (HelfrichMembrane(area_modulus=area_modulus, shear_modulus=shear_modulus) if normal_stiffness is None
+           else PenalisedHelfrichMembrane(normal_stiffness=normal_stiffness, area_modulus=area_modulus,
+                                          shear_modulus=shear_modulus))
     st = med.initial_state(grid, "sphere")
     e1 = np.stack([-np.sin(ph), np.cos(ph), 0.0 * ph], axis=-1)
     Phi = np.array(st.Phi, dtype=float)
@@ -191,13 +224,16 @@ def _chart_problem(n: int, pos: np.ndarray, nrm: np.ndarray, ph: np.ndarray, gri
     return Problem(med, grid, InitialState(Phi=Phi, glue=st.glue), name=name)
 
 
-def revolved_problem(shape: Any, n: int, *, normal_stiffness: float = 1e5) -> Problem:
+def revolved_problem(shape: Any, n: int, *, normal_stiffness: float | None = 1e5, area_modulus: float = 0.0,
+                     shear_modulus: float = 0.0) -> Problem:
     """An axisymmetric meridian (an :class:`~cartan_kirchhoff_love.vesicle_axisym.AxisymmetricVesicle`,
     the reference) revolved about z on the sphere's chart with 2n × n nodes: the colatitude node
     θ_k = (k + ½)π/n sits at the meridian's arc length s = Lθ_k/π (equal arc length), at
     (r cos φ, r sin φ, z − z̄) with e₃ = (sin ψ cos φ, sin ψ sin φ, cos ψ) the outward normal and
     e₁ along the parallel: the lattice of the reference shape, whose E_H, A and V measure the
-    lattice's quadrature error on it (O(h²))."""
+    lattice's quadrature error on it (O(h²)).  The medium as :func:`ellipsoid_problem`'s:
+    :class:`PenalisedHelfrichMembrane` with k_n = ``normal_stiffness``, ``helfrich-membrane`` for None
+    (the start of a flow held by multipliers)."""
     if isinstance(n, bool) or int(n) != n or n < 4 or n % 2:
         raise ValueError(f"n must be an even integer ≥ 4 (colatitude nodes; 2n longitudes), got {n!r}")
     grid = cartan.Grid((2 * int(n), int(n)), (2.0 * math.pi, math.pi), periodic=(True, False), glued=(None, 0))
@@ -207,7 +243,8 @@ def revolved_problem(shape: Any, n: int, *, normal_stiffness: float = 1e5) -> Pr
     psi, r, z = y[0][None, :], y[2][None, :], y[7][None, :] - zbar
     pos = np.stack([r * np.cos(ph), r * np.sin(ph), z + 0.0 * ph], axis=-1)
     nrm = np.stack([np.sin(psi) * np.cos(ph), np.sin(psi) * np.sin(ph), np.cos(psi) + 0.0 * ph], axis=-1)
-    return _chart_problem(n, pos, nrm, ph, grid, "helfrich-vesicle-reference", normal_stiffness)
+    return _chart_problem(n, pos, nrm, ph, grid, "helfrich-vesicle-reference", normal_stiffness, area_modulus,
+                          shear_modulus)
 
 
 def vesicle_shape(problem: Problem, Phi: np.ndarray) -> dict[str, float]:

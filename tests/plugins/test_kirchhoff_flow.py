@@ -94,6 +94,34 @@ def test_redistribution_keeps_an_equal_mesh_and_moves_a_wavy_torus_along_itself(
     assert np.all((orders > 1.8) & (orders < 2.2)), orders
 
 
+def test_sphere_chart_meridians_are_equalised_through_the_poles():
+    """On the sphere's chart a meridian is closed through both poles (longitudes i and i + n_u/2,
+    the second half's frames read through the glue).  The prolate spheroid at v = 0.9 with its
+    colatitude nodes at equal parameter angle is moved onto the same spheroid at equal arc length
+    (``ellipsoid_problem(..., spacing="arc")``, built independently by quadrature of the meridian):
+    positions and frames agree to the trigonometric interpolation's error, measured 1.2e-4, 2.6e-7
+    at n = 8, 16 (spectral: faster than any power); the equal-arc-length spheroid is a fixed point
+    to the interpolation's error (moves of 3.9e-3, 1.4e-4 grid spacings); the frames stay
+    orthonormal with e₃ the normal."""
+    from cartan_kirchhoff_love.vesicle_sphere import ellipsoid_problem
+
+    diffs = []
+    for n in (8, 16):
+        angle, arc = ellipsoid_problem(n, 0.9, spacing="angle"), ellipsoid_problem(n, 0.9, spacing="arc")
+        glue = angle.initial.glue[1]
+        even, shift = vesicle.redistribute_mesh(np.asarray(angle.initial.Phi), glue=glue)
+        assert shift > 0.3                                       # a real move (0.40 grid spacings at n = 8)
+        target = np.asarray(arc.initial.Phi)
+        diffs.append(float(np.max(np.abs(even[..., 1:, :] - target[..., 1:, :]))))
+        fixed = vesicle.redistribute_mesh(target, glue=glue)[1]
+        assert fixed < (1e-2 if n == 8 else 1e-3)                # measured 3.9e-3, 1.4e-4 grid spacings
+        E = even[..., 1:, 1:]
+        assert np.max(np.abs(np.einsum("...ki,...kj->...ij", E, E) - np.eye(3))) < 1e-12
+    assert diffs[0] < 1e-3 and diffs[1] < diffs[0] / 100.0      # faster than h⁶: spectral
+    with pytest.raises(ValueError, match="glue"):
+        vesicle.redistribute_mesh(np.asarray(angle.initial.Phi), glue=np.eye(3))
+
+
 def test_redistribution_rejects_bad_input():
     with pytest.raises(ValueError, match="Phi"):
         vesicle.redistribute_mesh(np.zeros((4, 4, 3, 3)))
