@@ -140,10 +140,11 @@ class Held(Boundary):
 
     Notes
     -----
-    The scheme holds the components like a clamp holds all of them (the ``lattice``'s numpy
-    path: every integrator there, ``solve_static``); the compiled loops and the ``collocation``
-    scheme decline it.  The held momentum components are those of the reaction only when the
-    kinetic metric does not couple them with the free live ones (checked).
+    The scheme holds the components like a clamp holds all of them (the ``lattice``: its numpy
+    path and its generated compiled operators, every integrator, ``solve_static``; the
+    ``kinematic`` and ``rattle`` compiled loops and the ``collocation`` scheme decline it).  The
+    held momentum components are those of the reaction only when the kinetic metric does not
+    couple them with the free live ones (checked).
     """
 
     components: Any = None

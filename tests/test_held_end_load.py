@@ -1,5 +1,6 @@
 """A load at a ``cartan.Held`` end: the held components of the force are the support's reaction,
-the free ones drive the end (the lattice's numpy path, the only one that takes held ends).
+the free ones drive the end (the lattice's numpy path here: a ``NodeForce`` is not a load the
+compiled operators take; held ends on the compiled path: tests/test_held_compiled.py).
 
 A Cosserat rod pinned at u = 0 (``Held((0, 1, 2))``: the position held, the frame free) under a
 point force-and-moment at the pin (``NodeForce`` on node 0): the force on the held components

@@ -1,6 +1,7 @@
 """Symmetry (mirror) faces as a boundary kind, :class:`cartan.Symmetry` (docs/media/cosserat-solid.md,
 "Boundaries"): the kinematic conditions u·n = 0, φ ∥ n held exactly on the lattice's numpy path, in
-``solve_static``, ``continuation`` and every integrator; the compiled loops decline them.
+``solve_static``, ``continuation`` and every integrator (the lattice's compiled operators take
+them too: tests/test_held_compiled.py).
 
 Fast tests on small grids and the numpy backend (no compilation): a symmetric problem cut by
 its mirror planes agrees with the whole one to round-off, which nothing but exact conditions

@@ -510,6 +510,8 @@ class Kinematic(Integrator):
         (:func:`cartan.integrators.loops.kinematic_fragment`); None (the Python path) otherwise."""
         if _velocity_fragment(self.velocity_field) is None:
             return None
+        if np.ndim(getattr(scheme, "_clamped", False)) > scheme.grid.d:
+            return None  # held components (Held ends, Symmetry faces): the loop zeroes clamped nodes only
         A, b, c = _TABLEAUX[self.order]
         r = scheme.group.dim
         return "rkmk_loop", (A, b, c, False, 2, np.zeros(r), np.zeros((1, r)), np.zeros(1, dtype=np.int64))

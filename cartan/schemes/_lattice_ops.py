@@ -17,14 +17,15 @@ by the node weight, exact drift ``G_e ← D_i⁻¹ G_e D_j`` with ``D = exp(τN)
 Operators (``D`` the data, ``C`` the configuration, ``K`` the work arrays of :func:`op_work`):
 
 ``op_work(D)``                    work arrays for one call of a loop
-``op_velocity(D, S, N)``          Legendre map N = ∂K*/∂S (gauge and clamped nodes zero)
+``op_velocity(D, S, N)``          Legendre map N = ∂K*/∂S (gauge, clamped nodes, held components zero)
 ``op_force(D, C, t, N, W, K)``    force density W = D*Q + T (loads, end loads, clamps)
 ``op_drift(D, C, tau, N, K)``     Φ ← Φ exp(τN) exactly on the group
 ``op_free_flow(D, C, S, pieces, fracs, dt, Dn, K)`` the exact free flow of ``lie-verlet``
 ``op_drift_naive(D, C, tau, N, K)`` Φ ← Φ + τΦN̂ (forward Euler; leaves the group)
-``op_constrain(D, S)``            zero the momentum of gauge components and clamped nodes
+``op_constrain(D, S)``            zero the momentum of gauge components, clamped nodes, held components
 ``op_powers(D, C, N, t, K)``      (dissipated, external) power of the loads
 ``op_kinetic(D, S)``              kinetic energy ``Scheme.kinetic_energy``: ½Σ w S·M⁺S over unclamped nodes
+                                  (½ w N·MN, N = M⁺S zero on the held components, at a partly held node)
 ``op_potential(D, C, K) -> float`` potential energy ``potential_energy(state)``: the medium's
                                   discrete energy plus the conservative loads' (a constant field)
 ``op_nodal_strains(D, C, X)``     X ``[n, d, r]`` ← ``nodal_strains(state)``, nodes in C order
@@ -50,6 +51,19 @@ constant field ``ConstantFieldPotential`` (gravity: the pull-back of ``U = −ρ
 force ``Rᵀρf`` on the translations and no moment, paper §IV.B; energy ``−Σ w ρf·x``, x the
 translation of Φ), free ends or faces with follower or dead loads (``n_α Q^α = P``, paper §IV.D),
 clamped ends or faces, periodic axes.
+
+Held components (``Held`` ends, ``Symmetry`` faces; the lattice only): ``held`` ``[n, r]`` is
+the scheme's clamp mask (:meth:`~cartan.schemes.lattice.Lattice._clamp_mask`, all r at clamped
+nodes), ``clamped`` ``[n]`` its rows that hold every component, ``any_held`` whether a node
+holds some components and not all.  As on the numpy path (``N[held] = 0``, ``S[held] = 0``,
+``W[held] = 0``): the velocity, the momentum's constraint and the force are zero on the held
+components, ``lie-verlet``'s free flow moves a node along its free components only (N_p zero on
+the held ones) and the kinetic energy is ``½ w N·MN`` with those N (``metric`` M).  The
+velocity, constraint and kinetic energy shared with the collocation set take node clamps
+only; the lattice's module rebinds them to their ``_held`` variants (:data:`_HELD_REBIND`).
+The loops that read ``clamped`` themselves (``kinematic``'s prescribed velocity, ``rattle``'s
+node operators) decline partly held problems in their integrators; ``overdamped`` takes
+N = Γ⁻¹W, zero on the held components with W.
 
 Energies (paper §VI.C)
     Edge sum ``V = cell Σ_e U(X_e; X₀_e)`` with the other axes at rest, or, for coupled media,
@@ -92,8 +106,11 @@ class LatticeData(NamedTuple):
     w: np.ndarray  # [n] node weights
     inv_metric: np.ndarray  # [r, r] M⁺: the inverse kinetic metric on the live block, 0 on gauge ones
     live: np.ndarray  # [r] bool
-    clamped: np.ndarray  # [n] bool
+    clamped: np.ndarray  # [n] bool, every component held (clamped ends, held ends that hold all r)
     any_clamped: bool
+    held: np.ndarray  # [n, r] bool, the held components (Held ends, Symmetry faces; all r at clamped nodes)
+    any_held: bool  # a node holds some of its components and not all (else ``clamped`` says everything)
+    metric: np.ndarray  # [r, r] the kinetic metric M (the kinetic energy ½N·MN of partly held nodes)
     damp: np.ndarray  # [r] damping coefficients Γ
     ubody: np.ndarray  # [r] body-frame uniform force density
     end_idx: np.ndarray  # [k] int64 loaded end nodes
@@ -243,7 +260,7 @@ def op_force(D, C, t, N, W, K):
     for i in range(n):
         zero = D.any_clamped and D.clamped[i]
         for k in range(R_):  # noqa: F821
-            if zero or not D.live[k]:
+            if zero or not D.live[k] or (D.any_held and D.held[i, k]):
                 W[i, k] = 0.0
 
 
@@ -331,6 +348,8 @@ def op_free_flow(D, C, S, pieces, fracs, dt, Dn, K):
                 na = naxes[p]
                 for c in range(na):
                     tk[c] = tau[p] * (coef[p, c] * s[axes[p, c]])
+                    if D.any_held and D.held[i, axes[p, c]]:
+                        tk[c] = 0.0
                 for c in range(na):
                     if tk[c] != 0.0:
                         g_axis_flow(axes[p, c], tk[c], s, acc, wk)  # noqa: F821
@@ -339,9 +358,10 @@ def op_free_flow(D, C, S, pieces, fracs, dt, Dn, K):
             moving = False
             for k in range(R_):  # noqa: F821
                 v = 0.0
-                for c in range(cnt[p, k]):
-                    j = col[p, k, c]
-                    v += pieces[p, k, j] * s[j]
+                if not (D.any_held and D.held[i, k]):
+                    for c in range(cnt[p, k]):
+                        j = col[p, k, c]
+                        v += pieces[p, k, j] * s[j]
                 xi[k] = tau[p] * v
                 if v != 0.0:
                     moving = True
@@ -527,6 +547,96 @@ _OPERATORS = (op_work, op_velocity, op_constrain, _dead_to_body, _field_force, _
               op_finite_config, op_copy_config, op_new_config)
 
 
+# ---------------------------------------------------------------------------- held components
+# The lattice's own ``op_velocity``, ``op_constrain`` and ``op_kinetic``: those above (shared
+# with the collocation set, whose data has node clamps only) plus the held components of
+# ``Held`` ends and ``Symmetry`` faces (``D.held``), rebound to the shared names in the
+# lattice's module (:data:`_HELD_REBIND`).
+
+def op_velocity_held(D, S, N):
+    """N = M⁺S, zero at clamped nodes and on held components (``Scheme.velocity``)."""
+    for i in range(S.shape[0]):
+        if D.any_clamped and D.clamped[i]:
+            for k in range(R_):  # noqa: F821
+                N[i, k] = 0.0
+        else:
+            for k in range(R_):  # noqa: F821
+                if D.any_held and D.held[i, k]:
+                    N[i, k] = 0.0
+                    continue
+                v = 0.0
+                for j in range(R_):  # noqa: F821
+                    v += D.inv_metric[k, j] * S[i, j]
+                N[i, k] = v
+
+
+def op_constrain_held(D, S):
+    """Zero S on the gauge components, at clamped nodes and on held components (``Scheme.constrain``)."""
+    for i in range(S.shape[0]):
+        zero = D.any_clamped and D.clamped[i]
+        for k in range(R_):  # noqa: F821
+            if zero or not D.live[k] or (D.any_held and D.held[i, k]):
+                S[i, k] = 0.0
+
+
+def _held_row(held, i):
+    """Whether node i holds any component."""
+    for k in range(R_):  # noqa: F821
+        if held[i, k]:
+            return True
+    return False
+
+
+def _kinetic_held_node(S, i, w, diagonal, inv_metric, metric, held, N):
+    """``½ w N·MN`` of a node that holds some components: N = M⁺S zero on them (``N`` ``[r]``
+    scratch), as ``Scheme.kinetic_energy`` takes it; ``½ w Σ S_k² M⁺_kk`` over the free k for a
+    diagonal metric (the same energy, the formula of :func:`op_kinetic`)."""
+    e = 0.0
+    if diagonal:
+        for k in range(R_):  # noqa: F821
+            if not held[i, k]:
+                e += 0.5 * w * S[i, k] * S[i, k] * inv_metric[k, k]
+        return e
+    for k in range(R_):  # noqa: F821
+        v = 0.0
+        if not held[i, k]:
+            for j in range(R_):  # noqa: F821
+                v += inv_metric[k, j] * S[i, j]
+        N[k] = v
+    for k in range(R_):  # noqa: F821
+        v = 0.0
+        for j in range(R_):  # noqa: F821
+            v += metric[k, j] * N[j]
+        e += 0.5 * w * N[k] * v
+    return e
+
+
+def op_kinetic_held(D, S):
+    """:func:`op_kinetic` with held components (:func:`_kinetic_held_node` at the nodes that hold some)."""
+    Nv = np.empty(R_)  # noqa: F821
+    e = 0.0
+    for i in range(S.shape[0]):
+        if D.any_clamped and D.clamped[i]:
+            continue
+        if D.any_held and _held_row(D.held, i):
+            e += _kinetic_held_node(S, i, D.w[i], D.diagonal, D.inv_metric, D.metric, D.held, Nv)
+            continue
+        for k in range(R_):  # noqa: F821
+            if D.diagonal:
+                e += 0.5 * D.w[i] * S[i, k] * S[i, k] * D.inv_metric[k, k]
+            else:
+                v = 0.0
+                for j in range(R_):  # noqa: F821
+                    v += D.inv_metric[k, j] * S[i, j]
+                e += 0.5 * D.w[i] * S[i, k] * v
+    return e
+
+
+_HELD = (op_velocity_held, op_constrain_held, _held_row, _kinetic_held_node, op_kinetic_held)
+#: the lattice module's rebinding of the shared operators to their held-component variants
+_HELD_REBIND = "\n".join(f"{name} = {name}_held" for name in ("op_velocity", "op_constrain", "op_kinetic"))
+
+
 # ---------------------------------------------------------------------------- threaded build
 # The operators' passes over nodes, edges and corners as ``prange`` loops over fixed chunks of
 # ``TCHUNK_`` items (compiled with ``parallel=True`` in the threaded module only,
@@ -586,6 +696,8 @@ def op_velocity_threaded(D, S, N):
     # (the data's fields as locals: a prange body takes arrays and numbers, not the named tuple)
     d_any_clamped = D.any_clamped
     d_clamped = D.clamped
+    d_any_held = D.any_held
+    d_held = D.held
     d_inv_metric = D.inv_metric
     n = S.shape[0]
     for ch in prange(_t_chunks(n)):  # noqa: F821
@@ -595,6 +707,9 @@ def op_velocity_threaded(D, S, N):
                     N[i, k] = 0.0
             else:
                 for k in range(R_):  # noqa: F821
+                    if d_any_held and d_held[i, k]:
+                        N[i, k] = 0.0
+                        continue
                     v = 0.0
                     for j in range(R_):  # noqa: F821
                         v += d_inv_metric[k, j] * S[i, j]
@@ -605,13 +720,15 @@ def op_constrain_threaded(D, S):
     # (the data's fields as locals: a prange body takes arrays and numbers, not the named tuple)
     d_any_clamped = D.any_clamped
     d_clamped = D.clamped
+    d_any_held = D.any_held
+    d_held = D.held
     d_live = D.live
     n = S.shape[0]
     for ch in prange(_t_chunks(n)):  # noqa: F821
         for i in range(ch * TCHUNK_, min(n, (ch + 1) * TCHUNK_)):  # noqa: F821
             zero = d_any_clamped and d_clamped[i]
             for k in range(R_):  # noqa: F821
-                if zero or not d_live[k]:
+                if zero or not d_live[k] or (d_any_held and d_held[i, k]):
                     S[i, k] = 0.0
 
 
@@ -620,6 +737,8 @@ def op_force_threaded(D, C, t, N, W, K):
     # (the data's fields as locals: a prange body takes arrays and numbers, not the named tuple)
     d_X0e = D.X0e
     d_any_clamped = D.any_clamped
+    d_any_held = D.any_held
+    d_held = D.held
     d_cX0 = D.cX0
     d_cedge = D.cedge
     d_clamped = D.clamped
@@ -744,7 +863,7 @@ def op_force_threaded(D, C, t, N, W, K):
         for i in range(ch * TCHUNK_, min(n, (ch + 1) * TCHUNK_)):  # noqa: F821
             zero = d_any_clamped and d_clamped[i]
             for k in range(R_):  # noqa: F821
-                if zero or not d_live[k]:
+                if zero or not d_live[k] or (d_any_held and d_held[i, k]):
                     W[i, k] = 0.0
 
 
@@ -780,6 +899,8 @@ def op_free_flow_threaded(D, C, S, pieces, fracs, dt, Dn, K):
     # (the data's fields as locals: a prange body takes arrays and numbers, not the named tuple)
     d_any_clamped = D.any_clamped
     d_clamped = D.clamped
+    d_any_held = D.any_held
+    d_held = D.held
     npieces = pieces.shape[0]
     cnt = np.zeros((npieces, R_), dtype=np.int64)  # noqa: F821
     col = np.empty((npieces, R_, R_), dtype=np.int64)  # noqa: F821
@@ -832,6 +953,8 @@ def op_free_flow_threaded(D, C, S, pieces, fracs, dt, Dn, K):
                     na = naxes[p]
                     for c in range(na):
                         tk[c] = tau[p] * (coef[p, c] * s[axes[p, c]])
+                        if d_any_held and d_held[i, axes[p, c]]:
+                            tk[c] = 0.0
                     for c in range(na):
                         if tk[c] != 0.0:
                             g_axis_flow(axes[p, c], tk[c], s, acc, wk)  # noqa: F821
@@ -840,9 +963,10 @@ def op_free_flow_threaded(D, C, S, pieces, fracs, dt, Dn, K):
                 moving = False
                 for k in range(R_):  # noqa: F821
                     v = 0.0
-                    for c in range(cnt[p, k]):
-                        j = col[p, k, c]
-                        v += pieces[p, k, j] * s[j]
+                    if not (d_any_held and d_held[i, k]):
+                        for c in range(cnt[p, k]):
+                            j = col[p, k, c]
+                            v += pieces[p, k, j] * s[j]
                     xi[k] = tau[p] * v
                     if v != 0.0:
                         moving = True
@@ -890,16 +1014,23 @@ def op_kinetic_threaded(D, S):
     # (the data's fields as locals: a prange body takes arrays and numbers, not the named tuple)
     d_any_clamped = D.any_clamped
     d_clamped = D.clamped
+    d_any_held = D.any_held
+    d_held = D.held
     d_diagonal = D.diagonal
     d_inv_metric = D.inv_metric
+    d_metric = D.metric
     d_w = D.w
     n = S.shape[0]
     nch = _t_chunks(n)
     part = np.zeros(nch)
     for ch in prange(nch):  # noqa: F821
         e = 0.0
+        Nv = np.empty(R_)  # noqa: F821
         for i in range(ch * TCHUNK_, min(n, (ch + 1) * TCHUNK_)):  # noqa: F821
             if d_any_clamped and d_clamped[i]:
+                continue
+            if d_any_held and _held_row(d_held, i):
+                e += _kinetic_held_node(S, i, d_w[i], d_diagonal, d_inv_metric, d_metric, d_held, Nv)
                 continue
             for k in range(R_):  # noqa: F821
                 if d_diagonal:
@@ -966,11 +1097,12 @@ def _field_loads(scheme) -> np.ndarray | None:
     return field
 
 
-def _supported_loads(scheme) -> tuple | None:
+def _supported_loads(scheme, held: bool = False) -> tuple | None:
     """``(damp, ubody, field)`` of the loads the operators run — ``Damping``, body-frame
     ``UniformForce`` and the core's ``ConstantFieldPotential`` (:func:`_field_loads`) — or
-    None when a load or a boundary is of another kind."""
-    from ..problem import Clamped, ConstantFieldPotential, Damping, Free, UniformForce
+    None when a load or a boundary is of another kind (boundaries: ``Free`` and ``Clamped``,
+    and with ``held`` also ``Held`` and ``Symmetry``, whose components ``LatticeData.held`` holds)."""
+    from ..problem import Clamped, ConstantFieldPotential, Damping, Free, Held, Symmetry, UniformForce
 
     r = scheme.group.dim
     damp, ubody = np.zeros(r), np.zeros(r)
@@ -982,7 +1114,8 @@ def _supported_loads(scheme) -> tuple | None:
         elif not isinstance(load, ConstantFieldPotential):
             return None
     field = _field_loads(scheme)
-    if field is None or any(type(b) not in (Free, Clamped) for b in scheme.problem.boundaries.values()):
+    kinds = (Free, Clamped, Held, Symmetry) if held else (Free, Clamped)
+    if field is None or any(type(b) not in kinds for b in scheme.problem.boundaries.values()):
         return None
     return damp, ubody, field
 
@@ -1010,10 +1143,10 @@ def _why_not(scheme, reference: type) -> str | None:
             return f"the medium overrides {name}"
     if getattr(medium, "velocity_dependent_forces", False):
         return "the medium has velocity-dependent forces"
-    loads = _supported_loads(scheme)
+    loads = _supported_loads(scheme, held=True)
     if loads is None:
         return ("a load or boundary is not one of Damping, body-frame UniformForce, ConstantFieldPotential "
-                "(the core's constant field), Free, Clamped")
+                "(the core's constant field), Free, Clamped, Held, Symmetry")
     if any(not b.follower for _, b in scheme._end_loads) and not scheme.track:
         return "a dead end load needs stepped frames"
     if loads[2].size and not scheme.track:
@@ -1086,10 +1219,12 @@ def lattice_operators(scheme, reference: type):
         cw, cX0 = corners["weight"], corners["X0"]
     else:
         cedge, cw, cX0 = np.zeros((0, d), dtype=np.int64), np.zeros(0), np.zeros((0, d, r))
-    damp, ubody, field = _supported_loads(scheme)
+    damp, ubody, field = _supported_loads(scheme, held=True)
     weights = np.ascontiguousarray(scheme.weights, dtype=float).reshape(n)
     entries = scheme.end_load_entries()
-    clamped = np.ascontiguousarray(scheme._clamped, dtype=np.bool_).reshape(n)
+    held = np.asarray(scheme._clamped, dtype=np.bool_)
+    held = np.ascontiguousarray(np.broadcast_to(held.reshape(*shape, -1), (*shape, r)).reshape(n, r))
+    clamped = np.ascontiguousarray(held.all(axis=1))
     data = LatticeData(
         d=d, r=r, m=m, affine=bool(getattr(group, "affine", False)), track=bool(scheme.track),
         tail=np.concatenate(tails).astype(np.int64), head=np.concatenate(heads).astype(np.int64),
@@ -1100,6 +1235,8 @@ def lattice_operators(scheme, reference: type):
         winv=1.0 / weights, w=weights,
         inv_metric=np.ascontiguousarray(scheme.inverse_metric, dtype=float),
         live=np.ascontiguousarray(scheme.live, dtype=np.bool_), clamped=clamped, any_clamped=bool(clamped.any()),
+        held=held, any_held=bool(np.any(held.any(axis=1) & ~clamped)),
+        metric=np.ascontiguousarray(medium.kinetic_metric(), dtype=float).reshape(r, r),
         damp=damp, ubody=ubody,
         end_idx=np.array([i for i, _, _ in entries], dtype=np.int64),
         end_load=np.array([np.asarray(b.load, dtype=float) for _, b, _ in entries], dtype=float).reshape(-1, r),
@@ -1137,7 +1274,7 @@ def lattice_operators(scheme, reference: type):
 
     fragments = [group.point_kernels(), medium_fragment(kernels),
                  Fragment(imports={"LatticeData": (__name__, "LatticeData")}, constants={"D_": d, "R_": r, "M_": m},
-                          source=njit_source(*_OPERATORS))]
+                          source=njit_source(*_OPERATORS, *_HELD) + "\n\n\n" + _HELD_REBIND + "\n")]
     return OperatorSet(label=f"lattice × {group!r} × {medium.name}", key=f"lattice-{group!r}-{kernel_stem(kernels)}",
                        fragments=fragments, data=data, pack=pack, unpack=unpack, accepts=accepts, nodes=n,
                        threaded=[threaded_fragment()])

@@ -63,7 +63,9 @@ Compiled loops
     The generated loops (:meth:`cartan.integrators.base.Integrator.run_compiled_loop` over the
     operators of :mod:`cartan.schemes._lattice_ops`, :meth:`Lattice.compiled_operators`) run
     whole blocks of steps in numba for every group with point kernels and every medium that
-    declares them, d = 1, 2, 3.  SE(3) rods (d = 1) with a quadratic potential and loads that
+    declares them, d = 1, 2, 3, with clamped, free (loaded) and held ends or faces
+    (:class:`~cartan.problem.Held`, :class:`~cartan.problem.Symmetry`: the operators' ``held``
+    mask, :meth:`_clamp_mask`).  SE(3) rods (d = 1) with a quadratic potential and loads that
     are data (damping, body-frame uniform force, constant-field potentials, end loads,
     clamps) run ``lie-verlet`` and ``overdamped`` (order 1) in the hand-written
     structure-of-arrays loops of :meth:`Lattice.compiled_advance`
@@ -189,7 +191,9 @@ class Lattice(Scheme):
     def compiled_operators(self):
         """The lattice's compiled operators (:mod:`cartan.schemes._lattice_ops`): any group
         with point kernels, any medium that declares point kernels, d = 1–3, damping,
-        body-frame uniform forces, free (loaded) and clamped ends or faces."""
+        body-frame uniform forces, free (loaded) and clamped ends or faces, held components
+        (:class:`~cartan.problem.Held` ends, :class:`~cartan.problem.Symmetry` faces: the
+        operators' ``held`` mask, :meth:`_clamp_mask`)."""
         ops = self.__dict__.get("_operators")
         if ops is None:
             if self._glue:
@@ -197,12 +201,6 @@ class Lattice(Scheme):
 
                 ops = self._operators = OperatorSet.declined(
                     "a glued axis (a chart closed over poles) runs on the numpy path")
-                return ops
-            if self._clamped.ndim > self.grid.d:
-                from ..compiled.operators import OperatorSet
-
-                ops = self._operators = OperatorSet.declined(
-                    "held body components (cartan.Symmetry faces, cartan.Held ends) run on the numpy path")
                 return ops
             if any(f is not None for f in self._end_factors):
                 from ..compiled.operators import OperatorSet
@@ -515,8 +513,9 @@ class Lattice(Scheme):
         :class:`~cartan.problem.Held` ends the held body components ``(*shape, r)``
         (:func:`~cartan.problem.held_components`, all r at clamped nodes): either indexes the
         ``(*shape, r)`` velocities, momenta and forces that are zeroed there.  The compiled
-        loops and operators take clamps only and decline held components (their boundary
-        check), so this mask reaches the numpy path only."""
+        operators (:meth:`compiled_operators`) take it as their ``held`` ``[n, r]`` mask; the
+        structure-of-arrays loops of :meth:`compiled_advance` take clamps only and decline
+        held components (their boundary check)."""
         mask = super()._clamp_mask()
         held = held_components(self.problem)
         if held is None:
