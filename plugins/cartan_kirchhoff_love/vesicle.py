@@ -535,9 +535,10 @@ def helfrich_flow(problem: Problem, *, steps: int = 30, tau: float = 0.05, growt
         ``area``, ``volume``, ``tension_multiplier`` σ, ``pressure_multiplier`` p,
         ``gauss_bonnet_plaquette``, ``gauss_bonnet_curvature``, ``gauss_bonnet_absolute``,
         ``static_solves``, ``mesh_shift`` (the largest tangential move of the redistribution before
-        the step, in grid spacings; 0 without one); attributes ``hold``, ``hold_residual_max`` (max
-        relative |A/A₀ − 1|, |V/V₀ − 1| over the steps), ``rejected_steps`` (steps retried with a
-        halved τ) and ``redistribute``.
+        the step, in grid spacings; 0 without one), ``start_energy`` (E_H of the configuration the
+        step starts from, after that redistribution: a step lowers E_H from there); attributes
+        ``hold``, ``hold_residual_max`` (max relative |A/A₀ − 1|, |V/V₀ − 1| over the steps),
+        ``rejected_steps`` (steps retried with a halved τ) and ``redistribute``.
     """
     from cartan_cosserat_surface.surface import VolumePressure
 
@@ -584,6 +585,7 @@ def helfrich_flow(problem: Problem, *, steps: int = 30, tau: float = 0.05, growt
     mult = {"area": float(medium.sigma), "volume": 0.0}
     hist = [{**record(Phi), "flow_time": 0.0, "tension_multiplier": mult["area"], "pressure_multiplier": 0.0,
              "static_solves": 0, "mesh_shift": 0.0}]
+    hist[0]["start_energy"] = hist[0]["bending_energy"]
     frames = [Phi]
     base = medium.parameters()
     # normal motion: the tangential penalty holds the in-plane modes, the regularisation would only
@@ -651,9 +653,10 @@ def helfrich_flow(problem: Problem, *, steps: int = 30, tau: float = 0.05, growt
 
     t, dt, ds_last, worst, rejected = 0.0, float(tau), None, 0.0, 0
     for n in range(int(steps)):
-        shift = 0.0
+        shift, start_energy = 0.0, hist[-1]["bending_energy"]
         if redistribute and n > 0 and n % int(redistribute) == 0:
             Phi, shift = redistribute_mesh(Phi, glue=sphere_glue)
+            start_energy = bending_energy(problem, Phi)
         for attempt in range(max_retries + 1):
             try:
                 out, P, new_mult, new_jac, res, solves = advance(Phi, dt, mult, jac)
@@ -671,7 +674,8 @@ def helfrich_flow(problem: Problem, *, steps: int = 30, tau: float = 0.05, growt
         t += dt
         rec = record(P)
         hist.append({**rec, "flow_time": t, "tension_multiplier": mult["area"],
-                     "pressure_multiplier": mult["volume"], "static_solves": solves, "mesh_shift": shift})
+                     "pressure_multiplier": mult["volume"], "static_solves": solves, "mesh_shift": shift,
+                     "start_energy": start_energy})
         frames.append(P)
         drop = hist[-2]["bending_energy"] - rec["bending_energy"]
         if progress:
@@ -701,6 +705,7 @@ _HISTORY = {
     "pressure_multiplier": ("pressure p, multiplier of the held volume", "energy length-3"),
     "static_solves": ("static solves of the step", "1"),
     "mesh_shift": ("largest tangential node move of the redistribution before the step", "grid spacing"),
+    "start_energy": ("E_H of the configuration the step starts from (after the redistribution)", "energy"),
 }
 
 

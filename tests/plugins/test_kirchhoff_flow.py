@@ -205,7 +205,8 @@ def test_flow_output_has_a_step_dimension_that_selects_and_round_trips(tmp_path)
     rng = np.random.default_rng(1)
     frames = [rng.normal(size=(3, 4, 4, 4)) for _ in range(3)]
     keys = ("bending_energy", "area", "volume", "gauss_bonnet_plaquette", "gauss_bonnet_curvature",
-            "gauss_bonnet_absolute", "tension_multiplier", "pressure_multiplier", "static_solves", "mesh_shift")
+            "gauss_bonnet_absolute", "tension_multiplier", "pressure_multiplier", "static_solves", "mesh_shift",
+            "start_energy")
     hist = [{**{k: float(i + j) for j, k in enumerate(keys)}, "flow_time": 0.5 * i} for i in range(3)]
     ds = vesicle._flow_dataset(last, hist, frames, {"hold": "area"})
     assert ds["step"].dims == ("step",) and ds["flow_time"].dims == ("step",)
