@@ -20,7 +20,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from toys import rel_error, wave
+from toys import rel_error, run_both, wave
 
 import cartan
 from cartan import Clamped, Damping, Free, Held, Symmetry, UniformForce
@@ -59,22 +59,21 @@ def _mirrored() -> cartan.Problem:
                           [UniformForce([0.0, 200.0, -500.0, 0.0, 0.0, 0.0])])
 
 
-def _run_both(problem):
-    """The scheme, the start, the Python run and the generated run (blocks 1, 2, NSTEPS − 3)."""
-    scheme = Lattice(problem, track_frames=True)  # (the stepped frames compared too)
+def _run_both(problem, make=LieVerlet, dt=DT, nsteps=NSTEPS):
+    """The scheme, the start, the Python run and the compiled run (blocks 1, 2, nsteps − 3; the
+    generated loop: the hand-written rod loops decline held components) of ``make()``'s
+    integrator, and that compiled run's integrator."""
+    scheme, (ref, _), (fast, fi) = run_both(Lattice, problem, make, dt, nsteps, (1, 2, nsteps - 3),
+                                            track_frames=True)  # (the stepped frames compared too)
     ops = scheme.compiled_operators()
     assert ops.ok, ops.reason
     assert ops.data.any_held  # some node holds some components and not all
     start = scheme.initial_state()
     start.scalars.setdefault("nstep", 0)
-    ref, fast = start.copy(), start.copy()
-    ri, fi = LieVerlet(), LieVerlet()
-    for _ in range(NSTEPS):
-        ri.step(scheme, ref, DT)
-    for size in (1, 2, NSTEPS - 3):
-        assert fi.run_compiled_loop(scheme, fast, DT, size)  # the generated loop took the steps
-    assert fast.scalars["nstep"] == ref.scalars["nstep"] == NSTEPS and fi.nstep == NSTEPS
-    return scheme, start, ref, fast
+    hand = getattr(scheme, "compiled_advance", None)
+    assert hand is None or not hand(make(), start.copy(), dt, 1)  # so the generated loop took the steps
+    assert fast.scalars["nstep"] == ref.scalars["nstep"] == nsteps
+    return scheme, start, ref, fast, fi
 
 
 def _assert_agree_and_held(scheme, start, ref, fast):
@@ -99,7 +98,7 @@ def _assert_agree_and_held(scheme, start, ref, fast):
 
 
 def test_pinned_end_runs_compiled_and_agrees_with_the_numpy_path():
-    scheme, start, ref, fast = _run_both(_pinned())
+    scheme, start, ref, fast, _ = _run_both(_pinned())
     _assert_agree_and_held(scheme, start, ref, fast)
     # the pin holds its position exactly (its translation components never move), its frame turns
     for state in (ref, fast):
@@ -109,7 +108,7 @@ def test_pinned_end_runs_compiled_and_agrees_with_the_numpy_path():
 
 
 def test_symmetry_end_runs_compiled_and_agrees_with_the_numpy_path():
-    scheme, start, ref, fast = _run_both(_mirrored())
+    scheme, start, ref, fast, _ = _run_both(_mirrored())
     _assert_agree_and_held(scheme, start, ref, fast)
     # the symmetry end slides in its plane (normal n, the end's initial tangent) and its frame
     # turns about n only: both to round-off of the O(1) frames (the updates R ← R exp(τω^) with
@@ -168,15 +167,7 @@ def test_rkmk4_and_overdamped_hold_the_components():
     both = cartan.Problem(rod, grid, rod.initial_state(grid, "arc", curvature=1.0),
                           {"start": Held(components=(0, 1, 2)), "end": Symmetry()}, [Damping([1e5] * 6)])
     for problem, make, dt, nsteps in ((_pinned(), RKMK4, DT, 12), (both, lambda: Overdamped(order=1), 1e-5, 20)):
-        scheme = Lattice(problem, track_frames=True)
-        start = scheme.initial_state()
-        start.scalars.setdefault("nstep", 0)
-        ref, fast = start.copy(), start.copy()
-        ri, fi = make(), make()
-        for _ in range(nsteps):
-            ri.step(scheme, ref, dt)
-        for size in (1, 2, nsteps - 3):
-            assert fi.run_compiled_loop(scheme, fast, dt, size)
+        scheme, start, ref, fast, fi = _run_both(problem, make, dt, nsteps)
         assert rel_error(ref.arrays["Phi"], start.arrays["Phi"]) > 1e-5
         assert max(rel_error(fast.arrays[k], ref.arrays[k]) for k in ref.arrays) <= TOL
         force = float(np.max(np.abs(scheme.internal_force(start) / scheme.weights[..., None])))
@@ -284,14 +275,7 @@ def test_non_diagonal_indefinite_metric_with_a_held_end():
     ops = scheme.compiled_operators()
     assert ops.ok and ops.data.any_held and not scheme.diagonal_metric
     for make, dt, nsteps in ((RKMK4, 1e-3, 12), (LieVerlet, 1e-3, 20)):
-        start = scheme.initial_state()
-        start.scalars.setdefault("nstep", 0)
-        ref, fast = start.copy(), start.copy()
-        ri, fi = make(), make()
-        for _ in range(nsteps):
-            ri.step(scheme, ref, dt)
-        for size in (1, 2, nsteps - 3):
-            assert fi.run_compiled_loop(scheme, fast, dt, size)
+        scheme, start, ref, fast, fi = _run_both(problem, make, dt, nsteps)
         assert rel_error(ref.arrays["Phi"], start.arrays["Phi"]) > 1e-3
         force = float(np.max(np.abs(scheme.internal_force(start) / scheme.weights[..., None])))
         assert float(np.max(np.abs(fast.S - ref.S))) <= nsteps * dt * force * FORCE_TOL
@@ -327,15 +311,7 @@ def test_d2_symmetry_face_on_a_cosserat_surface():
     scheme = Lattice(problem, track_frames=True)
     ops = scheme.compiled_operators()
     assert ops.ok and ops.data.any_held and scheme.coupled
-    dt, nsteps = 0.1 * grid.spacing[0], 12
-    start = scheme.initial_state()
-    start.scalars.setdefault("nstep", 0)
-    ref, fast = start.copy(), start.copy()
-    ri, fi = LieVerlet(), LieVerlet()
-    for _ in range(nsteps):
-        ri.step(scheme, ref, dt)
-    for size in (1, 2, nsteps - 3):
-        assert fi.run_compiled_loop(scheme, fast, dt, size)
+    scheme, start, ref, fast, _ = _run_both(problem, LieVerlet, 0.1 * grid.spacing[0], 12)
     assert rel_error(ref.arrays["Phi"], start.arrays["Phi"]) > 1e-4
     assert rel_error(fast.S, ref.S) <= TOL
     assert max(rel_error(fast.arrays[k], ref.arrays[k]) for k in ref.arrays) <= TOL

@@ -44,6 +44,7 @@ import numpy as np
 
 from ..compiled.codegen import Fragment, njit_source
 from ._lattice_ops import (
+    _HELD,
     _dead_to_body,
     _supported_loads,
     check_kernels,
@@ -85,6 +86,9 @@ class CollocationData(NamedTuple):
     live: np.ndarray  # [r] bool
     clamped: np.ndarray  # [n] bool
     any_clamped: bool
+    held: np.ndarray  # [n, r] bool, the clamp mask per component (the shared operators' field; nothing beyond clamps)
+    any_held: bool  # False: the collocation scheme declines Held ends and Symmetry faces
+    metric: np.ndarray  # [r, r] the kinetic metric M (the shared kinetic energy's partly held nodes: none here)
     damp: np.ndarray  # [r] damping coefficients Γ
     ubody: np.ndarray  # [r] body-frame uniform force density
     field: np.ndarray  # [k] ρf of the constant fields (gravity), k the space dimension (0: none)
@@ -447,6 +451,8 @@ def collocation_operators(scheme, reference: type):
                     else np.ascontiguousarray(scheme._inv_volume, dtype=float).reshape(n)),
         charted=scheme._inv_volume is not None, inv_metric=np.ascontiguousarray(scheme.inverse_metric, dtype=float),
         live=np.ascontiguousarray(scheme.live, dtype=np.bool_), clamped=clamped, any_clamped=bool(clamped.any()),
+        held=np.ascontiguousarray(np.repeat(clamped[:, None], r, axis=1)), any_held=False,
+        metric=np.ascontiguousarray(medium.kinetic_metric(), dtype=float).reshape(r, r),
         damp=damp, ubody=ubody, field=np.ascontiguousarray(field, dtype=float), has_field=bool(field.size),
         end_idx=np.array([e[0] for e in ends], dtype=np.int64), end_axis=np.array([e[1] for e in ends], dtype=np.int64),
         end_sign=np.array([e[2] for e in ends], dtype=float), end_H=np.array([e[3] for e in ends], dtype=float),
@@ -473,7 +479,7 @@ def collocation_operators(scheme, reference: type):
 
     fragments = [group.point_kernels(), medium_fragment(kernels),
                  Fragment(imports={"CollocationData": (__name__, "CollocationData")},
-                          constants={"D_": d, "R_": r, "M_": m}, source=njit_source(*_OPERATORS))]
+                          constants={"D_": d, "R_": r, "M_": m}, source=njit_source(*_OPERATORS, *_HELD))]
     return OperatorSet(label=f"collocation × {group!r} × {medium.name}",
                        key=f"collocation-{group!r}-{kernel_stem(kernels)}",
                        fragments=fragments, data=data, pack=pack, unpack=unpack, accepts=accepts, nodes=n)

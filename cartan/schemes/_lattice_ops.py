@@ -59,8 +59,8 @@ holds some components and not all.  As on the numpy path (``N[held] = 0``, ``S[h
 ``W[held] = 0``): the velocity, the momentum's constraint and the force are zero on the held
 components, ``lie-verlet``'s free flow moves a node along its free components only (N_p zero on
 the held ones) and the kinetic energy is ``½ w N·MN`` with those N (``metric`` M).  The
-velocity, constraint and kinetic energy shared with the collocation set take node clamps
-only; the lattice's module rebinds them to their ``_held`` variants (:data:`_HELD_REBIND`).
+velocity, constraint and kinetic energy are shared with the collocation set, whose data
+carries the same three fields with nothing held (``any_held`` False).
 The loops that read ``clamped`` themselves (``kinematic``'s prescribed velocity, ``rattle``'s
 node operators) decline partly held problems in their integrators; ``overdamped`` takes
 N = Γ⁻¹W, zero on the held components with W.
@@ -139,12 +139,16 @@ def op_work(D):
 
 
 def op_velocity(D, S, N):
+    """N = M⁺S, zero at clamped nodes and on held components (``Scheme.velocity``)."""
     for i in range(S.shape[0]):
         if D.any_clamped and D.clamped[i]:
             for k in range(R_):  # noqa: F821
                 N[i, k] = 0.0
         else:
             for k in range(R_):  # noqa: F821
+                if D.any_held and D.held[i, k]:
+                    N[i, k] = 0.0
+                    continue
                 v = 0.0
                 for j in range(R_):  # noqa: F821
                     v += D.inv_metric[k, j] * S[i, j]
@@ -152,10 +156,11 @@ def op_velocity(D, S, N):
 
 
 def op_constrain(D, S):
+    """Zero S on the gauge components, at clamped nodes and on held components (``Scheme.constrain``)."""
     for i in range(S.shape[0]):
         zero = D.any_clamped and D.clamped[i]
         for k in range(R_):  # noqa: F821
-            if zero or not D.live[k]:
+            if zero or not D.live[k] or (D.any_held and D.held[i, k]):
                 S[i, k] = 0.0
 
 
@@ -454,9 +459,14 @@ def op_powers(D, C, N, t, K):
 
 
 def op_kinetic(D, S):
+    """:func:`op_kinetic` with held components (:func:`_kinetic_held_node` at the nodes that hold some)."""
+    Nv = np.empty(R_)  # noqa: F821
     e = 0.0
     for i in range(S.shape[0]):
         if D.any_clamped and D.clamped[i]:
+            continue
+        if D.any_held and _held_row(D.held, i):
+            e += _kinetic_held_node(S, i, D.w[i], D.diagonal, D.inv_metric, D.metric, D.held, Nv)
             continue
         for k in range(R_):  # noqa: F821
             if D.diagonal:
@@ -547,38 +557,6 @@ _OPERATORS = (op_work, op_velocity, op_constrain, _dead_to_body, _field_force, _
               op_finite_config, op_copy_config, op_new_config)
 
 
-# ---------------------------------------------------------------------------- held components
-# The lattice's own ``op_velocity``, ``op_constrain`` and ``op_kinetic``: those above (shared
-# with the collocation set, whose data has node clamps only) plus the held components of
-# ``Held`` ends and ``Symmetry`` faces (``D.held``), rebound to the shared names in the
-# lattice's module (:data:`_HELD_REBIND`).
-
-def op_velocity_held(D, S, N):
-    """N = M⁺S, zero at clamped nodes and on held components (``Scheme.velocity``)."""
-    for i in range(S.shape[0]):
-        if D.any_clamped and D.clamped[i]:
-            for k in range(R_):  # noqa: F821
-                N[i, k] = 0.0
-        else:
-            for k in range(R_):  # noqa: F821
-                if D.any_held and D.held[i, k]:
-                    N[i, k] = 0.0
-                    continue
-                v = 0.0
-                for j in range(R_):  # noqa: F821
-                    v += D.inv_metric[k, j] * S[i, j]
-                N[i, k] = v
-
-
-def op_constrain_held(D, S):
-    """Zero S on the gauge components, at clamped nodes and on held components (``Scheme.constrain``)."""
-    for i in range(S.shape[0]):
-        zero = D.any_clamped and D.clamped[i]
-        for k in range(R_):  # noqa: F821
-            if zero or not D.live[k] or (D.any_held and D.held[i, k]):
-                S[i, k] = 0.0
-
-
 def _held_row(held, i):
     """Whether node i holds any component."""
     for k in range(R_):  # noqa: F821
@@ -611,30 +589,7 @@ def _kinetic_held_node(S, i, w, diagonal, inv_metric, metric, held, N):
     return e
 
 
-def op_kinetic_held(D, S):
-    """:func:`op_kinetic` with held components (:func:`_kinetic_held_node` at the nodes that hold some)."""
-    Nv = np.empty(R_)  # noqa: F821
-    e = 0.0
-    for i in range(S.shape[0]):
-        if D.any_clamped and D.clamped[i]:
-            continue
-        if D.any_held and _held_row(D.held, i):
-            e += _kinetic_held_node(S, i, D.w[i], D.diagonal, D.inv_metric, D.metric, D.held, Nv)
-            continue
-        for k in range(R_):  # noqa: F821
-            if D.diagonal:
-                e += 0.5 * D.w[i] * S[i, k] * S[i, k] * D.inv_metric[k, k]
-            else:
-                v = 0.0
-                for j in range(R_):  # noqa: F821
-                    v += D.inv_metric[k, j] * S[i, j]
-                e += 0.5 * D.w[i] * S[i, k] * v
-    return e
-
-
-_HELD = (op_velocity_held, op_constrain_held, _held_row, _kinetic_held_node, op_kinetic_held)
-#: the lattice module's rebinding of the shared operators to their held-component variants
-_HELD_REBIND = "\n".join(f"{name} = {name}_held" for name in ("op_velocity", "op_constrain", "op_kinetic"))
+_HELD = (_held_row, _kinetic_held_node)
 
 
 # ---------------------------------------------------------------------------- threaded build
@@ -1274,7 +1229,7 @@ def lattice_operators(scheme, reference: type):
 
     fragments = [group.point_kernels(), medium_fragment(kernels),
                  Fragment(imports={"LatticeData": (__name__, "LatticeData")}, constants={"D_": d, "R_": r, "M_": m},
-                          source=njit_source(*_OPERATORS, *_HELD) + "\n\n\n" + _HELD_REBIND + "\n")]
+                          source=njit_source(*_OPERATORS, *_HELD))]
     return OperatorSet(label=f"lattice × {group!r} × {medium.name}", key=f"lattice-{group!r}-{kernel_stem(kernels)}",
                        fragments=fragments, data=data, pack=pack, unpack=unpack, accepts=accepts, nodes=n,
                        threaded=[threaded_fragment()])
