@@ -34,7 +34,7 @@ from cartan_kirchhoff_love.vesicle import flow_configuration, helfrich_flow  # n
 from cartan_kirchhoff_love.vesicle_sphere import ellipsoid_problem, revolved_problem, vesicle_shape  # noqa: E402
 
 #: the flow's settings (normal motion; the in-plane regularisation K_a, μ is then dropped)
-FLOW = {"tau": 0.025, "growth": 1.5, "tau_max": 5.0, "motion": "normal", "hold": ("area", "volume")}
+FLOW = {"tau": 0.0125, "growth": 1.5, "tau_max": 5.0, "motion": "normal", "hold": ("area", "volume")}
 
 
 def main(n: int = 8, steps: int = 16, out: str = "docs/media/kirchhoff-love/vesicle-flow-v09.png",
