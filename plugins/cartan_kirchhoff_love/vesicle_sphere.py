@@ -188,6 +188,17 @@ def spheroid_frames(grid: Any, Phi: np.ndarray, reduced_volume: float = 0.9, sha
     return out
 
 
+def _vesicle_medium(normal_stiffness: float | None, area_modulus: float, shear_modulus: float) -> HelfrichMembrane:
+    """``helfrich-membrane`` (the adaptation held by the strain constraints) for ``normal_stiffness``
+    None, else :class:`PenalisedHelfrichMembrane` with k_n = ``normal_stiffness`` (> 0)."""
+    if normal_stiffness is None:
+        return HelfrichMembrane(area_modulus=area_modulus, shear_modulus=shear_modulus)
+    if not (np.isfinite(normal_stiffness) and normal_stiffness > 0.0):
+        raise ValueError(f"normal_stiffness must be None (multipliers) or > 0 (the penalty), got {normal_stiffness!r}")
+    return PenalisedHelfrichMembrane(normal_stiffness=normal_stiffness, area_modulus=area_modulus,
+                                     shear_modulus=shear_modulus)
+
+
 def ellipsoid_problem(n: int, reduced_volume: float = 0.9, *, shape: str = "prolate", aspect: float | None = None,
                       normal_stiffness: float | None = None, area_modulus: float = 0.0, shear_modulus: float = 0.0,
                       spacing: str = "angle") -> Problem:
@@ -199,12 +210,8 @@ def ellipsoid_problem(n: int, reduced_volume: float = 0.9, *, shape: str = "prol
     the penalty ½k_n J₀ θ_α,3²)."""
     if isinstance(n, bool) or int(n) != n or n < 4 or n % 2:
         raise ValueError(f"n must be an even integer ≥ 4 (colatitude nodes; 2n longitudes), got {n!r}")
-    if normal_stiffness is not None and not (np.isfinite(normal_stiffness) and normal_stiffness > 0.0):
-        raise ValueError(f"normal_stiffness must be None (multipliers) or > 0 (the penalty), got {normal_stiffness!r}")
     grid = cartan.Grid((2 * int(n), int(n)), (2.0 * math.pi, math.pi), periodic=(True, False), glued=(None, 0))
-    med = (HelfrichMembrane(area_modulus=area_modulus, shear_modulus=shear_modulus) if normal_stiffness is None
-           else PenalisedHelfrichMembrane(normal_stiffness=normal_stiffness, area_modulus=area_modulus,
-                                          shear_modulus=shear_modulus))
+    med = _vesicle_medium(normal_stiffness, area_modulus, shear_modulus)
     st = med.initial_state(grid, "sphere")
     Phi = spheroid_frames(grid, st.Phi, reduced_volume, shape, aspect, spacing)
     return Problem(med, grid, InitialState(Phi=Phi, glue=st.glue), name=f"helfrich-vesicle-{shape}")
@@ -212,11 +219,7 @@ def ellipsoid_problem(n: int, reduced_volume: float = 0.9, *, shape: str = "prol
 
 def _chart_problem(n: int, pos: np.ndarray, nrm: np.ndarray, ph: np.ndarray, grid: Any, name: str,
                    normal_stiffness: float | None, area_modulus: float = 0.0, shear_modulus: float = 0.0) -> Problem:
-    if normal_stiffness is not None and not (np.isfinite(normal_stiffness) and normal_stiffness > 0.0):
-        raise ValueError(f"normal_stiffness must be None (multipliers) or > 0 (the penalty), got {normal_stiffness!r}")
-    med = (HelfrichMembrane(area_modulus=area_modulus, shear_modulus=shear_modulus) if normal_stiffness is None
-           else PenalisedHelfrichMembrane(normal_stiffness=normal_stiffness, area_modulus=area_modulus,
-                                          shear_modulus=shear_modulus))
+    med = _vesicle_medium(normal_stiffness, area_modulus, shear_modulus)
     st = med.initial_state(grid, "sphere")
     e1 = np.stack([-np.sin(ph), np.cos(ph), 0.0 * ph], axis=-1)
     Phi = np.array(st.Phi, dtype=float)
