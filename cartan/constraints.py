@@ -238,13 +238,9 @@ class StrainConstraints:
             ne = xi.shape[0]
             row = start + np.arange(ne * c).reshape(ne, c)
             # a ghost end (glued axis) moves by Ad_{Γ⁻¹}δ of the node it stands for (Lattice, "Glued axes")
-            A = g.Ad(g.inverse(sch._glue[axis])) if axis in self.copy_map else None
             for node, ghost, M in ((self.tails[axis][active], self.ghost_tails[axis][active], -g.dexp_inv(xi) / h),
                                    (self.heads[axis][active], self.ghost_heads[axis][active], g.dexp_inv(-xi) / h)):
-                Mk = M[:, self.comp, :]  # [ne, c, r]
-                if A is not None and np.any(ghost):
-                    Mk = Mk.copy()
-                    Mk[ghost] = Mk[ghost] @ A
+                Mk = sch.from_ghosts(M[:, self.comp, :], ghost, axis)  # [ne, c, r]
                 col = self.index[node]  # [ne, r]
                 cc = np.broadcast_to(col[:, None, :], Mk.shape)
                 rr = np.broadcast_to(row[:, :, None], Mk.shape)
