@@ -2,8 +2,8 @@
 
 ``cartan.simulate``, ``cartan.open``, ``cartan.load_scene``, ``cartan.scene``,
 ``cartan.medium`` and the problem-building classes (``Problem``, ``Grid``,
-``InitialState``, ``Free``, ``Clamped``, ``Held``, ``Symmetry``, ``Damping``, ``UniformForce``, ``NodeForce``,
-``PotentialLoad``),
+``InitialState``, ``Free``, ``Clamped``, ``Driven``, ``Held``, ``Symmetry``, ``Damping``, ``UniformForce``,
+``NodeForce``, ``PotentialLoad``),
 with the errors and warnings a run can raise (``InstabilityError``, ``StabilityWarning``,
 ``SceneError``).  Importing this module does not import xarray (that happens on the first
 run or read).
@@ -28,6 +28,7 @@ from .problem import (
     Clamped,
     ConstantFieldPotential,
     Damping,
+    Driven,
     Free,
     Held,
     InitialState,
@@ -47,6 +48,7 @@ __all__ = [
     "ConvergenceError",
     "continuation",
     "Damping",
+    "Driven",
     "Free",
     "Grid",
     "Held",

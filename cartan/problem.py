@@ -34,6 +34,7 @@ __all__ = [
     "Clamped",
     "ConstantFieldPotential",
     "Damping",
+    "Driven",
     "Free",
     "Held",
     "InitialState",
@@ -109,6 +110,57 @@ class Clamped(Boundary):
     """Clamped end: Φ held at its initial value (N = 0, S = 0 at the end node)."""
 
     kind: str = field(default="clamped", init=False)
+
+
+@dataclass
+class Driven(Boundary):
+    """Driven end: a clamp that moves with a prescribed constant body velocity ξ ∈ 𝔤, so that
+    the end's frame is Φ(t) = Φ(0)·exp(tξ) exactly (paper §IV.D: a time-dependent Dirichlet
+    condition on Φ; the end's momentum is the reaction's).
+
+    At the end node (every node of the face for d ≥ 2) the velocity is N = ξ and the momentum
+    S = ∂K/∂N(ξ) at every step; the force there is not applied: the support supplies whatever
+    holds the end on its prescribed motion, the reaction ``R = −w(W + ad_ξᵀ S)`` (W the force
+    density the rest of the body, the loads and the boundary put on the node, w its weight;
+    :meth:`cartan.schemes.base.Scheme.support_reaction`).  Its power ``R·ξ = −w W·ξ`` is booked
+    as external work, so that the energy balance of a run closes.  ``velocity = 0`` is
+    :class:`Clamped`.  A rate of twist ω about the end's tangent d₁ of an SE(3) rod is
+    ``Driven(velocity=[0, 0, 0, ω, 0, 0])``.
+
+    Parameters
+    ----------
+    velocity : array_like, shape ``(r,)``
+        ξ in the basis of 𝔤 (for SE(3): linear then angular velocity), in the body frame of the
+        end node; constant in time, finite, zero on the medium's gauge components.
+
+    Notes
+    -----
+    Runs on the ``lattice`` scheme's numpy path (its compiled loops and operators hold clamped
+    nodes at rest and decline a driven end) with the integrators that move the end by exactly
+    exp(Δtξ) per step: ``lie-euler``, ``rkmk4`` and ``lie-verlet`` (the latter when ξ's parts in
+    its split free flow commute, e.g. a rotation about one body axis, any translation, and with
+    a diagonal kinetic metric); the others refuse it (``ValueError`` naming the integrator).
+    In the statics a driven end is a clamp at its initial frame.  On a face of a d ≥ 2 grid every
+    node turns by Φᵢ(0)·exp(tξ): a rigid motion of the face when ξ is a translation and the
+    frames are equal, or a rotation about an axis through every node (a plate's edge turned about
+    its own line).
+    """
+
+    velocity: Any = None
+    kind: str = field(default="driven", init=False)
+
+    def __post_init__(self):
+        if self.velocity is None:
+            raise ValueError("velocity must be given: the end's body velocity ξ, a vector of r finite components "
+                             "(for SE(3): [v1, v2, v3, w1, w2, w3])")
+        v = check_finite("velocity", _numeric("velocity", self.velocity))
+        if v.ndim != 1 or v.size == 0:
+            raise ValueError(f"velocity must be a vector of r components (the dimension of the group), got shape "
+                             f"{v.shape}")
+        self.velocity = np.asarray(v, dtype=float)
+
+    def to_dict(self) -> dict[str, Any]:
+        return {"kind": "driven", "velocity": np.asarray(self.velocity, dtype=float).tolist()}
 
 
 @dataclass
@@ -880,12 +932,19 @@ class Problem:
             if key not in valid:
                 raise ValueError(f"boundaries: unknown end {key!r}; this grid has ends {sorted(valid) or 'none'}")
             if not isinstance(b, Boundary):
-                raise ValueError(f"boundaries[{key!r}] must be Free(...), Clamped(), Held(...) or Symmetry(...), "
+                raise ValueError(f"boundaries[{key!r}] must be Free(...), Clamped(), Driven(...), Held(...) or "
+                                 "Symmetry(...), "
                                  f"got {b!r}")
             if isinstance(b, Held):
                 b.mask(self.medium, key)
             if isinstance(b, Free) and b.load is not None:
                 b.load = check_finite(f"boundaries[{key!r}].load", b.load, (g.dim,))
+            if isinstance(b, Driven):
+                b.velocity = check_finite(f"boundaries[{key!r}].velocity", b.velocity, (g.dim,))
+                gauge = np.flatnonzero(np.asarray(self.medium.gauge_mask(), dtype=bool) & (b.velocity != 0.0))
+                if gauge.size:
+                    raise ValueError(f"boundaries[{key!r}].velocity must be zero on the gauge components of "
+                                     f"{self.medium.name!r} (not dynamical), got nonzero components {gauge.tolist()}")
             self.medium.check_support(b, key)
         ends = {}
         for key in self.boundaries:  # "start" and "u-start" are the same end (d = 1)

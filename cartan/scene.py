@@ -17,6 +17,8 @@ A scene file names a registered medium and gives, in plain tables, everything
     end = { kind = "free", load = [0, 0, -1, 0, 0, 0], follower = false }
     # a held end may carry a load too (d = 1): start = { kind = "held", components = [0, 1, 2],
     # load = [0, 0, 0, 0, 0, 1] } -- a node force at the end, its held components the reaction
+    # a driven end turns (moves) with a constant body velocity: end = { kind = "driven",
+    # velocity = [0, 0, 0, 0.5, 0, 0] } -- the end's frame is Phi(0) exp(t xi) (cartan.Driven)
     [[loads]]             # optional, repeated
     kind = "gravity"
     g = [0, 0, -9.81]
@@ -121,7 +123,7 @@ from .limits import (  # noqa: F401 - re-exported: the limits' home is cartan.li
     step_limit,
 )
 from .plugins import get_registry
-from .problem import Clamped, Damping, Free, Held, NodeForce, Problem, Symmetry, UniformForce
+from .problem import Clamped, Damping, Driven, Free, Held, NodeForce, Problem, Symmetry, UniformForce
 
 __all__ = [
     "MAX_ITERATIONS",
@@ -675,6 +677,12 @@ def _boundaries(reader: _Reader, data: Mapping) -> dict:
             if not isinstance(follower, bool):
                 raise reader.fail(f"{key}.follower", f"must be true or false, got {follower!r}")
             out[end] = Free(load=spec.get("load"), follower=follower)
+        elif kind == "driven":
+            reader.no_extra(spec, {"kind", "velocity"}, key)
+            try:
+                out[end] = Driven(velocity=spec.get("velocity"))
+            except ValueError as exc:
+                raise reader.fail(f"{key}.velocity", str(exc)) from None
         elif kind == "held":
             reader.no_extra(spec, {"kind", "components", "load", "follower"}, key)
             try:
@@ -688,8 +696,8 @@ def _boundaries(reader: _Reader, data: Mapping) -> dict:
             except ValueError as exc:
                 raise reader.fail(f"{key}.normal", str(exc)) from None
         else:
-            raise reader.fail(f"{key}.kind", f"unknown boundary kind {kind!r}; choose 'clamped', 'free', 'held' or "
-                              "'symmetry'")
+            raise reader.fail(f"{key}.kind", f"unknown boundary kind {kind!r}; choose 'clamped', 'driven', 'free', "
+                              "'held' or 'symmetry'")
     return out
 
 

@@ -13,6 +13,9 @@ Implementers
 * implement :meth:`_step`, which advances ``state`` in place by ``dt`` (time included) and
   calls :meth:`force` (never ``scheme.force`` directly) so the counters stay right;
 * keep ``_step`` deterministic: a restart from a checkpoint reproduces the run bit for bit;
+* return None from :meth:`Integrator.driven_reason` when the steps move the nodes of a
+  :class:`~cartan.problem.Driven` end (the scheme's ``velocity`` gives ξ there, ``constrain``
+  sets their momentum) by exactly exp(Δtξ) per step; the default refuses driven ends;
 * optionally, define ``compiled_advance(scheme, state, dt, nsteps, kinetic_limit) -> bool``
   to take whole blocks of steps in compiled code (:func:`cartan.simulate` offers it the steps
   between saves before the scheme's own ``compiled_advance``): False, touching nothing, when
@@ -93,8 +96,26 @@ class Integrator(abc.ABC):
         self.nforce += 1
         return scheme.force(state, N, t)
 
+    def driven_reason(self, scheme: Scheme) -> str | None:
+        """Why this integrator's steps do not move the scheme's :class:`~cartan.problem.Driven`
+        ends by exactly exp(Δtξ) per step, or None when they do (default: a reason; the
+        integrators that do say so)."""
+        return "its steps do not move a node with a prescribed velocity by exp(Δtξ)"
+
+    def _check_driven(self, scheme: Scheme) -> None:
+        """ValueError naming the integrator when the scheme has driven ends it cannot move
+        exactly (:meth:`driven_reason`); checked once per scheme."""
+        if getattr(scheme, "_driven", None) is None or getattr(self, "_driven_checked", None) is scheme:
+            return
+        reason = self.driven_reason(scheme)
+        if reason is not None:
+            raise ValueError(f"integrator {self.name!r} does not take Driven ends: {reason}; use 'lie-verlet', "
+                             "'lie-euler' or 'rkmk4'")
+        self._driven_checked = scheme
+
     def step(self, scheme: Scheme, state: State, dt: float) -> None:
         """Advance ``state`` in place by one step of size ``dt``."""
+        self._check_driven(scheme)
         t0 = time.perf_counter()
         p0 = self._powers(scheme, state)
         self._step(scheme, state, dt)
@@ -160,6 +181,7 @@ class Integrator(abc.ABC):
 
         if get_backend() != "numba" or getattr(scheme, "coupled_lagrangian", False):
             return False  # (a Lagrangian coupling N and X runs on the numpy path: cartan.schemes._coupled)
+        self._check_driven(scheme)
         operators = getattr(scheme, "compiled_operators", None)
         ops = operators() if operators is not None else None
         if ops is None or not ops.ok or not ops.accepts(state):

@@ -168,6 +168,14 @@ class Rattle(LieVerlet):
         #: why the last :meth:`compiled_loop` left the steps to Python (None: it did not)
         self.compiled_declined: str | None = None
 
+    def driven_reason(self, scheme: Scheme) -> str | None:
+        """lie-verlet's when the medium holds no strain; the multiplier systems take no
+        prescribed node velocity (a driven end's motion would not enter the rows' rates)."""
+        if scheme.medium.constrained_strains() is not None:
+            return ("its multipliers hold the constrained strains with the driven nodes at rest (their "
+                    "prescribed velocity does not enter the rows' rates)")
+        return super().driven_reason(scheme)
+
     # ------------------------------------------------------------------ compiled loop
     def compiled_reason(self, scheme: Scheme) -> str | None:
         """Why the compiled loop (:mod:`cartan.integrators.rattle_loop`) does not take this

@@ -89,6 +89,9 @@ class LieEuler(Integrator):
     def compiled_loop(self, scheme: Scheme, state: State, dt: float):
         return "euler_loop", (True,)
 
+    def driven_reason(self, scheme: Scheme) -> str | None:
+        return None  # Φ ← Φ exp(ΔtN) with N = ξ at a driven node
+
 
 def _abelian_pieces(group, live: np.ndarray) -> list[np.ndarray]:
     """Group the live basis directions into mutually commuting sets.
@@ -190,6 +193,22 @@ class LieVerlet(Integrator):
         seq = [(P, 0.5) for P in mats[:-1]] + [(mats[-1], 1.0)] + [(P, 0.5) for P in reversed(mats[:-1])]
         self._seq_key, self._seq = key, seq
         return seq
+
+    def driven_reason(self, scheme: Scheme) -> str | None:
+        """None when the split free flow moves every driven node by exp(Δtξ): a diagonal kinetic
+        metric and ξ's parts in the flow's pieces commuting (a rotation about one body axis, any
+        translation); the reason otherwise."""
+        if not scheme.diagonal_metric:
+            return "with a non-diagonal kinetic metric its free flow holds the driven nodes"
+        mask, Nd, _ = scheme._driven
+        parts = [np.where(np.diag(P) != 0, Nd[mask], 0.0) for P, _ in self._sequence(scheme)]
+        scale = float(np.max(np.abs(Nd[mask]), initial=0.0)) ** 2
+        for i, a in enumerate(parts):
+            for b in parts[i + 1:]:
+                if float(np.max(np.abs(scheme.group.bracket(a, b)), initial=0.0)) > 1e-14 * scale:
+                    return ("the driven velocity's parts in its split free flow do not commute (the end would "
+                            "move by a product of their exponentials, not exp(Δtξ))")
+        return None
 
     def _kick_force(self, scheme: Scheme, state: State) -> np.ndarray:
         N = scheme.velocity(state)
@@ -336,6 +355,9 @@ class RKMK4(Integrator):
 
     def _step(self, scheme: Scheme, state: State, dt: float) -> None:
         _rkmk(self, scheme, state, dt, 4, lambda st, t: scheme.velocity(st), dynamics=True)
+
+    def driven_reason(self, scheme: Scheme) -> str | None:
+        return None  # N = ξ at every stage: σ̇ = dexp⁻¹_{−σ}ξ = ξ (σ ∥ ξ), so σ = Δtξ
 
     def compiled_loop(self, scheme: Scheme, state: State, dt: float):
         A, b, c = _TABLEAUX[4]

@@ -5,7 +5,8 @@ provides, generically over the group and the medium, the discrete operators the 
 integrators need.  Integrators see only this interface:
 
 ``velocity(state)``
-    N ``[*shape, r]`` from the momentum density S (gauge components and clamped ends zero);
+    N ``[*shape, r]`` from the momentum density S (gauge components and clamped ends zero,
+    driven ends their prescribed velocity ξ);
 ``force(state, N, t)``
     W ``[*shape, r]``: the generalised force density D*_α Q^α + T, internal stresses, loads
     and boundary loads included, **excluding** the Lie–Poisson term ad*_N S, so that
@@ -33,7 +34,7 @@ from numba import njit
 
 from .._backend import get_backend
 from ..medium import Medium
-from ..problem import Clamped, Problem
+from ..problem import Clamped, Driven, Problem
 from ..state import State  # re-exported: its home is cartan.state
 
 __all__ = ["Scheme", "State", "prefix_products"]
@@ -118,6 +119,9 @@ class Scheme(abc.ABC):
     #: whether the scheme steps media whose Lagrangian couples N and X
     #: (:attr:`cartan.medium.Medium.coupled_lagrangian`, :mod:`cartan.schemes._coupled`); the others refuse them
     supports_coupled_lagrangian: ClassVar[bool] = False
+    #: whether the scheme moves :class:`~cartan.problem.Driven` ends (its ``force`` takes
+    #: ``raw=True``: the force density before the held nodes' is zeroed, for the reaction)
+    supports_driven_ends: ClassVar[bool] = False
 
     def __init__(self, problem: Problem, **options: Any):
         if options:
@@ -137,6 +141,43 @@ class Scheme(abc.ABC):
         self.diagonal_metric = not np.any(self.inverse_metric - np.diag(np.diag(self.inverse_metric)))
         self.weights = self.grid.node_weights()  # [*shape]
         self._clamped = self._clamp_mask()
+        #: the driven nodes ``(*shape)`` bool and their velocity ξ and momentum ∂K/∂N(ξ)
+        #: ``(*shape, r)`` (zero elsewhere), or None without :class:`~cartan.problem.Driven` ends
+        self._driven = self._driven_velocity()
+
+    def _driven_velocity(self) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:
+        """``(mask, N, S)`` of the problem's :class:`~cartan.problem.Driven` ends (see
+        ``_driven``), or None.
+
+        Raises
+        ------
+        ValueError
+            A driven end on a scheme without them (:attr:`supports_driven_ends`) or with a
+            medium whose Lagrangian couples N and X.
+        """
+        ends = [(axis, side, b) for axis in range(self.grid.d)
+                if not (self.grid.periodic[axis] or self.grid.is_glued(axis)) for side in ("start", "end")
+                if isinstance(b := self.problem.boundary(axis, side), Driven)]
+        if not ends:
+            return None
+        if not self.supports_driven_ends:
+            raise ValueError(f"scheme {self.name!r} does not move Driven ends; use scheme='lattice'")
+        if self.coupled_lagrangian:
+            raise ValueError(f"a Driven end is not supported with a Lagrangian that couples N and X (medium "
+                             f"{self.medium.name!r}, Medium.coupled_lagrangian)")
+        mask = np.zeros(self.grid.shape, dtype=bool)
+        N = np.zeros((*self.grid.shape, self.group.dim))
+        for axis, side, b in ends:
+            sl = [slice(None)] * self.grid.d
+            sl[axis] = 0 if side == "start" else -1
+            if np.any(mask[tuple(sl)] & np.any(N[tuple(sl)] != b.velocity, axis=-1)):
+                raise ValueError(f"boundaries: two Driven ends meet at a corner with different velocities (the "
+                                 f"{self.grid.axis_names[axis]}-{side} face); give them the same velocity")
+            mask[tuple(sl)] = True
+            N[tuple(sl)] = b.velocity
+        S = np.where(mask[..., None], self.medium.momentum(N), 0.0)
+        S[..., ~self.live] = 0.0
+        return mask, N, S
 
     def uses_compiled_diagnostics(self) -> bool:
         """Whether the CFL estimate (:meth:`stiffness_probe`) and the blow-up guard's energies
@@ -256,7 +297,7 @@ class Scheme(abc.ABC):
             if self.grid.periodic[axis]:
                 continue
             for side, idx in (("start", 0), ("end", -1)):
-                if isinstance(self.problem.boundary(axis, side), Clamped):
+                if isinstance(self.problem.boundary(axis, side), Clamped | Driven):
                     sl = [slice(None)] * self.grid.d
                     sl[axis] = idx
                     mask[tuple(sl)] = True
@@ -312,13 +353,20 @@ class Scheme(abc.ABC):
             N = self.medium.velocity(state.S)
         if self._clamped.any():
             N[self._clamped] = 0.0
+        if self._driven is not None:
+            mask, Nd, _ = self._driven
+            N[mask] = Nd[mask]
         return N
 
     def constrain(self, state: State) -> None:
-        """Zero the momentum of clamped nodes and gauge components (after a kick)."""
+        """Zero the momentum of clamped nodes and gauge components, set that of driven nodes to
+        ∂K/∂N(ξ) (after a kick)."""
         state.S[..., ~self.live] = 0.0
         if self._clamped.any():
             state.S[self._clamped] = 0.0
+        if self._driven is not None:
+            mask, _, Sd = self._driven
+            state.S[mask] = Sd[mask]
 
     def kinetic_energy(self, state: State) -> float:
         if self.coupled_lagrangian:  # H_d − Σ h U(X_e): the kinetic part of the discrete Hamiltonian
@@ -345,7 +393,59 @@ class Scheme(abc.ABC):
         if T is not None:
             external += float(np.sum(self.weights * np.einsum("...k,...k->...", T, N)))
         external += self._boundary_power(state, N, Phi)
+        if self._driven is not None:
+            external += self._driven_power(state, N, t)
         return {"dissipated": dissipated, "external": external}
+
+    def _driven_power(self, state: State, N: np.ndarray, t: float) -> float:
+        """The power R·ξ of the driven ends' reactions (:meth:`support_reaction`); kept for the
+        state it was computed at (an integrator books the powers at the end of a step and again
+        at the start of the next, on the same state: one force evaluation for both)."""
+        key = (id(state), id(state.S), state.t, state.scalars.get("nstep", 0), t)
+        cached = self.__dict__.get("_driven_power_at")
+        if cached is not None and cached[0] == key:
+            return cached[1]
+        mask, Nd, _ = self._driven
+        p = float(np.sum(self.support_reaction(state, N, t)[mask] * Nd[mask]))
+        self._driven_power_at = (key, p)
+        return p
+
+    def support_reaction(self, state: State, N: np.ndarray | None = None, t: float | None = None) -> np.ndarray:
+        """The generalised force the supports exert on their wholly held nodes (clamped and
+        driven ends), body components, ``[*shape, r]``; zero at the other nodes.
+
+        At such a node the momentum S is prescribed (zero, or ∂K/∂N(ξ) at a driven end, constant
+        in the body frame), so its balance ``w Ṡ = w(ad_NᵀS + W) + R`` (paper §V) gives the
+        reaction ``R = −w(W + ad_NᵀS)``, with W the force density of the rest of the body, the
+        loads and the boundary loads on the node (:meth:`force` before it is zeroed there) and w
+        the node's weight.  Its power at a driven end is ``R·ξ = −w W·ξ`` (⟨ad_ξᵀS, ξ⟩ = 0),
+        the work booked as ``external_work``.
+
+        Parameters
+        ----------
+        state : State
+        N : numpy.ndarray, shape ``[*shape, r]``, optional
+            The velocity (default :meth:`velocity` of ``state``).
+        t : float, optional
+            The time of the forces (default ``state.t``).
+
+        Raises
+        ------
+        ValueError
+            On a scheme whose :meth:`force` does not give the force before the held nodes'
+            (:attr:`supports_driven_ends` False).
+        """
+        if not self.supports_driven_ends:
+            raise ValueError(f"scheme {self.name!r} does not give the supports' reactions; use scheme='lattice'")
+        N = self.velocity(state) if N is None else N
+        W = self.force(state, N, state.t if t is None else t, raw=True)
+        R = -self.weights[..., None] * (W + np.einsum("...ji,...j->...i", self.group.ad(N), state.S))
+        held = self._clamped if self._clamped.ndim == self.grid.d else self._clamped.all(axis=-1)
+        if self._driven is not None:
+            held = held | self._driven[0]
+        R[~held] = 0.0
+        R[..., ~self.live] = 0.0
+        return R
 
     def _boundary_power(self, state: State, N: np.ndarray, Phi: np.ndarray | None) -> float:
         return 0.0
@@ -361,7 +461,7 @@ class Scheme(abc.ABC):
     def has_external_power(self) -> bool:
         """True when loads, boundary loads or the medium's body force can do work (the
         integrator then books their power every step)."""
-        return bool(self.problem.loads) or bool(getattr(self, "_end_loads", ())) or (
+        return bool(self.problem.loads) or bool(getattr(self, "_end_loads", ())) or self._driven is not None or (
             type(self.medium).body_force is not Medium.body_force
         )
 
