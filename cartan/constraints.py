@@ -74,6 +74,8 @@ class StrainConstraints:
 
     def __init__(self, scheme: Any, unknown: np.ndarray, state: Any, check: bool = True):
         medium = scheme.medium
+        if getattr(scheme, "pole", "corners") != "corners":  # the rows are logarithmic edge strains, no pole cell
+            raise ValueError(f"constraints need the lattice's pole = 'corners', got pole = {scheme.pole!r}")
         self.sch = scheme
         self.g = scheme.group
         self.r_dim = r_dim = scheme.group.dim

@@ -58,6 +58,12 @@ Glued axes (closed surfaces over poles)
     periodic closing edge does: frames are rebuilt from the interior edges only, and the
     plaquettes across an end (ghost edges Γ⁻¹G Γ) enter the integrability residual.  Glued
     problems run on this numpy path (the compiled loops and operators decline them).
+Poles (``pole="cap"``)
+    On a coupled d = 2 SE(3) lattice with a glued axis and a reference, ``Lattice(problem,
+    pole="cap")`` replaces the 2N corners per pole that use a glued edge by a pole cell whose
+    energy is the medium's own density at a pole strain fitted to the pole's N glued edges, and
+    gives every edge the chord-length strain X″ = (θ|p|/|v|, π) (:mod:`cartan.schemes._pole_cell`;
+    the forces stay the exact gradient).  The default ``"corners"`` is the scheme above.
 
 Compiled loops
     The generated loops (:meth:`cartan.integrators.base.Integrator.run_compiled_loop` over the
@@ -96,8 +102,12 @@ class Lattice(Scheme):
     order = 2
     strain_location = "edge"
     supports_coupled_lagrangian = True  # d = 1: cartan.schemes._coupled
+    supports_driven_ends = True  # cartan.Driven, on the numpy path (compiled_advance, compiled_operators)
 
-    def __init__(self, problem, track_frames: bool | None = None):
+    #: the treatment of a glued chart's poles (``"corners"`` or ``"cap"``: module docstring)
+    pole = "corners"
+
+    def __init__(self, problem, track_frames: bool | None = None, pole: str = "corners"):
         super().__init__(problem)
         if self._clamped.ndim > self.grid.d and self.coupled_lagrangian:
             raise ValueError("a Symmetry face or a Held end is not supported with a coupled Lagrangian "
@@ -110,6 +120,10 @@ class Lattice(Scheme):
         #: per glued axis, (Γ of the initial state, Γ of the reference): see "Glued axes"
         self._glue = axis_glues(problem.initial)
         self._glue_ref = axis_glues(problem.reference) if problem.reference is not None else {}
+        if pole != "corners":
+            from ._pole_cell import check_pole
+
+            self.pole = check_pole(self, pole)
         #: the energy's quadrature weights (the grid's, per unit chart volume); :attr:`weights`
         #: are the nodes' reference volumes (mass, body loads), equal to them unless the medium
         #: measures a general chart (module docstring, "Charts")
@@ -159,6 +173,8 @@ class Lattice(Scheme):
         return P / half if factor is None else P * factor[..., None] / half
 
     def options(self) -> dict[str, Any]:
+        if self.pole != "corners":
+            return {"track_frames": self.track, "pole": self.pole}
         return {"track_frames": self.track}
 
     # ------------------------------------------------------------------ compiled loops
@@ -184,8 +200,8 @@ class Lattice(Scheme):
         momentum, configuration) is not finite, or whose kinetic energy ``½Σ w S²/m`` exceeds
         ``kinetic_limit``; the number of steps done is the increase of ``state.scalars["nstep"]``.
         """
-        if self._glue:
-            return False  # glued axes run on the numpy path (module docstring)
+        if self._glue or self._driven is not None:
+            return False  # glued axes and driven ends run on the numpy path (module docstring)
         return self._run_compiled(self.plan_module, integrator, state, dt, nsteps, kinetic_limit)
 
     def compiled_operators(self):
@@ -201,6 +217,13 @@ class Lattice(Scheme):
 
                 ops = self._operators = OperatorSet.declined(
                     "a glued axis (a chart closed over poles) runs on the numpy path")
+                return ops
+            if self._driven is not None:
+                from ..compiled.operators import OperatorSet
+
+                ops = self._operators = OperatorSet.declined(
+                    "a Driven end (a prescribed velocity at held nodes; the operators hold them at rest) "
+                    "runs on the numpy path")
                 return ops
             if any(f is not None for f in self._end_factors):
                 from ..compiled.operators import OperatorSet
@@ -296,7 +319,12 @@ class Lattice(Scheme):
 
     # ------------------------------------------------------------------ strains and forces
     def edge_strains(self, state: State) -> list[np.ndarray]:
-        """Per axis, the edge strains ``X_e = log(G_e)/h`` ``[*edge_shape, r]``."""
+        """Per axis, the edge strains ``X_e = log(G_e)/h`` ``[*edge_shape, r]`` (the chord-length
+        strains X″ with ``pole="cap"``: :mod:`cartan.schemes._pole_cell`)."""
+        if self.pole == "cap":
+            from ._pole_cell import chord_strains
+
+            return [chord_strains(state.arrays[self._key(a)], self.group)[0] / self.h[a] for a in range(self.grid.d)]
         return [self.group.log(state.arrays[self._key(a)]) / self.h[a] for a in range(self.grid.d)]
 
     def strains(self, state: State) -> np.ndarray:
@@ -352,7 +380,13 @@ class Lattice(Scheme):
                 head = np.moveaxis(head.copy(), axis, 0)
                 head[-1] = g.compose(holonomies[axis], head[-1])
                 head = np.moveaxis(head, 0, axis)
-            xi = g.log(g.compose(inv_tail, head)) / self.h[axis]
+            G = g.compose(inv_tail, head)
+            if self.pole == "cap":
+                from ._pole_cell import chord_strains
+
+                xi = chord_strains(G, g)[0] / self.h[axis]
+            else:
+                xi = g.log(G) / self.h[axis]
             X0 = np.broadcast_to(self.medium.rest_strain(), (*xi.shape[:-1], self.grid.d, g.dim)).copy()
             X0[..., axis, :] = xi
             cache[axis] = X0
@@ -457,14 +491,25 @@ class Lattice(Scheme):
             ref = self.edge_rest_strains(a)
             if ref is not None:
                 X0[:, a, :] = ref.reshape(-1, d, r)[edge[:, a], a, :]
-        held = self._corners = {"node": node, "edge": edge, "weight": w[node] / count[node], "X0": X0,
+        weight = w[node] / count[node]
+        if self.pole == "cap":  # the caps replace the corners that use a glued edge
+            from ._pole_cell import cap
+
+            a = cap(self).axis
+            weight[(ghost_t[a] | ghost_h[a])[edge[:, a]]] = 0.0
+        held = self._corners = {"node": node, "edge": edge, "weight": weight, "X0": X0,
                                 "tail": tails, "head": heads, "ghost_tail": ghost_t, "ghost_head": ghost_h}
         return held
 
     def _corner_strains(self, state: State) -> tuple[list[np.ndarray], np.ndarray]:
         """Per axis the flat edge logarithms ``hX_e`` ``[E_α, r]``, and the corner strains ``[C, d, r]``."""
         c = self.corners()
-        xis = [self.group.log(state.arrays[self._key(a)]).reshape(-1, self.group.dim) for a in range(self.grid.d)]
+        if self.pole == "cap":  # the chord-length strains hX″ (cartan.schemes._pole_cell)
+            from ._pole_cell import corner_strains
+
+            xis = [x2 for x2, _, _ in corner_strains(self, state)]
+        else:
+            xis = [self.group.log(state.arrays[self._key(a)]).reshape(-1, self.group.dim) for a in range(self.grid.d)]
         Xc = np.stack([xis[a][c["edge"][:, a]] / self.h[a] for a in range(self.grid.d)], axis=1)
         return xis, Xc
 
@@ -473,6 +518,10 @@ class Lattice(Scheme):
         return self.medium.potential_at(Xc, X0) if self.problem.reference is not None else self.medium.potential(Xc)
 
     def _corner_force(self, state: State) -> np.ndarray:
+        if self.pole == "cap":
+            from ._pole_cell import corner_force
+
+            return corner_force(self, state)
         g, c = self.group, self.corners()
         xis, Xc = self._corner_strains(state)
         Q = (self.medium.stress_at(Xc, c["X0"]) if self.problem.reference is not None
@@ -523,7 +572,9 @@ class Lattice(Scheme):
         held[mask] = True
         return held
 
-    def force(self, state: State, N: np.ndarray, t: float) -> np.ndarray:
+    def force(self, state: State, N: np.ndarray, t: float, raw: bool = False) -> np.ndarray:
+        """The force density W ``[*shape, r]`` (module docstring of :mod:`cartan.schemes.base`);
+        ``raw``: not zeroed at the held nodes (for :meth:`~Scheme.support_reaction`)."""
         W = self.internal_force(state) / self.weights[..., None]
         Phi = self.frames(state) if self.problem.needs_structure_field else None
         for load in self.problem.loads:
@@ -536,7 +587,8 @@ class Lattice(Scheme):
             # P is a load per unit face area (a point load for d = 1): the end node's share of the
             # face is weight/(h_α/2), so its force density is P/(h_α/2) (times the chart's factor)
             W[idx] += self.end_load_density(k, P)
-        W[self._clamped] = 0.0
+        if not raw:
+            W[self._clamped] = 0.0
         W[..., ~self.live] = 0.0
         return W
 
@@ -644,8 +696,13 @@ class Lattice(Scheme):
         if cell is None:
             cell = self._cell = float(np.prod(self.h))
         if self.coupled:
-            _, Xc = self._corner_strains(state)
+            xis, Xc = self._corner_strains(state)
             V += float(np.sum(self.corners()["weight"] * self._corner_energy(Xc)))
+            if self.pole == "cap":
+                from ._pole_cell import cap
+
+                caps = cap(self)
+                V += caps.energy_grad(xis[caps.axis], want=False)[0]
         for axis, X in enumerate(edges if not self.coupled else ()):
             full, X0 = self._axis_full(X, axis)  # (the energy only: no stress evaluated)
             V += cell * float(np.sum(self.medium.potential(full) if X0 is None
