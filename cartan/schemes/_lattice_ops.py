@@ -134,7 +134,7 @@ class LatticeData(NamedTuple):
 
 def op_work(D):
     n = D.winv.shape[0]
-    ne = D.tail.shape[0] if D.coupled else 0
+    ne = D.tail.shape[0]
     return (np.empty((n, M_, M_)), np.empty((n, M_, M_)), np.empty((ne, R_)), np.empty((ne, R_)))  # noqa: F821
 
 
@@ -202,22 +202,24 @@ def _edge_to_nodes(D, e, xi, q, s, W, vec, vec2):
 
 def op_force(D, C, t, N, W, K):
     G, Phi = C
-    xi = np.empty(R_)  # noqa: F821
     vec = np.empty(R_)  # noqa: F821
     vec2 = np.empty(R_)  # noqa: F821
     X = np.empty((D_, R_))  # noqa: F821
     Q = np.empty((D_, R_))  # noqa: F821
-    q = np.empty(R_)  # noqa: F821
+    XI, QE = K[2], K[3]
     n = W.shape[0]
+    ne = G.shape[0]
     for i in range(n):
         for k in range(R_):  # noqa: F821
             W[i, k] = 0.0
+    # three passes over the edges, each of independent iterations: the logarithms, the stresses
+    # (per edge, or per corner gathered to the edges), the dexp⁻¹ᵀ pairs added to the nodes in
+    # edge order
+    for e in range(ne):
+        g_log(G[e], XI[e])  # noqa: F821
     if D.coupled:
-        XI, QE = K[2], K[3]
-        for e in range(G.shape[0]):
-            g_log(G[e], xi)  # noqa: F821
+        for e in range(ne):
             for k in range(R_):  # noqa: F821
-                XI[e, k] = xi[k]
                 QE[e, k] = 0.0
         for c in range(D.cw.shape[0]):
             for b in range(D_):  # noqa: F821
@@ -230,24 +232,19 @@ def op_force(D, C, t, N, W, K):
                 f = D.cw[c] * D.einvh[e]
                 for k in range(R_):  # noqa: F821
                     QE[e, k] += f * Q[b, k]
-        for e in range(G.shape[0]):
-            for k in range(R_):  # noqa: F821
-                xi[k] = XI[e, k]
-                q[k] = QE[e, k]
-            _edge_to_nodes(D, e, xi, q, 1.0, W, vec, vec2)
     else:
-        for e in range(G.shape[0]):
+        for e in range(ne):
             a = D.eaxis[e]
-            g_log(G[e], xi)  # noqa: F821
             for b in range(D_):  # noqa: F821
                 for k in range(R_):  # noqa: F821
                     X[b, k] = D.X0e[e, b, k]
             for k in range(R_):  # noqa: F821
-                X[a, k] = xi[k] * D.einvh[e]
+                X[a, k] = XI[e, k] * D.einvh[e]
             m_stress(X, D.X0e[e], D.params, Q)  # noqa: F821
             for k in range(R_):  # noqa: F821
-                q[k] = Q[a, k]
-            _edge_to_nodes(D, e, xi, q, D.escale[e], W, vec, vec2)
+                QE[e, k] = Q[a, k]
+    for e in range(ne):
+        _edge_to_nodes(D, e, XI[e], QE[e], 1.0 if D.coupled else D.escale[e], W, vec, vec2)
     for i in range(n):
         for k in range(R_):  # noqa: F821
             W[i, k] = W[i, k] * D.winv[i] - D.damp[k] * N[i, k] + D.ubody[k]
@@ -302,9 +299,38 @@ def op_free_flow(D, C, S, pieces, fracs, dt, Dn, K):
     ``g_axis_flow`` — a closed form (a turn in one plane, a shift) where the group has one, else
     ``g_exp``, ``g_Ad_T`` and ``g_compose``.  Any other piece (an eigenvector of a non-diagonal
     metric) runs ``g_exp``, ``g_Ad_T`` and ``g_compose``, with ``N_p = P_p S`` over the nonzero
-    entries of each row of ``P_p`` only.  Each node's momentum row and motion are held in local
-    arrays through its pieces (``g_axis_flow`` is compiled into this loop:
-    ``codegen.INLINED_KERNELS``)."""
+    entries of each row of ``P_p`` only.
+
+    The nodes are taken in chunks of ``FCHUNK_`` (:func:`_flow_chunk`): in a chunk, piece by
+    piece and direction by direction, one short pass over the chunk's nodes (momentum rows and
+    motions ``Dn`` in place; ``g_axis_flow`` is compiled into this pass,
+    ``codegen.INLINED_KERNELS``), whose iterations are independent — each node takes the same
+    operations in the same order as one node at a time would, so the results are those to the
+    bit, and the chunk's rows stay in the cache."""
+    npieces, tau, axial, naxes, axes, coef, cnt, col = _flow_plan(pieces, fracs, dt)
+    xi = np.zeros(R_)  # noqa: F821
+    out = np.empty(R_)  # noqa: F821
+    E = np.empty((M_, M_))  # noqa: F821
+    tmp = np.empty((M_, M_))  # noqa: F821
+    eye = np.empty((M_, M_))  # noqa: F821
+    wk = g_work()  # noqa: F821
+    g_exp(xi, eye)  # noqa: F821 - the identity (a node that does not move)
+    TK = np.empty((FCHUNK_, R_))  # noqa: F821
+    n = S.shape[0]
+    moved = False
+    for lo in range(0, n, FCHUNK_):  # noqa: F821
+        if _flow_chunk(lo, min(n, lo + FCHUNK_), S, Dn, D.any_clamped, D.clamped, D.any_held, D.held,  # noqa: F821
+                       pieces, npieces, tau, axial, naxes, axes, coef, cnt, col, eye, xi, out, E, tmp, wk, TK):
+            moved = True
+    if moved:
+        op_move(D, C, Dn, K)
+    return moved
+
+
+def _flow_plan(pieces, fracs, dt):
+    """The pieces of :func:`op_free_flow` read once: ``(P, tau [P], axial [P], naxes [P], axes
+    [P, r], coef [P, r], cnt [P, r], col [P, r, r])`` — τ of each piece, whether it is diagonal,
+    its directions and their ``(P_p)_kk``, and each row's nonzero columns."""
     npieces = pieces.shape[0]
     cnt = np.zeros((npieces, R_), dtype=np.int64)  # noqa: F821
     col = np.empty((npieces, R_, R_), dtype=np.int64)  # noqa: F821
@@ -326,47 +352,49 @@ def op_free_flow(D, C, S, pieces, fracs, dt, Dn, K):
                 axes[p, naxes[p]] = k
                 coef[p, naxes[p]] = pieces[p, k, k]
                 naxes[p] += 1
-    xi = np.zeros(R_)  # noqa: F821
-    tk = np.empty(R_)  # noqa: F821
-    out = np.empty(R_)  # noqa: F821
-    E = np.empty((M_, M_))  # noqa: F821
-    tmp = np.empty((M_, M_))  # noqa: F821
-    eye = np.empty((M_, M_))  # noqa: F821
-    wk = g_work()  # noqa: F821
-    g_exp(xi, eye)  # noqa: F821 - the identity (a node that does not move)
-    s = np.empty(R_)  # noqa: F821
-    acc = np.empty((M_, M_))  # noqa: F821
+    return npieces, tau, axial, naxes, axes, coef, cnt, col
+
+
+def _flow_chunk(lo, hi, S, Dn, any_clamped, clamped, any_held, held, pieces, npieces, tau, axial, naxes, axes,
+                coef, cnt, col, eye, xi, out, E, tmp, wk, TK):
+    """The free flow of :func:`op_free_flow` at the nodes ``lo ≤ i < hi`` (``hi − lo ≤`` the rows of
+    ``TK``, the directions' times): ``Dn_i`` from the identity, then each piece as passes over the
+    nodes; returns whether a node moved."""
     moved = False
-    for i in range(S.shape[0]):
-        if D.any_clamped and D.clamped[i]:
-            for a in range(M_):  # noqa: F821
-                for b in range(M_):  # noqa: F821
-                    Dn[i, a, b] = eye[a, b]
-            continue
-        for k in range(R_):  # noqa: F821
-            s[k] = S[i, k]
+    for i in range(lo, hi):
         for a in range(M_):  # noqa: F821
             for b in range(M_):  # noqa: F821
-                acc[a, b] = eye[a, b]
-        for p in range(npieces):
-            if axial[p]:
-                na = naxes[p]
-                for c in range(na):
-                    tk[c] = tau[p] * (coef[p, c] * s[axes[p, c]])
-                    if D.any_held and D.held[i, axes[p, c]]:
-                        tk[c] = 0.0
-                for c in range(na):
-                    if tk[c] != 0.0:
-                        g_axis_flow(axes[p, c], tk[c], s, acc, wk)  # noqa: F821
+                Dn[i, a, b] = eye[a, b]
+    for p in range(npieces):
+        if axial[p]:
+            na = naxes[p]
+            taup = tau[p]
+            for c in range(na):  # every time of the block first (the flows leave the block's S alone)
+                k = axes[p, c]
+                cp = coef[p, c]
+                for i in range(lo, hi):
+                    t = taup * (cp * S[i, k])
+                    if (any_clamped and clamped[i]) or (any_held and held[i, k]):
+                        t = 0.0
+                    TK[i - lo, c] = t
+            for c in range(na):
+                k = axes[p, c]
+                for i in range(lo, hi):
+                    t = TK[i - lo, c]
+                    if t != 0.0:
+                        g_axis_flow(k, t, S[i], Dn[i], wk)  # noqa: F821
                         moved = True
+            continue
+        for i in range(lo, hi):
+            if any_clamped and clamped[i]:
                 continue
             moving = False
             for k in range(R_):  # noqa: F821
                 v = 0.0
-                if not (D.any_held and D.held[i, k]):
+                if not (any_held and held[i, k]):
                     for c in range(cnt[p, k]):
                         j = col[p, k, c]
-                        v += pieces[p, k, j] * s[j]
+                        v += pieces[p, k, j] * S[i, j]
                 xi[k] = tau[p] * v
                 if v != 0.0:
                     moving = True
@@ -374,20 +402,13 @@ def op_free_flow(D, C, S, pieces, fracs, dt, Dn, K):
                 continue
             moved = True
             g_exp(xi, E)  # noqa: F821
-            g_Ad_T(E, s, out)  # noqa: F821
+            g_Ad_T(E, S[i], out)  # noqa: F821
             for k in range(R_):  # noqa: F821
-                s[k] = out[k]
-            g_compose(acc, E, tmp)  # noqa: F821
+                S[i, k] = out[k]
+            g_compose(Dn[i], E, tmp)  # noqa: F821
             for a in range(M_):  # noqa: F821
                 for b in range(M_):  # noqa: F821
-                    acc[a, b] = tmp[a, b]
-        for k in range(R_):  # noqa: F821
-            S[i, k] = s[k]
-        for a in range(M_):  # noqa: F821
-            for b in range(M_):  # noqa: F821
-                Dn[i, a, b] = acc[a, b]
-    if moved:
-        op_move(D, C, Dn, K)
+                    Dn[i, a, b] = tmp[a, b]
     return moved
 
 
@@ -553,8 +574,8 @@ def op_new_config(C):
 
 
 _OPERATORS = (op_work, op_velocity, op_constrain, _dead_to_body, _field_force, _edge_to_nodes, op_force, op_move,
-              op_free_flow, op_drift, op_drift_naive, op_powers, op_kinetic, op_potential, op_nodal_strains,
-              op_finite_config, op_copy_config, op_new_config)
+              op_free_flow, _flow_plan, _flow_chunk, op_drift, op_drift_naive, op_powers, op_kinetic, op_potential,
+              op_nodal_strains, op_finite_config, op_copy_config, op_new_config)
 
 
 def _held_row(held, i):
@@ -856,27 +877,7 @@ def op_free_flow_threaded(D, C, S, pieces, fracs, dt, Dn, K):
     d_clamped = D.clamped
     d_any_held = D.any_held
     d_held = D.held
-    npieces = pieces.shape[0]
-    cnt = np.zeros((npieces, R_), dtype=np.int64)  # noqa: F821
-    col = np.empty((npieces, R_, R_), dtype=np.int64)  # noqa: F821
-    tau = np.empty(npieces)
-    axial = np.ones(npieces, dtype=np.bool_)
-    naxes = np.zeros(npieces, dtype=np.int64)
-    axes = np.empty((npieces, R_), dtype=np.int64)  # noqa: F821
-    coef = np.empty((npieces, R_))  # noqa: F821
-    for p in range(npieces):
-        tau[p] = fracs[p] * dt
-        for k in range(R_):  # noqa: F821
-            for j in range(R_):  # noqa: F821
-                if pieces[p, k, j] != 0.0:
-                    col[p, k, cnt[p, k]] = j
-                    cnt[p, k] += 1
-                    if j != k:
-                        axial[p] = False
-            if cnt[p, k]:
-                axes[p, naxes[p]] = k
-                coef[p, naxes[p]] = pieces[p, k, k]
-                naxes[p] += 1
+    npieces, tau, axial, naxes, axes, coef, cnt, col = _flow_plan(pieces, fracs, dt)
     eye = np.empty((M_, M_))  # noqa: F821
     g_exp(np.zeros(R_), eye)  # noqa: F821 - the identity (a node that does not move)
     n = S.shape[0]
@@ -884,63 +885,18 @@ def op_free_flow_threaded(D, C, S, pieces, fracs, dt, Dn, K):
     moved_chunk = np.zeros(nch, dtype=np.bool_)
     for ch in prange(nch):  # noqa: F821
         xi = np.zeros(R_)  # noqa: F821
-        tk = np.empty(R_)  # noqa: F821
         out = np.empty(R_)  # noqa: F821
         E = np.empty((M_, M_))  # noqa: F821
         tmp = np.empty((M_, M_))  # noqa: F821
         wk = g_work()  # noqa: F821
-        s = np.empty(R_)  # noqa: F821
-        acc = np.empty((M_, M_))  # noqa: F821
+        TK = np.empty((FCHUNK_, R_))  # noqa: F821
         moved = False
-        for i in range(ch * TCHUNK_, min(n, (ch + 1) * TCHUNK_)):  # noqa: F821
-            if d_any_clamped and d_clamped[i]:
-                for a in range(M_):  # noqa: F821
-                    for b in range(M_):  # noqa: F821
-                        Dn[i, a, b] = eye[a, b]
-                continue
-            for k in range(R_):  # noqa: F821
-                s[k] = S[i, k]
-            for a in range(M_):  # noqa: F821
-                for b in range(M_):  # noqa: F821
-                    acc[a, b] = eye[a, b]
-            for p in range(npieces):
-                if axial[p]:
-                    na = naxes[p]
-                    for c in range(na):
-                        tk[c] = tau[p] * (coef[p, c] * s[axes[p, c]])
-                        if d_any_held and d_held[i, axes[p, c]]:
-                            tk[c] = 0.0
-                    for c in range(na):
-                        if tk[c] != 0.0:
-                            g_axis_flow(axes[p, c], tk[c], s, acc, wk)  # noqa: F821
-                            moved = True
-                    continue
-                moving = False
-                for k in range(R_):  # noqa: F821
-                    v = 0.0
-                    if not (d_any_held and d_held[i, k]):
-                        for c in range(cnt[p, k]):
-                            j = col[p, k, c]
-                            v += pieces[p, k, j] * s[j]
-                    xi[k] = tau[p] * v
-                    if v != 0.0:
-                        moving = True
-                if not moving:
-                    continue
+        hi = min(n, (ch + 1) * TCHUNK_)  # noqa: F821
+        for lo in range(ch * TCHUNK_, hi, FCHUNK_):  # noqa: F821
+            if _flow_chunk(lo, min(hi, lo + FCHUNK_), S, Dn, d_any_clamped, d_clamped, d_any_held,  # noqa: F821
+                           d_held, pieces, npieces, tau, axial, naxes, axes, coef, cnt, col, eye, xi, out, E, tmp,
+                           wk, TK):
                 moved = True
-                g_exp(xi, E)  # noqa: F821
-                g_Ad_T(E, s, out)  # noqa: F821
-                for k in range(R_):  # noqa: F821
-                    s[k] = out[k]
-                g_compose(acc, E, tmp)  # noqa: F821
-                for a in range(M_):  # noqa: F821
-                    for b in range(M_):  # noqa: F821
-                        acc[a, b] = tmp[a, b]
-            for k in range(R_):  # noqa: F821
-                S[i, k] = s[k]
-            for a in range(M_):  # noqa: F821
-                for b in range(M_):  # noqa: F821
-                    Dn[i, a, b] = acc[a, b]
         moved_chunk[ch] = moved
     any_moved = False
     for ch in range(nch):
@@ -1009,6 +965,9 @@ _REPLACED = ("op_work", "op_velocity", "op_constrain", "op_force", "op_move", "o
              "op_kinetic")
 #: items (nodes, edges, corners) per chunk of a threaded pass
 THREAD_CHUNK = 512
+#: nodes per chunk of the free flow's passes (:func:`_flow_chunk`: their rows, ≈ 20 KB on SE(3), stay in
+#: the first-level cache)
+FLOW_CHUNK = 128
 
 
 def threaded_fragment() -> Fragment:
@@ -1228,7 +1187,8 @@ def lattice_operators(scheme, reference: type):
         return set(state.arrays) == {*keys, frame_key}
 
     fragments = [group.point_kernels(), medium_fragment(kernels),
-                 Fragment(imports={"LatticeData": (__name__, "LatticeData")}, constants={"D_": d, "R_": r, "M_": m},
+                 Fragment(imports={"LatticeData": (__name__, "LatticeData")},
+                          constants={"D_": d, "R_": r, "M_": m, "FCHUNK_": FLOW_CHUNK},
                           source=njit_source(*_OPERATORS, *_HELD))]
     return OperatorSet(label=f"lattice × {group!r} × {medium.name}", key=f"lattice-{group!r}-{kernel_stem(kernels)}",
                        fragments=fragments, data=data, pack=pack, unpack=unpack, accepts=accepts, nodes=n,
