@@ -74,8 +74,6 @@ class StrainConstraints:
 
     def __init__(self, scheme: Any, unknown: np.ndarray, state: Any, check: bool = True):
         medium = scheme.medium
-        if getattr(scheme, "pole", "corners") != "corners":  # the rows are logarithmic edge strains, no pole cell
-            raise ValueError(f"constraints need the lattice's pole = 'corners', got pole = {scheme.pole!r}")
         self.sch = scheme
         self.g = scheme.group
         self.r_dim = r_dim = scheme.group.dim
@@ -220,7 +218,10 @@ class StrainConstraints:
         if not self.ncon:
             return np.zeros(0) if active_only else np.zeros((0, 0))
         vals = []
-        for x, active in zip(self.sch.edge_strains(state), self.active, strict=True):
+        sch = self.sch  # the logarithmic edge strains (also under a pole cell's chord-length strains X″,
+        # whose θ″₃ = θ₃|p|/|v| vanishes with θ₃: the rows and B_c stay those of log G/h)
+        logs = [sch.group.log(state.arrays[sch._key(a)]) / sch.h[a] for a in range(sch.grid.d)]
+        for x, active in zip(logs, self.active, strict=True):
             xe = x.reshape(-1, self.r_dim)[:, self.comp] - self.value
             vals.append(xe[active].ravel() if active_only else xe)
         return np.concatenate(vals) if active_only else np.concatenate(vals, axis=0)
@@ -262,6 +263,46 @@ class StrainConstraints:
             pattern = self._pattern = (order, cols[order], indptr)
         order, indices, indptr = pattern
         return sp.csr_matrix((vals[order], indices, indptr), shape=(self.ncon, self.nunk))
+
+    def fixed_rate(self, state: Any, N: np.ndarray) -> np.ndarray:
+        """``(ncon,)``: the rows' rate from the velocity ``N`` ``[*shape, r]`` of the nodes that
+        are not unknowns (a :class:`~cartan.problem.Driven` end's ξ; N is read at those nodes
+        only), the columns :meth:`matrix` leaves out: ``B_c N_full = matrix·N[unknown] +
+        fixed_rate(N)``."""
+        g, sch = self.g, self.sch
+        Nf = np.asarray(N, dtype=float).reshape(-1, self.r_dim)
+        fixed = np.where(self.index < 0, Nf, 0.0)
+        out = []
+        for axis, active in enumerate(self.active):
+            xi = g.log(state.arrays[sch._key(axis)]).reshape(-1, self.r_dim)[active]
+            h = sch.h[axis]
+            rate = np.zeros((xi.shape[0], self.comp.size))
+            for node, ghost, M in ((self.tails[axis][active], self.ghost_tails[axis][active], -g.dexp_inv(xi) / h),
+                                   (self.heads[axis][active], self.ghost_heads[axis][active], g.dexp_inv(-xi) / h)):
+                Mk = sch.from_ghosts(M[:, self.comp, :], ghost, axis)  # [ne, c, r]
+                rate += np.einsum("ecr,er->ec", Mk, fixed[node])
+            out.append(rate.ravel())
+        return np.concatenate(out) if out else np.zeros(0)
+
+    def fixed_force(self, state: Any, nu: np.ndarray) -> np.ndarray:
+        """``[nnode, r]``: the nodal force ``B_cᵀν`` of the multipliers ``nu`` ``(ncon,)`` on the
+        nodes that are not unknowns (zero on the unknowns; the transpose of :meth:`fixed_rate`):
+        the constraint force a :class:`~cartan.problem.Driven` end's support balances."""
+        g, sch = self.g, self.sch
+        out = np.zeros(self.index.shape)
+        start = 0
+        for axis, active in enumerate(self.active):
+            xi = g.log(state.arrays[sch._key(axis)]).reshape(-1, self.r_dim)[active]
+            h = sch.h[axis]
+            n = xi.shape[0] * self.comp.size
+            lam = np.asarray(nu[start:start + n]).reshape(-1, self.comp.size)
+            start += n
+            for node, ghost, M in ((self.tails[axis][active], self.ghost_tails[axis][active], -g.dexp_inv(xi) / h),
+                                   (self.heads[axis][active], self.ghost_heads[axis][active], g.dexp_inv(-xi) / h)):
+                Mk = sch.from_ghosts(M[:, self.comp, :], ghost, axis)  # [ne, c, r]
+                np.add.at(out, node, np.einsum("ecr,ec->er", Mk, lam))
+        out[self.index >= 0] = 0.0
+        return out
 
     # ------------------------------------------------------------------ multipliers
     def stress(self, nu: np.ndarray, edge_shapes: list[tuple[int, ...]]) -> list[np.ndarray]:

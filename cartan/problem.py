@@ -137,9 +137,11 @@ class Driven(Boundary):
     -----
     Runs on the ``lattice`` scheme's numpy path (its compiled loops and operators hold clamped
     nodes at rest and decline a driven end) with the integrators that move the end by exactly
-    exp(Δtξ) per step: ``lie-euler``, ``rkmk4`` and ``lie-verlet`` (the latter when ξ's parts in
-    its split free flow commute, e.g. a rotation about one body axis, any translation, and with
-    a diagonal kinetic metric); the others refuse it (``ValueError`` naming the integrator).
+    exp(Δtξ) per step: ``lie-euler``, ``rkmk4``, ``overdamped``, ``implicit-midpoint``,
+    ``lie-verlet`` and ``rattle`` (the latter two when ξ's parts in the split free flow commute,
+    e.g. a rotation about one body axis, any translation, and with a diagonal kinetic metric;
+    ``rattle`` with the driven velocity in its constraint rows); the others refuse it
+    (``ValueError`` naming the integrator).
     In the statics a driven end is a clamp at its initial frame.  On a face of a d ≥ 2 grid every
     node turns by Φᵢ(0)·exp(tξ): a rigid motion of the face when ξ is a translation and the
     frames are equal, or a rotation about an axis through every node (a plate's edge turned about

@@ -110,7 +110,7 @@ class Integrator(abc.ABC):
         reason = self.driven_reason(scheme)
         if reason is not None:
             raise ValueError(f"integrator {self.name!r} does not take Driven ends: {reason}; use 'lie-verlet', "
-                             "'lie-euler' or 'rkmk4'")
+                             "'lie-euler', 'rkmk4', 'implicit-midpoint' or 'overdamped'")
         self._driven_checked = scheme
 
     def step(self, scheme: Scheme, state: State, dt: float) -> None:

@@ -48,6 +48,16 @@ they remove.  The state a step starts from is first brought onto the manifold if
 (a configuration projection along M⁺Bᵀ, then the velocity projection): a sampled initial
 shape need not satisfy the constraints to round-off.
 
+Driven ends (:class:`~cartan.problem.Driven`, held at the velocity ξ): the driven nodes move in
+the split free flow by exp(Δtξ) (lie-verlet's condition on ξ), and their velocity enters the
+rows, ``B_c N = B_u N_u + B_d ξ`` (:meth:`~cartan.constraints.StrainConstraints.fixed_rate`): the
+velocity projections solve ``B_u N_u = −B_d ξ``, the position multipliers hold the rows after
+the flow that moved the driven nodes.  The support balances the constraint force ``B_dᵀλ`` on
+them as well (:meth:`Rattle.support_reaction`), whose power ``−λᵀB_dξ`` is booked as external
+work with the scheme's; the first step from rest books the kinetic energy the velocity
+projection gives the free nodes as the support's impulsive work.  Such problems run the Python
+step (the operator set declines them).
+
 Runs on the ``lattice`` scheme (whose edges carry the exact strains); a medium without
 constrained strains gets lie-verlet's steps unchanged.  On an open chain of nodes (d = 1, not
 periodic) whose operator set compiles (group and medium point kernels, the loads of the
@@ -169,12 +179,117 @@ class Rattle(LieVerlet):
         self.compiled_declined: str | None = None
 
     def driven_reason(self, scheme: Scheme) -> str | None:
-        """lie-verlet's when the medium holds no strain; the multiplier systems take no
-        prescribed node velocity (a driven end's motion would not enter the rows' rates)."""
-        if scheme.medium.constrained_strains() is not None:
-            return ("its multipliers hold the constrained strains with the driven nodes at rest (their "
-                    "prescribed velocity does not enter the rows' rates)")
+        """lie-verlet's: the split free flow moves the driven nodes by exp(Δtξ) (ξ in one of its
+        commuting blocks).  Their prescribed velocity enters the rows: the velocity projection
+        solves ``B_c N = −B_d ξ`` on the free nodes (:meth:`_rows_residual`), the position
+        multipliers hold the rows after the flow that moved the driven nodes, and the support's
+        reaction includes the constraint force on them (:meth:`support_reaction`)."""
         return super().driven_reason(scheme)
+
+    # ------------------------------------------------------------------ driven ends
+    @staticmethod
+    def _rows_residual(scheme: Scheme, state: State, B, N: np.ndarray, held: tuple) -> np.ndarray:
+        """``B_c N`` ``(ncon,)`` of the full velocity N ``[*shape, r]``: the unknowns' columns
+        ``B N[unknown]`` plus, with :class:`~cartan.problem.Driven` ends, the driven nodes'
+        ``B_d ξ`` (:meth:`~cartan.constraints.StrainConstraints.fixed_rate`)."""
+        con, unknown, _, _ = held
+        res = B @ N[unknown]
+        if getattr(scheme, "_driven", None) is not None:
+            res = res + con.fixed_rate(state, N)
+        return res
+
+    def _multipliers(self, scheme: Scheme, state: State) -> tuple[np.ndarray, tuple] | None:
+        """The force-level multipliers λ ``(ncon,)`` at ``state`` — :meth:`_predict`'s equation
+        with the rows' acceleration to round-off (:meth:`_rows_rate_exact`) — and the
+        constraints, when the medium has rows; else None.  Kept for the state they were computed
+        at (the powers at a step's end are the next step's start)."""
+        import scipy.sparse.linalg as spla
+
+        if scheme.medium.constrained_strains() is None:
+            return None
+        held = self._constraints(scheme, state)
+        con, unknown, nodes, _ = held
+        if not con.ncon:
+            return None
+        key = (id(state), id(state.S), state.t, state.scalars.get("nstep", 0))
+        cached = self.__dict__.get("_lambda_at")
+        if cached is not None and cached[0] == key:
+            return cached[1], held
+        from .explicit import _adT
+
+        B = con.matrix(state)
+        lu = spla.splu((B @ self._metric(scheme, nodes, unknown, None) @ B.T).tocsc())
+        N = scheme.velocity(state)
+        acc = scheme.medium.velocity(_adT(scheme.group, N, state.S) + self._kick_force(scheme, state))
+        lam = -lu.solve(B @ acc[unknown] + self._rows_rate_exact(scheme, state, N, held))
+        self._lambda_at = (key, lam)
+        return lam, held
+
+    def _rows_rate_exact(self, scheme: Scheme, state: State, N: np.ndarray, held: tuple) -> np.ndarray:
+        """``Ḃ_c N`` ``(ncon,)`` to round-off (unlike :meth:`_rows_rate`'s truncated series, a
+        guess): the central difference of the exact rows' rate ``B_c(Φ exp(εN)) N`` over
+        ε = ±ε₀, ε₀ = 1e-5/max|N| (truncation ≈ ε₀²|N|³, round-off ≈ 1e-16/ε₀: ≈ 1e-10 relative)."""
+        con, unknown, _, _ = held
+        eps = 1e-5 / max(float(np.max(np.abs(N), initial=0.0)), 1e-300)
+        rates = []
+        for sign in (1.0, -1.0):
+            moved = state.copy()
+            scheme.drift(moved, sign * eps, N, exact=True)
+            rates.append(con.matrix(moved) @ N[unknown] + con.fixed_rate(moved, N))
+        return (rates[0] - rates[1]) / (2.0 * eps)
+
+    def step(self, scheme: Scheme, state: State, dt: float) -> None:
+        """As :meth:`Integrator.step`; with driven ends of a medium with rows, a state on the
+        constraints whose velocity is not tangent (the driven nodes set in motion from rest: the
+        first step) is first given the tangent velocity (the velocity projection of the step),
+        its kinetic energy's change booked as ``external_work``: the work of the support's
+        impulse, which the constraint impulses pass on to the free nodes."""
+        self._check_driven(scheme)
+        if getattr(scheme, "_driven", None) is None or scheme.medium.constrained_strains() is None:
+            super().step(scheme, state, dt)
+            return
+        try:
+            held = self._constraints(scheme, state)
+            con, _, _, scale = held
+            if con.ncon and float(np.max(np.abs(con.values(state)), initial=0.0)) <= 1e-10 * scale:
+                K0 = scheme.kinetic_energy(state)
+                self._project_velocity(scheme, state, con.matrix(state), None, 0.5 * dt, held, skip_tangent=True)
+                state.scalars["external_work"] = (state.scalars.get("external_work", 0.0)
+                                                  + scheme.kinetic_energy(state) - K0)
+            super().step(scheme, state, dt)
+        except RuntimeError as exc:  # (scipy's splu: "Factor is exactly singular")
+            if "singular" not in str(exc):
+                raise
+            raise ValueError("rattle: the constraint rows are dependent at this configuration (their multiplier "
+                             "system is singular): a straight filament held at both ends, by a clamp and a Driven "
+                             "end at the distance of its length, has no slack to move; start from a slack shape "
+                             "(e.g. an arc) or free one end") from None
+
+    def support_reaction(self, scheme: Scheme, state: State) -> np.ndarray:
+        """The supports' reaction ``[*shape, r]`` on the clamped and driven nodes (zero
+        elsewhere): the scheme's (:meth:`~cartan.schemes.base.Scheme.support_reaction`) minus
+        the constraint force ``B_cᵀλ`` on them (λ the force-level multipliers at ``state``: the
+        rows' tension and shear on the edges that end there), which the support balances too."""
+        R = scheme.support_reaction(state)
+        got = self._multipliers(scheme, state)
+        if got is not None:
+            lam, (con, _, _, _) = got
+            clamped = scheme._clamped  # (the clamped and driven nodes)
+            held = clamped if clamped.ndim == scheme.grid.d else clamped.all(axis=-1)
+            R[held] -= con.fixed_force(state, lam).reshape(R.shape)[held]
+        return R
+
+    def _powers(self, scheme: Scheme, state: State) -> dict[str, float]:
+        """The base class' powers plus, at driven ends of a medium with rows, the power
+        ``−λᵀB_d ξ`` of the constraint force on the driven nodes, part of the reaction's."""
+        p = super()._powers(scheme, state)
+        got = None if getattr(scheme, "_driven", None) is None else self._multipliers(scheme, state)
+        if got is not None:
+            lam, (con, _, _, _) = got
+            mask, Nd, _ = scheme._driven
+            p = dict(p)
+            p["external"] -= float(np.sum(con.fixed_force(state, lam).reshape(Nd.shape)[mask] * Nd[mask]))
+        return p
 
     # ------------------------------------------------------------------ compiled loop
     def compiled_reason(self, scheme: Scheme) -> str | None:
@@ -357,8 +472,9 @@ class Rattle(LieVerlet):
         import scipy.sparse.linalg as spla
 
         con, unknown, nodes, _ = held
-        N = scheme.velocity(state)[unknown]
-        res = B @ N
+        Nfull = scheme.velocity(state)
+        N = Nfull[unknown]
+        res = self._rows_residual(scheme, state, B, Nfull, held)
         if skip_tangent and np.max(np.abs(res), initial=0.0) <= 1e-13 * abs(B).max() * np.max(np.abs(N), initial=0.0):
             return  # tangent to round-off already
         P = self._metric(scheme, nodes, unknown, closing)

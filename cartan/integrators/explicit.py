@@ -385,6 +385,9 @@ class Overdamped(Integrator):
     def options(self):
         return {"order": self.order}
 
+    def driven_reason(self, scheme: Scheme) -> str | None:
+        return None  # N = ξ at a driven node: Lie–Euler's exp(ΔtN) and Heun's RKMK2 stages move it by exp(Δtξ)
+
     def drift_velocity(self, scheme: Scheme, state: State, t: float) -> np.ndarray:
         gam = scheme.drag()
         bad = scheme.live & ~(gam > 0)
@@ -396,6 +399,9 @@ class Overdamped(Integrator):
         W = self.force(scheme, state, np.zeros_like(state.S), t)
         N = np.where(scheme.live, W / np.where(gam > 0, gam, 1.0), 0.0)
         N[scheme._clamped] = 0.0
+        driven = getattr(scheme, "_driven", None)
+        if driven is not None:  # a driven end moves with its prescribed ξ
+            N[driven[0]] = driven[1][driven[0]]
         return N
 
     def velocity(self, scheme, state):

@@ -330,6 +330,11 @@ class ImplicitMidpoint(Integrator):
         self._cache = None
         self._coupled_start = None
 
+    def driven_reason(self, scheme: Scheme) -> str | None:
+        """None: the step's ξ is Δtξ at a driven node (not an unknown of Newton's method), so
+        the node moves by exp(Δtξ) exactly."""
+        return None
+
     def step(self, scheme: Scheme, state: State, dt: float) -> None:
         """Advance ``state`` in place by one step of size ``dt``.
 
@@ -338,6 +343,7 @@ class ImplicitMidpoint(Integrator):
         method itself, so that the energy balance of a linear damped or forced problem closes
         to the Newton tolerance (the end-point trapezoidal rule does not, when Δt·γ/m ≫ 1).
         """
+        self._check_driven(scheme)
         t0 = time.perf_counter()
         self._mid_powers = {"dissipated": 0.0, "external": 0.0}
         self._step(scheme, state, dt)
@@ -614,6 +620,9 @@ class ImplicitMidpoint(Integrator):
             # (r⁰ = ct for the temporal gauge); only the live ones are unknowns
             held = ~unk
             xi[held] = dt * scheme.velocity(state)[held]
+        driven = getattr(scheme, "_driven", None)
+        if driven is not None:  # a driven end moves by exp(Δtξ): its ξ is no unknown
+            xi[driven[0]] = dt * driven[1][driven[0]]
         res = None
         if cache is not None and self.predictor:
             # ξ_{k+½} ≈ ξ_{k−½}(Δt/Δt_prev): the midpoint velocities are smooth, whereas the step
