@@ -180,7 +180,9 @@ def _lattice_stencil(sch: Any) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     included): target in the stencil of source when an edge joins them (a glued edge joins node
     ``(i, end)`` to ``(i + n_β/2, end)``, :meth:`Lattice.edge_nodes` maps its ghost to that node),
     or, on a lattice coupled at the corners, when both are ends of one corner's edges (a corner
-    through a pole included); every node is in its own stencil, and on an open or glued axis the
+    through a pole included), and with the lattice's ``pole = "cap"`` when both are ends of one
+    pole cell's glued edges (the whole pole row; the chord-length strains add no other pair, each
+    being a function of its own edge); every node is in its own stencil, and on an open or glued axis the
     first and last node also reach two nodes in (the one-sided second-order differences of a
     load that reads its neighbours, e.g. a surface pressure).  The colouring is an iterated greedy
     colouring of the stencils' conflict graph (:func:`_distance2_colouring`, kept per stencil):
@@ -193,8 +195,6 @@ def _lattice_stencil(sch: Any) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """
     import scipy.sparse as sp
 
-    if getattr(sch, "pole", "corners") != "corners":  # the caps couple a whole ring: not in this stencil
-        raise ValueError(f"the Jacobian's stencil needs the lattice's pole = 'corners', got pole = {sch.pole!r}")
     grid = sch.grid
     shape = tuple(grid.shape)
     nnode = int(np.prod(shape))
@@ -204,6 +204,13 @@ def _lattice_stencil(sch: Any) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     if getattr(sch, "coupled", False):
         c = sch.corners()
         groups.append(np.stack([end[a][c["edge"][:, a]] for a in range(grid.d) for end in (tails, heads)], axis=1))
+    if getattr(sch, "pole", "corners") == "cap":  # a pole cell couples the ends of all its glued edges
+        from .schemes._pole_cell import cap
+
+        caps = cap(sch)
+        a = caps.axis
+        for ring in caps.rings:
+            groups.append(np.concatenate([tails[a][ring], heads[a][ring]])[None, :])
     for axis, n in enumerate(shape):
         if not grid.periodic[axis] and n >= 3:
             for ends in ((0, 1, 2), (n - 1, n - 2, n - 3)):
@@ -522,6 +529,8 @@ class _Equilibrium:
         of the skew part of ``R R₀ᵀ`` stays 0, its multiplier a spatial reaction moment.
     probe_lam : float
         Load factor at which the medium's analytic Jacobian is probed (and first used).
+    pole : str
+        The lattice's ``pole`` (:class:`~cartan.schemes.lattice.Lattice`; :func:`solve_static`).
 
     Attributes
     ----------
@@ -534,13 +543,13 @@ class _Equilibrium:
     """
 
     def __init__(self, problem: Problem, *, jacobian: str = "fd", fd_step: float = 1e-6, t: float = 0.0,
-                 pins: dict | None = None, probe_lam: float = 1.0):
+                 pins: dict | None = None, probe_lam: float = 1.0, pole: str = "corners"):
         from .schemes.lattice import Lattice
 
         if jacobian not in _JACOBIANS:
             raise ValueError(f"jacobian must be one of {', '.join(map(repr, _JACOBIANS))}, got {jacobian!r}")
         self.problem = problem
-        self.sch = sch = Lattice(problem, track_frames=True)
+        self.sch = sch = Lattice(problem, track_frames=True, pole=pole)
         self.g = g = sch.group
         self.shape = shape = tuple(sch.grid.shape)
         self.r_dim = r_dim = g.dim
@@ -1928,6 +1937,7 @@ def solve_static(
     reuse: float = 0.0,
     t: float = 0.0,
     pins: dict | str | None = None,
+    pole: str = "corners",
 ):
     """An equilibrium of ``problem`` by Newton's method on the group.
 
@@ -1992,6 +2002,11 @@ def solve_static(
         filament on a periodic grid): every component of node 0 held
         (:func:`rigid_gauge_pins`); the solve raises a ``ValueError`` when the loads are
         unbalanced (node 0's reaction not zero, :func:`check_rigid_gauge`).
+    pole : str
+        The lattice's treatment of a glued chart's poles (:class:`~cartan.schemes.lattice.Lattice`
+        ``pole``): ``"corners"`` (default) or ``"cap"`` (the pole cell, a d = 2 SE(3) chart with a
+        glued axis, a coupled medium and a reference; a ``ValueError`` otherwise).  The cap's
+        Jacobian stencil couples the whole pole row (:func:`_lattice_stencil`).
 
     Returns
     -------
@@ -2052,7 +2067,8 @@ def solve_static(
                           problem.boundaries, problem.loads, problem.name, reference=problem.reference)
     nsteps = int(load_steps)
     pins_option, pins = pins, rigid_gauge_pins(problem, pins)
-    eq = _Equilibrium(problem, jacobian=jacobian, fd_step=fd_step, t=t, probe_lam=1.0 / nsteps, pins=pins)
+    eq = _Equilibrium(problem, jacobian=jacobian, fd_step=fd_step, t=t, probe_lam=1.0 / nsteps, pins=pins,
+                      pole=pole)
     sch, g, nunk = eq.sch, eq.g, eq.nunk
     mu0 = np.zeros(eq.nmult)  # the pins' multipliers, then the strain constraints'
     pin_tol = tol * eq.length

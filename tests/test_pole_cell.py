@@ -54,16 +54,23 @@ def test_scene_takes_the_pole_from_the_scheme_options():
         load_scene(data)
 
 
-def test_paths_that_integrate_the_corners_refuse_the_cap():
+def test_statics_paths_take_the_cap():
+    """The strain constraints hold the logarithmic edge strains under the cap too (the same rows as
+    with the corners), and the Jacobian's stencil joins each pole row (tests/test_pole_cell_statics.py)."""
     from cartan.constraints import StrainConstraints
     from cartan.statics import _lattice_stencil
 
     med, grid, init = _sphere(8, medium="kirchhoff-love")
-    sch = Lattice(Problem(med, grid, init), pole="cap")
-    with pytest.raises(ValueError, match="pole = 'corners', got pole = 'cap'"):
-        StrainConstraints(sch, np.ones(grid.shape, dtype=bool), sch.initial_state())
-    with pytest.raises(ValueError, match="pole = 'corners', got pole = 'cap'"):
-        _lattice_stencil(sch)
+    sch = Lattice(Problem(med, grid, init, reference=init), pole="cap")
+    corners = Lattice(Problem(med, grid, init, reference=init))
+    unknown = np.ones((*grid.shape, 6), dtype=bool)
+    con = StrainConstraints(sch, unknown, sch.initial_state())
+    ref = StrainConstraints(corners, unknown, corners.initial_state())
+    assert con.ncon == ref.ncon > 0
+    assert np.array_equal(con.values(sch.initial_state()), ref.values(corners.initial_state()))
+    _, src, dst = _lattice_stencil(sch)
+    row = np.arange(int(np.prod(grid.shape))).reshape(grid.shape)[:, 0]
+    assert np.isin(row, dst[src == row[0]]).all()
 
 
 def test_pole_strain_has_the_fitted_invariants_and_its_exact_gradient():

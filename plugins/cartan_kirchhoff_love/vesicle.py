@@ -115,12 +115,27 @@ HOLDS = ("area", "volume")
 
 
 # ====================================================================== measures
-def _lattice(problem: Problem, Phi: np.ndarray):
+def _lattice(problem: Problem, Phi: np.ndarray, pole: str = "corners"):
+    """(lattice, state) of the configuration Φ; with ``pole="cap"`` the lattice's pole cells (their rest
+    strains from Φ itself: the measures read only the current strains)."""
     from cartan.schemes.lattice import Lattice
 
-    scheme = Lattice(Problem(problem.medium, problem.grid, InitialState(Phi=Phi, glue=problem.initial.glue),
-                             problem.boundaries))
+    start = InitialState(Phi=Phi, glue=problem.initial.glue)
+    scheme = Lattice(Problem(problem.medium, problem.grid, start, problem.boundaries,
+                             reference=start if pole == "cap" else None), pole=pole)
     return scheme, scheme.initial_state()
+
+
+def _pole_strains(scheme: Any, state: Any) -> list[tuple[float, np.ndarray]]:
+    """Per pole cell of a ``pole="cap"`` lattice, (its chart area W, its pole strain X_p ``[2, 6]``):
+    :mod:`cartan.schemes._pole_cell`; empty for ``pole="corners"``."""
+    if scheme.pole != "cap":
+        return []
+    from cartan.schemes._pole_cell import cap, pole_strain
+
+    caps = cap(scheme)
+    x2 = scheme.edge_strains(state)[caps.axis].reshape(-1, scheme.group.dim) * caps.hv   # x″ = hX″
+    return [(caps.W, pole_strain(*caps._fit(x2[ring] / caps.hv))) for ring in caps.rings]
 
 
 def _is_sphere_chart(grid: Any) -> bool:
@@ -137,17 +152,21 @@ def _check_closed(grid: Any) -> None:
                          f"periodic = {tuple(grid.periodic)}, glued = {grid.glued}")
 
 
-def _corner_data(problem: Problem, Phi: np.ndarray) -> tuple[Any, np.ndarray, np.ndarray]:
-    """(corners dict, corner strains ``[C, 2, 6]``, J_c ``[C]``)."""
-    scheme, state = _lattice(problem, Phi)
+def _corner_data(problem: Problem, Phi: np.ndarray, pole: str = "corners",
+                 caps: list | None = None) -> tuple[Any, np.ndarray, np.ndarray]:
+    """(corners dict, corner strains ``[C, 2, 6]``, J_c ``[C]``) of the lattice with ``pole``; the
+    pole cells' (W, X_p) (:func:`_pole_strains`) appended to ``caps`` when given."""
+    scheme, state = _lattice(problem, Phi, pole)
     c = scheme.corners()
     X = [x.reshape(-1, x.shape[-1]) for x in scheme.edge_strains(state)]
     Xc = np.stack([X[a][c["edge"][:, a]] for a in range(2)], axis=1)
     J = np.abs(Xc[:, 0, 0] * Xc[:, 1, 1] - Xc[:, 0, 1] * Xc[:, 1, 0])
+    if caps is not None:
+        caps.extend(_pole_strains(scheme, state))
     return c, Xc, J
 
 
-def surface_measures(problem: Problem, Phi: np.ndarray | None = None) -> dict[str, float]:
+def surface_measures(problem: Problem, Phi: np.ndarray | None = None, pole: str = "corners") -> dict[str, float]:
     """Total area A and enclosed volume V of a closed surface (module docstring).
 
     Parameters
@@ -156,6 +175,13 @@ def surface_measures(problem: Problem, Phi: np.ndarray | None = None) -> dict[st
         A ``kirchhoff-love`` family medium on a doubly periodic d = 2 grid.
     Phi : array ``[nu, nv, 4, 4]``, optional
         The configuration (default ``problem.initial.Phi``).
+    pole : str
+        The lattice's ``pole`` on the sphere's chart (:class:`cartan.schemes.lattice.Lattice`):
+        with ``"cap"`` the area is the cap lattice's, Σ_c w_c J_c over its corners (chord-length
+        strains, the corners through a pole left out) plus W|det T_p| per pole cell (T_p the
+        tangential block of the pole strain) — the functional the medium's σ multiplies there;
+        the volume stays the corner quadrature of every corner (that of
+        :class:`cartan_cosserat_surface.surface.VolumePressure`, whose p is its multiplier).
 
     Returns
     -------
@@ -168,11 +194,16 @@ def surface_measures(problem: Problem, Phi: np.ndarray | None = None) -> dict[st
     _check_closed(problem.grid)
     Phi = np.asarray(problem.initial.Phi if Phi is None else Phi, dtype=float)
     c, Xc, J = _corner_data(problem, Phi)
+    area = float(np.sum(c["weight"] * J))
+    if pole != "corners":
+        caps: list = []
+        cp, _, Jp = _corner_data(problem, Phi, pole, caps)
+        area = float(np.sum(cp["weight"] * Jp)) + sum(W * abs(float(np.linalg.det(X[:, :2]))) for W, X in caps)
     xbar = Phi[..., 1:, 0].reshape(-1, 3).mean(axis=0)
     flat = Phi.reshape(-1, 4, 4)[c["node"]]
     rho = np.einsum("cji,cj->ci", flat[:, 1:, 1:], flat[:, 1:, 0] - xbar)   # R_iᵀ(r_i − r̄)
     rn = np.einsum("ci,ci->c", rho, np.cross(Xc[:, 0, :3], Xc[:, 1, :3]))   # (r_i·e₃,i) J_c when adapted
-    return {"area": float(np.sum(c["weight"] * J)), "volume": float(np.sum(c["weight"] * rn) / 3.0)}
+    return {"area": area, "volume": float(np.sum(c["weight"] * rn) / 3.0)}
 
 
 def plaquette_curvature(problem: Problem, Phi: np.ndarray | None = None) -> np.ndarray:
@@ -189,7 +220,7 @@ def plaquette_curvature(problem: Problem, Phi: np.ndarray | None = None) -> np.n
     return -(pu + np.roll(pv, -1, axis=0) - np.roll(pu, -1, axis=1) - pv)
 
 
-def gauss_bonnet(problem: Problem, Phi: np.ndarray | None = None) -> dict[str, float]:
+def gauss_bonnet(problem: Problem, Phi: np.ndarray | None = None, pole: str = "corners") -> dict[str, float]:
     """Both discrete forms of ∫K dA on a closed surface (module docstring).
 
     Returns
@@ -201,23 +232,29 @@ def gauss_bonnet(problem: Problem, Phi: np.ndarray | None = None) -> dict[str, f
         ``expected`` 2πχ: 0 on a torus chart, 4π on the sphere's chart.
     """
     Phi = np.asarray(problem.initial.Phi if Phi is None else Phi, dtype=float)
-    c, Xc, J = _corner_data(problem, Phi)
+    caps: list = []
+    c, Xc, J = _corner_data(problem, Phi, pole, caps)
+    w = np.concatenate([c["weight"], [W for W, _ in caps]])
+    Xc = np.concatenate([Xc, np.array([X for _, X in caps]).reshape(-1, 2, Xc.shape[-1])])
+    J = np.abs(Xc[:, 0, 0] * Xc[:, 1, 1] - Xc[:, 0, 1] * Xc[:, 1, 0])
     b = Xc[:, :, None, 0] * Xc[:, None, :, 4] - Xc[:, :, None, 1] * Xc[:, None, :, 3]
     bs = 0.5 * (b + np.swapaxes(b, -1, -2))
     K = np.linalg.det(bs) / J ** 2
     sphere = _is_sphere_chart(problem.grid)
     return {"plaquette": math.nan if sphere else float(np.sum(plaquette_curvature(problem, Phi))),
-            "curvature": float(np.sum(c["weight"] * K * J)),
-            "absolute": float(np.sum(c["weight"] * np.abs(K) * J)), "expected": 4.0 * math.pi if sphere else 0.0}
+            "curvature": float(np.sum(w * K * J)),
+            "absolute": float(np.sum(w * np.abs(K) * J)), "expected": 4.0 * math.pi if sphere else 0.0}
 
 
-def bending_energy(problem: Problem, Phi: np.ndarray) -> float:
+def bending_energy(problem: Problem, Phi: np.ndarray, pole: str = "corners") -> float:
     """E_H = Σ_c w_c J_c [½κ_b(2H − c₀)² + κ_G K] of a ``helfrich-membrane`` problem's medium at Φ
-    (the lattice energy without the tension and the in-plane regularisation)."""
+    (the lattice energy without the tension and the in-plane regularisation; with ``pole="cap"``
+    the cap lattice's, its pole cells included)."""
     m = problem.medium
     pure = cartan.medium("helfrich-membrane", bending_modulus=m.kb, gaussian_modulus=m.kg,
                          spontaneous_curvature=m.c0, tension=0.0, area_modulus=0.0, shear_modulus=0.0)
-    scheme, state = _lattice(Problem(pure, problem.grid, InitialState(Phi=Phi, glue=problem.initial.glue)), Phi)
+    scheme, state = _lattice(Problem(pure, problem.grid, InitialState(Phi=Phi, glue=problem.initial.glue)), Phi,
+                             pole)
     return float(scheme.potential_energy(state))
 
 
@@ -463,7 +500,7 @@ def helfrich_flow(problem: Problem, *, steps: int = 30, tau: float = 0.05, growt
                   hold_tol: float = 1e-10, tol: float = 1e-10, stop: float = 0.0,
                   max_hold_iterations: int = 12, max_retries: int = 6, mesh: str = "step",
                   redistribute: int = 1, motion: str = "free", tangential_penalty: float = 1e3,
-                  reuse: float = 0.1, progress: bool = False) -> xr.Dataset:
+                  reuse: float = 0.1, pole: str = "corners", progress: bool = False) -> xr.Dataset:
     """Helfrich/Willmore gradient flow of a closed ``helfrich-membrane`` with held A and V
     (module docstring: minimizing movements, multipliers by an outer Newton iteration).
 
@@ -528,6 +565,11 @@ def helfrich_flow(problem: Problem, *, steps: int = 30, tau: float = 0.05, growt
         Jacobian per solve (the first six steps on a 32 × 16 sphere chart: 94 factorisations
         instead of 152, the same energies to 3e-11; docs/media/kirchhoff-love.md, "Cost of a
         step"); 0 forms a Jacobian at every Newton step.
+    pole : str
+        ``"corners"`` (default) or ``"cap"``: the lattice's treatment of the sphere's poles in every
+        solve and in the recorded E_H, A and ∫K dA (:class:`cartan.schemes.lattice.Lattice` ``pole``;
+        the held area is then the cap lattice's, :func:`surface_measures`); ``"cap"`` on the sphere's
+        chart only.
     progress : bool
         Print one line per step.
 
@@ -574,6 +616,9 @@ def helfrich_flow(problem: Problem, *, steps: int = 30, tau: float = 0.05, growt
         raise ValueError(f"tangential_penalty must be ≥ 1, got {tangential_penalty!r}")
     if isinstance(reuse, (bool, str)) or not 0.0 <= float(reuse) < 1.0:
         raise ValueError(f"reuse must be in [0, 1), got {reuse!r}")
+    if pole not in ("corners", "cap") or (pole == "cap" and not _is_sphere_chart(problem.grid)):
+        raise ValueError(f"pole must be 'corners' or 'cap' (the pole cells, on the sphere's chart only), "
+                         f"got {pole!r} on a grid with glued = {problem.grid.glued}")
     if isinstance(redistribute, bool) or int(redistribute) != redistribute or redistribute < 0:
         raise ValueError(f"redistribute must be an integer ≥ 0 (steps between redistributions, 0: never), "
                          f"got {redistribute!r}")
@@ -583,12 +628,12 @@ def helfrich_flow(problem: Problem, *, steps: int = 30, tau: float = 0.05, growt
     # the sphere's chart: its meridians are closed through the poles, read through the glue
     sphere_glue = np.asarray(glue[1], dtype=float) if _is_sphere_chart(grid) else None
     Phi = np.asarray(problem.initial.Phi, dtype=float)
-    m0 = surface_measures(problem, Phi)
+    m0 = surface_measures(problem, Phi, pole)
     goal = {h: float((targets or {}).get(h, m0[h])) for h in hold}
 
     def record(Phi: np.ndarray) -> dict[str, float]:
-        gb = gauss_bonnet(problem, Phi)
-        return {**surface_measures(problem, Phi), "bending_energy": bending_energy(problem, Phi),
+        gb = gauss_bonnet(problem, Phi, pole)
+        return {**surface_measures(problem, Phi, pole), "bending_energy": bending_energy(problem, Phi, pole),
                 "gauss_bonnet_plaquette": gb["plaquette"], "gauss_bonnet_curvature": gb["curvature"],
                 "gauss_bonnet_absolute": gb["absolute"]}
 
@@ -617,9 +662,10 @@ def helfrich_flow(problem: Problem, *, steps: int = 30, tau: float = 0.05, growt
             med = type(medium)(**{**base, **step_params}).with_tension(m["area"])
             loads = [tether] + ([VolumePressure(m["volume"])] if m["volume"] != 0.0 else [])
             pb = Problem(med, grid, start, reference=start if mesh == "step" else problem.initial, loads=loads)
-            out = cartan.solve_static(pb, tol=tol, initial=InitialState(Phi=guess, glue=glue), reuse=float(reuse))
+            out = cartan.solve_static(pb, tol=tol, initial=InitialState(Phi=guess, glue=glue), reuse=float(reuse),
+                                      pole=pole)
             P = _frames_of(out)
-            meas = surface_measures(problem, P)
+            meas = surface_measures(problem, P, pole)
             return out, P, np.array([meas[h] / goal[h] - 1.0 for h in hold])
 
         x = np.array([mult[h] for h in hold])
@@ -666,7 +712,7 @@ def helfrich_flow(problem: Problem, *, steps: int = 30, tau: float = 0.05, growt
         shift, start_energy = 0.0, hist[-1]["bending_energy"]
         if redistribute and n > 0 and n % int(redistribute) == 0:
             Phi, shift = redistribute_mesh(Phi, glue=sphere_glue)
-            start_energy = bending_energy(problem, Phi)
+            start_energy = bending_energy(problem, Phi, pole)
         for attempt in range(max_retries + 1):
             try:
                 out, P, new_mult, new_jac, res, solves = advance(Phi, dt, mult, jac)

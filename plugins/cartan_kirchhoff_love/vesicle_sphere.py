@@ -250,17 +250,20 @@ def revolved_problem(shape: Any, n: int, *, normal_stiffness: float | None = 1e5
                           shear_modulus)
 
 
-def vesicle_shape(problem: Problem, Phi: np.ndarray) -> dict[str, float]:
+def vesicle_shape(problem: Problem, Phi: np.ndarray, pole: str = "corners") -> dict[str, float]:
     """Measures of a closed vesicle Φ ``[nu, nv, 4, 4]`` on its lattice: ``area`` A, ``volume`` V,
     ``reduced_volume`` v = 3V/(4πR₀³), ``energy`` E_H/(8πκ_b), ``axis_ratio`` the ratio of the
     principal semi-axes of the surface's second-moment tensor (the nodes weighted by their lattice
     area: √(λ_max/λ_mid) for a prolate shape, √(λ_min/λ_mid) for an oblate one, λ the eigenvalues of
     Σ w J (r − r̄)(r − r̄)ᵀ), ``length`` the extent along the principal axis of the largest (prolate)
-    or smallest (oblate) eigenvalue over the extent across it, ``length`` and ``width`` themselves."""
+    or smallest (oblate) eigenvalue over the extent across it, ``length`` and ``width`` themselves.
+    With ``pole="cap"`` the area, v and E_H are those of the lattice with the pole cells
+    (:func:`cartan_kirchhoff_love.vesicle.surface_measures`); the second moments keep the corners'
+    node areas."""
     from .vesicle import _corner_data, bending_energy, surface_measures
 
-    m = surface_measures(problem, Phi)
-    E = bending_energy(problem, Phi) / (8.0 * math.pi * problem.medium.kb)
+    m = surface_measures(problem, Phi, pole)
+    E = bending_energy(problem, Phi, pole) / (8.0 * math.pi * problem.medium.kb)
     c, _, J = _corner_data(problem, Phi)
     x = Phi.reshape(-1, 4, 4)[:, 1:, 0]
     w = np.bincount(c["node"], weights=c["weight"] * J, minlength=x.shape[0])
