@@ -660,6 +660,14 @@ def _grid(reader: _Reader, data: Mapping, medium: Any) -> Grid:
     return grid
 
 
+#: boundary kinds built from one field of their table: (class, the field, other keys allowed)
+_ONE_FIELD_ENDS = {
+    "driven": (Driven, "velocity", ()),
+    "held": (Held, "components", ("load", "follower")),  # the load: _held_loads
+    "symmetry": (Symmetry, "normal", ()),
+}
+
+
 def _boundaries(reader: _Reader, data: Mapping) -> dict:
     b = reader.table(data, "boundaries", "")
     out = {}
@@ -677,24 +685,13 @@ def _boundaries(reader: _Reader, data: Mapping) -> dict:
             if not isinstance(follower, bool):
                 raise reader.fail(f"{key}.follower", f"must be true or false, got {follower!r}")
             out[end] = Free(load=spec.get("load"), follower=follower)
-        elif kind == "driven":
-            reader.no_extra(spec, {"kind", "velocity"}, key)
+        elif kind in _ONE_FIELD_ENDS:
+            cls, name, extra = _ONE_FIELD_ENDS[kind]
+            reader.no_extra(spec, {"kind", name, *extra}, key)
             try:
-                out[end] = Driven(velocity=spec.get("velocity"))
+                out[end] = cls(**{name: spec.get(name)})
             except ValueError as exc:
-                raise reader.fail(f"{key}.velocity", str(exc)) from None
-        elif kind == "held":
-            reader.no_extra(spec, {"kind", "components", "load", "follower"}, key)
-            try:
-                out[end] = Held(components=spec.get("components"))
-            except ValueError as exc:
-                raise reader.fail(f"{key}.components", str(exc)) from None
-        elif kind == "symmetry":
-            reader.no_extra(spec, {"kind", "normal"}, key)
-            try:
-                out[end] = Symmetry(normal=spec.get("normal"))
-            except ValueError as exc:
-                raise reader.fail(f"{key}.normal", str(exc)) from None
+                raise reader.fail(f"{key}.{name}", str(exc)) from None
         else:
             raise reader.fail(f"{key}.kind", f"unknown boundary kind {kind!r}; choose 'clamped', 'driven', 'free', "
                               "'held' or 'symmetry'")

@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from test_driven_end import assert_restart_is_exact, assert_torsional_impedance
 
 import cartan
 from cartan.integrators.constrained import Rattle
@@ -83,12 +84,7 @@ def test_the_torque_of_a_driven_twist_is_the_torsional_impedance():
         integ.step(scheme, state, dt)
         torque.append(integ.support_reaction(scheme, state)[-1, 3])
         times.append(state.t)
-    torque, times = np.array(torque), np.array(times)
-    impedance = np.sqrt(C * J) * om
-    window = (times > 0.5) & (times < 1.9)
-    h = 1.0 / (n - 1)
-    assert abs(np.mean(torque[window]) / impedance - 1.0) < h
-    assert state.scalars["external_work"] == pytest.approx(impedance * om * state.t, rel=h)
+    assert_torsional_impedance(torque, times, state, n, C, J, om)
     assert integ.constraint_residual(scheme, state) < 1e-12
 
 
@@ -146,13 +142,7 @@ def test_the_driven_twist_scene_reads_and_twists_its_end():
 def test_restart_is_bit_for_bit(tmp_path):
     """A driven rattle run continued from its checkpoint is the uninterrupted run, bit for bit
     (the constraint force's power is computed from the state alone)."""
-    problem = _arc(np.array([0.0, 0.0, 0.0, 2.0, 0.0, 0.0]))
-    kw = dict(integrator="rattle", dt=4e-3, save_every=5, checkpoint_every=1, progress=False)
-    whole = cartan.simulate(problem, t_end=0.08, output=tmp_path / "whole.nc", **kw)
-    cartan.simulate(problem, t_end=0.04, output=tmp_path / "part.nc", **kw)
-    cont = cartan.simulate(problem, restart=tmp_path / "part.nc", t_end=0.08, progress=False)
-    for name in ("position", "frame", "S", "X", "kinetic_energy", "external_work"):
-        assert np.array_equal(whole[name].values, cont[name].values), name
+    assert_restart_is_exact(_arc(np.array([0.0, 0.0, 0.0, 2.0, 0.0, 0.0])), tmp_path, "rattle", 4e-3, 0.08)
 
 
 def test_the_reactions_close_the_momentum_balance():

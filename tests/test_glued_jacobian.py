@@ -111,13 +111,9 @@ def test_jacobian_does_not_depend_on_the_colouring():
     assert np.all(np.abs(J - J_plain) <= 1e-12 * np.abs(J).max(axis=1, keepdims=True))
 
 
-def test_jacobian_matches_a_dense_difference_on_8_by_4():
-    """The whole Jacobian (the sparse part and the volume pressure's rank-6 rest U Vᵀ) against
-    central differences of the residual column by column, 8 × 4 nodes: agreement to the
-    differences' truncation and round-off (h = 1e-6: h² ~ 1e-12 and ε_mach/h ~ 1e-10 relative), row
-    by row (the tangential tether, 1e3 times the normal one, would hide a bending entry in a global
-    bound; measured 2e-10 of the row's largest entry, and without U Vᵀ 2.5e-3 absolute)."""
-    eq = _Equilibrium(_step(4))
+def _assert_jacobian_matches_a_dense_difference(eq) -> None:
+    """The step's whole Jacobian (sparse part plus the low-rank rest) against central differences
+    of its residual column by column (h = 1e-6), row by row to 1e-8 of the row's largest entry."""
     st, mu = _perturbed(eq)
     J, low = eq.jacobian(st, mu, 1.0, low_rank=True)
     K = J.toarray()
@@ -132,6 +128,15 @@ def test_jacobian_matches_a_dense_difference_on_8_by_4():
                    - eq.residual(eq.update(st, mu, -d)[0], mu, 1.0)) / (2 * h)
     scale = np.abs(D).max(axis=1, keepdims=True)
     assert np.all(np.abs(K[:, : eq.nunk] - D) <= 1e-8 * scale)
+
+
+def test_jacobian_matches_a_dense_difference_on_8_by_4():
+    """The whole Jacobian (the sparse part and the volume pressure's rank-6 rest U Vᵀ) against
+    central differences of the residual column by column, 8 × 4 nodes: agreement to the
+    differences' truncation and round-off (h = 1e-6: h² ~ 1e-12 and ε_mach/h ~ 1e-10 relative), row
+    by row (the tangential tether, 1e3 times the normal one, would hide a bending entry in a global
+    bound; measured 2e-10 of the row's largest entry, and without U Vᵀ 2.5e-3 absolute)."""
+    _assert_jacobian_matches_a_dense_difference(_Equilibrium(_step(4)))
 
 
 def test_saddle_order_puts_each_multiplier_after_its_unknowns_and_solves():

@@ -116,19 +116,9 @@ def test_rigidly_moved_sphere_is_strain_and_force_free_with_the_cap():
 
 
 def test_forces_are_the_exact_gradient_of_the_energy_with_the_cap():
-    med, grid, init = _sphere(8, rotation=TILT)
-    rng = np.random.default_rng(1)
-    eta = 1e-2 * rng.normal(size=(8, 4, 6))
-    prob = Problem(med, grid, InitialState(Phi=init.Phi @ SE3.exp(eta), glue=init.glue), reference=init.reference)
-    sch = Lattice(prob, track_frames=True, pole="cap")
-    F = sch.internal_force(sch.initial_state())
-    d = rng.normal(size=(8, 4, 6))
-    d[..., 5] = 0.0
+    from test_sphere_chart import perturbed_sphere
 
-    def V(tau):
-        st = sch.initial_state()
-        sch.drift(st, tau, d)
-        return sch.potential_energy(st)
+    _, _, F, d, V = perturbed_sphere(pole="cap")
 
     def D(eps):
         return (V(eps) - V(-eps)) / (2 * eps)

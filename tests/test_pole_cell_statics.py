@@ -21,7 +21,7 @@ import pytest
 pytest.importorskip("cartan_kirchhoff_love")
 from cartan_kirchhoff_love.vesicle import surface_measures  # noqa: E402
 from cartan_kirchhoff_love.vesicle_sphere import ellipsoid_problem  # noqa: E402
-from test_glued_jacobian import _perturbed, _step  # noqa: E402
+from test_glued_jacobian import _assert_jacobian_matches_a_dense_difference, _step  # noqa: E402
 
 import cartan  # noqa: E402
 from cartan.schemes.lattice import Lattice  # noqa: E402
@@ -52,20 +52,7 @@ def test_cap_jacobian_matches_a_dense_difference_on_8_by_4():
     the row's largest entry)."""
     eq = _Equilibrium(_step(4), pole="cap")
     assert eq.sch.pole == "cap"
-    st, mu = _perturbed(eq)
-    J, low = eq.jacobian(st, mu, 1.0, low_rank=True)
-    K = J.toarray()
-    if low is not None:
-        K = K + low[0] @ low[1].T
-    h = 1e-6
-    D = np.zeros((eq.m, eq.nunk))
-    for j in range(eq.nunk):
-        d = np.zeros(eq.m)
-        d[j] = h
-        D[:, j] = (eq.residual(eq.update(st, mu, d)[0], mu, 1.0)
-                   - eq.residual(eq.update(st, mu, -d)[0], mu, 1.0)) / (2 * h)
-    scale = np.abs(D).max(axis=1, keepdims=True)
-    assert np.all(np.abs(K[:, : eq.nunk] - D) <= 1e-8 * scale)
+    _assert_jacobian_matches_a_dense_difference(eq)
 
 
 def test_cap_area_converges_at_order_2_on_the_sphere():

@@ -89,12 +89,15 @@ def test_rigidly_moved_sphere_is_strain_and_force_free_with_the_poles_anywhere()
     np.testing.assert_allclose(G[4:, 0], Gam @ np.linalg.inv(G[:4, 0]) @ Gam, atol=1e-13)
 
 
-def test_forces_are_the_gradient_of_the_energy_across_the_poles():
+def perturbed_sphere(**options):
+    """A lattice on a perturbed 8 × 4 sphere, poles tilted (``options`` to :class:`Lattice`),
+    with its initial internal force F, a drift direction d (no drill) and V(τ), the potential
+    energy after a drift τd: the force is the exact gradient when dV/dτ(0) = −Σ F·d."""
     med, grid, init = _sphere(8, rotation=TILT)
     rng = np.random.default_rng(1)
     eta = 1e-2 * rng.normal(size=(8, 4, 6))
     prob = Problem(med, grid, InitialState(Phi=init.Phi @ SE3.exp(eta), glue=init.glue), reference=init.reference)
-    sch = Lattice(prob, track_frames=True)
+    sch = Lattice(prob, track_frames=True, **options)
     F = sch.internal_force(sch.initial_state())
     d = rng.normal(size=(8, 4, 6))
     d[..., 5] = 0.0
@@ -104,6 +107,11 @@ def test_forces_are_the_gradient_of_the_energy_across_the_poles():
         sch.drift(st, tau, d)
         return sch.potential_energy(st)
 
+    return sch, init, F, d, V
+
+
+def test_forces_are_the_gradient_of_the_energy_across_the_poles():
+    sch, init, F, d, V = perturbed_sphere()
     eps = 1e-5
     dV = (V(eps) - V(-eps)) / (2 * eps)  # central difference: error O(eps²) ≈ 1e-10 relative
     assert dV == pytest.approx(-np.sum(F * d), rel=1e-7)
