@@ -178,14 +178,6 @@ class Rattle(LieVerlet):
         #: why the last :meth:`compiled_loop` left the steps to Python (None: it did not)
         self.compiled_declined: str | None = None
 
-    def driven_reason(self, scheme: Scheme) -> str | None:
-        """lie-verlet's: the split free flow moves the driven nodes by exp(Δtξ) (ξ in one of its
-        commuting blocks).  Their prescribed velocity enters the rows: the velocity projection
-        solves ``B_c N = −B_d ξ`` on the free nodes (:meth:`_rows_residual`), the position
-        multipliers hold the rows after the flow that moved the driven nodes, and the support's
-        reaction includes the constraint force on them (:meth:`support_reaction`)."""
-        return super().driven_reason(scheme)
-
     # ------------------------------------------------------------------ driven ends
     @staticmethod
     def _rows_residual(scheme: Scheme, state: State, B, N: np.ndarray, held: tuple) -> np.ndarray:
@@ -274,8 +266,7 @@ class Rattle(LieVerlet):
         got = self._multipliers(scheme, state)
         if got is not None:
             lam, (con, _, _, _) = got
-            clamped = scheme._clamped  # (the clamped and driven nodes)
-            held = clamped if clamped.ndim == scheme.grid.d else clamped.all(axis=-1)
+            held = scheme.held_nodes()
             R[held] -= con.fixed_force(state, lam).reshape(R.shape)[held]
         return R
 

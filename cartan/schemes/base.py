@@ -410,6 +410,11 @@ class Scheme(abc.ABC):
         self._driven_power_at = (key, p)
         return p
 
+    def held_nodes(self) -> np.ndarray:
+        """The nodes held in every component, ``[*shape]`` bool: clamped and driven ends (the
+        clamp mask holds both; a :class:`~cartan.problem.Held` end holds only some components)."""
+        return self._clamped if self._clamped.ndim == self.grid.d else self._clamped.all(axis=-1)
+
     def support_reaction(self, state: State, N: np.ndarray | None = None, t: float | None = None) -> np.ndarray:
         """The generalised force the supports exert on their wholly held nodes (clamped and
         driven ends), body components, ``[*shape, r]``; zero at the other nodes.
@@ -440,10 +445,7 @@ class Scheme(abc.ABC):
         N = self.velocity(state) if N is None else N
         W = self.force(state, N, state.t if t is None else t, raw=True)
         R = -self.weights[..., None] * (W + np.einsum("...ji,...j->...i", self.group.ad(N), state.S))
-        held = self._clamped if self._clamped.ndim == self.grid.d else self._clamped.all(axis=-1)
-        if self._driven is not None:
-            held = held | self._driven[0]
-        R[~held] = 0.0
+        R[~self.held_nodes()] = 0.0
         R[..., ~self.live] = 0.0
         return R
 
