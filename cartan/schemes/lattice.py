@@ -321,11 +321,16 @@ class Lattice(Scheme):
     def edge_strains(self, state: State) -> list[np.ndarray]:
         """Per axis, the edge strains ``X_e = log(G_e)/h`` ``[*edge_shape, r]`` (the chord-length
         strains X″ with ``pole="cap"``: :mod:`cartan.schemes._pole_cell`)."""
+        return [self._edge_log(state.arrays[self._key(a)]) / self.h[a] for a in range(self.grid.d)]
+
+    def _edge_log(self, G: np.ndarray) -> np.ndarray:
+        """``hX`` ``[..., r]`` of edge elements ``G``: ``log G``, or with ``pole="cap"`` the
+        chord-length strains hX″ (:func:`cartan.schemes._pole_cell.chord_strains`)."""
         if self.pole == "cap":
             from ._pole_cell import chord_strains
 
-            return [chord_strains(state.arrays[self._key(a)], self.group)[0] / self.h[a] for a in range(self.grid.d)]
-        return [self.group.log(state.arrays[self._key(a)]) / self.h[a] for a in range(self.grid.d)]
+            return chord_strains(G, self.group)[0]
+        return self.group.log(G)
 
     def strains(self, state: State) -> np.ndarray:
         if self.grid.d != 1:
@@ -380,13 +385,7 @@ class Lattice(Scheme):
                 head = np.moveaxis(head.copy(), axis, 0)
                 head[-1] = g.compose(holonomies[axis], head[-1])
                 head = np.moveaxis(head, 0, axis)
-            G = g.compose(inv_tail, head)
-            if self.pole == "cap":
-                from ._pole_cell import chord_strains
-
-                xi = chord_strains(G, g)[0] / self.h[axis]
-            else:
-                xi = g.log(G) / self.h[axis]
+            xi = self._edge_log(g.compose(inv_tail, head)) / self.h[axis]
             X0 = np.broadcast_to(self.medium.rest_strain(), (*xi.shape[:-1], self.grid.d, g.dim)).copy()
             X0[..., axis, :] = xi
             cache[axis] = X0
@@ -504,12 +503,7 @@ class Lattice(Scheme):
     def _corner_strains(self, state: State) -> tuple[list[np.ndarray], np.ndarray]:
         """Per axis the flat edge logarithms ``hX_e`` ``[E_α, r]``, and the corner strains ``[C, d, r]``."""
         c = self.corners()
-        if self.pole == "cap":  # the chord-length strains hX″ (cartan.schemes._pole_cell)
-            from ._pole_cell import corner_strains
-
-            xis = [x2 for x2, _, _ in corner_strains(self, state)]
-        else:
-            xis = [self.group.log(state.arrays[self._key(a)]).reshape(-1, self.group.dim) for a in range(self.grid.d)]
+        xis = [self._edge_log(state.arrays[self._key(a)]).reshape(-1, self.group.dim) for a in range(self.grid.d)]
         Xc = np.stack([xis[a][c["edge"][:, a]] / self.h[a] for a in range(self.grid.d)], axis=1)
         return xis, Xc
 
