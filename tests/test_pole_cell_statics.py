@@ -79,5 +79,5 @@ def test_solve_static_rejects_a_bad_pole():
 def test_helfrich_flow_rejects_a_bad_pole():
     from cartan_kirchhoff_love.vesicle import helfrich_flow
 
-    with pytest.raises(ValueError, match="pole must be 'corners' or 'cap'"):
+    with pytest.raises(ValueError, match="pole must be one of 'corners', 'cap'"):
         helfrich_flow(ellipsoid_problem(4, 0.9), steps=1, pole="disc")

@@ -122,9 +122,9 @@ class PoleCap:
         self.rings = [np.take(idx, [0], axis=a).ravel(), np.take(idx, [es[a] - 1], axis=a).ravel()]
         X0 = lattice.edge_rest_strains(a)[..., a, :].reshape(-1, lattice.group.dim)
         #: the pole rest strains [2, 6] of each pole
-        self.X0p = [pole_strain(*self._fit(X0[e])) for e in self.rings]
+        self.X0p = [pole_strain(*self.fit(X0[e])) for e in self.rings]
 
-    def _fit(self, X: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    def fit(self, X: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """(C, K, g) fitted to a ring's strains ``X [N, 6]`` (module docstring)."""
         a = np.sum(X[:, :3] ** 2, axis=-1)
         b = X[:, 0] * X[:, 4] - X[:, 1] * X[:, 3]
@@ -141,7 +141,7 @@ class PoleCap:
         N = self.n.shape[0]
         for ring, X0p in zip(self.rings, self.X0p, strict=True):
             X = x2[ring] / self.hv
-            C, K, g = self._fit(X)
+            C, K, g = self.fit(X)
             Xp = pole_strain(C, K, g)
             V += self.W * float(self.medium.potential_at(Xp[None], X0p[None])[0])
             if not want:

@@ -105,6 +105,7 @@ from cartan_verification.case import StaticCase
 
 import cartan
 from cartan.problem import InitialState, PotentialLoad, Problem
+from cartan.schemes._pole_cell import POLES
 
 __all__ = ["GaussBonnetTorus", "NormalTether", "Tether", "WillmoreCliffordTorus", "bending_energy",
            "clifford_energy", "clifford_errors", "flow_configuration", "gauss_bonnet", "graded_torus",
@@ -135,7 +136,7 @@ def _pole_strains(scheme: Any, state: Any) -> list[tuple[float, np.ndarray]]:
 
     caps = cap(scheme)
     x2 = scheme.edge_strains(state)[caps.axis].reshape(-1, scheme.group.dim) * caps.hv   # x″ = hX″
-    return [(caps.W, pole_strain(*caps._fit(x2[ring] / caps.hv))) for ring in caps.rings]
+    return [(caps.W, pole_strain(*caps.fit(x2[ring] / caps.hv))) for ring in caps.rings]
 
 
 def _is_sphere_chart(grid: Any) -> bool:
@@ -616,8 +617,9 @@ def helfrich_flow(problem: Problem, *, steps: int = 30, tau: float = 0.05, growt
         raise ValueError(f"tangential_penalty must be ≥ 1, got {tangential_penalty!r}")
     if isinstance(reuse, (bool, str)) or not 0.0 <= float(reuse) < 1.0:
         raise ValueError(f"reuse must be in [0, 1), got {reuse!r}")
-    if pole not in ("corners", "cap") or (pole == "cap" and not _is_sphere_chart(problem.grid)):
-        raise ValueError(f"pole must be 'corners' or 'cap' (the pole cells, on the sphere's chart only), "
+    if pole not in POLES or (pole == "cap" and not _is_sphere_chart(problem.grid)):
+        raise ValueError(f"pole must be one of {', '.join(map(repr, POLES))} ('cap': the pole cells, on the sphere's "
+                         "chart only), "
                          f"got {pole!r} on a grid with glued = {problem.grid.glued}")
     if isinstance(redistribute, bool) or int(redistribute) != redistribute or redistribute < 0:
         raise ValueError(f"redistribute must be an integer ≥ 0 (steps between redistributions, 0: never), "
