@@ -40,7 +40,77 @@ from typing import Any
 
 import numpy as np
 
-__all__ = ["StrainConstraints"]
+__all__ = ["HeldFunctional", "StrainConstraints"]
+
+
+class HeldFunctional:
+    """A scalar functional C(Φ) of the whole configuration held at a value by one Lagrange
+    multiplier in the statics (:func:`cartan.solve_static` ``holds``): the total area and the
+    enclosed volume of a vesicle, a centre of mass, a total length.
+
+    The static problem becomes the stationarity of the Lagrangian ``E(Φ) + μ (C(Φ) − C₀)``: the
+    residual's force rows gain the reaction ``−μ ∂C/∂η_i`` and one row ``(C₀ − C)/s`` is added
+    (its unknown μs), so the Newton matrix is the symmetric bordered saddle-point matrix
+
+        [[K − μ ∂²C, −gᵀ], [−g, 0]],      g = ∂C/∂η / s,      K = ∂F/∂η = −∂²E,
+
+    whose stiffness block acts on the tangent space of C = C₀ only: a step that would lose its
+    convexity along a mode changing C (a vesicle's shape mode at fixed tension and pressure)
+    stays well posed.  μ is the multiplier of C, e.g. a tension for an area and minus a pressure
+    for a volume (the energy of a pressure p is −pV).
+
+    Contract (a subclass implements :meth:`value` and :meth:`gradient`; it may override
+    :meth:`bind`):
+
+    * :meth:`value` and :meth:`gradient` read the scheme's state only; the gradient is exact
+      (derivatives along the drift Φ_i ← Φ_i exp(η_i), summed over the lattice, not per unit
+      weight: the units of the lattice's nodal forces), since the constraint row's Jacobian is
+      taken from it;
+    * the term μ ∂²C of the Jacobian is the coloured central difference of ``μ·gradient`` on the
+      lattice's force stencil: exact for a functional whose gradient at a node reads that node's
+      stencil; a global coupling (e.g. through the mean position of all nodes) is left out of the
+      Jacobian and Newton then contracts linearly by a factor of order μ times that coupling.
+
+    Parameters
+    ----------
+    target : float, optional
+        C₀ (default: C of the starting configuration).
+    scale : float, optional
+        The row's unit s > 0: the row holds ``(C − C₀)/s`` and the solve ends with
+        ``|C − C₀| ≤ tol·s`` (default ``max(|C₀|, tiny)``: a relative tolerance).
+    name : str, optional
+        The name in the outputs (default the class's ``name``).
+    """
+
+    name = "held"
+
+    def __init__(self, target: float | None = None, scale: float | None = None, name: str | None = None):
+        if target is not None and not np.isfinite(target):
+            raise ValueError(f"target must be finite, got {target!r}")
+        if scale is not None and not (np.isfinite(scale) and scale > 0.0):
+            raise ValueError(f"scale must be finite and > 0, got {scale!r}")
+        self.target = None if target is None else float(target)
+        self.scale = None if scale is None else float(scale)
+        if name is not None:
+            self.name = str(name)
+
+    def bind(self, problem: Any, scheme: Any) -> None:
+        """Called once by the statics with the problem and its lattice before any evaluation
+        (e.g. to build a lattice of its own on the same chart).  Default: nothing."""
+
+    def value(self, scheme: Any, state: Any) -> float:
+        """C of the configuration ``state`` on ``scheme``."""
+        raise NotImplementedError(f"{type(self).__name__}.value")
+
+    def gradient(self, scheme: Any, state: Any) -> np.ndarray:
+        """∂C/∂η_i ``[*shape, r]`` (body components, the drift Φ_i ← Φ_i exp(η_i)), exact."""
+        raise NotImplementedError(f"{type(self).__name__}.gradient")
+
+    def start(self, scheme: Any, state: Any) -> tuple[float, float]:
+        """(C₀, s) at the starting configuration: the given target and scale, or their defaults."""
+        target = self.value(scheme, state) if self.target is None else self.target
+        scale = self.scale if self.scale is not None else max(abs(target), float(np.finfo(float).tiny))
+        return float(target), float(scale)
 
 
 class StrainConstraints:

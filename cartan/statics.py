@@ -83,13 +83,13 @@ from __future__ import annotations
 
 import math
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
 
-from .constraints import StrainConstraints
+from .constraints import HeldFunctional, StrainConstraints
 from .problem import InitialState, Problem, dead_to_body
 
 __all__ = ["ConvergenceError", "solve_static"]
@@ -531,19 +531,23 @@ class _Equilibrium:
         Load factor at which the medium's analytic Jacobian is probed (and first used).
     pole : str
         The lattice's ``pole`` (:class:`~cartan.schemes.lattice.Lattice`; :func:`solve_static`).
+    holds : sequence of HeldFunctional
+        Global functionals held by multipliers (:class:`cartan.constraints.HeldFunctional`).
 
     Attributes
     ----------
     nunk : int
         Number of unknown increments; ``m = nunk + nmult`` with the multipliers,
-        ``nmult = npin + ncon``: the pins' first, then the strain constraints' (``ncon``, one
-        per constrained edge and component, scaled by −cell: see :meth:`constraint_stress`).
+        ``nmult = npin + ncon + nhold``: the pins' first, then the strain constraints' (``ncon``,
+        one per constrained edge and component, scaled by −cell: see :meth:`constraint_stress`),
+        then the held functionals' (``nhold``, each μ_k·s_k, :meth:`_hold_terms`).
     kind : str
         ``"analytic"`` or ``"fd"``: the Jacobian used.
     """
 
     def __init__(self, problem: Problem, *, jacobian: str = "fd", fd_step: float = 1e-6, t: float = 0.0,
-                 pins: dict | None = None, probe_lam: float = 1.0, pole: str = "corners"):
+                 pins: dict | None = None, probe_lam: float = 1.0, pole: str = "corners",
+                 holds: Sequence[HeldFunctional] = ()):
         from .schemes.lattice import Lattice
 
         if jacobian not in _JACOBIANS:
@@ -607,7 +611,8 @@ class _Equilibrium:
         state.t = float(t)
         self.state0 = state
         self._setup_constraints(problem.medium, state)
-        self.nmult = self.npin + self.ncon
+        self._setup_holds(problem, state, holds)
+        self.nmult = self.npin + self.ncon + self.nhold
         self.m = self.nunk + self.nmult
         # the LU's elimination order on a lattice of d ≥ 2: nested dissection of the nodes, each
         # constraint multiplier after its edge's nodes, the pins' last (on a rod, d = 1, SuperLU's
@@ -615,7 +620,9 @@ class _Equilibrium:
         self.lu_order: np.ndarray | None = None
         if len(shape) >= 2:
             unk = self.index[_dissection(shape)].ravel()
-            self.lu_order = _saddle_order(unk[unk >= 0], self._constraint_matrix(state), self.npin)
+            self.lu_order = np.concatenate([
+                _saddle_order(unk[unk >= 0], self._constraint_matrix(state), self.npin),
+                self.nunk + self.npin + self.ncon + np.arange(self.nhold)])  # the held functionals' last
         if self.pins:
             msize = g.matrix_size
             self._R0 = self.sch.frames(state).reshape(self.nnode, msize, msize)[:, 1:, 1:].copy()
@@ -658,8 +665,21 @@ class _Equilibrium:
 
     def constraints_met(self, r: np.ndarray, tol: float) -> bool:
         """Whether the strain-constraint rows of a residual ``r`` ``(m,)`` are within 1e-3·tol
-        (dimensionless: one more quadratic step puts them at round-off)."""
-        return float(np.max(np.abs(r[self.nunk + self.npin: self.m]), initial=0.0)) <= 1e-3 * tol
+        (dimensionless: one more quadratic step puts them at round-off) and the held functionals'
+        rows within tol (relative to their scales s_k)."""
+        o = self.nunk + self.npin
+        return (float(np.max(np.abs(r[o: o + self.ncon]), initial=0.0)) <= 1e-3 * tol
+                and float(np.max(np.abs(r[o + self.ncon: self.m]), initial=0.0)) <= tol)
+
+    @property
+    def _con(self) -> slice:
+        """The strain constraints' multipliers within μ ``(nmult,)``."""
+        return slice(self.npin, self.npin + self.ncon)
+
+    @property
+    def _held(self) -> slice:
+        """The held functionals' multipliers within μ ``(nmult,)``."""
+        return slice(self.npin + self.ncon, self.nmult)
 
     def constraint_stress(self, mu_c: np.ndarray) -> list[np.ndarray]:
         """Per axis, the edge stresses ``[*edge_shape, r]`` of the strain constraints' unknowns
@@ -680,6 +700,66 @@ class _Equilibrium:
     def edge_multipliers(self, mu_c: np.ndarray) -> np.ndarray:
         """The multipliers on every edge ``[E, c]`` (NaN on edges between fixed nodes)."""
         return self.con.edge_multipliers(mu_c, self._edge_shapes)
+
+    # ------------------------------------------------------------------ held functionals
+    def _setup_holds(self, problem: Problem, state: Any, holds: Sequence[HeldFunctional]) -> None:
+        """Bind the held functionals to the problem and the lattice; their targets C₀ and row
+        scales s (:meth:`cartan.constraints.HeldFunctional.start`)."""
+        self.holds = tuple(holds)
+        for k, h in enumerate(self.holds):
+            if not isinstance(h, HeldFunctional):
+                raise ValueError(f"holds[{k}] must be a cartan.constraints.HeldFunctional, got {type(h).__name__}")
+        names = [h.name for h in self.holds]
+        if len(set(names)) != len(names):
+            raise ValueError(f"holds must have distinct names, got {names}")
+        for h in self.holds:
+            h.bind(problem, self.sch)
+        starts = [h.start(self.sch, state) for h in self.holds]
+        self.hold_target = np.array([c for c, _ in starts], dtype=float)
+        self.hold_scale = np.array([s_ for _, s_ in starts], dtype=float)
+        self.nhold = len(self.holds)
+
+    def _hold_gradients(self, state: Any) -> np.ndarray:
+        """g_k = ∂C_k/∂η / s_k on the unknowns, ``(nunk, nhold)``."""
+        if not self.nhold:
+            return np.zeros((self.nunk, 0))
+        return np.stack([h.gradient(self.sch, state)[self.unknown] / s_
+                         for h, s_ in zip(self.holds, self.hold_scale, strict=True)], axis=1)
+
+    def hold_values(self, state: Any) -> np.ndarray:
+        """C_k of ``state`` ``(nhold,)``."""
+        return np.array([h.value(self.sch, state) for h in self.holds], dtype=float)
+
+    def _hold_terms(self, state: Any, nu: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """(reactions ``−Σ_k ν_k g_k`` on the unknowns, rows ``(C₀ − C)/s``) of the held
+        functionals, ν_k = μ_k s_k their unknowns (:class:`cartan.constraints.HeldFunctional`)."""
+        react = -(self._hold_gradients(state) @ nu)
+        return react, (self.hold_target - self.hold_values(state)) / self.hold_scale
+
+    def _hold_jacobian(self, state: Any, nu: np.ndarray):
+        """The held functionals' part of the Jacobian ``(m, m)``: the columns and rows ``−g_k``
+        and, for multipliers μ_k ≠ 0, ``−Σ μ_k ∂²C_k`` by coloured central differences of the
+        gradients on the force stencil (:class:`~cartan.constraints.HeldFunctional`)."""
+        import scipy.sparse as sp
+
+        G = -self._hold_gradients(state)
+        rows, cols = np.nonzero(G)
+        o = self.nunk + self.npin + self.ncon
+        J = sp.csc_matrix((np.concatenate([G[rows, cols], G[rows, cols]]),
+                           (np.concatenate([rows, o + cols]), np.concatenate([o + cols, rows]))),
+                          shape=(self.m, self.m))
+        mu = nu / self.hold_scale
+        if np.any(mu):
+            def reaction(trial: Any) -> np.ndarray:
+                out = np.zeros((*self.shape, self.r_dim))
+                for h, m_ in zip(self.holds, mu, strict=True):
+                    if m_:
+                        out -= m_ * h.gradient(self.sch, trial)
+                return out
+
+            H = sp.csc_matrix(self._fd(state, reaction))
+            J = J + sp.block_diag([H, sp.csc_matrix((self.nmult, self.nmult))], format="csc")
+        return J
 
     def _constraint_matrix(self, state: Any):
         """``B_c = ∂(X_e[k])/∂δ`` ``(ncon, nunk)``: the constrained rows of the strain rate
@@ -784,8 +864,12 @@ class _Equilibrium:
             parts[0] = r = r + react
             parts.append(c)
         if self.ncon:
-            parts[0] = r + self.assemble(state, self.constraint_stress(mu[self.npin: self.nmult]))
+            parts[0] = r + self.assemble(state, self.constraint_stress(mu[self._con]))
             parts.append(self.constraint_values(state))
+        if self.nhold:
+            react, c = self._hold_terms(state, mu[self._held])
+            parts[0] = parts[0] + react
+            parts.append(c)
         return np.concatenate(parts) if len(parts) > 1 else r
 
     def dlam(self, state: Any) -> np.ndarray:
@@ -1252,7 +1336,7 @@ class _Equilibrium:
         import scipy.sparse as sp
 
         if self.ncon:  # the multipliers' edge stresses: their geometric stiffness, like a stress offset
-            q_c = self.constraint_stress(mu[self.npin: self.nmult])
+            q_c = self.constraint_stress(mu[self._con])
             offset = q_c if offset is None else [a + b for a, b in zip(offset, q_c, strict=True)]
         if offset is not None and not any(np.any(o) for o in offset):
             offset = None
@@ -1286,6 +1370,8 @@ class _Equilibrium:
                 J = J + self._pin_jacobian(state, mu[: self.npin])
             if self.ncon:
                 J = J + self._constraint_jacobian(state)
+            if self.nhold:
+                J = J + self._hold_jacobian(state, mu[self._held])
             J = J.tocsc()
         return (J, low) if low_rank else J
 
@@ -1371,6 +1457,11 @@ class _Outcome:
 
 #: the residual's round-off floor: ``FLOOR_FACTOR·ε_mach`` times each row's sum of the magnitudes
 #: of the terms that make it (:func:`_residual_floor`)
+#: external nodal forces below EXT_ROUNDOFF·ε·max|F_int| count as none in the tolerance's scale
+#: (solve_static ``tol``): the difference of the total and internal force passes of a problem
+#: without external loads is of order ε·|F_int|
+EXT_ROUNDOFF = 64.0
+_EPS = float(np.finfo(float).eps)
 FLOOR_FACTOR = 4.0
 #: a convergence by increment or stagnation is accepted while ``max_i |r_i|/floor_i ≤ FLOOR_RATIO``
 FLOOR_RATIO = 1e3
@@ -1499,11 +1590,17 @@ def _residual_floor(eq: _Equilibrium, state: Any, mu: np.ndarray, lam: float) ->
         value = np.array([eq._pin_value(Phi_n[n], n, k) for n, k in eq.pins])
         rows[eq.nunk: eq.nunk + eq.npin] = np.abs(value) + np.abs(eq.x0) + eq.length
     if eq.ncon:  # the multipliers come out of the LU solve: each known to ε times the largest
-        qc = eq.constraint_stress(mu[eq.npin: eq.nmult])
+        qc = eq.constraint_stress(mu[eq._con])
         top = max(float(np.max(np.abs(q), initial=0.0)) for q in qc)
         rows[: eq.nunk] += _abs_assemble(eq, state, [np.abs(q) + top for q in qc])[eq.unknown]
         vmax = float(np.max(np.abs(eq.con.value), initial=0.0))
-        rows[eq.nunk + eq.npin: eq.m] = np.abs(eq.constraint_values(state)) + vmax + 1.0 / hmin
+        rows[eq.nunk + eq.npin: eq.nunk + eq.npin + eq.ncon] = np.abs(eq.constraint_values(state)) + vmax + 1.0 / hmin
+    if eq.nhold:  # reactions |ν_k g_k|, each ν known to ε times the largest; rows (|C| + |C₀|)/s
+        G = np.abs(eq._hold_gradients(state))
+        nu = np.abs(mu[eq._held])
+        rows[: eq.nunk] += G @ (nu + float(np.max(nu)))
+        C = np.abs(eq.hold_values(state))
+        rows[eq.nunk + eq.npin + eq.ncon: eq.m] = (C + np.abs(eq.hold_target)) / eq.hold_scale
     floor = FLOOR_FACTOR * emach * rows
     # a row whose terms all vanish in exact arithmetic (e.g. the force rows of an unloaded
     # inextensible filament, its multipliers ≈ 1e-31) holds products of round-off: ε times the
@@ -1520,7 +1617,9 @@ def _row_name(eq: _Equilibrium, i: int) -> str:
     if i < eq.nunk + eq.npin:
         node, k = eq.pins[i - eq.nunk]
         return f"pin {i - eq.nunk} (flat node {node}, component {k})"
-    return f"strain constraint {i - eq.nunk - eq.npin}"
+    if i < eq.nunk + eq.npin + eq.ncon:
+        return f"strain constraint {i - eq.nunk - eq.npin}"
+    return f"held functional {eq.holds[i - eq.nunk - eq.npin - eq.ncon].name!r}"
 
 
 def _floor_check(eq: _Equilibrium, point: _Point, r: np.ndarray) -> tuple[float, str]:
@@ -1938,6 +2037,7 @@ def solve_static(
     t: float = 0.0,
     pins: dict | str | None = None,
     pole: str = "corners",
+    holds: Sequence[HeldFunctional] = (),
 ):
     """An equilibrium of ``problem`` by Newton's method on the group.
 
@@ -1950,7 +2050,9 @@ def solve_static(
         ``"lattice"`` (the only scheme supported).
     tol : float
         A load step has converged when ``‖r‖_∞ ≤ tol·f``, f the largest external nodal
-        force of the load step (or of the first residual when there is none).
+        force of the load step (or of the first residual when there is none: external forces
+        below ``EXT_ROUNDOFF``·ε times the largest internal one are the round-off of the force
+        passes).
     max_iter : int
         Newton iterations allowed per load step.
     initial : None, InitialState, array ``[*shape, m, m]`` or Dataset
@@ -2007,6 +2109,13 @@ def solve_static(
         ``pole``): ``"corners"`` (default) or ``"cap"`` (the pole cell, a d = 2 SE(3) chart with a
         glued axis, a coupled medium and a reference; a ``ValueError`` otherwise).  The cap's
         Jacobian stencil couples the whole pole row (:func:`_lattice_stencil`).
+    holds : sequence of HeldFunctional
+        Global functionals C_k(Φ) held at their targets by Lagrange multipliers μ_k, one bordered
+        row each in the Newton matrix (:class:`cartan.constraints.HeldFunctional`: e.g. a
+        vesicle's area and volume, whose multipliers are its tension and pressure changes); a
+        load step has converged when ``|C_k − C₀_k| ≤ tol·s_k`` too.  They hold at every load
+        factor λ.  Outputs ``held_value`` C_k and ``held_multiplier`` μ_k (the equilibrium of
+        E + Σ μ_k (C_k − C₀_k)) along ``held``, whose coordinate is their names.
 
     Returns
     -------
@@ -2068,7 +2177,7 @@ def solve_static(
     nsteps = int(load_steps)
     pins_option, pins = pins, rigid_gauge_pins(problem, pins)
     eq = _Equilibrium(problem, jacobian=jacobian, fd_step=fd_step, t=t, probe_lam=1.0 / nsteps, pins=pins,
-                      pole=pole)
+                      pole=pole, holds=holds)
     sch, g, nunk = eq.sch, eq.g, eq.nunk
     mu0 = np.zeros(eq.nmult)  # the pins' multipliers, then the strain constraints'
     pin_tol = tol * eq.length
@@ -2115,7 +2224,10 @@ def solve_static(
         internal, ext_forces = eq.parts(state)
         ext = float(np.max(np.abs(ext_forces), initial=0.0))
         r0 = internal + lam_try * ext_forces
-        scale = ext * lam_try if ext > 0 else float(np.max(np.abs(r0), initial=0.0))
+        # external forces at the round-off of the force passes (total − internal of a problem with
+        # none, ~ε·|F_int|) are none: the scale is then the first residual's
+        inside = float(np.max(np.abs(internal), initial=0.0))
+        scale = ext * lam_try if ext > EXT_ROUNDOFF * _EPS * inside else float(np.max(np.abs(r0), initial=0.0))
         atol = tol * scale if scale > 0 else tol
         last_atol = atol
 
@@ -2178,6 +2290,7 @@ def solve_static(
             "reuse": reuse,
             "t": float(t),
             **({"pins": pins_option} if pins_option else {}),
+            **({"holds": [h.name for h in eq.holds]} if eq.nhold else {}),
         },
         "counters": {"newton_iterations": len(alphas), "load_steps": len(attempts), "wall_time": wall},
     }
@@ -2252,6 +2365,14 @@ def solve_static(
     if eq.npin:  # the pins' multipliers: spatial reactions at the pinned nodes
         ds["reaction"] = ("pin", np.asarray(mu[: eq.npin], dtype=float),
                           {"long_name": "reaction at the pin (spatial component)", "units": "force"})
+    if eq.nhold:  # the held functionals: values and multipliers μ_k = ν_k/s_k
+        ds = ds.assign_coords(held=("held", [h.name for h in eq.holds]))
+        ds["held_value"] = ("held", eq.hold_values(state),
+                            {"long_name": "value C_k of the held functional at the equilibrium"})
+        ds["held_target"] = ("held", eq.hold_target.copy(), {"long_name": "target C0_k of the held functional"})
+        ds["held_multiplier"] = ("held", mu[eq._held] / eq.hold_scale,
+                                 {"long_name": "Lagrange multiplier mu_k of the held functional "
+                                               "(an equilibrium of E + sum mu_k (C_k - C0_k))"})
     return ds
 
 
@@ -2261,7 +2382,7 @@ def _constraint_outputs(ds: Any, eq: _Equilibrium, state: Any, mu: np.ndarray) -
     stresses; NaN on edges between fixed nodes), ``constraint_residual`` ``[time]``
     (max |X_e[k] − value_k|) and the attributes ``constraint_components``,
     ``constraint_values`` and ``constraint_residual_max``."""
-    force = eq.edge_multipliers(mu[eq.npin: eq.nmult])
+    force = eq.edge_multipliers(mu[eq._con])
     res = float(np.max(np.abs(eq.constraint_values(state)), initial=0.0))
     ds["constraint_force"] = (
         ("time", "constrained_edge", "constrained_component"), force[None],

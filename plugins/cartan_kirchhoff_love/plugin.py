@@ -29,7 +29,8 @@ def helfrich(problem, *, steps: int = 30, tau: float = 0.05, growth: float = 1.3
              hold: tuple[str, ...] = ("area", "volume"), targets: dict[str, float] | None = None,
              hold_tol: float = 1e-10, tol: float = 1e-10, stop: float = 0.0, max_hold_iterations: int = 12,
              max_retries: int = 6, mesh: str = "step", redistribute: int = 1, motion: str = "free",
-             tangential_penalty: float = 1e3):
+             tangential_penalty: float = 1e3, reuse: float = 0.1, pole: str = "corners",
+             multipliers: str = "bordered"):
     """The ``helfrich`` flow of a scene's ``[flow]`` table:
     :func:`cartan_kirchhoff_love.vesicle.helfrich_flow` of the scene's problem (same options)."""
     from .vesicle import helfrich_flow
@@ -37,7 +38,8 @@ def helfrich(problem, *, steps: int = 30, tau: float = 0.05, growth: float = 1.3
     return helfrich_flow(problem, steps=steps, tau=tau, growth=growth, tau_max=tau_max, hold=hold,
                          targets=targets, hold_tol=hold_tol, tol=tol, stop=stop,
                          max_hold_iterations=max_hold_iterations, max_retries=max_retries, mesh=mesh,
-                         redistribute=redistribute, motion=motion, tangential_penalty=tangential_penalty)
+                         redistribute=redistribute, motion=motion, tangential_penalty=tangential_penalty,
+                         reuse=reuse, pole=pole, multipliers=multipliers)
 
 
 def _check_helfrich(problem, options: dict) -> None:
@@ -66,6 +68,12 @@ def _check_helfrich(problem, options: dict) -> None:
         raise ValueError(f"mesh must be 'step' or 'initial', got {options['mesh']!r}")
     if options.get("motion", "free") not in ("free", "normal"):
         raise ValueError(f"motion must be 'free' or 'normal', got {options['motion']!r}")
+    if options.get("multipliers", "bordered") not in ("bordered", "outer"):
+        raise ValueError(f"multipliers must be 'bordered' or 'outer', got {options['multipliers']!r}")
+    if options.get("pole", "corners") not in ("corners", "cap"):
+        raise ValueError(f"pole must be 'corners' or 'cap', got {options['pole']!r}")
+    if "reuse" in options and not 0.0 <= options["reuse"] < 1.0:
+        raise ValueError(f"reuse must be in [0, 1), got {options['reuse']!r}")
     if "tangential_penalty" in options:
         v = options["tangential_penalty"]
         if not math.isfinite(v) or v < 1.0:

@@ -45,10 +45,17 @@ Gradient flow (:func:`helfrich_flow`; minimizing movements)
     the L² dissipation of the node positions (a :class:`Tether`) plus the medium's in-plane
     regularisation measured from Φ_n (``Problem(reference=Φ_n)``: K_a, μ act as an in-plane
     viscosity and vanish at Φ_n).  The multipliers — the tension σ for A and the pressure p for V
-    (:class:`cartan_cosserat_surface.surface.VolumePressure`, p times the exact gradient of V) — are the
-    unknowns of an outer Newton iteration on the constraint residuals (a Broyden-updated 2 × 2
-    Jacobian, started by finite differences), each residual evaluation a static solve; the
-    constraints are held to ``hold_tol`` relative (default 1e-10).  Since Φ_n is admissible,
+    (:class:`cartan_cosserat_surface.surface.VolumePressure`, p times the exact gradient of V) — are
+    unknowns of the step's static solve: A and V are held functionals (:class:`HeldArea`,
+    :class:`HeldVolume`; :class:`cartan.constraints.HeldFunctional`), each a bordered row of the
+    Newton matrix whose multiplier is the change of σ or of −p from the last step's values, so the
+    step minimises on the constraint manifold (``multipliers="bordered"``, one solve per step).  With
+    ``multipliers="outer"`` σ and p are fixed in each solve and found by an outer Newton iteration
+    on the constraint residuals (a Broyden-updated 2 × 2 Jacobian, started by finite differences),
+    each residual evaluation a static solve: the step's E_H + σA − pV + D with σ < 0 < p frozen
+    loses its convexity along shape modes that change A and V once τ is large enough (≈ 0.1 on the
+    sphere's chart at v = 0.9), and its solves stagnate there.  The constraints are held to
+    ``hold_tol`` relative (default 1e-10).  Since Φ_n is admissible,
     E_H(Φ_{n+1}) + D ≤ E_H(Φ_n) since each multiplier load is the exact gradient of its held
     functional (σ is the medium's σ-term, the volume load is V's gradient): the energy decreases
     monotonically, recorded as ``bending_energy``.
@@ -104,11 +111,12 @@ import xarray as xr
 from cartan_verification.case import StaticCase
 
 import cartan
+from cartan.constraints import HeldFunctional
 from cartan.problem import InitialState, PotentialLoad, Problem
 from cartan.schemes._pole_cell import POLES
 
-__all__ = ["GaussBonnetTorus", "NormalTether", "Tether", "WillmoreCliffordTorus", "bending_energy",
-           "clifford_energy", "clifford_errors", "flow_configuration", "gauss_bonnet", "graded_torus",
+__all__ = ["GaussBonnetTorus", "HeldArea", "HeldVolume", "NormalTether", "Tether", "WillmoreCliffordTorus",
+           "bending_energy", "clifford_energy", "clifford_errors", "flow_configuration", "gauss_bonnet", "graded_torus",
            "helfrich_flow", "meridian_circle", "plaquette_curvature", "redistribute_mesh", "surface_measures",
            "torus_radii", "torus_willmore_energy", "wavy_torus_problem", "willmore_torus_problem"]
 
@@ -418,6 +426,74 @@ def _equalise_meridians(Phi: np.ndarray, glue: np.ndarray) -> float:
     return shift
 
 
+# ====================================================================== held area and volume
+class HeldArea(HeldFunctional):
+    """The total area A of a closed ``helfrich-membrane`` held by its multiplier, the tension
+    (:func:`cartan.solve_static` ``holds``; :class:`cartan.constraints.HeldFunctional`).
+
+    A is exactly the functional the medium's σ-term multiplies: the potential energy of the same
+    lattice (same chart, glue, ``pole`` and reference) with the medium reduced to σ = 1 and every
+    other modulus 0, whose internal force is −∂A/∂η exactly (the corner quadrature Σ_c w_c J_c,
+    and W|det T_p| per pole cell with ``pole="cap"``; :func:`surface_measures`).  Its multiplier
+    μ is a change of tension: the equilibrium of E + μ(A − A₀) is that of the medium with σ + μ.
+    """
+
+    name = "area"
+
+    def bind(self, problem: Problem, scheme: Any) -> None:
+        from cartan.schemes.lattice import Lattice
+
+        from .helfrich import HelfrichMembrane
+
+        medium = problem.medium
+        if not isinstance(medium, HelfrichMembrane):
+            raise ValueError(f"HeldArea needs a helfrich-membrane, got {getattr(medium, 'name', medium)!r}")
+        area = type(medium)(**{**medium.parameters(), "tension": 0.0})
+        area.kb = area.kg = area.c0 = area.ka = area.mu = 0.0   # U = σJ with σ = 1: the area density
+        area.sigma = 1.0
+        self._lattice = Lattice(Problem(area, problem.grid, problem.initial, reference=problem.reference),
+                                track_frames=True, pole=scheme.pole)
+
+    def value(self, scheme: Any, state: Any) -> float:
+        return self._lattice.potential_energy(state)
+
+    def gradient(self, scheme: Any, state: Any) -> np.ndarray:
+        return -self._lattice.internal_force(state)
+
+
+class HeldVolume(HeldFunctional):
+    """The enclosed volume V_h of a closed surface held by its multiplier, minus the pressure
+    (:func:`cartan.solve_static` ``holds``): V_h and its exact gradient are those of
+    :class:`cartan_cosserat_surface.surface.VolumePressure` (the corner quadrature measured from
+    the mean node position; :func:`surface_measures`), so the equilibrium of E + μ(V − V₀) is that
+    of the problem under an added ``VolumePressure(−μ)``.  The gradient reads every node through
+    the mean position: the Jacobian's μ∂²V is the stencil part (Newton contracts linearly by a
+    factor of order |μ|/n)."""
+
+    name = "volume"
+
+    def bind(self, problem: Problem, scheme: Any) -> None:
+        from cartan_cosserat_surface.surface import VolumePressure
+
+        self._load = VolumePressure(1.0)
+        self._load.attach(problem)
+        self._at: tuple[Any, tuple[float, np.ndarray]] | None = None
+
+    def _measure(self, scheme: Any, state: Any) -> tuple[float, np.ndarray]:
+        Phi = scheme.frames(state)
+        if self._at is not None and self._at[0] is not None and np.array_equal(self._at[0], Phi):
+            return self._at[1]
+        v, G = self._load.volume_and_gradient(Phi)
+        self._at = (Phi.copy(), (float(np.sum(v)), G))
+        return self._at[1]
+
+    def value(self, scheme: Any, state: Any) -> float:
+        return self._measure(scheme, state)[0]
+
+    def gradient(self, scheme: Any, state: Any) -> np.ndarray:
+        return self._measure(scheme, state)[1].copy()
+
+
 # ====================================================================== the flow
 class Tether(PotentialLoad):
     """U = ½k|r − r̄|² per unit reference area at every node (the lattice weighs it with its node
@@ -501,9 +577,10 @@ def helfrich_flow(problem: Problem, *, steps: int = 30, tau: float = 0.05, growt
                   hold_tol: float = 1e-10, tol: float = 1e-10, stop: float = 0.0,
                   max_hold_iterations: int = 12, max_retries: int = 6, mesh: str = "step",
                   redistribute: int = 1, motion: str = "free", tangential_penalty: float = 1e3,
-                  reuse: float = 0.1, pole: str = "corners", progress: bool = False) -> xr.Dataset:
+                  reuse: float = 0.1, pole: str = "corners", multipliers: str = "bordered",
+                  progress: bool = False) -> xr.Dataset:
     """Helfrich/Willmore gradient flow of a closed ``helfrich-membrane`` with held A and V
-    (module docstring: minimizing movements, multipliers by an outer Newton iteration).
+    (module docstring: minimizing movements, the multipliers held inside each step's solve).
 
     Parameters
     ----------
@@ -529,7 +606,7 @@ def helfrich_flow(problem: Problem, *, steps: int = 30, tau: float = 0.05, growt
     stop : float
         Stop early once a step lowers E_H by less than ``stop``·E_H (0: run all steps).
     max_hold_iterations : int
-        Outer iterations per step before the step fails.
+        Outer iterations per step before the step fails (``multipliers="outer"``).
     max_retries : int
         A failed step (no static equilibrium, a solve leaving the chart, or the held constraints
         diverging or not converged) is retried
@@ -565,12 +642,22 @@ def helfrich_flow(problem: Problem, *, steps: int = 30, tau: float = 0.05, growt
         converge in 2–4 Newton steps, the last ones nearly linear: 0.1 (default) spares about one
         Jacobian per solve (the first six steps on a 32 × 16 sphere chart: 94 factorisations
         instead of 152, the same energies to 3e-11; docs/media/kirchhoff-love.md, "Cost of a
-        step"); 0 forms a Jacobian at every Newton step.
+        step"); the bordered solve's last steps contract linearly (the volume's mean-position
+        coupling is not in its Jacobian), where the reuse saves likewise; 0 forms a Jacobian at
+        every Newton step.
     pole : str
         ``"corners"`` (default) or ``"cap"``: the lattice's treatment of the sphere's poles in every
         solve and in the recorded E_H, A and ∫K dA (:class:`cartan.schemes.lattice.Lattice` ``pole``;
         the held area is then the cap lattice's, :func:`surface_measures`); ``"cap"`` on the sphere's
         chart only.
+    multipliers : {"bordered", "outer"}
+        How a step finds σ and p: ``"bordered"`` (default) holds A and V inside the step's static
+        solve (:class:`HeldArea`, :class:`HeldVolume`: one bordered Newton system whose multipliers
+        are the changes of σ and p; one solve per step), so the step minimises on the constraint
+        manifold and stays well posed where E_H + σA − pV + D loses its convexity at fixed σ, p
+        (on the sphere's chart with σ ≈ −5, p ≈ 11 near τ ≈ 0.1; docs/media/kirchhoff-love.md);
+        ``"outer"``: σ and p fixed in each solve and found by an outer Newton iteration on the
+        constraint residuals (a Broyden-updated 2 × 2 Jacobian, 3–11 solves per step).
     progress : bool
         Print one line per step.
 
@@ -617,6 +704,8 @@ def helfrich_flow(problem: Problem, *, steps: int = 30, tau: float = 0.05, growt
         raise ValueError(f"tangential_penalty must be ≥ 1, got {tangential_penalty!r}")
     if isinstance(reuse, (bool, str)) or not 0.0 <= float(reuse) < 1.0:
         raise ValueError(f"reuse must be in [0, 1), got {reuse!r}")
+    if multipliers not in ("bordered", "outer"):
+        raise ValueError(f"multipliers must be 'bordered' or 'outer', got {multipliers!r}")
     if pole not in POLES or (pole == "cap" and not _is_sphere_chart(problem.grid)):
         raise ValueError(f"pole must be one of {', '.join(map(repr, POLES))} ('cap': the pole cells, on the sphere's "
                          "chart only), "
@@ -669,6 +758,25 @@ def helfrich_flow(problem: Problem, *, steps: int = 30, tau: float = 0.05, growt
             P = _frames_of(out)
             meas = surface_measures(problem, P, pole)
             return out, P, np.array([meas[h] / goal[h] - 1.0 for h in hold])
+
+        if multipliers == "bordered":  # A and V held inside the solve: their multipliers change σ and p
+            solves = 1
+            med = type(medium)(**{**base, **step_params}).with_tension(mult["area"])
+            loads = [tether] + ([VolumePressure(mult["volume"])] if mult["volume"] != 0.0 else [])
+            pb = Problem(med, grid, start, reference=start if mesh == "step" else problem.initial, loads=loads)
+            # rows (C − C₀)/s with s = |C₀|·hold_tol/tol: the solve ends at |C/C₀ − 1| ≤ hold_tol
+            held = [(HeldArea if h == "area" else HeldVolume)(goal[h], abs(goal[h]) * hold_tol / tol) for h in hold]
+            out = cartan.solve_static(pb, tol=tol, initial=start, reuse=float(reuse), pole=pole, holds=held)
+            change = dict(zip(out["held"].values.tolist(), out["held_multiplier"].values.tolist()))
+            # E + μ_A (A − A₀) is the medium with σ + μ_A; + μ_V (V − V₀) is a VolumePressure(−μ_V)
+            new = {"area": mult["area"] + change.get("area", 0.0), "volume": mult["volume"] - change.get("volume", 0.0)}
+            P = _frames_of(out)
+            meas = surface_measures(problem, P, pole)
+            res = np.array([meas[h] / goal[h] - 1.0 for h in hold])
+            if np.max(np.abs(res), initial=0.0) > hold_tol:
+                raise RuntimeError(f"helfrich_flow: the held {', '.join(hold)} missed by {np.max(np.abs(res)):.3e} "
+                                   f"(relative; hold_tol = {hold_tol:g})")
+            return out, P, new, None, res, solves
 
         x = np.array([mult[h] for h in hold])
         out, P, res = solve(mult, Phi)
