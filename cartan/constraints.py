@@ -40,6 +40,8 @@ from typing import Any
 
 import numpy as np
 
+from ._scatter import scatter_add
+
 __all__ = ["HeldFunctional", "StrainConstraints"]
 
 
@@ -370,7 +372,7 @@ class StrainConstraints:
             for node, ghost, M in ((self.tails[axis][active], self.ghost_tails[axis][active], -g.dexp_inv(xi) / h),
                                    (self.heads[axis][active], self.ghost_heads[axis][active], g.dexp_inv(-xi) / h)):
                 Mk = sch.from_ghosts(M[:, self.comp, :], ghost, axis)  # [ne, c, r]
-                np.add.at(out, node, np.einsum("ecr,ec->er", Mk, lam))
+                scatter_add(out, node, np.einsum("ecr,ec->er", Mk, lam))
         out[self.index >= 0] = 0.0
         return out
 

@@ -89,6 +89,7 @@ from typing import Any
 
 import numpy as np
 
+from ._scatter import scatter_add
 from .constraints import HeldFunctional, StrainConstraints
 from .problem import InitialState, Problem, dead_to_body
 
@@ -902,7 +903,7 @@ class _Equilibrium:
         out = []
         for a, x in enumerate(X):
             Qe = np.zeros_like(flat[a])
-            np.add.at(Qe, c["edge"][:, a], w[:, None] * Q[:, a, :])
+            scatter_add(Qe, c["edge"][:, a], w[:, None] * Q[:, a, :])
             out.append(Qe.reshape(x.shape))
         return out
 

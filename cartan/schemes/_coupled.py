@@ -33,6 +33,7 @@ from typing import Any
 
 import numpy as np
 
+from .._scatter import scatter_add
 from ..state import State
 
 __all__ = ["coupled_stress", "coupled_velocity", "hamiltonian", "initial_momentum", "kinetic_part"]
@@ -54,8 +55,8 @@ def _to_nodes(scheme: Any, tail: np.ndarray, head: np.ndarray, at_tail: np.ndarr
               h: float) -> np.ndarray:
     """``Σ_{e∋i} (h/2w_i) f(i, e)`` from the half-edge values at the tails and heads ``[E, r]``."""
     out = np.zeros((scheme.grid.shape[0], at_tail.shape[-1]))
-    np.add.at(out, tail, 0.5 * h * at_tail)
-    np.add.at(out, head, 0.5 * h * at_head)
+    scatter_add(out, tail, 0.5 * h * at_tail)
+    scatter_add(out, head, 0.5 * h * at_head)
     return out / np.asarray(scheme.weights, dtype=float)[:, None]
 
 

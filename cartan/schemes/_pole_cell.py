@@ -29,6 +29,8 @@ from typing import Any
 
 import numpy as np
 
+from .._scatter import scatter_add
+
 #: the lattice's pole treatments of a glued chart (``Lattice(problem, pole=...)``)
 POLES = ("corners", "cap")
 
@@ -204,10 +206,10 @@ def corner_force(lattice: Any, state: Any) -> np.ndarray:
     caps = cap(L)
     for a, (x2, xi, p) in enumerate(xs):
         Qe = np.zeros_like(x2)
-        np.add.at(Qe, c["edge"][:, a], (c["weight"] / h[a])[:, None] * Q[:, a, :])
+        scatter_add(Qe, c["edge"][:, a], (c["weight"] / h[a])[:, None] * Q[:, a, :])
         if a == caps.axis:
             Qe += caps.energy_grad(x2)[1]
         out, inc = chord_forces(state.arrays[L._key(a)].reshape(-1, 4, 4), xi, p, Qe, g)
-        np.add.at(F, c["tail"][a], L.from_ghosts(out, c["ghost_tail"][a], a))
-        np.add.at(F, c["head"][a], -L.from_ghosts(inc, c["ghost_head"][a], a))
+        scatter_add(F, c["tail"][a], L.from_ghosts(out, c["ghost_tail"][a], a))
+        scatter_add(F, c["head"][a], -L.from_ghosts(inc, c["ghost_head"][a], a))
     return F.reshape(*L.grid.shape, g.dim)

@@ -87,6 +87,7 @@ from typing import Any
 
 import numpy as np
 
+from .._scatter import scatter_add
 from ..problem import Free, axis_glues, axis_holonomies, dead_to_body, held_components
 from .base import Scheme, State, prefix_products
 
@@ -278,8 +279,8 @@ class Lattice(Scheme):
             gt, gh = self.ghost_ends()
             tail = self.from_ghosts(tail.reshape(-1, r), gt[axis], axis)
             head = self.from_ghosts(head.reshape(-1, r), gh[axis], axis)
-            np.add.at(flat, t[axis], tail)
-            np.add.at(flat, hd[axis], head)
+            scatter_add(flat, t[axis], tail)
+            scatter_add(flat, hd[axis], head)
             return
         if self.grid.periodic[axis]:
             F += tail
@@ -523,11 +524,11 @@ class Lattice(Scheme):
         F = np.zeros((int(np.prod(self.grid.shape)), g.dim))
         for a, xi in enumerate(xis):
             Qe = np.zeros_like(xi)
-            np.add.at(Qe, c["edge"][:, a], (c["weight"] / self.h[a])[:, None] * Q[:, a, :])
+            scatter_add(Qe, c["edge"][:, a], (c["weight"] / self.h[a])[:, None] * Q[:, a, :])
             out = self.from_ghosts(np.einsum("...ji,...j->...i", g.dexp_inv(xi), Qe), c["ghost_tail"][a], a)
             inc = self.from_ghosts(np.einsum("...ji,...j->...i", g.dexp_inv(-xi), Qe), c["ghost_head"][a], a)
-            np.add.at(F, c["tail"][a], out)
-            np.add.at(F, c["head"][a], -inc)
+            scatter_add(F, c["tail"][a], out)
+            scatter_add(F, c["head"][a], -inc)
         return F.reshape(*self.grid.shape, g.dim)
 
     def internal_force(self, state: State) -> np.ndarray:
