@@ -36,9 +36,12 @@ The reductions
     the moments the first one changes (the load's lever arms move by it) and is smaller by a
     factor of order |F|L²/B·(anisotropy of 𝕊) — it vanishes for a dead end force with
     𝕊 ∝ I, where the first term is parallel to the force.  The estimate is the largest
-    ``|∫ R(θ − θ₀) dσ|`` over the nodes, integrated from a held end (clamped, or its position
-    pinned by a continuation: from s = 0 when the start is, from s = L when only the end is),
-    or relative to the centroid of the nodes when no end is held; ``∫|θ − θ₀| dσ`` bounds it.
+    ``|∫ R(θ − θ₀) dσ|`` over the nodes, integrated from a held end (clamped, driven — both
+    models move it by Φ(0)·exp(tξ) —, or its position pinned by a continuation: from s = 0 when
+    the start is, from s = L when only the end is), or relative to the centroid of the nodes
+    when no end is held; ``∫|θ − θ₀| dσ`` bounds it.  A :class:`~cartan.problem.Driven` end
+    carries over to the twin; a dynamic twin whose ``rattle`` cannot move it exactly is
+    declined, with the integrator's reason (:func:`_driven_obstacle`).
     A surface (d = 2, translation strains held): the same first term, the displacement x with
     ``∂_α x = R (X_α − X_held)`` on the held components (for a shell ``R e₃ γ_α``, the
     transverse shear γ_α = θ_α·e₃), integrated by least squares over the lattice's edges and
@@ -59,13 +62,17 @@ The reductions
     constrained step costs more than a free one, so for a dynamic scene the twin is
     recommended only when a measured pilot (``check=True``, each model warmed up untimed) is
     faster over the same simulated time, and the report states the measured ratios (whole
-    runs, and steps alone), not the CFL ratio.  The check compares the two runs at the full
+    runs, and steps alone), not the CFL ratio.  The timed runs save the scene's output (its
+    ``save_every`` in the full model's steps; the twin at the same interval in time), each model's
+    time the fastest of up to :data:`TIMED_PAIRS` interleaved pairs.  The check compares the two runs at the full
     pilot's last step (the twin's step shortened to end there) and predicts what it measures:
     the model difference there plus the two runs' time-step errors, each by Richardson from a
     run at half the step (:func:`_advise_held_dynamic`), all three listed in the report.
 ``SE(3) planar → SE(2)`` (exact; :mod:`cartan.reduction`)
-    Detected by :func:`cartan.reduction.planar_reduction` (planar data, planar loads, a medium
-    with an exact planar twin): the reduced run changes nothing but the cost, so the error
+    Detected by :func:`cartan.reduction.planar_reduction` (planar data, planar loads and
+    boundaries — a driven end with a planar ξ among them —, a medium with an exact planar twin;
+    the report names what blocks it, :func:`cartan.reduction.planar_obstacle`): the reduced run
+    changes nothing but the cost, so the error
     estimate is 0 (round-off).  The speed-up is measured on the pilot (the static solve of
     both, or a pilot run of both, the SE(2) problem run as such); for dynamic runs
     :func:`cartan.reduction.reduction_pays` says whether :func:`cartan.simulate` performs it (it
@@ -117,7 +124,7 @@ from .medium import HeldStrainTwin, Medium, QuadraticMedium
 
 if TYPE_CHECKING:  # pragma: no cover
     import xarray as xr
-from .problem import Clamped, Damping, Free, InitialState, Problem
+from .problem import Clamped, Damping, Driven, Free, InitialState, Problem
 
 __all__ = ["HELD_STRAINS", "LARGE_RADIUS", "PILOT_STEPS", "PLANAR", "TOL_SCHEMES", "Advice", "HeldStrainMedium",
            "MethodAdvice", "MethodCandidate", "ReductionAdvice", "ResolutionAdvice", "ResolutionCandidate",
@@ -128,6 +135,10 @@ __all__ = ["HELD_STRAINS", "LARGE_RADIUS", "PILOT_STEPS", "PLANAR", "TOL_SCHEMES
 PILOT_STEPS = 200
 #: timed static solves of each model (the fastest is reported)
 STATIC_REPEATS = 2
+#: timed (full, twin) pairs of a dynamic check, at most: each model's time is the fastest of its runs
+TIMED_PAIRS = 3
+#: seconds: a dynamic check times another pair only while a pair takes less than this
+TIMED_PAIR_BUDGET = 2.0
 #: default relative error accepted for an approximate reduction
 DEFAULT_RTOL = 1e-3
 
@@ -415,14 +426,17 @@ def _solve(problem: Problem, options: Mapping[str, Any]) -> xr.Dataset:
     return solve_static(problem, **dict(options))
 
 
-def _simulate(problem: Problem, settings: Mapping[str, Any], t_end: float) -> xr.Dataset:
+def _simulate(problem: Problem, settings: Mapping[str, Any], t_end: float,
+              save_every: int | None = None) -> xr.Dataset:
+    """``problem`` run to ``t_end`` with ``settings`` (``reduce=False``, no file), saving every
+    ``save_every`` steps (default: 20 save blocks, the frames a pilot's analysis samples)."""
     from .simulate import InstabilityError, StabilityWarning, simulate
 
     s = dict(settings)
     s.pop("checkpoint_every", None)
     dt = s.get("dt")
     steps = max(1, round(t_end / dt)) if dt else None
-    s["save_every"] = max(1, (steps or PILOT_STEPS) // 20)
+    s["save_every"] = max(1, (steps or PILOT_STEPS) // 20) if save_every is None else int(save_every)
     s["t_end"] = t_end
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", StabilityWarning)
@@ -708,17 +722,43 @@ def _strain_frames(ds: Any, k: int, theta0: np.ndarray) -> tuple[np.ndarray, np.
 
 
 def _anchor(subject: _Subject) -> str | None:
-    """The end the displacements are measured from: a clamped end, or an end whose position a
-    continuation pins (``"start"`` first), else None (about the centroid)."""
+    """The end the displacements are measured from: a clamped or driven end (the twin's frame
+    there is the medium's, Φ(0)·exp(tξ) — a clamp at Φ(0) in the statics), or an end whose
+    position a continuation pins (``"start"`` first), else None (about the centroid)."""
     b = subject.problem.boundaries
     pins = subject.solver_options.get("pins") or {} if subject.mode == "continuation" else {}
     n = subject.problem.grid.shape[0]
     k = subject.problem.medium.group.matrix_size - 1
     for end, index in (("start", 0), ("end", n - 1)):
         pinned = [c for key, comps in pins.items() if key in (end, index) for c in comps if int(c) < k]
-        if type(b.get(end)) is Clamped or pinned:
+        if type(b.get(end)) in (Clamped, Driven) or pinned:
             return end
     return None
+
+
+def _driven_obstacle(held: Problem, settings: Mapping[str, Any]) -> str | None:
+    """Why the twin ``held`` cannot run in time with its :class:`~cartan.problem.Driven` ends, or
+    None (no driven end, or ``rattle`` moves them by exp(Δtξ) per step).
+
+    A driven end carries over to the twin unchanged (the same group, the same ξ): the constrained
+    integrator holds its node at the velocity ξ in its constraint rows, when ξ's parts in the split
+    free flow commute (a rotation about one body axis, any translation) and the kinetic metric is
+    diagonal (:meth:`cartan.integrators.base.Integrator.driven_reason`)."""
+    from .plugins import get_registry
+    from .schemes.base import Scheme
+
+    if not any(type(b) is Driven for b in held.boundaries.values()):
+        return None
+    name = settings.get("scheme") or "lattice"
+    try:
+        cls = get_registry().get("schemes", name) if isinstance(name, str) else name
+        scheme: Scheme = cls(held, **dict(settings.get("scheme_options") or {}))
+        reason = get_registry().get("integrators", "rattle")().driven_reason(scheme)
+    except (ValueError, TypeError, KeyError) as exc:
+        return f"its driven end cannot be run with rattle on the {name!r} scheme ({' '.join(str(exc).split())})"
+    if reason is None:
+        return None
+    return f"rattle, its integrator, does not carry the driven end: {reason}"
 
 
 def _filament_estimate(ds: Any, problem: Problem, k: int, theta0: np.ndarray, anchor: str | None,
@@ -858,6 +898,9 @@ def _advise_held(subject: _Subject, full_ds: Any, rtol: float, check: bool, full
         return out
     label = f"{twin.label or 'held strains'}; twin {held.medium.name!r}"
     out.indicator_name = f"max |X − X_held| ({label})"
+    if subject.mode == "dynamic" and (reason := _driven_obstacle(held, subject.run_settings)) is not None:
+        out.note = f"twin {held.medium.name!r} declined: {reason}"
+        return out
     k = problem.medium.group.matrix_size - 1
     comps, values = (np.asarray(a) for a in held.medium.constrained_strains())
     if any(int(c) >= k for c in comps):
@@ -954,6 +997,16 @@ def _measured(out: ReductionAdvice, full_ds: Any, held_ds: Any, full_time: float
     out.time_ratio = full_time / held_time if held_time > 0 else math.nan
 
 
+def _scene_save_every(subject: _Subject, run: Any = None) -> int:
+    """The steps between the saved frames of the scene's run: its ``save_every``, or the one
+    :func:`cartan.simulate` resolved (``run``), else the 20 save blocks of a pilot."""
+    every = subject.run_settings.get("save_every") or getattr(run, "save_every", None)
+    if every:
+        return max(1, int(every))
+    dt, t_end = subject.run_settings.get("dt"), subject.run_settings.get("t_end")
+    return max(1, round(float(t_end) / float(dt)) // 20) if dt and t_end else max(1, PILOT_STEPS // 20)
+
+
 def _last_positions(ds: Any, k: int) -> np.ndarray:
     """Node positions of the last frame of ``ds`` ``[nodes, k]``."""
     return np.asarray(ds["position"].values[-1], dtype=float).reshape(-1, k)
@@ -996,6 +1049,14 @@ def _advise_held_dynamic(out: ReductionAdvice, subject: _Subject, held: Problem,
     The check compares the node positions at the full pilot's last step, t_c = N·Δt (N = ⌈T/Δt⌉
     steps to the pilot's end T): the twin's step, its own (half its CFL estimate, as
     :func:`cartan.simulate` picks it), is shortened so that a whole number of steps ends at t_c.
+    The time ratio is that of whole runs to t_c (set-up, steps, saved frames, Dataset), both
+    warm (compilation not counted), both saving the scene's output: the full model every
+    ``save_every`` of its steps (:func:`_scene_save_every`), the twin at the same interval in time,
+    every round(save_every·Δt/Δt') of its own steps (as many frames, to one) — not the pilot
+    analysis's 20 frames, per-frame work the scene does not ask for (or more frames, when it asks
+    for them) that both runs pay alike.  Each model's time is the fastest of up to :data:`TIMED_PAIRS`
+    interleaved (full, twin) pairs, another pair only while one takes less than
+    :data:`TIMED_PAIR_BUDGET` seconds.
     What it measures is
 
         x_full,Δt − x_twin,Δt' = (x_full − x_twin) + e_full(Δt) − e_twin(Δt'),
@@ -1032,12 +1093,29 @@ def _advise_held_dynamic(out: ReductionAdvice, subject: _Subject, held: Problem,
                                     max_steps=None)
         dt_own = float(twin_run.dt)  # half its CFL estimate, as simulate picks it
         settings["dt"] = t_check / max(1, math.ceil(t_check / dt_own * (1.0 - 1e-12)))  # ends at t_check
+        # both timed runs save the scene's output: every full_every steps of the full run, and the twin
+        # at the same interval in time, to its nearest whole number of steps (as many frames, to one)
+        full_every = _scene_save_every(subject, run)
+        twin_every = max(1, round(full_every * float(subject.run_settings["dt"]) / settings["dt"]))
         with contextlib.suppress(InstabilityError):  # the warm-up compiles (or loads) its loop: not timed
             _simulate(held, settings, 2.0 * settings["dt"])
-        fds, ftime = _timed(_simulate, held, settings, t_check)
+        # the full model is warm (the pilot): timed again with the scene's output, next to the twin, in
+        # pairs (full, twin); each model's time is the fastest of its runs
+        full_time = ftime = full_steps_time = twin_steps_time = math.inf
+        pairs = 0
+        while pairs < TIMED_PAIRS:
+            timed_full, t_full = _timed(_simulate, subject.problem, subject.run_settings, t_check,
+                                        save_every=full_every)
+            timed_twin, t_twin = _timed(_simulate, held, settings, t_check, save_every=twin_every)
+            full_time, ftime, pairs = min(full_time, t_full), min(ftime, t_twin), pairs + 1
+            full_steps_time = min(full_steps_time, _step_time(timed_full, t_full))
+            twin_steps_time = min(twin_steps_time, _step_time(timed_twin, t_twin))
+            if t_full + t_twin > TIMED_PAIR_BUDGET:
+                break
     except (ConvergenceError, InstabilityError, ValueError) as exc:
         out.check_note = f"the held-strain pilot (rattle) failed: {' '.join(str(exc).split())[:200]}"
         return out
+    fds = timed_twin
     _measured(out, full_ds, fds, full_time, ftime, k)
     # the prediction: the model difference at t_check and the two runs' time-step errors
     p_twin = int(getattr(twin_run.integrator, "order", 0))
@@ -1048,12 +1126,15 @@ def _advise_held_dynamic(out: ReductionAdvice, subject: _Subject, held: Problem,
     out.model_difference, out.time_error, out.full_time_error = _largest(model), _largest(e_twin), _largest(e_full)
     out.predicted_difference = out.model_difference + sum(e for e in (out.time_error, out.full_time_error)
                                                           if math.isfinite(e))
-    steps, full_steps = int(fds["step"].values[-1]), int(full_ds["step"].values[-1])
-    stepping = _step_time(full_ds, full_time) / max(_step_time(fds, ftime), 1e-300)
+    steps, full_steps = int(fds["step"].values[-1]), int(timed_full["step"].values[-1])
+    stepping = full_steps_time / max(twin_steps_time, 1e-300)
     dt_full = float(subject.run_settings["dt"])
     out.check_note = (f"pilot runs to t = {t_check:.6g} after an untimed warm-up of each: full "
                       f"{full_time:.3g} s ({full_steps} steps of Δt = {dt_full:.3g}), held (rattle, {steps} steps of "
-                      f"Δt = {settings['dt']:.4g}) {ftime:.3g} s; time ratio of the whole runs {out.time_ratio:.3g}×, "
+                      f"Δt = {settings['dt']:.4g}) {ftime:.3g} s (the fastest of {pairs} timed pair"
+                      f"{'s' if pairs > 1 else ''}), each saving the scene's output (the full run every "
+                      f"{full_every} steps, {timed_full.sizes['time']} frames; the twin every {twin_every} steps, "
+                      f"{fds.sizes['time']} frames); time ratio of the whole runs {out.time_ratio:.3g}×, "
                       f"of their steps alone {stepping:.3g}×; difference = largest |x_full − x_held| over the nodes "
                       "at the full run's last step (the twin's step shortened to end there); it contains the "
                       "two runs' time-step errors, estimated from runs at Δt/2 (rattle order "
@@ -1083,7 +1164,7 @@ def _advise_held_dynamic(out: ReductionAdvice, subject: _Subject, held: Problem,
 # ---------------------------------------------------------------------------- SE(3) planar -> SE(2)
 def _advise_planar(subject: _Subject, full_ds: Any, full_time: float, run: Any, pilot_t: float | None,
                    check: bool) -> ReductionAdvice:
-    from .reduction import planar_reduction, reduction_pays
+    from .reduction import planar_obstacle, planar_reduction, reduction_pays
 
     out = ReductionAdvice(PLANAR, "exact", indicator_name="planar data and loads (1 = yes)")
     problem = subject.problem
@@ -1093,8 +1174,7 @@ def _advise_planar(subject: _Subject, full_ds: Any, full_time: float, run: Any, 
     red = planar_reduction(problem)
     out.indicator = 1.0 if red is not None else 0.0
     if red is None:
-        out.note = ("no exact planar reduction: some datum is out of the x–y plane, or the medium has no exact "
-                    "planar twin, or a load or boundary is not one the reduction understands (cartan.reduction)")
+        out.note = f"no exact planar reduction (cartan.reduction): {planar_obstacle(problem)}"
         return out
     out.admitted = True
     out.error_estimate, out.error_scale = 0.0, 1.0

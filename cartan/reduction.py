@@ -31,14 +31,19 @@ only when every datum is provably planar, compared exactly (no tolerance):
   rest strain (other media: checked at sample strains);
 * the initial frames (z = 0, e₃ = +z), the reference frames, the holonomies, the initial
   velocities (N₃ = N₄ = N₅ = 0, components ``(V₃, Ω₁, Ω₂)``);
-* the boundaries (``Clamped``, ``Free`` with an end load without out-of-plane components);
+* the boundaries (``Clamped``, ``Free`` with an end load without out-of-plane components,
+  ``Driven`` with a velocity ξ without out-of-plane components — in-plane translation, rotation
+  about the normal —, whose SE(2) velocity is ``ξ[(0, 1, 5)]``: the end's frame
+  Φ(0)·exp(tξ) then stays in the embedded SE(2), and exp commutes with the embedding);
 * the loads: the core's ``Damping`` (any coefficients), ``UniformForce`` (body or spatial,
   without out-of-plane components) and constant fields (``ConstantFieldPotential`` and
   subclasses that change none of its physics, such as gravity; field with z = 0).
 
-Anything else — an unknown load or boundary class, an out-of-plane datum, a medium without a
-twin, a restart, periodic checkpoints, scheme state arrays that cannot be lifted — runs the
-full problem, silently.  So does a run where the reduction would not pay
+Anything else — an unknown load or boundary class, an out-of-plane datum (a driven end whose ξ
+has a component V₃, Ω₁ or Ω₂ moves out of the plane), a medium without a twin, a restart,
+periodic checkpoints, scheme state arrays that cannot be lifted — runs the full problem,
+silently; :func:`planar_obstacle` names the datum that blocks the reduction (``cartan advise``
+reports it).  So does a run where the reduction would not pay
 (:func:`reduction_pays`): the ``lattice`` scheme's hand-written compiled loops have closed-form
 and vectorised SE(3) kernels but only generic SE(2) ones, so that there the SE(2) run is the
 slower one.  A reduced run that blows up is run again in full, so that the error
@@ -64,6 +69,7 @@ from .problem import (
     Clamped,
     ConstantFieldPotential,
     Damping,
+    Driven,
     Free,
     InitialState,
     Load,
@@ -84,6 +90,7 @@ __all__ = [
     "Reduction",
     "lift_components",
     "lift_records",
+    "planar_obstacle",
     "planar_reduction",
     "reduction_pays",
     "run_reduced",
@@ -223,25 +230,26 @@ def _constant_field(load: Load) -> bool:
     )
 
 
-def _planar_load(load: Load) -> Load | None:
-    """The SE(2) load acting like ``load`` on planar motions, or None."""
+def _planar_load(load: Load) -> Load | str:
+    """The SE(2) load acting like ``load`` on planar motions, or a string: why there is none."""
     if type(load) is Damping:
         c = np.asarray(load.coefficients, dtype=float)
-        return Damping(c[_IN].copy()) if c.shape == (6,) else None
+        return Damping(c[_IN].copy()) if c.shape == (6,) else f"its coefficients have shape {c.shape}, not (6,)"
     if type(load) is UniformForce:
         c = np.asarray(load.components, dtype=float)
         if c.shape != (6,) or not _planar_components(c):
-            return None
+            return f"its components {c.tolist()} have out-of-plane components (F₃, M₁, M₂)"
         return UniformForce(c[_IN].copy(), frame=load.frame)
     if _constant_field(load):
         f = np.asarray(load.field, dtype=float)
         if f.shape != (3,) or f[2] != 0.0:
-            return None
+            return f"its field {f.tolist()} is not in the x–y plane"
         return ConstantFieldPotential(f[:2].copy(), load.density)
-    return None
+    return "not a load the reduction maps (Damping, UniformForce, a constant field)"
 
 
 def _planar_boundary(b: Any) -> Any:
+    """The SE(2) boundary acting like ``b`` on planar motions, or a string: why there is none."""
     if type(b) is Clamped:
         return Clamped()
     if type(b) is Free:
@@ -249,9 +257,17 @@ def _planar_boundary(b: Any) -> Any:
             return Free(follower=b.follower)
         load = np.asarray(b.load, dtype=float)
         if load.shape != (6,) or not _planar_components(load):
-            return None
+            return f"its end load {load.tolist()} has out-of-plane components (F₃, M₁, M₂)"
         return Free(load=load[_IN].copy(), follower=b.follower)
-    return None
+    if type(b) is Driven:  # Φ(t) = Φ(0)·exp(tξ) stays in SE(2) when Φ(0) does and ξ ∈ se(2)
+        xi = np.asarray(b.velocity, dtype=float)
+        if xi.shape != (6,) or not _planar_components(xi):
+            return (
+                f"its driven velocity ξ = {xi.tolist()} has out-of-plane components (V₃, Ω₁, Ω₂): the end "
+                "leaves the plane"
+            )
+        return Driven(velocity=xi[_IN].copy())
+    return f"{type(b).__name__} ends are not mapped to SE(2)"
 
 
 # ---------------------------------------------------------------------------- the test
@@ -269,50 +285,88 @@ def planar_reduction(problem: Problem) -> Reduction | None:
     Reduction or None
         The SE(2) problem (same grid and name; medium the twin; initial and reference frames,
         holonomies, velocities, boundaries and loads restricted to the x–y plane), or None
-        when some datum is not planar or not understood (see the module docstring).
+        when some datum is not planar or not understood (see the module docstring;
+        :func:`planar_obstacle` says which).
     """
+    out = _planar(problem)
+    return out if isinstance(out, Reduction) else None
+
+
+def planar_obstacle(problem: Problem) -> str | None:
+    """Why ``problem`` admits no planar reduction, or None when it admits one.
+
+    Parameters
+    ----------
+    problem : Problem
+        Any problem.
+
+    Returns
+    -------
+    str or None
+        The first datum that blocks :func:`planar_reduction` (e.g. ``"boundary 'start': its
+        driven velocity ξ = [...] has out-of-plane components (V₃, Ω₁, Ω₂): the end leaves the
+        plane"``), or None.
+    """
+    out = _planar(problem)
+    return None if isinstance(out, Reduction) else out
+
+
+def _planar(problem: Problem) -> Reduction | str:
+    """The planar reduction of ``problem``, or the reason it has none."""
     medium = problem.medium
     if getattr(medium.group, "name", "") != "SE3":
-        return None
+        return f"the medium {medium.name!r} is not on SE(3)"
     try:
         twin = medium.planar_reduction()
-    except (ValueError, TypeError, NotImplementedError):
-        return None
-    if twin is None or not isinstance(twin, Medium) or not _twin_is_exact(medium, twin):
-        return None
+    except (ValueError, TypeError, NotImplementedError) as exc:
+        return f"the medium {medium.name!r} has no planar twin ({exc})"
+    if twin is None or not isinstance(twin, Medium):
+        return f"the medium {medium.name!r} declares no planar twin (Medium.planar_reduction)"
+    if not _twin_is_exact(medium, twin):
+        return (
+            f"the planar twin {twin.name!r} is not the restriction of {medium.name!r} (in-plane/out-of-plane "
+            "coupling, or different data)"
+        )
     init = problem.initial
     Phi, N = np.asarray(init.Phi, dtype=float), np.asarray(init.N, dtype=float)
-    if not (_planar_elements(Phi) and _planar_components(N)):
-        return None
+    if not _planar_elements(Phi):
+        return "the initial frames leave the x–y plane (z ≠ 0 or e₃ ≠ +z)"
+    if not _planar_components(N):
+        return "the initial velocities have out-of-plane components (V₃, Ω₁, Ω₂)"
     ok, H = _holonomy(init.holonomy)
     if not ok:
-        return None
+        return "the holonomy is not planar"
     reference = None
     if problem.reference is not None:
         ref = problem.reference
         ok_ref, H_ref = _holonomy(ref.holonomy)
         if not (_planar_elements(ref.Phi) and ok_ref):
-            return None
+            return "the reference state is not planar"
         reference = InitialState(Phi=np.asarray(ref.Phi, dtype=float)[..., :3, :3].copy(), holonomy=H_ref)
     boundaries = {}
     for key, b in problem.boundaries.items():
         b2 = _planar_boundary(b)
-        if b2 is None:
-            return None
+        if isinstance(b2, str):
+            return f"boundary {key!r}: {b2}"
         boundaries[key] = b2
     loads = []
     for load in problem.loads:
         l2 = _planar_load(load)
-        if l2 is None:
-            return None
+        if isinstance(l2, str):
+            return f"load {type(load).__name__}: {l2}"
         loads.append(l2)
     try:
         reduced = Problem(
-            twin, problem.grid, InitialState(Phi=Phi[..., :3, :3].copy(), N=N[..., _IN].copy(), holonomy=H),
-            boundaries, loads, name=problem.name, reference=reference,
+            twin,
+            problem.grid,
+            InitialState(Phi=Phi[..., :3, :3].copy(), N=N[..., _IN].copy(), holonomy=H),
+            boundaries,
+            loads,
+            name=problem.name,
+            reference=reference,
         )
-    except (ValueError, TypeError):
-        return None
+    except (ValueError, TypeError) as exc:
+        return f"the SE(2) problem cannot be built ({exc})"
     return Reduction(PLANAR, problem, reduced)
 
 
@@ -406,8 +460,13 @@ def run_reduced(run: _ResolvedRun, *, restart: Any = None) -> xr.Dataset | None:
     from . import io
     from .simulate import InstabilityError, StabilityWarning, _execute_run, _resolve_run
 
-    if (restart is not None or run.output is not None or run.checkpoint_every is not None or run.step != 0
-            or not reduction_pays(run)):
+    if (
+        restart is not None
+        or run.output is not None
+        or run.checkpoint_every is not None
+        or run.step != 0
+        or not reduction_pays(run)
+    ):
         return None
     if getattr(run.integrator, "velocity_field", None) is not None:
         return None  # a prescribed velocity is data the reduction cannot see: it may leave the plane
@@ -419,9 +478,22 @@ def run_reduced(run: _ResolvedRun, *, restart: Any = None) -> xr.Dataset | None:
         with warnings.catch_warnings():
             warnings.simplefilter("ignore", StabilityWarning)  # the full run has warned (or not)
             small = _resolve_run(
-                red.reduced, type(run.integrator), type(run.scheme), run.dt, cfg["t_end"], run.save_every,
-                None, None, None, run.integrator.options(), run.scheme.options(), run.progress, run.growth,
-                compiled=run.compiled, command="", max_steps=max(run.nsteps, 1),
+                red.reduced,
+                type(run.integrator),
+                type(run.scheme),
+                run.dt,
+                cfg["t_end"],
+                run.save_every,
+                None,
+                None,
+                None,
+                run.integrator.options(),
+                run.scheme.options(),
+                run.progress,
+                run.growth,
+                compiled=run.compiled,
+                command="",
+                max_steps=max(run.nsteps, 1),
             )
     except (ValueError, TypeError):
         return None
