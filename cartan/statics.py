@@ -347,6 +347,31 @@ def _coloured_jacobian(displaced, colour: np.ndarray, src: np.ndarray, dst: np.n
     return sp.csc_matrix((np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols))), shape=(nunk, nunk))
 
 
+def _rows_dependent(B: Any, rtol: float = 1e-9) -> bool:
+    """Whether the rows of the sparse B ``(k, n)`` are linearly dependent: a pivot of the sparse LU
+    of B Bᵀ (SPD when they are not) below ``rtol`` times its largest diagonal entry, or an exactly
+    singular factorisation.  B Bᵀ has the rows' sparsity (each constraint couples the edges that
+    share a node with it), so its LU costs about what the constraints' block of one Jacobian does."""
+    import scipy.sparse as sp
+    import scipy.sparse.linalg as spla
+
+    B = sp.csr_matrix(B)
+    if B.shape[0] == 0:
+        return False
+    if B.shape[0] > B.shape[1]:
+        return True
+    G = (B @ B.T).tocsc()
+    top = float(np.max(np.abs(G.diagonal()), initial=0.0))
+    if not top > 0.0:
+        return True
+    try:
+        with np.errstate(all="ignore"):
+            lu = spla.splu(G, diag_pivot_thresh=0.0)
+    except RuntimeError:
+        return True
+    return bool(np.min(np.abs(lu.U.diagonal())) < rtol * top)
+
+
 def _saddle_order(unknowns: np.ndarray, B: Any, npin: int) -> np.ndarray:
     """The LU's elimination order of the saddle-point matrix ``[[K, Bᵀ], [B, 0]]`` of the strain
     constraints: every constraint multiplier right after the last of its edge's unknowns in the
@@ -663,6 +688,8 @@ class _Equilibrium:
         self.con = StrainConstraints(self.sch, self.unknown, state)
         self.ncon = self.con.ncon
         self._edge_shapes = [x.shape for x in self.strains(state)]
+        #: the constraint rows are linearly dependent at the start (:meth:`_constraint_regularisation`)
+        self.dependent_constraints = bool(self.ncon) and _rows_dependent(self._constraint_matrix(state))
 
     def constraints_met(self, r: np.ndarray, tol: float) -> bool:
         """Whether the strain-constraint rows of a residual ``r`` ``(m,)`` are within 1e-3·tol
@@ -779,6 +806,33 @@ class _Equilibrium:
         return sp.csc_matrix((np.concatenate([Bc.data, Bc.data]),
                               (np.concatenate([Bc.row + o, Bc.col]), np.concatenate([Bc.col, Bc.row + o]))),
                              shape=(self.m, self.m))
+
+    def _constraint_regularisation(self, state: Any, K: Any):
+        """``REG_CONSTRAINTS·d_i`` on the strain constraints' diagonal block ``(m, m)`` when the rows
+        are dependent (:attr:`dependent_constraints`, :func:`_rows_dependent`), with
+        ``d_i = Σ_j B_ij² / max_j |K_jj|`` (at most the diagonal of the Schur complement
+        ``−B_c K⁻¹ B_cᵀ``, whose sign it has).
+
+        Dependent constraint rows leave the saddle-point matrix singular: θ_α,3 = 0 on a plate
+        clamped on all four faces (the alternating sums of the rows along each line of u and of v
+        between the clamps are the same combination of the edges), or a closed clamped boundary
+        in general.  The LU then returns an arbitrary, often huge, multiple of the multipliers'
+        null vector: it moves no node (B_cᵀv = 0) but its round-off pollutes the force rows and
+        the residual floor.  With the regularisation that multiple stays bounded; the residual
+        is evaluated exactly, so the regularisation changes the Newton iteration (by a relative
+        REG_CONSTRAINTS on independent rows), not its solution."""
+        import scipy.sparse as sp
+
+        Bc = self._constraint_matrix(state)
+        kd = np.abs(K.diagonal() if sp.issparse(K) else np.diagonal(K))
+        top = float(np.max(kd, initial=0.0))
+        if not top > 0.0:
+            return sp.csc_matrix((self.m, self.m))
+        d = np.asarray(sp.csr_matrix(Bc).multiply(Bc).sum(axis=1)).ravel() / top
+        diag = np.zeros(self.m)
+        o = self.nunk + self.npin
+        diag[o: o + self.ncon] = REG_CONSTRAINTS * d
+        return sp.diags(diag, format="csc")
 
     # ------------------------------------------------------------------ layout
     def _node(self, where: Any) -> int:
@@ -1371,6 +1425,8 @@ class _Equilibrium:
                 J = J + self._pin_jacobian(state, mu[: self.npin])
             if self.ncon:
                 J = J + self._constraint_jacobian(state)
+                if self.dependent_constraints:
+                    J = J + self._constraint_regularisation(state, K)
             if self.nhold:
                 J = J + self._hold_jacobian(state, mu[self._held])
             J = J.tocsc()
@@ -1458,6 +1514,9 @@ class _Outcome:
 
 #: the residual's round-off floor: ``FLOOR_FACTOR·ε_mach`` times each row's sum of the magnitudes
 #: of the terms that make it (:func:`_residual_floor`)
+#: relative regularisation of the strain constraints' block of the Newton matrix
+#: (:meth:`_Equilibrium._constraint_regularisation`): dependent constraint rows stay solvable
+REG_CONSTRAINTS = 1e-10
 #: external nodal forces below EXT_ROUNDOFF·ε·max|F_int| count as none in the tolerance's scale
 #: (solve_static ``tol``): the difference of the total and internal force passes of a problem
 #: without external loads is of order ε·|F_int|
