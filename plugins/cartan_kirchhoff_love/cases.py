@@ -93,6 +93,62 @@ wave the constraints leave) so that the time error is (ω Δt/(kΔ))² ≈ 1 % o
 every level.  The initial frames are turned by the chord angles of the sampled shape, so that
 θ_e,3 = 0 holds to round-off from the start.
 
+Clamped square plate (registered: ``plate-clamped-kl``), its first frequency, and an annulus
+--------------------------------------------------------------------------------------------
+A square plate of side a clamped on its four edges under a uniform load q, ν = 0.3, has
+w_c = 0.00126532·qa⁴/D, M_c = 0.0229051·qa² at the centre and M_n = −0.0513338·qa² at the middle
+of an edge (Taylor & Govindjee, Commun. Numer. Meth. Engng 20, 2004; Timoshenko &
+Woinowsky-Krieger §44, Table 35, to three digits).  :func:`clamped_plate_problem` solves a
+quarter [0, a/2]² with :class:`cartan.Clamped` edges u = 0, v = 0 and
+:class:`~cartan.supports.SymmetrySupport` planes x = a/2, y = a/2 (normal displacement and the
+normal's tilt across the plane held by springs 10⁶ times the plate's stiffness at the grid
+scale).  The whole plate with four ``Clamped`` faces is not used: the lattice's edge constraints
+θ_e,3 = 0 are then linearly dependent (per row of u-edges, the slopes' recurrence
+(ψ_i + ψ_{i+1})/2 = −(w_{i+1} − w_i)/Δ between two clamped nodes imposes Σ_i (−1)^i w_i = 0, and
+likewise per column; the alternating sum of the row conditions equals that of the column
+conditions), and the statics' saddle-point solve does not handle a rank-deficient constraint
+block.  The centre values converge at O(dx²); the moment at a clamped node is its half-cell's,
+Δ/2 inside the plate, and converges at O(dx).
+
+The first frequency λ = ωa²√(ρh/D) = 35.985 (Leissa, NASA SP-160, 1969, ch. 4, C-C-C-C) is the lowest
+eigenvalue of K φ = ω² M φ on the same quarter lattice (the first mode is symmetric about both
+mid-lines), M the translational mass ρh times the node areas (no rotary inertia, as in the
+reference): :func:`clamped_plate_frequency` finds it by inverse iteration with the statics, a
+load ρh·s·w_k per unit area giving w_{k+1} and the Rayleigh quotient.
+
+An annulus b ≤ r ≤ a clamped on both circles, on the polar chart (r − b, φ) with the polar
+rest strains as the problem's reference (:func:`annulus_problem`), against the axisymmetric
+solution of D∆∆w = q (:func:`annulus_reference`): the number of nodes around must be odd (with
+an even number the two clamped circles make the constraints dependent, as above).
+
+Simply supported 2:1 plate, central point force (:func:`navier_series`)
+-----------------------------------------------------------------------
+Navier's double series summed to 2001 odd terms per axis: w_c = 0.0101287·qb⁴/D,
+M = 0.0463503·qb² (along the long side), 0.101683·qb² (along the short one) for a = 2b;
+w_c = 0.0116008·Pa²/D under a central force P on the square (one node's force density P/Δ²,
+:class:`NodeForceDensity`).  :func:`rectangular_navier_problem` builds them with the supports of
+the registered Navier case.
+
+Long cylinder under internal pressure (:func:`pressurised_cylinder_problem`)
+------------------------------------------------------------------------------
+A cylinder of radius R periodic around and along (the length held by the axial holonomy), its
+reference the initial cylinder (without ``Problem(reference=...)`` the rest state is the flat
+plate, and the unloaded cylinder shrinks by h²/12), under a follower pressure p: it stays a
+cylinder of radius λR with ε_uu = ½(λ² − 1), ε_vv = 0, κ_uu = (λ − 1)/R, and Koiter's energy plus
+the pressure's work pπR²λ² per unit length give C·½(λ² − 1)λ + D(λ − 1)/R² = pRλ,
+C = Eh/(1 − ν²) (:func:`cylinder_stretch`).  The lattice's pressure acts on the inscribed
+polygon: the error of λ − 1 is (2π/n)²/6, O(dx²).
+
+Strip rolled up by an end moment (:func:`rolled_strip_problem`)
+---------------------------------------------------------------
+A ν = 0 strip clamped at u = 0, dead end moment M per unit width at u = L.  The inextensible
+elastica bends into a circle of curvature M/D (a full turn at M = 2πD/L).  Koiter's energy
+½Eh ε² + ½D(λp)² (ε = ½(λ² − 1), p = π_u,2 the rotation rate; the bending measure is
+b_uu = θ_u,1 π_u,2) makes the mid-surface shorten: uniform λ and p with ½Eh(λ² − 1)λ + Dλp² = 0,
+Dλ²p = M (:func:`koiter_arc`), 1 − λ ≈ (ph)²/12, an arc of radius λ/p.  Circles are orbits of
+one-parameter subgroups, so the lattice's edge strains are exact and the equilibrium is this
+arc at any n (to the Newton tolerance).
+
 Cross-medium limit
 ------------------
 :func:`cosserat_limit`: the same plate as a ``cosserat-surface`` whose transverse shear
@@ -112,14 +168,19 @@ from cartan_cosserat_surface.cases import PlateColumnBuckling, column_critical_l
 from cartan_verification.case import Case, StaticCase
 
 import cartan
-from cartan.problem import Problem
+from cartan.problem import ConstantFieldPotential, PotentialLoad, Problem
+from cartan.supports import PenaltySupport, SymmetrySupport
 
-__all__ = ["DEFLECTION_COEFFICIENT", "MOMENT_COEFFICIENT", "HelfrichCylinderEnergy", "HelfrichTube", "NavierPlateKL",
-           "PlateColumnBucklingKL", "PlateFlexuralWaveKL", "all_cases", "centre_values", "cosserat_limit",
-           "cylinder_energy_density", "flexural_frequency", "flexural_wave_problem", "gauge_turn",
-           "helfrich_cylinder_problem", "helfrich_tube_problem", "kirchhoff_navier_problem", "kirchhoff_reference",
-           "lattice_flexural_frequency", "modal_amplitude", "quarter_period_frequency", "tube_radius",
-           "zero_crossing_frequency"]
+__all__ = ["CLAMPED_CENTRE_MOMENT", "CLAMPED_DEFLECTION", "CLAMPED_EDGE_MOMENT", "CLAMPED_LAMBDA",
+           "DEFLECTION_COEFFICIENT", "MOMENT_COEFFICIENT", "ClampedPlateKL", "HelfrichCylinderEnergy", "HelfrichTube",
+           "NavierPlateKL", "NodeForceDensity", "PlateColumnBucklingKL", "PlateFlexuralWaveKL", "all_cases",
+           "annulus_error", "annulus_problem", "annulus_reference", "centre_values", "clamped_centre_values",
+           "clamped_plate_frequency", "clamped_plate_problem", "cosserat_limit", "cylinder_energy_density",
+           "cylinder_stretch", "flexural_frequency", "flexural_wave_problem", "gauge_turn", "helfrich_cylinder_problem",
+           "helfrich_sphere_energy", "helfrich_tube_problem", "kirchhoff_navier_problem", "kirchhoff_reference",
+           "koiter_arc", "lattice_flexural_frequency", "modal_amplitude", "navier_series",
+           "pressurised_cylinder_problem", "quarter_period_frequency", "rectangular_navier_problem",
+           "rolled_strip_error", "rolled_strip_problem", "tube_radius", "zero_crossing_frequency"]
 
 #: Navier coefficients of the simply supported square Kirchhoff plate, ν = 0.3
 DEFLECTION_COEFFICIENT = 0.00406235
@@ -649,8 +710,477 @@ class PlateFlexuralWaveKL(Case):
         return abs(omega / flexural_frequency(problem.medium, k) - 1.0)
 
 
+# ---------------------------------------------------------------------------- further plate checks
+#: clamped square Kirchhoff plate under a uniform load, ν = 0.3 (Taylor & Govindjee 2004; Timoshenko &
+#: Woinowsky-Krieger §44, Table 35, to three digits): w_c/(qa⁴/D), M_c/(qa²) at the centre, M/(qa²) at mid-edge
+CLAMPED_DEFLECTION = 0.00126532
+CLAMPED_CENTRE_MOMENT = 0.0229051
+CLAMPED_EDGE_MOMENT = -0.0513338
+#: λ = ωa²√(ρh/D) of the clamped square plate's first mode (Leissa, NASA SP-160, 1969, ch. 4, C-C-C-C)
+CLAMPED_LAMBDA = 35.985
+
+
+class NodeForceDensity(PotentialLoad):
+    """A dead force density per unit reference area that varies over the nodes: U = −f_i·x_i
+    at node i (the lattice weighs it by the node's area).
+
+    Parameters
+    ----------
+    density : array_like, shape ``[*grid.shape, 3]``
+        The spatial force per unit reference area at every node (finite).
+    """
+
+    def __init__(self, density: Any):
+        self.density = np.asarray(density, dtype=float)
+        if self.density.ndim < 2 or self.density.shape[-1] != 3 or not np.all(np.isfinite(self.density)):
+            raise ValueError(f"density must be a finite array [*grid.shape, 3], got shape {self.density.shape}")
+
+    def attach(self, problem: Problem) -> None:
+        if self.density.shape[:-1] != tuple(problem.grid.shape):
+            raise ValueError(f"density must have shape {(*problem.grid.shape, 3)} (the grid's nodes, 3), "
+                             f"got {self.density.shape}")
+
+    def potential_energy(self, q: np.ndarray) -> np.ndarray:
+        """U = −f·x ``[*shape]`` at the points q ``[*shape, 4, 4]``."""
+        return -np.einsum("...i,...i->...", np.asarray(q)[..., 1:, 0], self.density)
+
+    def potential_gradient(self, q: np.ndarray) -> np.ndarray:
+        """∂U/∂q: −f in the position slots ``[*shape, 4, 4]``."""
+        grad = np.zeros(np.shape(q))
+        grad[..., 1:, 0] = -self.density
+        return grad
+
+
+def clamped_plate_problem(m: int, thickness_ratio: float = 0.01, *, a: float = 1.0, E: float = 1.0,
+                          poisson: float = 0.3, penalty: float = 1e6, deflection: float = 1e-4,
+                          force: Any = None) -> Problem:
+    """A quarter of the clamped square plate of side ``a`` (module docstring, "Clamped square plate").
+
+    Parameters
+    ----------
+    m : int
+        Nodes per side of the quarter (≥ 3): the full plate has n = 2m − 1 nodes per side,
+        spacing Δ = a/(2(m − 1)).
+    thickness_ratio : float
+        h/a (> 0).
+    a, E, poisson : float
+        Side, Young's modulus, Poisson ratio of the ``kirchhoff-love`` medium.
+    penalty : float
+        Stiffness of the symmetry supports relative to the plate's at the grid scale (Eh/Δ², D/Δ²).
+    deflection : float
+        Target centre deflection w_c/h of the uniform load q = deflection·h·D/(0.00126532 a⁴).
+    force : array_like ``[m, m, 3]``, optional
+        A nodal force density (:class:`NodeForceDensity`) instead of the uniform load.
+
+    Returns
+    -------
+    Problem
+        Named ``"plate-clamped-kl"`` on the chart [0, a/2]²: edges ``u-start`` and ``v-start``
+        :class:`cartan.Clamped`, the symmetry planes x = a/2 (``u-end``) and y = a/2 (``v-end``)
+        :class:`cartan.supports.SymmetrySupport`; the centre is node (m − 1, m − 1); ``loads[0]``
+        the load.
+    """
+    if isinstance(m, bool) or not isinstance(m, (int, np.integer)) or m < 3:
+        raise ValueError(f"m must be an integer ≥ 3, got {m!r}")
+    if not (np.isfinite(thickness_ratio) and thickness_ratio > 0.0):
+        raise ValueError(f"thickness_ratio must be a finite number > 0, got {thickness_ratio!r}")
+    h = float(thickness_ratio) * a
+    medium = cartan.medium("kirchhoff-love", E=E, poisson=poisson, thickness=h)
+    D = medium.bending_stiffness
+    grid = cartan.Grid((m, m), length=(0.5 * a, 0.5 * a))
+    init = medium.initial_state(grid, "flat")
+    dx = 0.5 * a / (m - 1)
+    if force is None:
+        q = deflection * h * D / (CLAMPED_DEFLECTION * a ** 4)
+        load: Any = ConstantFieldPotential(np.array([0.0, 0.0, -q]), 1.0)
+    else:
+        load = NodeForceDensity(force)
+    k, s = penalty * E * h / dx ** 2, penalty * D / dx ** 2
+    loads = [load, SymmetrySupport(["u-end"], "x", k, s).hold(init.Phi),
+             SymmetrySupport(["v-end"], "y", k, s).hold(init.Phi)]
+    return Problem(medium, grid, init, {"u-start": cartan.Clamped(), "v-start": cartan.Clamped()}, loads=loads,
+                   name="plate-clamped-kl")
+
+
+def clamped_centre_values(ds: xr.Dataset, problem: Problem) -> dict[str, float]:
+    """w_c D/(qa⁴), M_c/(qa²) at the centre and M_n/(qa²) at the middle of a clamped edge of a
+    static solution of :func:`clamped_plate_problem` with its uniform load (a = 2·L_u)."""
+    q = -float(problem.loads[0].field[2])
+    a = 2.0 * problem.grid.length[0]
+    D = problem.medium.bending_stiffness
+    pos = np.asarray(ds["position"].values[0])
+    m_uu = np.asarray(ds["bending_moment_uu"].values[0])
+    return {"deflection": -float(pos[-1, -1, 2]) * D / (q * a ** 4),
+            "centre_moment": -float(m_uu[-1, -1]) / (q * a ** 2),
+            "edge_moment": -float(m_uu[0, -1]) / (q * a ** 2)}
+
+
+def clamped_plate_frequency(m: int, iterations: int = 4, **options: Any) -> list[float]:
+    """λ = ωa²√(ρh/D) of the clamped square plate's first mode on the quarter lattice of
+    :func:`clamped_plate_problem`, by inverse iteration with the statics (module docstring).
+
+    Each iteration solves K w_{k+1} = M (s w_k) (the load ``force`` = −s w_k e_z per unit
+    area, mass ρh = 1 per unit area, s scaled so that the deflection stays ~10⁻⁴h) and gives
+    the Rayleigh quotient ω² = s (w_{k+1}·M w_k)/(w_{k+1}·M w_{k+1}), M the lattice's node areas
+    (trapezoidal weights); w_0 = 1 off the clamped edges.
+
+    Parameters
+    ----------
+    m : int
+        Nodes per side of the quarter (≥ 3).
+    iterations : int
+        Inverse iterations (≥ 1).
+    **options
+        Keywords of :func:`clamped_plate_problem` (``thickness_ratio``, ``a``, ``E``, ``poisson``,
+        ``penalty``).
+
+    Returns
+    -------
+    list of float
+        λ after each iteration (the lattice's λ is the limit; the error of iteration k falls
+        as (λ₁/λ₂)^(4k), λ₂ = 131.6 the next doubly symmetric mode).
+    """
+    if isinstance(iterations, bool) or not isinstance(iterations, (int, np.integer)) or iterations < 1:
+        raise ValueError(f"iterations must be an integer ≥ 1, got {iterations!r}")
+    options = {"thickness_ratio": 0.01, "a": 1.0, **options}
+    weights = np.ones((m, m))
+    for axis in (0, 1):
+        index = [slice(None)] * 2
+        for end in (0, -1):
+            index[axis] = end
+            weights[tuple(index)] *= 0.5
+    w = np.ones((m, m))
+    w[0, :] = w[:, 0] = 0.0
+    out = []
+    for _ in range(iterations):
+        base = clamped_plate_problem(m, **options)
+        D, h = base.medium.bending_stiffness, base.medium.h
+        scale = 1e-4 * h * D / (CLAMPED_DEFLECTION * options["a"] ** 4 * float(np.max(np.abs(w))))
+        force = np.zeros((m, m, 3))
+        force[..., 2] = -scale * w
+        ds = cartan.solve_static(clamped_plate_problem(m, **options, force=force), tol=1e-11)
+        w_next = -np.asarray(ds["position"].values[0])[..., 2]
+        omega2 = scale * float(np.sum(weights * w * w_next)) / float(np.sum(weights * w_next ** 2))
+        out.append(float(np.sqrt(omega2 / D)) * options["a"] ** 2)
+        w = w_next
+    return out
+
+
+class ClampedPlateKL(StaticCase):
+    """Clamped square Kirchhoff plate under a uniform load (module docstring): a quarter with
+    symmetry supports, h/a = 0.01, m = 4·2^level + 1 nodes per side of the quarter (n = 8·2^level + 1
+    on the whole plate); the error is the larger of the relative centre deflection and centre
+    moment errors."""
+
+    name = "plate-clamped-kl"
+    medium = "kirchhoff-love"
+    description = ("Kirchhoff–Love plate, clamped square, uniform load, ν = 0.3 (a quarter with symmetry "
+                   "supports): centre deflection and moment")
+    reference = ("clamped square Kirchhoff plate, ν = 0.3: w_c = 0.00126532 qa⁴/D, M_c = 0.0229051 qa² (Taylor & "
+                 "Govindjee 2004; Timoshenko & Woinowsky-Krieger §44, Table 35: 0.00126, 0.0231)")
+    quantity = "centre deflection and centre bending moment of the equilibrium"
+    norm = "max(|w_c/w_ref − 1|, |M_c/M_ref − 1|)"
+    space_order = 2.0
+    levels = (0, 1, 2)
+    quick_levels = (0, 1)
+    tolerance = 1.5e-2
+    tolerance_reason = ("n = 8·2^level + 1 on the whole plate; the O(dx²) errors are, for w_c, 4.34e-2, 1.10e-2, "
+                        "2.76e-3, 6.92e-4 and, for M_c, 1.46e-2, 3.86e-3, 9.76e-4, 2.45e-4 at n = 9, 17, 33, 65 "
+                        "(measured; orders 1.98, 2.00, 2.00); the bound holds from n = 17 on")
+    thickness_ratio = 0.01
+
+    def problem(self, level: int, scheme: str = "lattice") -> tuple[Problem, dict[str, Any]]:
+        return clamped_plate_problem(4 * 2 ** level + 1, self.thickness_ratio), {"tol": 1e-10}
+
+    def solve(self, problem: Problem, settings: Mapping[str, Any]) -> xr.Dataset:
+        return cartan.solve_static(problem, **dict(settings))
+
+    def parts(self, ds: xr.Dataset, problem: Problem) -> dict[str, float]:
+        """Relative errors of the centre deflection and moment, and of the mid-edge moment (O(dx))."""
+        v = clamped_centre_values(ds, problem)
+        return {"deflection": abs(v["deflection"] / CLAMPED_DEFLECTION - 1.0),
+                "moment": abs(v["centre_moment"] / CLAMPED_CENTRE_MOMENT - 1.0),
+                "edge moment": abs(v["edge_moment"] / CLAMPED_EDGE_MOMENT - 1.0)}
+
+    def error(self, ds: xr.Dataset, problem: Problem) -> float:
+        parts = self.parts(ds, problem)
+        return max(parts["deflection"], parts["moment"])
+
+
+# ---------------------------------------------------------------------------- clamped annular plate
+def annulus_reference(r: np.ndarray, inner: float, outer: float) -> np.ndarray:
+    """w D/q ``[...]`` at the radii ``r`` of the annular Kirchhoff plate b ≤ r ≤ a clamped on both
+    edges under a uniform load q: w = r⁴/64 + c₁ + c₂r² + c₃ ln r + c₄r² ln r (the axisymmetric
+    solution of D∆∆w = q, Timoshenko & Woinowsky-Krieger §17), w = w' = 0 at r = b and r = a."""
+    if not (np.isfinite(inner) and np.isfinite(outer) and 0.0 < inner < outer):
+        raise ValueError(f"inner and outer must be radii with 0 < inner < outer, got {inner!r}, {outer!r}")
+    A, rhs = [], []
+    for x in (inner, outer):
+        A += [[1.0, x ** 2, np.log(x), x ** 2 * np.log(x)], [0.0, 2.0 * x, 1.0 / x, 2.0 * x * np.log(x) + x]]
+        rhs += [-x ** 4 / 64.0, -x ** 3 / 16.0]
+    c = np.linalg.solve(np.array(A), np.array(rhs))
+    r = np.asarray(r, dtype=float)
+    return r ** 4 / 64.0 + c[0] + c[1] * r ** 2 + c[2] * np.log(r) + c[3] * r ** 2 * np.log(r)
+
+
+def annulus_problem(nr: int, nphi: int, *, inner: float = 0.5, outer: float = 1.0, thickness: float = 0.01,
+                    poisson: float = 0.3) -> Problem:
+    """The annular plate inner ≤ r ≤ outer clamped on both edges under a uniform load, on the polar
+    chart (u, v) = (r − inner, φ), φ periodic (module docstring, "Clamped annular plate").
+
+    Parameters
+    ----------
+    nr : int
+        Nodes across the annulus (≥ 3).
+    nphi : int
+        Nodes around (≥ 3, odd: with an even number the edge constraints of the two clamped
+        circles are linearly dependent, which the statics' saddle-point solve does not handle).
+    inner, outer, thickness, poisson : float
+        b < a, h, ν.
+
+    Returns
+    -------
+    Problem
+        Named ``"plate-annulus-kl"``, the frames in the coordinate gauge (e₁ radial), stress-free
+        (its reference is its initial state: the rest strains of the polar chart); the load
+        q = 10⁻⁴hD/max(w D/q), so that max w = 10⁻⁴h.
+    """
+    if isinstance(nr, bool) or not isinstance(nr, (int, np.integer)) or nr < 3:
+        raise ValueError(f"nr must be an integer ≥ 3, got {nr!r}")
+    if isinstance(nphi, bool) or not isinstance(nphi, (int, np.integer)) or nphi < 3 or nphi % 2 == 0:
+        raise ValueError(f"nphi must be an odd integer ≥ 3, got {nphi!r}")
+    medium = cartan.medium("kirchhoff-love", E=1.0, poisson=poisson, thickness=thickness)
+    grid = cartan.Grid((int(nr), int(nphi)), length=(outer - inner, 2.0 * np.pi), periodic=(False, True))
+
+    def position(u: np.ndarray, v: np.ndarray) -> np.ndarray:
+        r = inner + u
+        return np.stack([r * np.cos(v), r * np.sin(v), np.zeros_like(u)], axis=-1)
+
+    init = medium.initial_state(grid, "surface", position=position)
+    peak = float(np.max(annulus_reference(inner + np.linspace(0.0, outer - inner, 201), inner, outer)))
+    q = 1e-4 * thickness * medium.bending_stiffness / peak
+    return Problem(medium, grid, init, {"u-start": cartan.Clamped(), "u-end": cartan.Clamped()},
+                   loads=[ConstantFieldPotential(np.array([0.0, 0.0, -q]), 1.0)], name="plate-annulus-kl",
+                   reference=init)
+
+
+def annulus_error(ds: xr.Dataset, problem: Problem) -> tuple[float, float]:
+    """(max over the nodes of |w − w_ref|/max w_ref, the largest spread of w around a circle over
+    max w_ref) of a static solution of :func:`annulus_problem`."""
+    inner = float(np.hypot(*np.asarray(problem.initial.Phi)[0, 0, 1:3, 0]))
+    outer = inner + problem.grid.length[0]
+    q = -float(problem.loads[0].field[2])
+    w = -np.asarray(ds["position"].values[0])[..., 2] * problem.medium.bending_stiffness / q
+    ref = annulus_reference(inner + problem.grid.coordinates(0), inner, outer)
+    scale = float(np.max(ref))
+    return float(np.max(np.abs(w - ref[:, None]))) / scale, float(np.max(np.ptp(w, axis=1))) / scale
+
+
+# ---------------------------------------------------------------------------- pressurised cylinder
+def cylinder_stretch(medium: Any, pressure: float, radius: float) -> float:
+    """λ = R'/R of a long Koiter cylinder of radius R (stress-free, length held) under an internal
+    pressure p (module docstring): the root of C·½(λ² − 1)λ + D(λ − 1)/R² = pRλ, C = Eh/(1 − ν²)."""
+    from scipy.optimize import brentq
+
+    C = medium.E * medium.h / (1.0 - medium.nu ** 2)
+    D = medium.bending_stiffness
+
+    def balance(lam: float) -> float:
+        return 0.5 * C * (lam ** 2 - 1.0) * lam + D * (lam - 1.0) / radius ** 2 - pressure * radius * lam
+
+    return float(brentq(balance, 0.2, 5.0, xtol=1e-15, rtol=1e-15))
+
+
+def pressurised_cylinder_problem(n: int, pressure: float = 0.01, *, radius: float = 1.0, thickness: float = 0.01,
+                                 poisson: float = 0.3, nv: int = 3) -> tuple[Problem, dict[Any, tuple[int, ...]]]:
+    """A long cylinder (periodic around and along, the length held by the axial holonomy), its
+    stress-free reference the initial cylinder, under the follower ``"pressure"`` p = pressure·Eh/R.
+
+    Parameters
+    ----------
+    n : int
+        Nodes around (≥ 4, a multiple of 4).
+    pressure : float
+        pR/(Eh) (finite).
+    radius, thickness, poisson : float
+        R, h, ν (E = 1).
+    nv : int
+        Nodes along the axis (square cells).
+
+    Returns
+    -------
+    (Problem, dict)
+        The problem (``"cylinder-pressure-kl"``) and the ``pins`` of :func:`cartan.solve_static`
+        that remove the rigid motions without restraining the expansion: x, y and the rotation
+        about the axis at node (0, 0), z at node (n/4, 0).
+    """
+    if isinstance(n, bool) or not isinstance(n, (int, np.integer)) or n < 4 or n % 4:
+        raise ValueError(f"n must be a multiple of 4, ≥ 4, got {n!r}")
+    if not np.isfinite(pressure):
+        raise ValueError(f"pressure must be finite, got {pressure!r}")
+    medium = cartan.medium("kirchhoff-love", E=1.0, poisson=poisson, thickness=thickness)
+    grid = cartan.Grid((int(n), int(nv)), length=(2.0 * np.pi * radius, nv * 2.0 * np.pi * radius / n),
+                       periodic=(True, True))
+    init = medium.initial_state(grid, "cylinder", radius=radius)
+    load = medium.make_load("pressure", pressure=float(pressure) * thickness / radius)
+    pins = {0: (0, 1, 4), (int(n) // 4) * int(nv): (2,)}
+    return Problem(medium, grid, init, loads=[load], name="cylinder-pressure-kl", reference=init), pins
+
+
+# ---------------------------------------------------------------------------- rectangular Navier plate
+def navier_series(a: float, b: float, poisson: float = 0.3, terms: int = 2001) -> dict[str, float]:
+    """Navier's double sine series of the simply supported a × b Kirchhoff plate at its centre
+    (Timoshenko & Woinowsky-Krieger §28–§30), summed over the odd m, n ≤ ``terms``:
+
+    ``deflection`` w_c D/q, ``moment_uu`` M_x/q, ``moment_vv`` M_y/q under a uniform load q, and
+    ``point`` w_c D/P under a central point force P (Σ 1/k⁴-type tails: relative truncation
+    ≲ 1e-6 at 2001 terms)."""
+    if not (np.isfinite(a) and a > 0.0 and np.isfinite(b) and b > 0.0):
+        raise ValueError(f"a and b must be finite numbers > 0, got {a!r}, {b!r}")
+    if isinstance(terms, bool) or not isinstance(terms, (int, np.integer)) or terms < 1:
+        raise ValueError(f"terms must be an integer ≥ 1, got {terms!r}")
+    m = np.arange(1, terms + 1, 2, dtype=float)[:, None]
+    n = np.arange(1, terms + 1, 2, dtype=float)[None, :]
+    s = np.sin(0.5 * np.pi * m) * np.sin(0.5 * np.pi * n)
+    den = ((m / a) ** 2 + (n / b) ** 2) ** 2
+    return {"deflection": float(16.0 / np.pi ** 6 * np.sum(s / (m * n * den))),
+            "moment_uu": float(16.0 / np.pi ** 4 * np.sum(s * ((m / a) ** 2 + poisson * (n / b) ** 2) / (m * n * den))),
+            "moment_vv": float(16.0 / np.pi ** 4 * np.sum(s * (poisson * (m / a) ** 2 + (n / b) ** 2) / (m * n * den))),
+            "point": float(4.0 / (np.pi ** 4 * a * b) * np.sum(s ** 2 / den))}
+
+
+def rectangular_navier_problem(n: int, aspect: float = 2.0, thickness_ratio: float = 0.01, *, point: bool = False,
+                               penalty: float = 1e6, poisson: float = 0.3) -> Problem:
+    """The simply supported a × b plate (b = 1 along v, a = aspect·b along u; ``aspect`` an integer
+    so that the cells are square) with the hard penalty supports of :func:`kirchhoff_navier_problem`.
+
+    Parameters
+    ----------
+    n : int
+        Nodes along the short side (odd, ≥ 3); (n − 1)·aspect + 1 along the long one.
+    aspect : float
+        a/b, a positive integer.
+    thickness_ratio : float
+        h/b.
+    point : bool
+        A central point force P (one node's force density P/Δ²) instead of a uniform load q.
+    penalty : float
+        Support stiffness relative to the plate's at the grid scale.
+    poisson : float
+        ν.
+
+    Returns
+    -------
+    Problem
+        Named ``"plate-navier-rect-kl"``; ``loads[0]`` the load, of size q = 10⁻²hD (or P = 10⁻²hD):
+        w_c ≲ 10⁻⁴h, the linear range.
+    """
+    if isinstance(n, bool) or not isinstance(n, (int, np.integer)) or n < 3 or n % 2 == 0:
+        raise ValueError(f"n must be an odd integer ≥ 3, got {n!r}")
+    if not (np.isfinite(aspect) and aspect >= 1.0 and float(aspect).is_integer()):
+        raise ValueError(f"aspect must be an integer ≥ 1, got {aspect!r}")
+    h = float(thickness_ratio)
+    medium = cartan.medium("kirchhoff-love", E=1.0, poisson=poisson, thickness=h)
+    D = medium.bending_stiffness
+    nu_ = int(aspect) * (n - 1) + 1
+    grid = cartan.Grid((nu_, n), length=(float(aspect), 1.0))
+    init = medium.initial_state(grid, "flat")
+    dx = 1.0 / (n - 1)
+    size = 1e-2 * h * D
+    if point:
+        density = np.zeros((nu_, n, 3))
+        density[nu_ // 2, n // 2, 2] = -size / dx ** 2
+        load: Any = NodeForceDensity(density)
+    else:
+        load = ConstantFieldPotential(np.array([0.0, 0.0, -size]), 1.0)
+    support = PenaltySupport(position_stiffness=penalty * np.array([h, h, D / dx ** 2]) / dx ** 2,
+                             director_stiffness=penalty * D / dx ** 2).hold(init.Phi)
+    return Problem(medium, grid, init, loads=[load, support], name="plate-navier-rect-kl")
+
+
+# ---------------------------------------------------------------------------- strip rolled up by an end moment
+def koiter_arc(medium: Any, moment: float) -> tuple[float, float]:
+    """(λ, p) of a ν = 0 strip under a pure end moment per unit width ``moment`` in Koiter's
+    energy (module docstring): the uniform stretch λ and rotation rate p = π_u,2 solving
+    ½Eh(λ² − 1)λ + Dλp² = 0 and Dλ²p = moment; the strip is a circular arc of radius λ/p."""
+    from scipy.optimize import brentq
+
+    E, h, D = medium.E, medium.h, medium.bending_stiffness
+
+    def stretch(lam: float) -> float:
+        p = moment / (D * lam ** 2)
+        return 0.5 * E * h * (lam ** 2 - 1.0) * lam + D * lam * p ** 2
+
+    lam = 1.0 if moment == 0.0 else float(brentq(stretch, 0.5, 1.0, xtol=1e-15, rtol=1e-15))
+    return lam, moment / (D * lam ** 2)
+
+
+def rolled_strip_problem(n: int, turns: float = 1.0, *, length: float = 1.0, width: float = 0.1,
+                         thickness: float = 0.01, nv: int = 3) -> Problem:
+    """A ν = 0 plate strip clamped along u = 0, loaded along u = L by the dead end moment per unit
+    width M = turns·2πD/L about y (:class:`cartan.Free`), which rolls it into ``turns`` of a circle
+    (module docstring, "Strip rolled up by an end moment").
+
+    Parameters
+    ----------
+    n : int
+        Nodes along the length (≥ 3).
+    turns : float
+        ML/(2πD) (finite).
+    length, width, thickness : float
+        L, b, h (> 0).
+    nv : int
+        Nodes across (≥ 2).
+
+    Returns
+    -------
+    Problem
+        Named ``"plate-rolled-strip-kl"``.
+    """
+    if isinstance(n, bool) or not isinstance(n, (int, np.integer)) or n < 3:
+        raise ValueError(f"n must be an integer ≥ 3, got {n!r}")
+    if not np.isfinite(turns):
+        raise ValueError(f"turns must be finite, got {turns!r}")
+    medium = cartan.medium("kirchhoff-love", E=1.0, poisson=0.0, thickness=thickness)
+    moment = float(turns) * 2.0 * np.pi * medium.bending_stiffness / length
+    grid = cartan.Grid((int(n), int(nv)), length=(length, width))
+    bounds = {"u-start": cartan.Clamped(), "u-end": cartan.Free(load=[0.0, 0.0, 0.0, 0.0, moment, 0.0])}
+    return Problem(medium, grid, medium.initial_state(grid, "flat"), bounds, name="plate-rolled-strip-kl")
+
+
+def rolled_strip_error(ds: xr.Dataset, problem: Problem, inextensible: bool = False) -> float:
+    """max over the nodes of |x − x_arc|/L, x_arc(u) = (R sin(pu), y, −R(1 − cos(pu))) the arc of
+    :func:`koiter_arc` (R = λ/p), or with ``inextensible`` the elastica's λ = 1, p = M/D."""
+    medium = problem.medium
+    moment = float(problem.boundaries["u-end"].load[4])
+    lam, p = (1.0, moment / medium.bending_stiffness) if inextensible else koiter_arc(medium, moment)
+    u = problem.grid.coordinates(0)[:, None]
+    pos = np.asarray(ds["position"].values[0])
+    dx = pos[..., 0] - lam / p * np.sin(p * u)
+    dz = pos[..., 2] + lam / p * (1.0 - np.cos(p * u))
+    return float(np.max(np.hypot(dx, dz))) / problem.grid.length[0]
+
+
+# ---------------------------------------------------------------------------- Helfrich sphere
+def helfrich_sphere_energy(n: int, radius: float = 1.0, **params: Any) -> tuple[float, float]:
+    """(E_h, E) of a sphere of radius R of ``helfrich-membrane`` at rest on 2n × n nodes of the
+    sphere's chart: the lattice energy and E = ½κ_b(2/R − c₀)²·4πR² + 4πκ_G + σ·4πR²."""
+    from cartan.schemes.lattice import Lattice
+
+    if isinstance(n, bool) or not isinstance(n, (int, np.integer)) or n < 4:
+        raise ValueError(f"n must be an integer ≥ 4, got {n!r}")
+    medium = cartan.medium("helfrich-membrane", **params)
+    grid = cartan.Grid((2 * int(n), int(n)), (2.0 * np.pi, np.pi), periodic=(True, False), glued=(None, 0))
+    problem = Problem(medium, grid, medium.initial_state(grid, "sphere", radius=radius), name="helfrich-sphere")
+    scheme = Lattice(problem)
+    area = 4.0 * np.pi * radius ** 2
+    exact = 0.5 * medium.kb * (2.0 / radius - medium.c0) ** 2 * area + 4.0 * np.pi * medium.kg + medium.sigma * area
+    return float(scheme.potential_energy(scheme.initial_state())), float(exact)
+
+
 #: the registered cases
-CASES = [NavierPlateKL(), PlateColumnBucklingKL(), HelfrichCylinderEnergy(), HelfrichTube(), PlateFlexuralWaveKL()]
+CASES = [NavierPlateKL(), PlateColumnBucklingKL(), HelfrichCylinderEnergy(), HelfrichTube(), PlateFlexuralWaveKL(),
+         ClampedPlateKL()]
 
 
 def all_cases() -> list[Case]:
