@@ -44,6 +44,8 @@ SLOW_ALL_LEVELS = {"rod-euler-buckling", "rod-cantilever-elastica", "plate-buckl
                    "plate-buckling-wide-column", "plate-navier-thick", "plate-navier-thin", "solid-uniaxial-stress",
                    "plate-buckling-column-kl", "shell-scordelis-lo", "shell-pinched-cylinder", "solid-cylinder-torsion",
                    "relativistic-newtonian-limit", "shell-sphere-breathing",
+                   # about 75 continuation steps per level (the twist-buckling path, 7-13 s a run)
+                   "filament-greenhill",
                    # Willmore flows of 10-16 steps to the Clifford torus, nv = 12 … 96 (15-70 s each)
                    "willmore-clifford-torus"}
 #: cases whose every level runs in their own test file already (tests/test_kirchhoff_love_modes.py,
