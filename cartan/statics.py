@@ -89,9 +89,9 @@ from typing import Any
 
 import numpy as np
 
-from ._scatter import scatter_add
 from .constraints import HeldFunctional, StrainConstraints
 from .problem import InitialState, Problem, dead_to_body
+from .scatter import scatter_add
 
 __all__ = ["ConvergenceError", "solve_static"]
 

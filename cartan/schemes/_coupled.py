@@ -33,7 +33,7 @@ from typing import Any
 
 import numpy as np
 
-from .._scatter import scatter_add
+from ..scatter import scatter_add
 from ..state import State
 
 __all__ = ["coupled_stress", "coupled_velocity", "hamiltonian", "initial_momentum", "kinetic_part"]

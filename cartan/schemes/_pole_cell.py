@@ -29,7 +29,7 @@ from typing import Any
 
 import numpy as np
 
-from .._scatter import scatter_add
+from ..scatter import scatter_add
 
 #: the lattice's pole treatments of a glued chart (``Lattice(problem, pole=...)``)
 POLES = ("corners", "cap")

@@ -87,8 +87,8 @@ from typing import Any
 
 import numpy as np
 
-from .._scatter import scatter_add
 from ..problem import Free, axis_glues, axis_holonomies, dead_to_body, held_components
+from ..scatter import scatter_add
 from .base import Scheme, State, prefix_products
 
 __all__ = ["Lattice"]

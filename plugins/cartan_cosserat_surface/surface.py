@@ -61,6 +61,7 @@ import cartan
 from cartan.grid import Grid
 from cartan.medium import KernelMedium, MediumKernels, check_finite, check_positive
 from cartan.problem import ConstantFieldPotential, InitialState, Load, PotentialLoad, UniformForce, axis_holonomies
+from cartan.scatter import scatter_add
 from cartan.supports import PenaltySupport, SymmetrySupport  # the core's face supports, d = 2 by default
 
 __all__ = ["CosseratSurface", "NodeSprings", "PenaltySupport", "Pressure", "SurfaceGravity", "SymmetrySupport",
@@ -559,18 +560,18 @@ class VolumePressure(Load):
         v = np.bincount(node, weights=w3 * np.einsum("ci,ci->c", rc, area), minlength=n)
         G = np.zeros((n, 6))
         ci = np.zeros((n, 3))
-        np.add.at(ci, node, w3[:, None] * area)
+        scatter_add(ci, node, w3[:, None] * area)
         if translation:
             G[:, :3] += ci
         G[:, 3:] += np.cross(ci, rho)
         S = (w3[:, None] * np.cross(tv, rc), w3[:, None] * np.cross(rc, tu))      # ∂F/∂θ_u, ∂F/∂θ_v
         for a, xi in enumerate(xis):
             Qe = np.zeros_like(xi)
-            np.add.at(Qe[:, :3], c["edge"][:, a], S[a] / h[a])
+            scatter_add(Qe[:, :3], c["edge"][:, a], S[a] / h[a])
             out = L.from_ghosts(np.einsum("...ji,...j->...i", g.dexp_inv(xi), Qe), c["ghost_tail"][a], a)
             inc = L.from_ghosts(np.einsum("...ji,...j->...i", g.dexp_inv(-xi), Qe), c["ghost_head"][a], a)
-            np.add.at(G, c["tail"][a], -out)
-            np.add.at(G, c["head"][a], inc)
+            scatter_add(G, c["tail"][a], -out)
+            scatter_add(G, c["head"][a], inc)
         return v, G, ci
 
     def _gradient(self, Phi: np.ndarray, center: np.ndarray | None = None,
