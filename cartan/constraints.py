@@ -40,7 +40,7 @@ from typing import Any
 
 import numpy as np
 
-from ._scatter import scatter_add
+from .scatter import scatter_add
 
 __all__ = ["HeldFunctional", "StrainConstraints"]
 
@@ -123,7 +123,10 @@ class StrainConstraints:
     scheme : Lattice
         The lattice (its ``edge_strains``, ``edge_nodes``, ``_key`` and ``h``).
     unknown : array of bool ``[*shape, r]``
-        The node components that move (live, not clamped).
+        The node components that move (live, not clamped, not held by a
+        :class:`~cartan.problem.Held` end or a :class:`~cartan.problem.Symmetry` face: a partly
+        held node keeps its free components as unknowns, its held ones are fixed like a
+        clamped node's).
     state : State
         A state of the lattice at which the medium's stress is probed (see
         :meth:`check_stress`).
@@ -337,10 +340,10 @@ class StrainConstraints:
         return sp.csr_matrix((vals[order], indices, indptr), shape=(self.ncon, self.nunk))
 
     def fixed_rate(self, state: Any, N: np.ndarray) -> np.ndarray:
-        """``(ncon,)``: the rows' rate from the velocity ``N`` ``[*shape, r]`` of the nodes that
-        are not unknowns (a :class:`~cartan.problem.Driven` end's ξ; N is read at those nodes
-        only), the columns :meth:`matrix` leaves out: ``B_c N_full = matrix·N[unknown] +
-        fixed_rate(N)``."""
+        """``(ncon,)``: the rows' rate from the velocity ``N`` ``[*shape, r]`` of the node
+        components that are not unknowns (a :class:`~cartan.problem.Driven` end's ξ; zero on
+        clamped nodes and held components; N is read there only), the columns :meth:`matrix`
+        leaves out: ``B_c N_full = matrix·N[unknown] + fixed_rate(N)``."""
         g, sch = self.g, self.sch
         Nf = np.asarray(N, dtype=float).reshape(-1, self.r_dim)
         fixed = np.where(self.index < 0, Nf, 0.0)
@@ -358,8 +361,9 @@ class StrainConstraints:
 
     def fixed_force(self, state: Any, nu: np.ndarray) -> np.ndarray:
         """``[nnode, r]``: the nodal force ``B_cᵀν`` of the multipliers ``nu`` ``(ncon,)`` on the
-        nodes that are not unknowns (zero on the unknowns; the transpose of :meth:`fixed_rate`):
-        the constraint force a :class:`~cartan.problem.Driven` end's support balances."""
+        node components that are not unknowns (zero on the unknowns; the transpose of
+        :meth:`fixed_rate`): the constraint force the supports balance (clamped and
+        :class:`~cartan.problem.Driven` nodes, held components)."""
         g, sch = self.g, self.sch
         out = np.zeros(self.index.shape)
         start = 0

@@ -34,7 +34,12 @@ only when every datum is provably planar, compared exactly (no tolerance):
 * the boundaries (``Clamped``, ``Free`` with an end load without out-of-plane components,
   ``Driven`` with a velocity ξ without out-of-plane components — in-plane translation, rotation
   about the normal —, whose SE(2) velocity is ``ξ[(0, 1, 5)]``: the end's frame
-  Φ(0)·exp(tξ) then stays in the embedded SE(2), and exp commutes with the embedding);
+  Φ(0)·exp(tξ) then stays in the embedded SE(2), and exp commutes with the embedding;
+  ``Held`` with any components: its held in-plane components (V₁, V₂, Ω₃) are held as the
+  SE(2) components (0, 1, 2), its out-of-plane ones are zero in a planar motion anyway, so an
+  end holding only (V₃, Ω₁, Ω₂) is ``Free`` in the plane; a pinned end ``Held((0, 1, 2))`` is
+  ``Held((0, 1))``, and ``Held((0, 1, 2, 3, 4))`` too: the free set of a valid SE(3) end, a
+  subalgebra, meets se(2) in a subalgebra, so the SE(2) end is valid);
 * the loads: the core's ``Damping`` (any coefficients), ``UniformForce`` (body or spatial,
   without out-of-plane components) and constant fields (``ConstantFieldPotential`` and
   subclasses that change none of its physics, such as gravity; field with z = 0).
@@ -71,6 +76,7 @@ from .problem import (
     Damping,
     Driven,
     Free,
+    Held,
     InitialState,
     Load,
     PotentialLoad,
@@ -267,6 +273,13 @@ def _planar_boundary(b: Any) -> Any:
                 "leaves the plane"
             )
         return Driven(velocity=xi[_IN].copy())
+    if type(b) is Held:  # the held in-plane components (V₁, V₂, Ω₃) are the SE(2) ones (0, 1, 2)
+        comps = [k for k in b.components if not 0 <= k < 6]
+        if comps:
+            return f"its held components {list(b.components)} are not SE(3) components (0 … 5)"
+        kept = [IN_PLANE.index(k) for k in b.components if k in IN_PLANE]
+        # a planar motion has V₃ = Ω₁ = Ω₂ = 0: an end holding only those is free in the plane
+        return Held(components=tuple(kept)) if kept else Free()
     return f"{type(b).__name__} ends are not mapped to SE(2)"
 
 

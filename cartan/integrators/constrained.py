@@ -58,6 +58,17 @@ work with the scheme's; the first step from rest books the kinetic energy the ve
 projection gives the free nodes as the support's impulsive work.  Such problems run the Python
 step (the operator set declines them).
 
+Held components (:class:`~cartan.problem.Held` ends, :class:`~cartan.problem.Symmetry` faces:
+the scheme's clamp mask ``[*shape, r]``): their velocity and momentum are zeroed after every kick
+as lie-verlet's (``scheme.constrain``), and the node moves in the free components' subalgebra.
+The rows take them as fixed, as a clamped node's: the unknowns are the free live components of
+each node (``P`` and the quasi-Newton matrix are per-node blocks restricted to them; the
+problem checks that the kinetic metric does not couple held and free components), an edge
+between two wholly held nodes has no row, and the held columns add nothing to ``B_c N`` (their
+velocity is zero).  :meth:`Rattle.support_reaction` gives the reaction on every held component,
+the constraint force on it included.  Such problems run the Python step (the compiled loop
+holds whole clamped nodes only: :meth:`Rattle.compiled_reason`).
+
 Runs on the ``lattice`` scheme (whose edges carry the exact strains); a medium without
 constrained strains gets lie-verlet's steps unchanged.  On an open chain of nodes (d = 1, not
 periodic) whose operator set compiles (group and medium point kernels, the loads of the
@@ -258,16 +269,43 @@ class Rattle(LieVerlet):
                              "(e.g. an arc) or free one end") from None
 
     def support_reaction(self, scheme: Scheme, state: State) -> np.ndarray:
-        """The supports' reaction ``[*shape, r]`` on the clamped and driven nodes (zero
-        elsewhere): the scheme's (:meth:`~cartan.schemes.base.Scheme.support_reaction`) minus
-        the constraint force ``B_cᵀλ`` on them (λ the force-level multipliers at ``state``: the
-        rows' tension and shear on the edges that end there), which the support balances too."""
-        R = scheme.support_reaction(state)
+        """The supports' reaction ``[*shape, r]`` on the held components: every component of the
+        clamped and driven nodes, the held components of :class:`~cartan.problem.Held` ends and
+        :class:`~cartan.problem.Symmetry` faces (zero elsewhere).
+
+        On a held component k of node i the momentum stays zero, so its balance
+        ``w Ṡ = w(ad_NᵀS + W) + B_cᵀλ + R`` gives ``R_k = −w(W + ad_NᵀS)_k − (B_cᵀλ)_k``: the
+        scheme's reaction (:meth:`~cartan.schemes.base.Scheme.support_reaction`, the force of the
+        rest of the body and the loads, W before it is zeroed there) minus the constraint force
+        ``B_cᵀλ`` (λ the force-level multipliers at ``state``: the rows' tension and shear on the
+        edges that end there), which the support balances too.
+
+        Parameters
+        ----------
+        scheme : Lattice
+        state : State
+
+        Returns
+        -------
+        numpy.ndarray ``[*shape, r]``
+        """
+        from .explicit import _adT
+
+        mask = scheme._clamped
+        if mask.ndim == scheme.grid.d:  # whole nodes held: the scheme's reaction
+            R = scheme.support_reaction(state)
+            mask = np.broadcast_to(mask[..., None], R.shape)
+        else:  # held components: the balance of each, as the scheme's on whole nodes
+            N = scheme.velocity(state)
+            W = scheme.force(state, N, state.t, raw=True)
+            R = -scheme.weights[..., None] * (W + _adT(scheme.group, N, state.S))
+            R[~mask] = 0.0
+        mask = mask & scheme.live
+        R[..., ~scheme.live] = 0.0
         got = self._multipliers(scheme, state)
         if got is not None:
             lam, (con, _, _, _) = got
-            held = scheme.held_nodes()
-            R[held] -= con.fixed_force(state, lam).reshape(R.shape)[held]
+            R[mask] -= con.fixed_force(state, lam).reshape(R.shape)[mask]
         return R
 
     def _powers(self, scheme: Scheme, state: State) -> dict[str, float]:
@@ -414,41 +452,55 @@ class Rattle(LieVerlet):
 
     def _metric(self, scheme: Scheme, nodes: np.ndarray, unknown: np.ndarray, closing: np.ndarray | None):
         """``P`` ``(nunk, nunk)`` (CSR): N on the unknowns of a nodal impulse I on them is ``P I``,
-        blocks ``(M⁺·closing)[live, live]/w_i`` (closing the damped kick's matrix, or I)."""
-        import scipy.sparse as sp
-
+        blocks ``(M⁺·closing)[u_i, u_i]/w_i`` (closing the damped kick's matrix, or I; u_i the
+        node's unknown components: its live ones, less those a :class:`~cartan.problem.Held` end
+        or a :class:`~cartan.problem.Symmetry` face holds, whose metric does not couple them with
+        the others, checked by the problem)."""
         key = (id(scheme), None if closing is None else closing.tobytes())
         cache = self._metrics
         if key in cache:
             return cache[key]
         if len(cache) > 4:
             cache.clear()
-        live = scheme.live
         A = scheme.inverse_metric if closing is None else scheme.inverse_metric @ closing
-        block = A[np.ix_(live, live)]
         w = scheme.weights.reshape(-1)[nodes]
-        P = sp.kron(sp.diags(1.0 / w), sp.csr_matrix(block), format="csr")
-        if P.shape[0] != int(unknown.sum()):  # (every moving node has the live components unknown)
-            raise AssertionError("rattle: the unknowns are not the live components of the free nodes")
+        P = self._node_blocks(nodes, unknown, np.broadcast_to(A, (nodes.size, *A.shape)) / w[:, None, None])
         cache[key] = P
         return P
 
-    def _flow_jacobian(self, scheme: Scheme, state: State, dt: float, held: tuple):
-        """``(nunk, nunk)`` (BSR): the drift at Φₙ₊₁ of a change of the impulse on the unknowns,
-        ``dexp(−ΔtN_i)·Δt·M⁺/w_i`` per node (exp(Δt(N + δN)) = exp(ΔtN) exp(dexp(−ΔtN)ΔtδN);
-        N the trial's velocity, exact for the unsplit flow, to O(Δt²|N|²) for lie-verlet's)."""
+    @staticmethod
+    def _node_blocks(nodes: np.ndarray, unknown: np.ndarray, blocks: np.ndarray):
+        """The block-diagonal ``(nunk, nunk)`` (CSR) of the per-node ``blocks`` ``[nb, r, r]``
+        restricted to each node's unknown components (rows and columns in the order of
+        ``N[unknown]``)."""
         import scipy.sparse as sp
 
+        r = unknown.shape[-1]
+        flat = unknown.reshape(-1, r)
+        index = -np.ones(flat.shape, dtype=np.int64)
+        index[flat] = np.arange(int(flat.sum()))
+        idx = index[nodes]  # [nb, r]
+        ok = (idx[:, :, None] >= 0) & (idx[:, None, :] >= 0)
+        rows = np.broadcast_to(idx[:, :, None], ok.shape)[ok]
+        cols = np.broadcast_to(idx[:, None, :], ok.shape)[ok]
+        nunk = int(flat.sum())
+        return sp.csr_matrix((blocks[ok], (rows, cols)), shape=(nunk, nunk))
+
+    def _flow_jacobian(self, scheme: Scheme, state: State, dt: float, held: tuple):
+        """``(nunk, nunk)`` (CSR): the drift at Φₙ₊₁ of a change of the impulse on the unknowns,
+        ``dexp(−ΔtN_i)·Δt·M⁺/w_i`` per node on its unknown components (exp(Δt(N + δN)) =
+        exp(ΔtN) exp(dexp(−ΔtN)ΔtδN); N the trial's velocity, exact for the unsplit flow, to
+        O(Δt²|N|²) for lie-verlet's; at a node with held components N and δN lie in the free
+        components' subalgebra, which dexp(−ΔtN) maps onto itself)."""
         _, unknown, nodes, _ = held
-        live = scheme.live
         r = scheme.group.dim
         N = scheme.velocity(state).reshape(-1, r)[nodes]
-        E = scheme.group.dexp(-dt * N)[:, live][:, :, live]  # [nb, l, l]
-        A = scheme.inverse_metric[np.ix_(live, live)]
+        E = scheme.group.dexp(-dt * N)  # [nb, r, r]
         w = scheme.weights.reshape(-1)[nodes]
-        blocks = dt * np.einsum("nij,jk->nik", E, A) / w[:, None, None]
-        nb, nl = blocks.shape[0], int(live.sum())
-        return sp.bsr_matrix((blocks, np.arange(nb), np.arange(nb + 1)), shape=(nb * nl, nb * nl)).tocsr()
+        u = unknown.reshape(-1, r)[nodes]  # [nb, r]: δN lives on the node's unknowns
+        A = np.where(u[:, :, None] & u[:, None, :], scheme.inverse_metric, 0.0)
+        blocks = dt * np.einsum("nij,njk->nik", E, A) / w[:, None, None]
+        return self._node_blocks(nodes, unknown, blocks)
 
     def _impulse(self, unknown: np.ndarray, weights: np.ndarray, vec: np.ndarray) -> np.ndarray:
         """The force density ``[*shape, r]`` of the nodal impulse ``vec`` on the unknowns."""
