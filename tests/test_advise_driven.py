@@ -27,7 +27,9 @@ PLANAR_XI = [0.1, 0.2, 0.0, 0.0, 0.0, 0.5]
 #: the stiff swing of ``examples/`` (EA = GA = 1e6 B/L², n = 11)
 STIFF_SWING = pathlib.Path(__file__).resolve().parents[1] / "examples" / "stiff-rod-swing.toml"
 #: a short run on the numpy path (driven ends are stepped there): 200 steps, 5 frames
-RUN = {"dt": 1e-4, "t_end": 0.02, "save_every": 50, "progress": False, "integrator": "rkmk4"}
+#: the numpy path: the compiled driven loops (checked against it in tests/test_driven_compiled.py) compile
+#: for ≈ 45 s each on an empty cache
+RUN = {"dt": 1e-4, "t_end": 0.02, "save_every": 50, "progress": False, "integrator": "rkmk4", "compiled": False}
 
 
 def driven_rod(xi, *, n: int = 21) -> cartan.Problem:
@@ -83,7 +85,7 @@ def test_out_of_plane_driven_end_is_not_reduced(component, monkeypatch):
     assert reason is not None and "boundary 'start'" in reason and "driven velocity" in reason
     if component == 3:  # a twist about the tangent (lie-verlet moves it exactly): the run is the full one
         monkeypatch.setattr(reduction, "reduction_pays", lambda run: True)
-        ds = cartan.simulate(p, dt=1e-4, t_end=2e-3, save_every=10, progress=False)
+        ds = cartan.simulate(p, dt=1e-4, t_end=2e-3, save_every=10, progress=False, compiled=False)
         assert "cartan_reduction" not in ds.attrs
         assert float(np.max(np.abs(ds.frame.values[-1, 0, 2, :2]))) > 0.0  # e₃ left +z
 
@@ -117,6 +119,7 @@ def test_twin_carries_a_driven_end():
     assert planar_reduction(driven_rod(PLANAR_XI)).kind == PLANAR
 
 
+@pytest.mark.slow  # (the check runs both models compiled: 27 s warm, the driven loops compile on a fresh cache)
 def test_dynamic_check_runs_the_twin_with_the_driven_end():
     """The stiff swing with its clamp turning about e₃: the filament (rattle) runs with the driven
     end, both timed runs save the scene's output (``save_every`` = 1000 rod steps: the initial and

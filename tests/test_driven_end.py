@@ -4,6 +4,8 @@ The end's frame is Φ(0)·exp(tξ) to round-off; a twist driven at rate ω into 
 stiffness C and polar inertia J sends a torsional wave whose torque at the end is the impedance
 √(CJ)·ω (c = √(C/J)); the reaction's work (``external_work``) closes the energy balance to the
 integrator's order; the integrators and schemes that cannot move the end exactly refuse it.
+The runs here take the numpy path (``compiled=False``): the compiled driven loops are checked
+against it in tests/test_driven_compiled.py (slow: each compiles on first use).
 """
 
 from __future__ import annotations
@@ -59,7 +61,8 @@ def test_the_driven_end_moves_by_exp_t_xi(integrator, xi):
     moves it by exp(Δtξ) (lie-verlet: ξ in one commuting block of its free flow).  200 steps, 20
     edge products to rebuild the end frame: round-off ≲ 200·20·ε·|ξ|t ≈ 1e-12."""
     problem = _problem(xi)
-    ds = cartan.simulate(problem, integrator=integrator, dt=2e-3, t_end=0.4, save_every=20, progress=False)
+    ds = cartan.simulate(problem, integrator=integrator, dt=2e-3, t_end=0.4, save_every=20, progress=False,
+                         compiled=False)
     t = ds.time.values
     exact = _exact_end(problem, xi, t)
     assert np.max(np.abs(ds.frame.values[:, -1] - exact[:, 1:, 1:])) < 1e-12
@@ -78,7 +81,8 @@ def test_a_surface_edge_turns_about_its_own_line():
     xi = np.array([0.0, 0.0, 0.0, 0.0, 0.5, 0.0])
     problem = cartan.Problem(shell, grid, shell.initial_state(grid, "flat"),
                              {"u-start": cartan.Clamped(), "u-end": cartan.Driven(velocity=xi)})
-    ds = cartan.simulate(problem, integrator="lie-verlet", dt=2e-3, t_end=0.4, save_every=50, progress=False)
+    ds = cartan.simulate(problem, integrator="lie-verlet", dt=2e-3, t_end=0.4, save_every=50, progress=False,
+                         compiled=False)
     t = ds.time.values
     exact = np.einsum("vij,tjk->tvik", problem.initial.Phi[-1], shell.group.exp(t[:, None] * xi))
     assert np.max(np.abs(ds.frame.values[:, -1] - exact[:, :, 1:, 1:])) < 1e-12
@@ -117,7 +121,7 @@ def test_the_reaction_closes_the_energy_balance_to_second_order():
         gravity = _rod().make_load("gravity", g=[0.0, 0.0, -2.0])
         problem = _problem([0.0, 0.0, 0.0, 2.0, 0.0, 0.0], loads=[gravity])
         ds = cartan.simulate(problem, integrator="lie-verlet", dt=dt, t_end=0.8, save_every=int(round(0.1 / dt)),
-                             progress=False)
+                             progress=False, compiled=False)
         E = ds.kinetic_energy.values + ds.potential_energy.values + ds.dissipated_energy.values
         W = ds.external_work.values
         assert W[-1] > 0.1  # the end does work
@@ -134,10 +138,10 @@ def test_restart_is_bit_for_bit(tmp_path):
 def assert_restart_is_exact(problem, tmp_path, integrator: str, dt: float, t_end: float) -> None:
     """The run to ``t_end`` and the run to ``t_end/2`` continued from its checkpoint give the same
     positions, frames, momenta, strains, kinetic energy and external work, bit for bit."""
-    kw = dict(integrator=integrator, dt=dt, save_every=5, checkpoint_every=1, progress=False)
+    kw = dict(integrator=integrator, dt=dt, save_every=5, checkpoint_every=1, progress=False, compiled=False)
     whole = cartan.simulate(problem, t_end=t_end, output=tmp_path / "whole.nc", **kw)
     cartan.simulate(problem, t_end=t_end / 2, output=tmp_path / "part.nc", **kw)
-    cont = cartan.simulate(problem, restart=tmp_path / "part.nc", t_end=t_end, progress=False)
+    cont = cartan.simulate(problem, restart=tmp_path / "part.nc", t_end=t_end, progress=False, compiled=False)
     for name in ("position", "frame", "S", "X", "kinetic_energy", "external_work"):
         assert np.array_equal(whole[name].values, cont[name].values), name
 
@@ -154,7 +158,7 @@ def test_lie_verlet_refuses_a_velocity_across_its_split_free_flow():
     """A screw (translation and rotation about different axes) lies across lie-verlet's commuting
     blocks: the split flow would move the end by a product of exponentials, not exp(Δtξ)."""
     with pytest.raises(ValueError, match="integrator 'lie-verlet' does not take Driven ends: the driven velocity"):
-        cartan.simulate(_problem(SCREW), integrator="lie-verlet", dt=1e-3, t_end=2e-3, progress=False)
+        cartan.simulate(_problem(SCREW), integrator="lie-verlet", dt=1e-3, t_end=2e-3, progress=False, compiled=False)
 
 
 def test_the_compiled_paths_decline_and_collocation_refuses():
@@ -162,7 +166,7 @@ def test_the_compiled_paths_decline_and_collocation_refuses():
     ops = scheme.compiled_operators()
     assert not ops.ok and "Driven" in ops.reason
     with pytest.raises(ValueError, match="scheme 'collocation' does not move Driven ends"):
-        cartan.simulate(_problem(TWIST), scheme="collocation", dt=1e-3, t_end=2e-3, progress=False)
+        cartan.simulate(_problem(TWIST), scheme="collocation", dt=1e-3, t_end=2e-3, progress=False, compiled=False)
 
 
 @pytest.mark.parametrize(("velocity", "match"), [
@@ -192,9 +196,9 @@ def test_a_scene_drives_an_end(tmp_path):
     path.write_text(_SCENE.format(extra=", velocity = [0.0, 0.0, 0.0, 0.7, 0.0, 0.0]"))
     scene = cartan.load_scene(path)
     assert isinstance(scene.problem.boundaries["end"], cartan.Driven)
-    ds = scene.simulate(progress=False)
+    ds = scene.simulate(progress=False, compiled=False)
     ref = cartan.simulate(_problem(TWIST), integrator="lie-verlet", dt=2e-3, t_end=0.1, save_every=10,
-                          progress=False)
+                          progress=False, compiled=False)
     assert np.array_equal(ds.frame.values, ref.frame.values)
     assert scene.problem.to_dict()["boundaries"]["end"] == {"kind": "driven", "velocity": TWIST.tolist()}
     for extra, match in [("", r"boundaries\.end\.velocity"), (', velocity = "up"', r"boundaries\.end\.velocity"),
@@ -214,7 +218,8 @@ def test_the_twist_buckling_scene_reads_and_twists_its_end():
     end = sc.problem.boundaries["end"]
     assert isinstance(end, cartan.Driven) and end.velocity.tolist() == [0.0, 0.0, 0.0, 2.0, 0.0, 0.0]
     assert isinstance(sc.problem.boundaries["start"], cartan.Clamped)
-    ds = cartan.simulate(sc.problem, integrator="lie-verlet", dt=1.5e-3, t_end=0.15, save_every=50, progress=False)
+    ds = cartan.simulate(sc.problem, integrator="lie-verlet", dt=1.5e-3, t_end=0.15, save_every=50, progress=False,
+                         compiled=False)
     h = 1.0 / (sc.problem.grid.shape[0] - 1)
     twist = h * ds.X.values[:, :, 3].sum(axis=1)
     assert np.max(np.abs(twist - 2.0 * ds.time.values)) < 1e-6
@@ -234,7 +239,7 @@ def test_overdamped_and_implicit_midpoint_move_the_end_by_exp_t_xi(integrator, o
     loads = [cartan.Damping([10.0] * 6)] if integrator == "overdamped" else []  # (drag 10: Δt = 2e-3 is stable)
     problem = _problem(SCREW, loads=loads)
     integ = Overdamped(order=order) if integrator == "overdamped" else integrator
-    ds = cartan.simulate(problem, integrator=integ, dt=2e-3, t_end=0.4, save_every=20, progress=False)
+    ds = cartan.simulate(problem, integrator=integ, dt=2e-3, t_end=0.4, save_every=20, progress=False, compiled=False)
     exact = _exact_end(problem, SCREW, ds.time.values)
     assert np.max(np.abs(ds.frame.values[:, -1] - exact[:, 1:, 1:])) < 1e-12
     assert np.max(np.abs(ds.position.values[:, -1] - exact[:, 1:, 0])) < 1e-12
@@ -251,7 +256,7 @@ def test_implicit_midpoint_closes_the_energy_balance_with_the_reaction():
         gravity = _rod().make_load("gravity", g=[0.0, 0.0, -2.0])
         problem = _problem([0.0, 0.0, 0.0, 2.0, 0.0, 0.0], loads=[gravity])
         ds = cartan.simulate(problem, integrator="implicit-midpoint", dt=dt, t_end=0.8,
-                             save_every=int(round(0.1 / dt)), progress=False)
+                             save_every=int(round(0.1 / dt)), progress=False, compiled=False)
         E = ds.kinetic_energy.values + ds.potential_energy.values + ds.dissipated_energy.values
         W = ds.external_work.values
         assert W[-1] > 0.1

@@ -58,6 +58,15 @@ class OperatorSet:
         :meth:`generated`).
     threaded_module : module or None
         The generated module of the threaded build, once imported.
+    late : list of Fragment
+        Fragments that follow the loops in the set's module (empty: none): operators that wrap
+        the shared ones and take their names there (a module global bound last is the one numba
+        compiles into a loop), e.g. the lattice's driven ends
+        (:func:`cartan.schemes._lattice_ops.driven_fragment`).
+    loops : tuple of str
+        With a :attr:`reason` (the set does not serve every loop), the loops of
+        :mod:`cartan.integrators.loops` that run it all the same (:meth:`serves`); empty for a
+        set that serves every loop or none.
     """
 
     label: str = ""
@@ -72,6 +81,8 @@ class OperatorSet:
     module: Any = None
     threaded: list[Fragment] = field(default_factory=list)
     threaded_module: Any = None
+    late: list[Fragment] = field(default_factory=list)
+    loops: tuple[str, ...] = ()
 
     @classmethod
     def declined(cls, reason: str) -> OperatorSet:
@@ -80,14 +91,21 @@ class OperatorSet:
 
     @property
     def ok(self) -> bool:
+        """Whether the set serves every loop (the implicit midpoint's, the diagnostics' …)."""
         return self.reason is None
+
+    def serves(self, loop: str) -> bool:
+        """Whether the generated loop ``loop`` (a function name of the set's module) runs this
+        set: every loop when :attr:`ok`, else those of :attr:`loops`."""
+        return self.reason is None or loop in self.loops
 
     def generated(self, threaded: bool = False):
         """The generated module of these operators with every loop of :data:`LOOP_SOURCES`
         (written and imported once per operator set; its functions compile on first call).
 
-        With ``threaded`` (and a set that has a threaded build, :attr:`threaded`), the module of
-        the threaded build: the same fragments followed by :attr:`threaded`, whose functions
+        The fragments of :attr:`late` come last.  With ``threaded`` (and a set that has a
+        threaded build, :attr:`threaded`), the module of the threaded build: the same fragments
+        with :attr:`threaded` after the loops, whose functions
         replace the operators the loops call (a module global bound last is the one numba
         compiles into a loop), in a module of its own (its own file and numba cache).  The
         serial module's text does not change with it.
@@ -97,9 +115,10 @@ class OperatorSet:
         if threaded and self.threaded:
             if self.threaded_module is None:
                 loops = [importlib.import_module(name).loop_fragment() for name in LOOP_SOURCES]
-                self.threaded_module = generate(f"ops-threaded-{self.key}", [*self.fragments, *loops, *self.threaded])
+                self.threaded_module = generate(f"ops-threaded-{self.key}",
+                                                [*self.fragments, *loops, *self.threaded, *self.late])
             return self.threaded_module
         if self.module is None:
             loops = [importlib.import_module(name).loop_fragment() for name in LOOP_SOURCES]
-            self.module = generate(f"ops-{self.key}", [*self.fragments, *loops])
+            self.module = generate(f"ops-{self.key}", [*self.fragments, *loops, *self.late])
         return self.module

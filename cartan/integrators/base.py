@@ -184,10 +184,10 @@ class Integrator(abc.ABC):
         self._check_driven(scheme)
         operators = getattr(scheme, "compiled_operators", None)
         ops = operators() if operators is not None else None
-        if ops is None or not ops.ok or not ops.accepts(state):
+        if ops is None or not (ops.ok or ops.loops) or not ops.accepts(state):
             return False
         spec = self.compiled_loop(scheme, state, float(dt))
-        if spec is None:
+        if spec is None or not ops.serves(spec[0]):  # (a set with driven ends serves some loops only)
             return False
         name, args = spec
         # the threaded build (cartan._threads) of the operator set's own module, on a large

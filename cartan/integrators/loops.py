@@ -25,6 +25,14 @@ __all__ = ["kinematic_fragment", "loop_fragment"]
 # noqa comments below mark them for the linter.
 
 
+def op_drive(D, N):
+    """N ← ξ at the driven nodes (:class:`~cartan.problem.Driven` ends): nothing here; an
+    operator set with driven nodes rebinds it after the loops (``OperatorSet.late``,
+    :func:`cartan.schemes._lattice_ops.driven_fragment`), with the velocity and constraint
+    operators, which then give ξ and ∂K/∂N(ξ) there themselves."""
+    return
+
+
 def _coad_exp(D, tau, N, S):
     """S_i ← Ad_{exp(τN_i)}ᵀ S_i at every node (the free flow of frozen N)."""
     xi = np.empty(R_)  # noqa: F821
@@ -226,6 +234,7 @@ def _stage_velocity(D, C, S, t, mode, gam_inv, N, W, K):
         zero = D.any_clamped and D.clamped[i]
         for k in range(R_):  # noqa: F821
             N[i, k] = 0.0 if zero else W[i, k] * gam_inv[k]
+    op_drive(D, N)
     return 1
 
 
@@ -334,8 +343,8 @@ def loop_fragment() -> Fragment:
     """The loops and their helpers as one fragment of a generated module (``KINEMATIC_`` False:
     :func:`kinematic_fragment` sets it in the modules that carry a prescribed velocity)."""
     return Fragment(constants={"KINEMATIC_": False},
-                    source=njit_source(_coad_exp, _blown, _damped, _book, lie_verlet_loop, _lie_poisson, euler_loop,
-                                       _kinematic_velocity, _stage_velocity, rkmk_loop))
+                    source=njit_source(op_drive, _coad_exp, _blown, _damped, _book, lie_verlet_loop, _lie_poisson,
+                                       euler_loop, _kinematic_velocity, _stage_velocity, rkmk_loop))
 
 
 def _closure_digest(py: Callable) -> int | None:

@@ -65,6 +65,14 @@ The loops that read ``clamped`` themselves (``kinematic``'s prescribed velocity,
 node operators) decline partly held problems in their integrators; ``overdamped`` takes
 N = Γ⁻¹W, zero on the held components with W.
 
+Driven ends (``Driven``; the lattice only): the driven nodes are held (``clamped``) and listed
+with their ξ and ∂K/∂N(ξ) (``dnodes``, ``xi_d``, ``S_d``); a set that has them adds
+:func:`driven_fragment` after the loops (``OperatorSet.late``), whose operators give the velocity
+ξ, the momentum ∂K/∂N(ξ), the kinetic energy ½wξ·Mξ there and add the supports' power
+``−w W·ξ`` (``Scheme._driven_power``) to the external power, and ``op_free_flow`` moves them by
+:func:`_driven_flow`; it serves the loops of ``lie-verlet``, ``lie-euler``, ``rkmk4`` and
+``overdamped`` only (``OperatorSet.loops``: not ``ok``), serially (no threaded build).
+
 Energies (paper §VI.C)
     Edge sum ``V = cell Σ_e U(X_e; X₀_e)`` with the other axes at rest, or, for coupled media,
     the corner sum ``V = Σ_c (w_i/#corners_i) U(X_c; X₀_c)``; the kinetic energy
@@ -127,6 +135,16 @@ class LatticeData(NamedTuple):
     nscale: np.ndarray  # [n, d] 1/(number of edges of node i along α): the nodal average of the edge strains
     shape: tuple  # the grid shape (ints)
     coords: np.ndarray  # [n, d] node coordinates, C order
+    # Driven ends (set by :func:`_driven_data`; the driven nodes are also ``clamped``)
+    any_driven: bool = False
+    dnodes: np.ndarray = None  # [nd] int64 the driven nodes
+    dslot: np.ndarray = None  # [n] int64 a node's row in ``dnodes`` (−1: not driven)
+    xi_d: np.ndarray = None  # [n, r] the driven velocity ξ, zero elsewhere ([0, r] without driven ends)
+    S_d: np.ndarray = None  # [n, r] the driven momentum ∂K/∂N(ξ), zero on the gauge components and elsewhere
+    dedge: np.ndarray = None  # [k] int64 the edges with a driven end, increasing
+    dcorner: np.ndarray = None  # [c] int64 the corners with one of those edges, increasing (coupled)
+    dcptr: np.ndarray = None  # [k + 1] int64 CSR: ``dedge[p]``'s corners ``dcitem[dcptr[p]:dcptr[p + 1]]``
+    dcitem: np.ndarray = None  # [·] int64 ``c·d + b``: row c of ``dcorner`` along axis b, increasing c
 
 
 # ---------------------------------------------------------------------------- operators
@@ -322,8 +340,33 @@ def op_free_flow(D, C, S, pieces, fracs, dt, Dn, K):
         if _flow_chunk(lo, min(n, lo + FCHUNK_), S, Dn, D.any_clamped, D.clamped, D.any_held, D.held,  # noqa: F821
                        pieces, npieces, tau, axial, naxes, axes, coef, cnt, col, eye, xi, out, E, tmp, wk, TK):
             moved = True
+    if D.any_driven and _driven_flow(D, S, Dn, npieces, tau, axial, naxes, axes, wk):
+        moved = True
     if moved:
         op_move(D, C, Dn, K)
+    return moved
+
+
+def _driven_flow(D, S, Dn, npieces, tau, axial, naxes, axes, wk):
+    """The free flow's motion of the driven nodes (held, hence left at the identity by
+    :func:`_flow_chunk`): piece by piece, direction by direction, ``exp(τ_p ξ_k b_k)`` — the
+    flow of ``Lattice``'s ``velocity``, ξ at a driven node — composed into ``Dn``; ``S`` there
+    flows along (``op_constrain`` sets it to ∂K/∂N(ξ) after).  With ξ's parts in the pieces
+    commuting (``LieVerlet.driven_reason``) the product is ``exp(Δtξ)``.  A piece that is not
+    diagonal (a non-diagonal metric, whose free flow holds the driven nodes: that integrator
+    refuses them) is skipped.  Returns whether a driven node moved."""
+    moved = False
+    for s in range(D.dnodes.shape[0]):
+        i = D.dnodes[s]
+        for p in range(npieces):
+            if not axial[p]:
+                continue
+            for c in range(naxes[p]):
+                k = axes[p, c]
+                t = tau[p] * D.xi_d[i, k]
+                if t != 0.0:
+                    g_axis_flow(k, t, S[i], Dn[i], wk)  # noqa: F821
+                    moved = True
     return moved
 
 
@@ -574,8 +617,8 @@ def op_new_config(C):
 
 
 _OPERATORS = (op_work, op_velocity, op_constrain, _dead_to_body, _field_force, _edge_to_nodes, op_force, op_move,
-              op_free_flow, _flow_plan, _flow_chunk, op_drift, op_drift_naive, op_powers, op_kinetic, op_potential,
-              op_nodal_strains, op_finite_config, op_copy_config, op_new_config)
+              op_free_flow, _driven_flow, _flow_plan, _flow_chunk, op_drift, op_drift_naive, op_powers, op_kinetic,
+              op_potential, op_nodal_strains, op_finite_config, op_copy_config, op_new_config)
 
 
 def _held_row(held, i):
@@ -611,6 +654,154 @@ def _kinetic_held_node(S, i, w, diagonal, inv_metric, metric, held, N):
 
 
 _HELD = (_held_row, _kinetic_held_node)
+
+
+# ---------------------------------------------------------------------------- driven ends
+# ``Driven`` ends (the lattice only): the operators of a set with driven nodes, compiled after
+# the loops (``OperatorSet.late``), wrap the shared ones and take their names, as the threaded
+# build does; a set without driven nodes compiles none of this.  The driven nodes are held
+# (``clamped``: the force is zero there, the loops' own passes skip them) and, as on the numpy
+# path (``Scheme.velocity``, ``constrain``, ``kinetic_energy``, ``_driven_power``): their
+# velocity is ξ, their momentum ∂K/∂N(ξ), their kinetic energy ½wξ·Mξ, and the supports' power
+# ``R·ξ = −w W·ξ`` (W the force density before it is zeroed there; ⟨ad_ξᵀS, ξ⟩ = 0) joins the
+# external power.  The drift moves them by exp(τξ) with the rest; ``lie-verlet``'s free flow by
+# :func:`_driven_flow`.
+
+def op_drive_driven(D, N):
+    """N ← ξ at the driven nodes (the velocity of ``Scheme.velocity`` there)."""
+    for s in range(D.dnodes.shape[0]):
+        i = D.dnodes[s]
+        for k in range(R_):  # noqa: F821
+            N[i, k] = D.xi_d[i, k]
+
+
+def op_velocity_driven(D, S, N):
+    op_velocity_plain(D, S, N)  # noqa: F821
+    op_drive_driven(D, N)
+
+
+def op_constrain_driven(D, S):
+    op_constrain_plain(D, S)  # noqa: F821
+    for s in range(D.dnodes.shape[0]):
+        i = D.dnodes[s]
+        for k in range(R_):  # noqa: F821
+            S[i, k] = D.S_d[i, k]
+
+
+def op_kinetic_driven(D, S):
+    e = op_kinetic_plain(D, S)  # noqa: F821
+    for s in range(D.dnodes.shape[0]):
+        i = D.dnodes[s]
+        for k in range(R_):  # noqa: F821
+            v = 0.0
+            for j in range(R_):  # noqa: F821
+                v += D.metric[k, j] * D.xi_d[i, j]
+            e += 0.5 * D.w[i] * D.xi_d[i, k] * v
+    return e
+
+
+def op_powers_driven(D, C, N, t, K):
+    diss, ext = op_powers_plain(D, C, N, t, K)  # noqa: F821
+    return diss, ext + _driven_power(D, C)
+
+
+def _driven_power(D, C):
+    """``Σ_driven −w W·ξ``: W the force density of :func:`op_force` at the driven nodes before it
+    is zeroed there (the same terms in the same order, over the edges with a driven end only —
+    and, coupled, their corners — so the cost is that of the ends), N = ξ in the damping."""
+    G, Phi = C
+    nd = D.dnodes.shape[0]
+    WD = np.zeros((nd, R_))  # noqa: F821
+    xi = np.empty(R_)  # noqa: F821
+    q = np.empty(R_)  # noqa: F821
+    vec = np.empty(R_)  # noqa: F821
+    vec2 = np.empty(R_)  # noqa: F821
+    X = np.empty((D_, R_))  # noqa: F821
+    Q = np.empty((D_, R_))  # noqa: F821
+    QC = np.empty((D.dcorner.shape[0], D_, R_))  # noqa: F821
+    if D.coupled:
+        for c_ in range(D.dcorner.shape[0]):
+            c = D.dcorner[c_]
+            for b in range(D_):  # noqa: F821
+                e = D.cedge[c, b]
+                g_log(G[e], xi)  # noqa: F821
+                for k in range(R_):  # noqa: F821
+                    X[b, k] = xi[k] * D.einvh[e]
+            m_stress(X, D.cX0[c], D.params, Q)  # noqa: F821
+            for b in range(D_):  # noqa: F821
+                for k in range(R_):  # noqa: F821
+                    QC[c_, b, k] = Q[b, k]
+    for p in range(D.dedge.shape[0]):
+        e = D.dedge[p]
+        g_log(G[e], xi)  # noqa: F821
+        s = 1.0
+        if D.coupled:
+            for k in range(R_):  # noqa: F821
+                q[k] = 0.0
+            for it in range(D.dcptr[p], D.dcptr[p + 1]):
+                c_ = D.dcitem[it] // D_  # noqa: F821
+                b = D.dcitem[it] - c_ * D_  # noqa: F821
+                f = D.cw[D.dcorner[c_]] * D.einvh[e]
+                for k in range(R_):  # noqa: F821
+                    q[k] += f * QC[c_, b, k]
+        else:
+            a = D.eaxis[e]
+            for b in range(D_):  # noqa: F821
+                for k in range(R_):  # noqa: F821
+                    X[b, k] = D.X0e[e, b, k]
+            for k in range(R_):  # noqa: F821
+                X[a, k] = xi[k] * D.einvh[e]
+            m_stress(X, D.X0e[e], D.params, Q)  # noqa: F821
+            for k in range(R_):  # noqa: F821
+                q[k] = Q[a, k]
+            s = D.escale[e]
+        g_dexp_inv_T_pair(xi, q, vec, vec2)  # noqa: F821
+        i, j = D.dslot[D.tail[e]], D.dslot[D.head[e]]
+        for k in range(R_):  # noqa: F821
+            if i >= 0:
+                WD[i, k] += s * vec[k]
+            if j >= 0:
+                WD[j, k] -= s * vec2[k]
+    nf = D.field.shape[0]
+    power = 0.0
+    for sl in range(nd):
+        i = D.dnodes[sl]
+        for k in range(R_):  # noqa: F821
+            q[k] = WD[sl, k] * D.winv[i] - D.damp[k] * D.xi_d[i, k] + D.ubody[k]
+        if D.has_field:
+            for k in range(nf):
+                v = 0.0
+                for b in range(nf):
+                    v += Phi[i, b + 1, k + 1] * D.field[b]
+                q[k] += v
+        for p in range(D.end_idx.shape[0]):
+            if D.end_idx[p] == i:
+                if D.end_follow[p]:
+                    for k in range(R_):  # noqa: F821
+                        q[k] += D.end_load[p, k] * D.end_div[p]
+                else:
+                    _dead_to_body(D, Phi[i], D.end_load[p], vec)
+                    for k in range(R_):  # noqa: F821
+                        q[k] += vec[k] * D.end_div[p]
+        for k in range(R_):  # noqa: F821
+            if D.live[k]:
+                power -= D.w[i] * q[k] * D.xi_d[i, k]
+    return power
+
+
+_DRIVEN = (op_drive_driven, op_velocity_driven, op_constrain_driven, op_kinetic_driven, op_powers_driven,
+           _driven_power)
+#: the operators a set with driven nodes replaces (``op_x = op_x_driven``, the shared one kept as
+#: ``op_x_plain``; ``op_drive``'s default, in the loops, does nothing)
+_DRIVEN_REPLACED = ("op_velocity", "op_constrain", "op_kinetic", "op_powers")
+
+
+def driven_fragment() -> Fragment:
+    """The driven ends' operators (see above) and the rebinding of the operators' names, to
+    follow the loops in a generated module (``OperatorSet.late``)."""
+    keep = "\n".join(f"{name}_plain = {name}" for name in _DRIVEN_REPLACED)
+    rebind = "\n".join(f"{name} = {name}_driven" for name in (*_DRIVEN_REPLACED, "op_drive"))
+    return Fragment(source=keep + "\n\n\n" + njit_source(*_DRIVEN) + "\n\n\n" + rebind + "\n")
 
 
 # ---------------------------------------------------------------------------- threaded build
@@ -1015,8 +1206,9 @@ def _supported_loads(scheme, held: bool = False) -> tuple | None:
     """``(damp, ubody, field)`` of the loads the operators run — ``Damping``, body-frame
     ``UniformForce`` and the core's ``ConstantFieldPotential`` (:func:`_field_loads`) — or
     None when a load or a boundary is of another kind (boundaries: ``Free`` and ``Clamped``,
-    and with ``held`` also ``Held`` and ``Symmetry``, whose components ``LatticeData.held`` holds)."""
-    from ..problem import Clamped, ConstantFieldPotential, Damping, Free, Held, Symmetry, UniformForce
+    and with ``held`` also ``Held`` and ``Symmetry``, whose components ``LatticeData.held`` holds,
+    and ``Driven``, whose nodes ``LatticeData.dnodes`` lists)."""
+    from ..problem import Clamped, ConstantFieldPotential, Damping, Driven, Free, Held, Symmetry, UniformForce
 
     r = scheme.group.dim
     damp, ubody = np.zeros(r), np.zeros(r)
@@ -1028,7 +1220,7 @@ def _supported_loads(scheme, held: bool = False) -> tuple | None:
         elif not isinstance(load, ConstantFieldPotential):
             return None
     field = _field_loads(scheme)
-    kinds = (Free, Clamped, Held, Symmetry) if held else (Free, Clamped)
+    kinds = (Free, Clamped, Held, Symmetry, Driven) if held else (Free, Clamped)
     if field is None or any(type(b) not in kinds for b in scheme.problem.boundaries.values()):
         return None
     return damp, ubody, field
@@ -1060,7 +1252,7 @@ def _why_not(scheme, reference: type) -> str | None:
     loads = _supported_loads(scheme, held=True)
     if loads is None:
         return ("a load or boundary is not one of Damping, body-frame UniformForce, ConstantFieldPotential "
-                "(the core's constant field), Free, Clamped, Held, Symmetry")
+                "(the core's constant field), Free, Clamped, Held, Symmetry, Driven")
     if any(not b.follower for _, b in scheme._end_loads) and not scheme.track:
         return "a dead end load needs stepped frames"
     if loads[2].size and not scheme.track:
@@ -1165,6 +1357,7 @@ def lattice_operators(scheme, reference: type):
             np.stack(np.meshgrid(*[grid.coordinates(a) for a in range(d)], indexing="ij"), -1).reshape(n, d),
             dtype=float),
     )
+    data = data._replace(**_driven_data(scheme, data, n, r))
     keys = [scheme._key(a) for a in range(d)]
     frame_key = "Phi" if scheme.track else "Phi_root"
 
@@ -1190,6 +1383,50 @@ def lattice_operators(scheme, reference: type):
                  Fragment(imports={"LatticeData": (__name__, "LatticeData")},
                           constants={"D_": d, "R_": r, "M_": m, "FCHUNK_": FLOW_CHUNK},
                           source=njit_source(*_OPERATORS, *_HELD))]
-    return OperatorSet(label=f"lattice × {group!r} × {medium.name}", key=f"lattice-{group!r}-{kernel_stem(kernels)}",
-                       fragments=fragments, data=data, pack=pack, unpack=unpack, accepts=accepts, nodes=n,
-                       threaded=[threaded_fragment()])
+    label, key = f"lattice × {group!r} × {medium.name}", f"lattice-{group!r}-{kernel_stem(kernels)}"
+    if data.any_driven:  # (no threaded build: its passes over the nodes know no driven node)
+        return OperatorSet(label=label + " (driven ends)", key=key + "-driven", fragments=fragments, data=data,
+                           pack=pack, unpack=unpack, accepts=accepts, nodes=n, late=[driven_fragment()],
+                           reason=DRIVEN_REASON, loops=DRIVEN_LOOPS)
+    return OperatorSet(label=label, key=key, fragments=fragments, data=data, pack=pack, unpack=unpack,
+                       accepts=accepts, nodes=n, threaded=[threaded_fragment()])
+
+
+#: the loops that move driven ends (``lie-verlet``, ``lie-euler``, ``rkmk4``, ``overdamped``:
+#: their Python steps move a driven node by exp(Δtξ), ``Integrator.driven_reason``)
+DRIVEN_LOOPS = ("lie_verlet_loop", "euler_loop", "rkmk_loop")
+#: why a set with driven nodes serves those loops only
+DRIVEN_REASON = ("a Driven end runs compiled in the loops of lie-verlet, lie-euler, rkmk4 and overdamped only; "
+                 "the other compiled paths (implicit-midpoint's Newton loop, rattle's loop with constraint rows, "
+                 "the compiled diagnostics) leave it to the numpy path")
+
+
+def _driven_data(scheme, data: LatticeData, n: int, r: int) -> dict:
+    """The ``LatticeData`` fields of the driven ends (``Scheme._driven``): the nodes, their ξ
+    and ∂K/∂N(ξ), the edges with a driven end and, coupled, those edges' corners (CSR)."""
+    d = data.d
+    none = np.zeros(0, dtype=np.int64)
+    fields = dict(any_driven=False, dnodes=none, dslot=np.full(n, -1, dtype=np.int64), xi_d=np.zeros((0, r)),
+                  S_d=np.zeros((0, r)), dedge=none, dcorner=none, dcptr=np.zeros(1, dtype=np.int64), dcitem=none)
+    if scheme._driven is None:
+        return fields
+    mask, Nd, Sd = scheme._driven
+    mask = np.asarray(mask, dtype=bool).reshape(n)
+    dnodes = np.flatnonzero(mask).astype(np.int64)
+    fields["dslot"][dnodes] = np.arange(dnodes.size)
+    dedge = np.flatnonzero(mask[data.tail] | mask[data.head]).astype(np.int64)
+    pos = np.full(data.tail.size, -1, dtype=np.int64)
+    pos[dedge] = np.arange(dedge.size)
+    items: list[list[int]] = [[] for _ in range(dedge.size)]
+    dcorner = none
+    if data.coupled:
+        dcorner = np.flatnonzero((pos[data.cedge] >= 0).any(axis=1)).astype(np.int64)
+        for c_, c in enumerate(dcorner):
+            for b in range(d):
+                if pos[data.cedge[c, b]] >= 0:
+                    items[pos[data.cedge[c, b]]].append(c_ * d + b)
+    fields.update(any_driven=True, dnodes=dnodes, xi_d=np.ascontiguousarray(Nd, dtype=float).reshape(n, r),
+                  S_d=np.ascontiguousarray(Sd, dtype=float).reshape(n, r), dedge=dedge, dcorner=dcorner,
+                  dcptr=np.cumsum([0] + [len(it) for it in items]).astype(np.int64),
+                  dcitem=np.array([v for it in items for v in it], dtype=np.int64))
+    return fields

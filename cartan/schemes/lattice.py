@@ -71,7 +71,9 @@ Compiled loops
     whole blocks of steps in numba for every group with point kernels and every medium that
     declares them, d = 1, 2, 3, with clamped, free (loaded) and held ends or faces
     (:class:`~cartan.problem.Held`, :class:`~cartan.problem.Symmetry`: the operators' ``held``
-    mask, :meth:`_clamp_mask`).  SE(3) rods (d = 1) with a quadratic potential and loads that
+    mask, :meth:`_clamp_mask`), and driven ends (:class:`~cartan.problem.Driven`: the driven
+    nodes' ξ and ∂K/∂N(ξ) in the operators' data, in the loops of ``lie-verlet``, ``lie-euler``,
+    ``rkmk4`` and ``overdamped`` only, serially).  SE(3) rods (d = 1) with a quadratic potential and loads that
     are data (damping, body-frame uniform force, constant-field potentials, end loads,
     clamps) run ``lie-verlet`` and ``overdamped`` (order 1) in the hand-written
     structure-of-arrays loops of :meth:`Lattice.compiled_advance`
@@ -103,7 +105,7 @@ class Lattice(Scheme):
     order = 2
     strain_location = "edge"
     supports_coupled_lagrangian = True  # d = 1: cartan.schemes._coupled
-    supports_driven_ends = True  # cartan.Driven, on the numpy path (compiled_advance, compiled_operators)
+    supports_driven_ends = True  # cartan.Driven: numpy path, and the generated loops (compiled_operators)
 
     #: the treatment of a glued chart's poles (``"corners"`` or ``"cap"``: module docstring)
     pole = "corners"
@@ -202,7 +204,7 @@ class Lattice(Scheme):
         ``kinetic_limit``; the number of steps done is the increase of ``state.scalars["nstep"]``.
         """
         if self._glue or self._driven is not None:
-            return False  # glued axes and driven ends run on the numpy path (module docstring)
+            return False  # glued axes run on the numpy path, driven ends in the generated loops (module docstring)
         return self._run_compiled(self.plan_module, integrator, state, dt, nsteps, kinetic_limit)
 
     def compiled_operators(self):
@@ -210,7 +212,9 @@ class Lattice(Scheme):
         with point kernels, any medium that declares point kernels, d = 1–3, damping,
         body-frame uniform forces, free (loaded) and clamped ends or faces, held components
         (:class:`~cartan.problem.Held` ends, :class:`~cartan.problem.Symmetry` faces: the
-        operators' ``held`` mask, :meth:`_clamp_mask`)."""
+        operators' ``held`` mask, :meth:`_clamp_mask`) and :class:`~cartan.problem.Driven` ends
+        (their nodes, ξ and ∂K/∂N(ξ) in the data; a set that serves the loops of ``lie-verlet``,
+        ``lie-euler``, ``rkmk4`` and ``overdamped`` only, :attr:`OperatorSet.loops`)."""
         ops = self.__dict__.get("_operators")
         if ops is None:
             if self._glue:
@@ -218,13 +222,6 @@ class Lattice(Scheme):
 
                 ops = self._operators = OperatorSet.declined(
                     "a glued axis (a chart closed over poles) runs on the numpy path")
-                return ops
-            if self._driven is not None:
-                from ..compiled.operators import OperatorSet
-
-                ops = self._operators = OperatorSet.declined(
-                    "a Driven end (a prescribed velocity at held nodes; the operators hold them at rest) "
-                    "runs on the numpy path")
                 return ops
             if any(f is not None for f in self._end_factors):
                 from ..compiled.operators import OperatorSet
