@@ -194,10 +194,10 @@ def verify_cmd(media, case_names, schemes, quick, out_dir, scheduler, store) -> 
             failed += bad
             continue
         own = getattr(case, "levels", 4)
-        own = len(own) if isinstance(own, tuple | list) else int(own or 4)
-        # tolerances are stated at a case's finest own level: --quick runs exactly those levels,
-        # the full run adds one finer level
-        levels = own if quick else own + 1
+        own = list(own) if isinstance(own, tuple | list) else list(range(int(own or 4)))
+        # tolerances are stated at a case's finest own level: --quick runs exactly those levels
+        # (which need not start at 0), the full run adds one finer level
+        levels = own if quick else [*own, own[-1] + 1]
         ds = _study(case, [], schemes, levels, None, scheduler,
                     None if store is None else store / re.sub(r"[^A-Za-z0-9_.-]", "_", name))
         safe = re.sub(r"[^A-Za-z0-9_.-]", "_", name)

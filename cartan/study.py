@@ -115,14 +115,15 @@ def _self_referenced(case: Any, refine: str) -> bool:
     return refine == "time" and getattr(case, "space_order", None) is not None
 
 
-def task_key(case_name: str, refine: str, levels: int, integrator: str, scheme: str, level: int | str) -> str:
+def task_key(case_name: str, refine: str, levels: int | str, integrator: str, scheme: str, level: int | str) -> str:
     """The name of one task (and of its file in a store): safe in file names and dask keys."""
     raw = f"{case_name}--{refine}{levels}--{integrator}--{scheme}--{level}"
     return re.sub(r"[^A-Za-z0-9_.+=-]", "_", raw)
 
 
-def _settings(case: Any, level: int | str, scheme: str, refine: str, levels: int) -> tuple[Any, dict]:
-    """(problem, run settings) of one task; ``level="ref"`` is the fine-Δt reference run."""
+def _settings(case: Any, level: int | str, scheme: str, refine: str, finest: int) -> tuple[Any, dict]:
+    """(problem, run settings) of one task; ``level="ref"`` is the fine-Δt reference run; ``finest``
+    the study's finest level."""
     if refine == "both":
         problem, run = case.problem(int(level), scheme)
         return problem, dict(run)
@@ -131,15 +132,15 @@ def _settings(case: Any, level: int | str, scheme: str, refine: str, levels: int
         run = dict(run)
         if "dt" not in run:  # a static case: nothing to step in time
             return problem, run
-        finest = dict(case.problem(levels - 1, scheme)[1])
-        dt = min(float(run["dt"]), float(finest["dt"]))
+        fine = dict(case.problem(finest, scheme)[1])
+        dt = min(float(run["dt"]), float(fine["dt"]))
         if run.get("save_every"):  # the same saved times as the case asked for at this level
             run["save_every"] = max(1, round(float(run["dt"]) * int(run["save_every"]) / dt))
         run["dt"] = dt
         return problem, run
     problem, run = case.problem(0, scheme)
     run = dict(run)
-    factor = 2 ** (levels - 1) * REFERENCE_DIVISOR if level == "ref" else 2 ** int(level)
+    factor = 2 ** finest * REFERENCE_DIVISOR if level == "ref" else 2 ** int(level)
     run["dt"] = float(run["dt"]) / factor
     if run.get("save_every"):
         run["save_every"] = int(run["save_every"]) * factor
@@ -231,7 +232,7 @@ def _write_once(path: pathlib.Path, result: dict) -> None:
             os.unlink(tmp)
 
 
-def _run_task(case: Any, integrator: str, scheme: str, level: int | str, refine: str, levels: int,
+def _run_task(case: Any, integrator: str, scheme: str, level: int | str, refine: str, finest: int,
               key: str, store: str | None, compiled: bool = True) -> dict:
     """Run one (integrator, scheme, level) task and return (and store) its result."""
     from .simulate import InstabilityError
@@ -243,7 +244,7 @@ def _run_task(case: Any, integrator: str, scheme: str, level: int | str, refine:
         if done is not None:
             done["cached"] = True
             return done
-    problem, run = _settings(case, level, scheme, refine, levels)
+    problem, run = _settings(case, level, scheme, refine, finest)
     h, n = _spacing(problem)
     result: dict[str, Any] = {"key": key, "integrator": integrator, "scheme": scheme, "level": level,
                               "dt": float(run.get("dt", math.nan)), "h": h, "n": n, "status": "ok"}
@@ -351,7 +352,7 @@ def observed_order(x: Iterable[float], error: Iterable[float], roundoff: float =
 
 
 def converge(case: Any, integrators: Sequence[str] | None = None, schemes: Sequence[str] | None = None,
-             levels: int = 4, refine: str | None = None, client: Any = None,
+             levels: int | Sequence[int] = 4, refine: str | None = None, client: Any = None,
              store: str | os.PathLike | None = None, compiled: bool = True,
              order_slack: float | tuple[float, float] = (0.2, 0.3)) -> Any:
     """Refine ``case`` over ``levels`` levels for every integrator × scheme.
@@ -364,8 +365,9 @@ def converge(case: Any, integrators: Sequence[str] | None = None, schemes: Seque
     integrators, schemes : sequence of str
         Registered names (default: the case's ``default_integrators`` and ``default_schemes``,
         else ``["lattice"]``).
-    levels : int
-        Number of refinement levels (≥ 2; the protocol asks for ≥ 4).
+    levels : int or sequence of int
+        Number of refinement levels 0, 1, … (≥ 2; the protocol asks for ≥ 4), or the levels
+        themselves, increasing (a case's own ``levels``, which need not start at 0).
     refine : {"space", "time", "both"}
         ``"space"``: the case's level-``k`` problems, all run with the finest level's Δt so that
         time errors do not contaminate the space order (a static case has no Δt).  ``"time"``: the level-0 problem with
@@ -420,9 +422,17 @@ def converge(case: Any, integrators: Sequence[str] | None = None, schemes: Seque
     if getattr(case, "static", False) and refine != "space":
         raise StudyError(f"the static case {getattr(case, 'name', '')!r} is refined in space only "
                          f"(refine='space'), got refine={refine!r}")
-    levels = int(levels)
+    if np.ndim(levels) == 0:
+        level_list, tag = list(range(int(levels))), str(int(levels))
+    else:
+        level_list = [int(v) for v in levels]
+        tag = "L" + "_".join(map(str, level_list))
+        if any(b <= a for a, b in zip(level_list, level_list[1:], strict=False)) or min(level_list, default=0) < 0:
+            raise StudyError(f"levels must be increasing levels ≥ 0, got {list(levels)}")
+    levels = len(level_list)
     if levels < 2:
         raise StudyError(f"a convergence study needs at least 2 levels, got {levels}")
+    finest = level_list[-1]
     integrators = list(integrators or getattr(case, "default_integrators", None) or ["lie-verlet"])
     schemes = list(schemes or getattr(case, "default_schemes", None) or ["lattice"])
     name = str(getattr(case, "name", type(case).__name__))
@@ -434,9 +444,9 @@ def converge(case: Any, integrators: Sequence[str] | None = None, schemes: Seque
     extra: list[int | str] = ["ref"] if _self_referenced(case, refine) else []
     for integ in integrators:
         for sch in schemes:
-            for lev in [*range(levels), *extra]:
-                key = task_key(name, refine, levels, integ, sch, lev)
-                tasks.append((key, (case, integ, sch, lev, refine, levels, key, store_s, compiled)))
+            for lev in [*level_list, *extra]:
+                key = task_key(name, refine, tag, integ, sch, lev)
+                tasks.append((key, (case, integ, sch, lev, refine, finest, key, store_s, compiled)))
     # finished tasks in the store are loaded here, not sent anywhere
     results: dict[str, dict] = {}
     pending = []
@@ -454,9 +464,9 @@ def converge(case: Any, integrators: Sequence[str] | None = None, schemes: Seque
     status = np.full(shape, "", dtype=object)
     for i, integ in enumerate(integrators):
         for j, sch in enumerate(schemes):
-            ref = results.get(task_key(name, refine, levels, integ, sch, "ref")) if extra else None
-            for k in range(levels):
-                r = results[task_key(name, refine, levels, integ, sch, k)]
+            ref = results.get(task_key(name, refine, tag, integ, sch, "ref")) if extra else None
+            for k, lev in enumerate(level_list):
+                r = results[task_key(name, refine, tag, integ, sch, lev)]
                 for v in arrays:
                     if v != "error":
                         arrays[v][i, j, k] = r.get(v, math.nan)
@@ -471,8 +481,8 @@ def converge(case: Any, integrators: Sequence[str] | None = None, schemes: Seque
     x_name = "dt" if refine == "time" or (refine == "both" and getattr(case, "space_order", None) is None) else "h"
     limit = getattr(case, "limit_levels", None) if getattr(case, "parameter_order", None) is not None else None
     if limit is not None:  # refinement in a limit parameter p (error ∝ p^-order): x = 1/p
-        params = limit(range(levels))
-        arrays["limit"] = np.broadcast_to(np.array([1.0 / params[k] for k in range(levels)]), shape).copy()
+        params = limit(level_list)
+        arrays["limit"] = np.broadcast_to(np.array([1.0 / params[k] for k in level_list]), shape).copy()
         x_name = "limit"
     obs = np.full(shape[:2], np.nan)
     exp = np.full(shape[:2], np.nan)
@@ -514,13 +524,13 @@ def converge(case: Any, integrators: Sequence[str] | None = None, schemes: Seque
         "long_name": "finest error within tolerance and observed order in [expected − below, expected + above]",
         "flag_values": np.array([0, 1], dtype=np.int8), "flag_meanings": "fail pass"})
     ds = xr.Dataset(data, coords={"integrator": integrators, "scheme": schemes,
-                                  "level": ("level", np.arange(levels), {"long_name": "refinement level"})})
+                                  "level": ("level", np.array(level_list), {"long_name": "refinement level"})})
     ds.attrs = {
         "Conventions": "CF-1.11",
         "title": f"convergence study: {name}",
         "source": f"cartan {__version__}",
         "history": io.history_line(f"cartan.converge({name!r}, integrators={integrators}, schemes={schemes}, "
-                                   f"levels={levels}, refine={refine!r})"),
+                                   f"levels={level_list if tag.startswith('L') else levels}, refine={refine!r})"),
         "case": name,
         "medium": str(getattr(case, "medium", "")),
         "description": str(getattr(case, "description", "")),

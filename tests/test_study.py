@@ -129,6 +129,19 @@ def test_converge_space_order():
     assert float(ds["expected_order"].squeeze()) == 2
 
 
+def test_converge_takes_the_levels_themselves():
+    """levels=(1, 2, 3): the case's own levels (a case need not start at level 0, e.g.
+    filament-greenhill's (1, 2)), the same errors as those levels of a 4-level study; the coordinate
+    ``level`` holds them; levels that do not increase are refused."""
+    listed = study.converge(StrainEnergy(), integrators=["lie-verlet"], levels=(1, 2, 3))
+    assert listed["level"].values.tolist() == [1, 2, 3]
+    assert listed["n"].values.ravel().tolist() == [17, 33, 65]
+    full = study.converge(StrainEnergy(), integrators=["lie-verlet"], levels=4)
+    np.testing.assert_array_equal(listed["error"].values.ravel(), full["error"].values.ravel()[1:])
+    with pytest.raises(study.StudyError, match="increasing"):
+        study.converge(StrainEnergy(), integrators=["lie-verlet"], levels=(2, 1))
+
+
 def test_converge_self_referenced_time(tmp_path):
     case = SlowSpinningArc()
     case.delay = 0.0
