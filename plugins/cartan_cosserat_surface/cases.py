@@ -150,8 +150,6 @@ class NavierPlate(StaticCase):
         prob, _ = navier_plate_problem(8 * 2 ** level + 1, self.thickness_ratio)
         return prob, {"tol": 1e-10}
 
-    def solve(self, problem: Problem, settings: Mapping[str, Any]):
-        return cartan.solve_static(problem, **dict(settings))
 
     def error(self, ds, problem: Problem) -> float:
         n = problem.grid.shape[0]

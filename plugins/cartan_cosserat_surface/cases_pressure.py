@@ -46,7 +46,6 @@ its error against the continuum is O(φ²) = O(du²): relative to w, (1 − sin 
 from __future__ import annotations
 
 import math
-from collections.abc import Mapping
 from typing import Any
 
 import numpy as np
@@ -168,8 +167,6 @@ class CylinderInflation(StaticCase):
         p = inflation_pressure(med, 1.0, self.stretch)
         return closed_cylinder_problem(8 * 2 ** level, p), {"tol": 1e-10}
 
-    def solve(self, problem: Problem, settings: Mapping[str, Any]):
-        return cartan.solve_static(problem, **dict(settings))
 
     def error(self, ds, problem: Problem) -> float:
         med, R = problem.medium, 1.0 / problem.medium.k0[0]

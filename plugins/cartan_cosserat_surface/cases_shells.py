@@ -260,8 +260,6 @@ class ScordelisLoRoof(StaticCase):
         prob, _ = scordelis_lo_problem(8 * 2 ** level + 1, 4 * 2 ** level + 1, scale=self.scale)
         return prob, {"tol": 1e-10, "reuse": 1e-3}
 
-    def solve(self, problem: Problem, settings: Mapping[str, Any]) -> xr.Dataset:
-        return cartan.solve_static(problem, **dict(settings))
 
     def deflection(self, ds: xr.Dataset, problem: Problem) -> float:
         """The vertical deflection (downwards positive) of the free edge's midpoint at the full load."""
@@ -299,8 +297,6 @@ class PinchedCylinder(StaticCase):
         prob, _ = pinched_cylinder_problem(8 * 2 ** level + 1, shear_correction=self.shear_correction)
         return prob, {"tol": 1e-10}
 
-    def solve(self, problem: Problem, settings: Mapping[str, Any]) -> xr.Dataset:
-        return cartan.solve_static(problem, **dict(settings))
 
     def deflection(self, ds: xr.Dataset, problem: Problem) -> float:
         """The inward displacement under the load."""

@@ -173,8 +173,6 @@ class KirchhoffAnalogy(StaticCase):
                                "end": cartan.Free(load=[*self.force, *self.moment])}, name=self.name)
         return prob, {"load_steps": 4, "max_iter": 30}
 
-    def solve(self, problem: Problem, settings: Mapping[str, Any]) -> xr.Dataset:
-        return cartan.solve_static(problem, **dict(settings))
 
     def scales(self) -> dict[str, float]:
         f, m = float(np.linalg.norm(self.force)), float(np.linalg.norm(self.moment))

@@ -254,8 +254,6 @@ class NavierPlateKL(StaticCase):
     def problem(self, level: int, scheme: str = "lattice") -> tuple[Problem, dict[str, Any]]:
         return kirchhoff_navier_problem(8 * 2 ** level + 1, self.thickness_ratio), {"tol": 1e-10}
 
-    def solve(self, problem: Problem, settings: Mapping[str, Any]) -> xr.Dataset:
-        return cartan.solve_static(problem, **dict(settings))
 
     def parts(self, ds: xr.Dataset, problem: Problem) -> dict[str, float]:
         """Relative errors of the centre deflection and moment, and the constraint residual."""
@@ -469,8 +467,6 @@ class HelfrichTube(StaticCase):
     def problem(self, level: int, scheme: str = "lattice") -> tuple[Problem, dict[str, Any]]:
         return helfrich_tube_problem(16 * 2 ** level + 1), {"tol": 1e-10}
 
-    def solve(self, problem: Problem, settings: Mapping[str, Any]) -> xr.Dataset:
-        return cartan.solve_static(problem, **dict(settings))
 
     @staticmethod
     def radii(ds: xr.Dataset, problem: Problem) -> np.ndarray:
@@ -892,8 +888,6 @@ class ClampedPlateKL(StaticCase):
     def problem(self, level: int, scheme: str = "lattice") -> tuple[Problem, dict[str, Any]]:
         return clamped_plate_problem(4 * 2 ** level + 1, self.thickness_ratio), {"tol": 1e-10}
 
-    def solve(self, problem: Problem, settings: Mapping[str, Any]) -> xr.Dataset:
-        return cartan.solve_static(problem, **dict(settings))
 
     def parts(self, ds: xr.Dataset, problem: Problem) -> dict[str, float]:
         """Relative errors of the centre deflection and moment, and of the mid-edge moment (O(dx))."""

@@ -220,8 +220,9 @@ class StaticCase(Case):
 
     Its "integrator" is ``"newton"`` (:data:`NEWTON`) and its scheme ``"lattice"`` (the only
     scheme of the static solvers); it is refined in space.  Subclasses implement
-    :meth:`problem` — returning the solver's keyword arguments as the settings — :meth:`solve`
-    and :meth:`error`.  :meth:`run` calls :meth:`solve` and records the settings and the cost
+    :meth:`problem` — returning the solver's keyword arguments as the settings — and
+    :meth:`error`, and override :meth:`solve` when the solver is not
+    :func:`~cartan.statics.solve_static`.  :meth:`run` calls :meth:`solve` and records the settings and the cost
     (Newton iterations as ``nstep``, the solver's wall time) in ``cartan_config`` like a
     dynamic run.
     """
@@ -236,10 +237,12 @@ class StaticCase(Case):
     default_integrators = (NEWTON,)
     default_schemes = ("lattice",)
 
-    @abc.abstractmethod
     def solve(self, problem: Problem, settings: Mapping[str, Any]) -> xr.Dataset:
-        """The solver's Dataset (:func:`~cartan.statics.solve_static` or
-        :func:`~cartan.continuation.continuation`) for ``problem`` with ``settings``."""
+        """The solver's Dataset for ``problem`` with ``settings``: :func:`~cartan.statics.solve_static`
+        (this default) or, overridden, :func:`~cartan.continuation.continuation` or another solver."""
+        from cartan.statics import solve_static
+
+        return solve_static(problem, **dict(settings))
 
     def run(self, problem: Problem, settings: Mapping[str, Any], integrator: str = NEWTON, scheme: str = "lattice",
             compiled: bool = True) -> xr.Dataset:
