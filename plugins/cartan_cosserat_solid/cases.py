@@ -469,7 +469,6 @@ class UniaxialStressBlock(StaticCase):
         problem = cartan.Problem(solid, grid, init, boundaries, [support], name=self.name)
         return problem, {"tol": 1e-12}
 
-
     def exact_positions(self, problem: Problem, s1: float, s2: float) -> np.ndarray:
         """The exact node positions ``(*shape, 3)``: the stretch about the block's centre, which the
         centre support holds."""

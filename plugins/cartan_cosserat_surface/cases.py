@@ -150,7 +150,6 @@ class NavierPlate(StaticCase):
         prob, _ = navier_plate_problem(8 * 2 ** level + 1, self.thickness_ratio)
         return prob, {"tol": 1e-10}
 
-
     def error(self, ds, problem: Problem) -> float:
         n = problem.grid.shape[0]
         w = -float(ds["position"].values[0][n // 2, n // 2, 2])

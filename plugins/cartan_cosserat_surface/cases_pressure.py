@@ -167,7 +167,6 @@ class CylinderInflation(StaticCase):
         p = inflation_pressure(med, 1.0, self.stretch)
         return closed_cylinder_problem(8 * 2 ** level, p), {"tol": 1e-10}
 
-
     def error(self, ds, problem: Problem) -> float:
         med, R = problem.medium, 1.0 / problem.medium.k0[0]
         p = problem.loads[0].pressure

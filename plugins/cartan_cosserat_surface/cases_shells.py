@@ -260,7 +260,6 @@ class ScordelisLoRoof(StaticCase):
         prob, _ = scordelis_lo_problem(8 * 2 ** level + 1, 4 * 2 ** level + 1, scale=self.scale)
         return prob, {"tol": 1e-10, "reuse": 1e-3}
 
-
     def deflection(self, ds: xr.Dataset, problem: Problem) -> float:
         """The vertical deflection (downwards positive) of the free edge's midpoint at the full load."""
         nu, nv = problem.grid.shape
@@ -296,7 +295,6 @@ class PinchedCylinder(StaticCase):
     def problem(self, level: int, scheme: str = "lattice") -> tuple[Problem, dict[str, Any]]:
         prob, _ = pinched_cylinder_problem(8 * 2 ** level + 1, shear_correction=self.shear_correction)
         return prob, {"tol": 1e-10}
-
 
     def deflection(self, ds: xr.Dataset, problem: Problem) -> float:
         """The inward displacement under the load."""

@@ -173,7 +173,6 @@ class KirchhoffAnalogy(StaticCase):
                                "end": cartan.Free(load=[*self.force, *self.moment])}, name=self.name)
         return prob, {"load_steps": 4, "max_iter": 30}
 
-
     def scales(self) -> dict[str, float]:
         f, m = float(np.linalg.norm(self.force)), float(np.linalg.norm(self.moment))
         return {"n_norm": f, "m_dot_n": f * m, "twist_moment": m, "hamiltonian": 0.5 * m * m + f}

@@ -254,7 +254,6 @@ class NavierPlateKL(StaticCase):
     def problem(self, level: int, scheme: str = "lattice") -> tuple[Problem, dict[str, Any]]:
         return kirchhoff_navier_problem(8 * 2 ** level + 1, self.thickness_ratio), {"tol": 1e-10}
 
-
     def parts(self, ds: xr.Dataset, problem: Problem) -> dict[str, float]:
         """Relative errors of the centre deflection and moment, and the constraint residual."""
         q = -float(problem.loads[0].field[2])
@@ -466,7 +465,6 @@ class HelfrichTube(StaticCase):
 
     def problem(self, level: int, scheme: str = "lattice") -> tuple[Problem, dict[str, Any]]:
         return helfrich_tube_problem(16 * 2 ** level + 1), {"tol": 1e-10}
-
 
     @staticmethod
     def radii(ds: xr.Dataset, problem: Problem) -> np.ndarray:
@@ -887,7 +885,6 @@ class ClampedPlateKL(StaticCase):
 
     def problem(self, level: int, scheme: str = "lattice") -> tuple[Problem, dict[str, Any]]:
         return clamped_plate_problem(4 * 2 ** level + 1, self.thickness_ratio), {"tol": 1e-10}
-
 
     def parts(self, ds: xr.Dataset, problem: Problem) -> dict[str, float]:
         """Relative errors of the centre deflection and moment, and of the mid-edge moment (O(dx))."""
