@@ -747,23 +747,25 @@ def helfrich_flow(problem: Problem, *, steps: int = 30, tau: float = 0.05, growt
                   else NormalTether(Phi[..., 1:, 0], Phi[..., 1:, 3], 1.0 / dt, tangential_penalty))
         solves = 0
 
+        def step_problem(m: dict[str, float]) -> Problem:
+            """The step's problem at the multipliers m: the medium with σ = m["area"], the tether and
+            the volume pressure p = m["volume"]."""
+            med = type(medium)(**{**base, **step_params}).with_tension(m["area"])
+            loads = [tether] + ([VolumePressure(m["volume"])] if m["volume"] != 0.0 else [])
+            return Problem(med, grid, start, reference=start if mesh == "step" else problem.initial, loads=loads)
+
         def solve(m: dict[str, float], guess: np.ndarray):
             nonlocal solves
             solves += 1
-            med = type(medium)(**{**base, **step_params}).with_tension(m["area"])
-            loads = [tether] + ([VolumePressure(m["volume"])] if m["volume"] != 0.0 else [])
-            pb = Problem(med, grid, start, reference=start if mesh == "step" else problem.initial, loads=loads)
-            out = cartan.solve_static(pb, tol=tol, initial=InitialState(Phi=guess, glue=glue), reuse=float(reuse),
-                                      pole=pole)
+            out = cartan.solve_static(step_problem(m), tol=tol, initial=InitialState(Phi=guess, glue=glue),
+                                      reuse=float(reuse), pole=pole)
             P = _frames_of(out)
             meas = surface_measures(problem, P, pole)
             return out, P, np.array([meas[h] / goal[h] - 1.0 for h in hold])
 
         if multipliers == "bordered":  # A and V held inside the solve: their multipliers change σ and p
             solves = 1
-            med = type(medium)(**{**base, **step_params}).with_tension(mult["area"])
-            loads = [tether] + ([VolumePressure(mult["volume"])] if mult["volume"] != 0.0 else [])
-            pb = Problem(med, grid, start, reference=start if mesh == "step" else problem.initial, loads=loads)
+            pb = step_problem(mult)
             # rows (C − C₀)/s with s = |C₀|·hold_tol/tol: the solve ends at |C/C₀ − 1| ≤ hold_tol
             held = [(HeldArea if h == "area" else HeldVolume)(goal[h], abs(goal[h]) * hold_tol / tol) for h in hold]
             out = cartan.solve_static(pb, tol=tol, initial=start, reuse=float(reuse), pole=pole, holds=held)
