@@ -21,7 +21,7 @@ import pytest
 from toys import run_both
 
 import cartan
-from cartan.integrators import RKMK4, ImplicitMidpoint, LieVerlet, Overdamped, Rattle
+from cartan.integrators import RKMK4, LieVerlet, Overdamped, Rattle
 from cartan.integrators.explicit import LieEuler
 from cartan.schemes.lattice import Lattice
 
@@ -62,7 +62,7 @@ def _assert_compiled_agrees(problem, make, dt: float):
     scheme, (ref, _), (fast, integ) = run_both(Lattice, problem, make, dt, NSTEPS, BLOCKS)
     ops = scheme.compiled_operators()
     assert ops.data.any_driven and not ops.ok  # a set for some loops only
-    assert ops.serves("lie_verlet_loop") and ops.serves("rkmk_loop") and not ops.serves("implicit_loop")
+    assert ops.serves("lie_verlet_loop") and ops.serves("rkmk_loop") and ops.serves("implicit_loop")
     start = scheme.initial_state()
     start.scalars.setdefault("nstep", 0)
     assert not scheme.compiled_advance(make(), start, dt, 1)  # so the generated loop took the steps
@@ -113,15 +113,12 @@ def test_rattle_without_rows_runs_lie_verlets_loop():
 
 
 def test_the_other_compiled_paths_decline():
-    """implicit-midpoint (its Newton loop) and the compiled diagnostics leave driven ends to the
-    numpy path: the set is not ``ok``, and says why."""
+    """The compiled diagnostics leave driven ends to the numpy path: the set is not ``ok``, and
+    says why (implicit-midpoint's Newton loop takes them: tests/test_driven_compiled_implicit.py)."""
     scheme = Lattice(_problem(TWIST))
     ops = scheme.compiled_operators()
-    assert not ops.ok and "Driven" in ops.reason and "implicit-midpoint" in ops.reason
-    state = scheme.initial_state()
-    state.scalars.setdefault("nstep", 0)
-    assert not ImplicitMidpoint().compiled_advance(scheme, state, 1e-3, 1)
-    assert state.scalars["nstep"] == 0
+    assert not ops.ok and "Driven" in ops.reason and "diagnostics" in ops.reason
+    assert ops.serves("implicit_loop") and ops.serves("rattle_loop")
 
 
 @pytest.mark.slow  # (each loop compiles on first use: ≈ 25–50 s on a fresh cache)
@@ -150,3 +147,96 @@ def test_a_plate_edge_driven_compiled():
     scheme, fast = _assert_compiled_agrees(problem, LieVerlet, 2e-3)
     exact = np.einsum("vij,jk->vik", problem.initial.Phi[-1], shell.group.exp(fast.t * xi))
     assert np.max(np.abs(scheme.frames(fast)[-1] - exact)) < 1e-12
+
+
+# ---------------------------------------------------------------------------- rattle
+# The inextensible filament of tests/test_driven_rattle.py, clamped at s = 0 (or free) and driven
+# at s = L, in rattle's generated loop (cartan.integrators.rattle_loop): the driven velocity
+# enters the rows (B_c N = B_u N_u + B_d ξ, N = ξ at the driven node), the free flow moves the
+# driven node by exp(Δtξ), and the support's work books the power −λᵀB_dξ of the rows' force on
+# the driven node (λ the force-level multipliers with the rows' rate to round-off, a central
+# difference: ≈ 1e-10 relative, Rattle._rows_rate_exact) and the first step's impulse (the
+# velocity projection from rest).
+
+#: the support's work against the Python path: its power −λᵀB_dξ takes λ with the rows' rate by
+#: a central difference (round-off ≈ 1e-16/ε₀ ≈ 1e-10 relative per step, ε₀ = 1e-5/max|N|)
+RATTLE_WORK_TOL = 1e-10
+
+
+def _driven_filament(xi, start=None, loads=None, n: int = 11, straight: bool = False, J: float = 0.05):
+    fil = cartan.medium("filament", bending=1.0, twist=1.0, mass=1.0, rotational_inertia=[J, 0.05, 0.05])
+    grid = cartan.Grid(n, length=1.0)
+    initial = (fil.initial_state(grid, "straight") if straight
+               else fil.initial_state(grid, "arc", curvature=1.5, centered=True))
+    if loads is None:
+        loads = [fil.make_load("gravity", g=[0.0, 0.0, -2.0])]
+    return cartan.Problem(fil, grid, initial, {"start": start or cartan.Clamped(), "end": cartan.Driven(velocity=xi)},
+                          loads=list(loads))
+
+
+def test_rattle_takes_a_driven_end_in_its_loop():
+    """The driven filament's operator set serves rattle's loop; rattle's loop arguments are built
+    (no compilation here: the set's reason and loops only)."""
+    scheme = Lattice(_driven_filament(np.array([0.0, 0.0, 0.0, 2.0, 0.0, 0.0])))
+    ops = scheme.compiled_operators()
+    assert ops.data.any_driven and ops.serves("rattle_loop")
+    state = scheme.initial_state()
+    state.scalars.setdefault("nstep", 0)
+    integ = Rattle()
+    assert integ.compiled_loop(scheme, state, 4e-3)[0] == "rattle_loop" and integ.compiled_declined is None
+
+
+RATTLE_CASES = {
+    # the arc turned about d₂ under gravity (the rows' force on the end does work)
+    "arc-turned": (lambda: _driven_filament(np.array([0.0, 0.0, 0.0, 0.0, 1.0, 0.0])), 4e-3),
+    # the arc twisted about d₁
+    "arc-twisted": (lambda: _driven_filament(np.array([0.0, 0.0, 0.0, 2.0, 0.0, 0.0])), 4e-3),
+    # a straight filament, free at s = 0, twisted against a twist drag (the closing matrix is not
+    # s·I: the closing projection's own factors)
+    "straight-damped-twist": (lambda: _driven_filament(
+        np.array([0.0, 0.0, 0.0, 0.2, 0.0, 0.0]), start=cartan.Free(), n=21, straight=True, J=0.1,
+        loads=[cartan.Damping([0.0, 0.0, 0.0, 1.0, 0.0, 0.0])]), 5e-3),
+    # the arc turned about d₂, pinned at s = 0 (held components and a driven end)
+    "arc-pinned-turned": (lambda: _driven_filament(np.array([0.0, 0.0, 0.0, 0.0, 1.0, 0.0]),
+                                                   start=cartan.Held((0, 1, 2))), 4e-3),
+}
+
+
+@pytest.mark.slow  # (the driven filament's rattle loop compiles on first use: 45–90 s on a fresh cache)
+@pytest.mark.parametrize("case", list(RATTLE_CASES))
+def test_rattle_moves_a_driven_end_compiled(case):
+    make, dt = RATTLE_CASES[case]
+    problem = make()
+    scheme, (ref, ref_integ), (fast, integ) = run_both(Lattice, problem, Rattle, dt, NSTEPS, BLOCKS)
+    assert integ.compiled_declined is None
+    if case != "straight-damped-twist":  # (a twisted straight line keeps its rows at round-off: whether a
+        assert integ.niter == ref_integ.niter  # step iterates once more is round-off's choice there)
+    start = scheme.initial_state()
+    start.scalars.setdefault("nstep", 0)
+    assert not scheme.compiled_advance(Rattle(), start, dt, 1)  # so the generated loop took the steps
+    assert fast.scalars["nstep"] == ref.scalars["nstep"] == integ.nstep == NSTEPS and fast.t == ref.t
+    assert _rel(fast.S, ref.S) <= TOL
+    for key in ref.arrays:
+        assert _rel(fast.arrays[key], ref.arrays[key]) <= TOL, key
+    assert ref.scalars["external_work"] != 0.0  # the support works
+    assert abs(fast.scalars["external_work"] - ref.scalars["external_work"]) <= RATTLE_WORK_TOL * abs(
+        ref.scalars["external_work"])
+    assert abs(fast.scalars["dissipated_energy"] - ref.scalars["dissipated_energy"]) <= TOL * max(
+        abs(ref.scalars["dissipated_energy"]), 1e-300)
+    assert integ.constraint_residual(scheme, fast) <= 1e-13
+    xi = scheme._driven[1][-1]
+    _assert_end_moves_by_exp(scheme, fast, xi)
+    R_ref, R_fast = Rattle().support_reaction(scheme, ref), Rattle().support_reaction(scheme, fast)
+    assert _rel(R_fast, R_ref) <= RATTLE_WORK_TOL
+
+
+@pytest.mark.slow  # (the driven filament's rattle loop compiles on first use)
+def test_rattle_compiled_refuses_a_filament_without_slack():
+    """Clamped at s = 0 and driven at s = L = the ends' distance: the rows are dependent and the
+    compiled loop, as the Python step, says so (a ValueError, not a convergence failure)."""
+    problem = _driven_filament(np.array([0.0, 0.0, 0.0, 1.0, 0.0, 0.0]), straight=True, loads=())
+    scheme = Lattice(problem)
+    state = scheme.initial_state()
+    state.scalars.setdefault("nstep", 0)
+    with pytest.raises(ValueError, match="rattle: the constraint rows are dependent"):
+        Rattle().run_compiled_loop(scheme, state, 1e-3, 2)

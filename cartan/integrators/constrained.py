@@ -55,8 +55,10 @@ velocity projections solve ``B_u N_u = −B_d ξ``, the position multipliers hol
 the flow that moved the driven nodes.  The support balances the constraint force ``B_dᵀλ`` on
 them as well (:meth:`Rattle.support_reaction`), whose power ``−λᵀB_dξ`` is booked as external
 work with the scheme's; the first step from rest books the kinetic energy the velocity
-projection gives the free nodes as the support's impulsive work.  Such problems run the Python
-step (the operator set declines them).
+projection gives the free nodes as the support's impulsive work.  The compiled loop takes them
+as the Python step does (the operator set's driven nodes, their ξ and ∂K/∂N(ξ); the rows' force
+on them, with λ at every step's end from the rows' rate to round-off, a central difference as
+in :meth:`Rattle._rows_rate_exact`).
 
 Held components (:class:`~cartan.problem.Held` ends, :class:`~cartan.problem.Symmetry` faces:
 the scheme's clamp mask ``[*shape, r]``): their velocity and momentum are zeroed after every kick
@@ -66,8 +68,8 @@ each node (``P`` and the quasi-Newton matrix are per-node blocks restricted to t
 problem checks that the kinetic metric does not couple held and free components), an edge
 between two wholly held nodes has no row, and the held columns add nothing to ``B_c N`` (their
 velocity is zero).  :meth:`Rattle.support_reaction` gives the reaction on every held component,
-the constraint force on it included.  Such problems run the Python step (the compiled loop
-holds whole clamped nodes only: :meth:`Rattle.compiled_reason`).
+the constraint force on it included.  The compiled loop restricts its node operators to the
+free components by the operator set's ``held`` mask: the same steps, round-off apart.
 
 Runs on the ``lattice`` scheme (whose edges carry the exact strains); a medium without
 constrained strains gets lie-verlet's steps unchanged.  On an open chain of nodes (d = 1, not
@@ -95,6 +97,12 @@ __all__ = ["Rattle"]
 _MAX_ITERATIONS = 40
 #: the chord iteration turns to the trial's Newton matrix when an iteration gains less than this
 _SLOW = 0.25
+
+
+#: the error of a driven problem whose rows are dependent (the Python step's and the compiled loop's)
+_DEPENDENT = ("rattle: the constraint rows are dependent at this configuration (their multiplier system is "
+              "singular): a straight filament held at both ends, by a clamp and a Driven end at the distance of "
+              "its length, has no slack to move; start from a slack shape (e.g. an arc) or free one end")
 
 
 #: the keys of ``State.memory`` that carry the multipliers' offsets ν − λ of the last steps and their Δt
@@ -263,10 +271,7 @@ class Rattle(LieVerlet):
         except RuntimeError as exc:  # (scipy's splu: "Factor is exactly singular")
             if "singular" not in str(exc):
                 raise
-            raise ValueError("rattle: the constraint rows are dependent at this configuration (their multiplier "
-                             "system is singular): a straight filament held at both ends, by a clamp and a Driven "
-                             "end at the distance of its length, has no slack to move; start from a slack shape "
-                             "(e.g. an arc) or free one end") from None
+            raise ValueError(_DEPENDENT) from None
 
     def support_reaction(self, scheme: Scheme, state: State) -> np.ndarray:
         """The supports' reaction ``[*shape, r]`` on the held components: every component of the
@@ -330,9 +335,6 @@ class Rattle(LieVerlet):
         if not hasattr(scheme, "edge_nodes") or not hasattr(scheme, "edge_strains"):
             return f"scheme {scheme.name!r} has no edge strains (the Python step says so)"
         grid = scheme.grid
-        if np.ndim(getattr(scheme, "_clamped", False)) > grid.d:
-            return ("held components (cartan.Held ends, cartan.Symmetry faces): the loop's node operators hold "
-                    "whole clamped nodes only")
         if grid.d != 1:
             return (f"d = {grid.d}: the multiplier systems are block-tridiagonal for a chain of nodes only "
                     "(d = 1); a banded solve for d ≥ 2 is not written")
@@ -408,7 +410,8 @@ class Rattle(LieVerlet):
         """The base class' generated loop, then the Python step's errors for a step that failed
         (the state is the one that step started from): :class:`~cartan.statics.ConvergenceError`
         when the multipliers' iteration did not converge, ``ValueError`` when the initial
-        configuration could not be brought onto the constraints."""
+        configuration could not be brought onto the constraints or, with driven ends, when the
+        rows are dependent (a singular multiplier system)."""
         self._failure = None
         ran = super().run_compiled_loop(scheme, state, dt, nsteps, kinetic_limit)
         failure, self._failure = self._failure, None
@@ -417,6 +420,8 @@ class Rattle(LieVerlet):
             if code == 2:
                 raise ValueError(f"rattle: the initial configuration is too far from the constrained strains (max "
                                  f"|X_e[k] − value_k| = {err:.3e} after {_MAX_ITERATIONS} projection steps)")
+            if code == 3 and getattr(scheme, "_driven", None) is not None:
+                raise ValueError(_DEPENDENT)
             from ..statics import ConvergenceError
 
             raise ConvergenceError(

@@ -137,6 +137,12 @@ same operations on the same compiled pieces, so they give the same iterates, cou
 states bit for bit (the dissipated and external energies to round-off: the loop sums the
 midpoint powers with the scheme's compiled ``op_powers``), and the kept Jacobian and previous
 ξ pass between them as between steps.
+
+Driven ends (:class:`~cartan.problem.Driven`): ξ is Δtξ_d at a driven node, no unknown, so the
+node moves by exp(Δtξ_d) exactly; the lattice's operator set with driven nodes serves the
+compiled residual and blocks (``OperatorSet.loops``), whose starting iterates carry Δtξ_d there
+(``op_drive``) and whose wrapped operators give the driven momentum ∂K/∂N(ξ_d) and the
+supports' power at the midpoint.
 """
 
 from __future__ import annotations
@@ -246,7 +252,7 @@ def _stage(scheme: Scheme):
         return None
     operators = getattr(scheme, "compiled_operators", None)
     ops = operators() if operators is not None else None
-    if ops is None or not ops.ok:
+    if ops is None or not ops.serves("implicit_loop"):  # (a set with driven ends serves some loops only)
         return None
     dom = domain_rule(scheme.group)
     if dom is None:

@@ -30,7 +30,10 @@ Compiled functions of the generated module (``ImplicitMidpoint`` drives them):
     Whole blocks of steps: the iteration of ``ImplicitMidpoint._step`` in its order, the end
     of each step and the bookkeeping of ``ImplicitMidpoint.step``; it returns to Python for a
     fresh Jacobian (:data:`NEED_JACOBIAN`, assembled by finite differences of ``im_residual``
-    and factorised by ``scipy.sparse.linalg.splu``) and when a step fails.
+    and factorised by ``scipy.sparse.linalg.splu``) and when a step fails.  Driven ends
+    (:class:`~cartan.problem.Driven`, a set with driven nodes): ξ = Δtξ_d there in every
+    iterate (``op_drive``), no unknown; the drift moves them by exp(Δtξ_d), the wrapped
+    operators give their momentum ∂K/∂N(ξ_d) and the supports' power.
 
 The Python glue — :class:`Stage` (the residual bound to a configuration), :class:`LUSolve`
 and :class:`Blocks` (the loop's work arrays) — calls these compiled functions only.
@@ -185,7 +188,8 @@ def implicit_loop(D, C, Cw, S, mass, dom, radius, unk, w_over_m, w_times_m, lu, 
                   hist, ist, fst, has_power, t, dt, nsteps, diss, ext, limit, tol, contraction, xtol, max_iter,
                   max_halvings, predictor, reuse):
     """Up to ``nsteps`` steps of ``implicit-midpoint`` on ``(C, S)`` in place, Newton's iteration
-    included, in the order of ``ImplicitMidpoint._step`` (see :class:`Blocks` for the arguments);
+    included, in the order of ``ImplicitMidpoint._step`` (see :class:`Blocks` for the arguments;
+    the starting iterates are Δtξ_d at driven nodes, zero at the other fixed ones);
     returns ``(status, steps done, residual evaluations, Newton iterations of the steps done, t,
     dissipated, external, have_lu)``."""
     K = op_work(D)  # noqa: F821
@@ -194,6 +198,19 @@ def implicit_loop(D, C, Cw, S, mass, dom, radius, unk, w_over_m, w_times_m, lu, 
     nunk = unk.shape[0]
     Sf = S.reshape(n * r)
     Nv = np.empty((n, r))
+    # driven ends (cartan.Driven): ξ = Δtξ_d at the driven nodes, no unknown (op_drive gives ξ_d
+    # there in a set with driven nodes, nothing elsewhere); the starting iterates carry it
+    drive = np.zeros((n, r))
+    op_drive(D, drive)  # noqa: F821 - cartan.integrators.loops (rebound by a set with driven nodes)
+    driven = False
+    for i in range(n):
+        for k in range(r):
+            if drive[i, k] != 0.0:
+                driven = True
+    xd = np.empty(n * r)
+    df = drive.reshape(n * r)
+    for j in range(n * r):
+        xd[j] = dt * df[j]
     b = np.empty(nunk)
     delta = np.empty(nunk)
     y = np.empty(nunk)
@@ -215,7 +232,7 @@ def implicit_loop(D, C, Cw, S, mass, dom, radius, unk, w_over_m, w_times_m, lu, 
             if have_prev and predictor:
                 q = dt / dt_prev
                 xa = XI[a]
-                xa[:] = 0.0
+                xa[:] = xd
                 for k in range(nunk):
                     xa[unk[k]] = q * prev[unk[k]]
                 if _im_slot(D, C, Cw, S, XI, BUF, a, dt, t, mass, dom, radius, K):
@@ -226,8 +243,8 @@ def implicit_loop(D, C, Cw, S, mass, dom, radius, unk, w_over_m, w_times_m, lu, 
                 op_velocity(D, S, Nv)  # noqa: F821
                 Nf = Nv.reshape(n * r)
                 xa = XI[a]
-                xa[:] = 0.0
-                nonzero = False
+                xa[:] = xd
+                nonzero = driven
                 for k in range(nunk):
                     j = unk[k]
                     v = dt * Nf[j]
@@ -240,7 +257,7 @@ def implicit_loop(D, C, Cw, S, mass, dom, radius, unk, w_over_m, w_times_m, lu, 
                 cur = a
                 if nonzero:
                     z = 1 - a
-                    XI[z][:] = 0.0
+                    XI[z][:] = xd  # (ξ = 0 on the unknowns)
                     _im_slot(D, C, Cw, S, XI, BUF, z, dt, t, mass, dom, radius, K)
                     nforce += 1
                     if not ok or (im_norm(w_over_m, unk, BUF[z, 5]) < im_norm(w_over_m, unk, BUF[a, 5])):

@@ -11,7 +11,9 @@ The constraint rows are ``c_{e,a} = X_e[comp_a] − value_a`` on every edge e (`
 their Jacobian along the drift, ``B_c δ = [dexp⁻¹(−hX_e)δ_j − dexp⁻¹(hX_e)δ_i]_comp / h``, is kept
 per edge as its two ``(c, r)`` blocks: ``Bt[e]`` on the tail node i and ``Bh[e]`` on the head
 node j (``[E, c, r]``, columns of every component; the node operators ``P`` ``[n, r, r]`` are
-zero on the gauge components and at clamped nodes, so only the unknowns enter).  On a chain of
+zero on the gauge components, at clamped and driven nodes and on the held components of
+``Held`` ends and ``Symmetry`` faces — the operator set's ``held`` mask, :func:`_rattle_fixed` —
+so only the unknowns enter).  On a chain of
 nodes (d = 1, open; edge e from node e to node e + 1) the multiplier matrices
 ``L P Rᵀ`` couple an edge with its neighbours only: block-tridiagonal, ``[E, c, c]`` blocks,
 factored and solved in O(E c³) (:mod:`cartan.compiled.banded`; the symmetric positive definite
@@ -32,9 +34,17 @@ P_closing Bᵀ = s·B P Bᵀ``). With damping the force a step starts from is th
 kick left, ``W(N = 0) − ΓN`` (the damping is linear), and a call that starts without it (the
 first, or after a restart) evaluates it the same way: the steps do not depend on how they are
 grouped into calls.
+Driven ends (the operator set's driven nodes, ``D.any_driven``): the velocity the rows are
+applied to is ξ there (``op_velocity``), so ``B_c N`` is ``B_u N_u + B_d ξ`` and the projections
+solve ``B_u N_u = −B_d ξ`` as they stand; the free flow moves the driven nodes by exp(Δtξ)
+(``op_free_flow``); the kinetic energy the start's velocity projection gives (the first step
+from rest) is booked as the support's work, and the powers a step books add ``−λᵀB_dξ``, the
+rows' force on the driven nodes (:func:`_rattle_support_power`, λ as the Python step's
+``Rattle._multipliers``), the powers a call starts from taken where the Python step takes them.
 ``status`` ``[2]`` int64 returns the outcome (0: steps done, 1: the multipliers' iteration
-failed, 2: the initial configuration could not be projected; the state is then the one the
-failing step started from) and the iterations summed over the steps; ``info`` ``[1]`` the
+failed, 2: the initial configuration could not be projected, 3: a multiplier system ``B P Bᵀ``
+was singular — dependent rows; the state is then the one the failing step started from, or, for
+a closing projection, where that step ended) and the iterations summed over the steps; ``info`` ``[1]`` the
 residual of a failure.
 """
 
@@ -51,6 +61,12 @@ __all__ = ["loop_fragment"]
 
 
 # ---------------------------------------------------------------------------- the rows
+def _rattle_fixed(D, i, k):
+    """Whether component k of node i is not an unknown of the rows: a gauge component, a
+    clamped (or driven) node, a held component (``Held`` ends, ``Symmetry`` faces: ``D.held``)."""
+    return (not D.live[k]) or (D.any_clamped and D.clamped[i]) or (D.any_held and D.held[i, k])
+
+
 def rattle_values(D, C, comp, value, out, Xe):
     """``out[e, a] = log(G_e)[comp_a]/h − value_a`` ``[E, c]``; returns max |out| (NaN if any is
     NaN).  Keeps the logarithms ``hX_e = log(G_e)`` in ``Xe`` ``[E, r]``: the rows at the same
@@ -94,8 +110,6 @@ def rattle_rows(D, C, comp, Bt, Bh, Ae, Xe, have_log):
             g_log(G[e], xi)  # noqa: F821
         ih = D.einvh[e]
         i, j = D.tail[e], D.head[e]
-        free_i = not (D.any_clamped and D.clamped[i])
-        free_j = not (D.any_clamped and D.clamped[j])
         g_dexp_inv(xi, A)  # noqa: F821
         for k in range(R_):  # noqa: F821
             Xe[e, k] = xi[k]
@@ -105,14 +119,14 @@ def rattle_rows(D, C, comp, Bt, Bh, Ae, Xe, have_log):
             for k in range(R_):  # noqa: F821
                 v = -A[comp[a], k] * ih
                 Bt[e, a, k] = v
-                if free_i and D.live[k] and abs(v) > big:
+                if abs(v) > big and not _rattle_fixed(D, i, k):
                     big = abs(v)
         g_ad(xi, ad)  # noqa: F821
         for a in range(comp.shape[0]):
             for k in range(R_):  # noqa: F821
                 v = (A[comp[a], k] + ad[comp[a], k]) * ih
                 Bh[e, a, k] = v
-                if free_j and D.live[k] and abs(v) > big:
+                if abs(v) > big and not _rattle_fixed(D, j, k):
                     big = abs(v)
     return big
 
@@ -130,9 +144,9 @@ def rattle_metric(D, closing, P):
                     s += D.inv_metric[k, m] * closing[m, j]
             T[k, j] = s
     for i in range(P.shape[0]):
-        zero = D.any_clamped and D.clamped[i]
         for k in range(R_):  # noqa: F821
             for j in range(R_):  # noqa: F821
+                zero = _rattle_fixed(D, i, k) or _rattle_fixed(D, i, j)
                 P[i, k, j] = 0.0 if zero else T[k, j] * D.winv[i]
 
 
@@ -154,12 +168,12 @@ def _rattle_flow_jacobian(D, N, dt, P):
         for k in range(R_):  # noqa: F821
             for j in range(R_):  # noqa: F821
                 s = 0.0
-                if D.live[k] and D.live[j]:
+                if not (_rattle_fixed(D, i, k) or _rattle_fixed(D, i, j)):
                     if D.diagonal:
                         s = E[k, j] * D.inv_metric[j, j]
                     else:
                         for m in range(R_):  # noqa: F821
-                            if D.live[m]:
+                            if not _rattle_fixed(D, i, m):
                                 s += E[k, m] * D.inv_metric[m, j]
                 P[i, k, j] = s * D.winv[i]
 
@@ -306,10 +320,11 @@ def rattle_project_velocity(D, S, N, Bt, Bh, bmax, F, factored, P, pdiag, fscale
         for e in range(res.shape[0]):
             for a in range(res.shape[1]):
                 rmax = max(rmax, abs(res[e, a]))
-        nmax = 0.0
+        nmax = 0.0  # (over the unknowns: a driven node's ξ is not one)
         for i in range(N.shape[0]):
             for k in range(R_):  # noqa: F821
-                nmax = max(nmax, abs(N[i, k]))
+                if not _rattle_fixed(D, i, k):
+                    nmax = max(nmax, abs(N[i, k]))
         if rmax <= 1e-13 * bmax * nmax:
             return False, factored, True
     if not factored:
@@ -423,7 +438,7 @@ def _rattle_predict(D, S, N, W, Bt, Bh, F, comp, Ae, Xe, work, acc, nu, rate):
             s = 0.0
             for j in range(R_):  # noqa: F821
                 s += D.inv_metric[k, j] * work[i, j]
-            acc[i, k] = 0.0 if (D.any_clamped and D.clamped[i]) or not D.live[k] else s
+            acc[i, k] = 0.0 if _rattle_fixed(D, i, k) else s
     rattle_apply(D, Bt, Bh, acc, nu)
     _rattle_rate(D, N, comp, Ae, Xe, rate)
     for e in range(nu.shape[0]):
@@ -433,6 +448,65 @@ def _rattle_predict(D, S, N, W, Bt, Bh, F, comp, Ae, Xe, work, acc, nu, rate):
     for e in range(nu.shape[0]):
         for a in range(nu.shape[1]):
             nu[e, a] = -nu[e, a]
+
+
+def _rattle_support_power(D, C, S, N, W, comp, Bt, Bh, P, pdiag, F, factored, work, acc, lam, rate, rp, Cd, Btd,
+                          Bhd, Aed, Xed, K, no):
+    """The power ``−λᵀB_dξ`` of the constraint force on the driven nodes (the Python step's
+    ``Rattle._powers``, part of the supports'): λ ``[E, c]`` the force-level multipliers at C,
+    ``(B P Bᵀ)λ = −B[M⁺(ad_NᵀS + W)] − Ḃ_c N`` with the rows' rate to round-off — the central
+    difference of ``B_c(Φ exp(εN))N`` over ε = ±ε₀, ε₀ = 1e-5/max|N| (``_rows_rate_exact``; the
+    drifts of a copy ``Cd`` of C, the rows there in ``Btd``/``Bhd``/``Aed``/``Xed``) — and
+    ``B_dᵀλ`` the rows' force on the driven nodes' components (``Bt``/``Bh`` ``[E, c, r]`` the
+    rows at C, ``N`` ``[n, r]`` the velocity there, ξ at the driven nodes).  ``F`` the block
+    Cholesky factors of ``B P Bᵀ`` when ``factored``, else factored here.  Returns
+    ``(power, factored, ok)``."""
+    if not factored:
+        if not rattle_factor_sym(D, Bt, Bh, P, F, pdiag):
+            return 0.0, False, False
+        factored = True
+    n = S.shape[0]
+    _lie_poisson(N, S, W, work)  # noqa: F821 - W + ad_NᵀS (cartan.integrators.loops)
+    for i in range(n):
+        for k in range(R_):  # noqa: F821
+            s = 0.0
+            for j in range(R_):  # noqa: F821
+                s += D.inv_metric[k, j] * work[i, j]
+            acc[i, k] = 0.0 if _rattle_fixed(D, i, k) else s
+    rattle_apply(D, Bt, Bh, acc, lam)
+    nmax = 0.0
+    for i in range(n):
+        for k in range(R_):  # noqa: F821
+            nmax = max(nmax, abs(N[i, k]))
+    eps = 1e-5 / max(nmax, 1e-300)
+    for side in range(2):
+        sign = 1.0 if side == 0 else -1.0
+        _rattle_copy(C, Cd)
+        op_drift(D, Cd, sign * eps, N, K)  # noqa: F821
+        rattle_rows(D, Cd, comp, Btd, Bhd, Aed, Xed, no)
+        rattle_apply(D, Btd, Bhd, N, rate if side == 0 else rp)
+    for e in range(lam.shape[0]):
+        for a in range(lam.shape[1]):
+            lam[e, a] += (rate[e, a] - rp[e, a]) / (2.0 * eps)
+    bs_solve(F[3], F[4], lam, lam)
+    power = 0.0
+    for e in range(Bt.shape[0]):
+        i, j = D.tail[e], D.head[e]
+        di = D.dslot[i] >= 0
+        dj = D.dslot[j] >= 0
+        if not (di or dj):
+            continue
+        for k in range(R_):  # noqa: F821
+            si = 0.0
+            sj = 0.0
+            for a in range(Bt.shape[1]):
+                si += Bt[e, a, k] * lam[e, a]
+                sj += Bh[e, a, k] * lam[e, a]
+            if di:  # (lam holds −λ: −λᵀB_dξ = Σ (B_dᵀ lam)·ξ)
+                power += si * D.xi_d[i, k]
+            if dj:
+                power += sj * D.xi_d[j, k]
+    return power, factored, True
 
 
 def _rattle_copy(src, dst):
@@ -524,6 +598,19 @@ def rattle_loop(D, C, S, W, have_w, velocity_free, pieces, fracs, closing, comp,
     Fs = _rattle_factors(ne, nc)  # B₀ P B₀ᵀ (start; block Cholesky, rattle_factor_sym)
     Fc = _rattle_factors(ne, nc)  # B⁺ P_closing B⁺ᵀ (closing kick; block Cholesky)
     Fq = _rattle_factors(ne, nc)  # B₁ J B₀ᵀ (quasi-Newton)
+    # driven ends: the power of the rows' force on the driven nodes (_rattle_support_power) and
+    # the start's velocity projection's work; the powers a call starts from are taken once the
+    # first step's start is known (after its velocity projection, as the Python step takes them)
+    driven = D.any_driven
+    pending = driven
+    nd_e = ne if driven else 0
+    Cd = op_new_config(C)  # noqa: F821
+    Btd = np.zeros((nd_e, nc, R_))  # noqa: F821
+    Bhd = np.zeros((nd_e, nc, R_))  # noqa: F821
+    Aed = np.empty((nd_e, R_, R_))  # noqa: F821
+    Xed = np.empty((nd_e, R_))  # noqa: F821
+    rq = np.empty((ne, nc))
+    Wp = np.empty((n, R_))  # noqa: F821
     # run-time booleans (not literals: a literal argument would compile the callee once per value)
     yes = nsteps >= 0
     no = not yes
@@ -533,7 +620,9 @@ def rattle_loop(D, C, S, W, have_w, velocity_free, pieces, fracs, closing, comp,
     nforce = 0
     niter = 0
     op_velocity(D, S, N)  # noqa: F821
-    p0d, p0e = op_powers(D, C, N, t, K)  # noqa: F821
+    p0d, p0e = 0.0, 0.0
+    if not driven:
+        p0d, p0e = op_powers(D, C, N, t, K)  # noqa: F821
     done = 0
     for _ in range(nsteps):
         # the step starts on the manifold ...
@@ -549,7 +638,26 @@ def rattle_loop(D, C, S, W, have_w, velocity_free, pieces, fracs, closing, comp,
         nprev = 0
         while nprev < 3 and offset_dt[nprev] == dt:
             nprev += 1
-        if err0 > 1e-10 * scale:
+        on_manifold = err0 <= 1e-10 * scale
+        if not on_manifold and pending:  # the powers at the state as it is (the Python step's order)
+            op_velocity(D, S, N)  # noqa: F821
+            if have_w and velocity_free:
+                for i in range(n):
+                    for k in range(R_):  # noqa: F821
+                        Wp[i, k] = W[i, k]
+            else:
+                op_force(D, C, t, N, Wp, K)  # noqa: F821
+            rattle_rows(D, C, comp, Btd, Bhd, Aed, Xed, no)
+            p0d, p0e = op_powers(D, C, N, t, K)  # noqa: F821
+            pw, _, ok = _rattle_support_power(D, C, S, N, Wp, comp, Btd, Bhd, Pm, pm_diag, Fc, no, work, acc, dnu, cp,
+                                              rq, Cd, Bt1, Bh1, Ae, Xe, K, no)
+            if not ok:
+                status[0] = 3
+                info[0] = np.nan
+                break
+            p0e += pw
+            pending = False
+        if not on_manifold:
             nprev = 0
             err0 = _rattle_project_config(D, C, comp, value, scale, Bt0, Bh0, Ae, Xe, Pm, pm_diag, Fs, cres, dnu, imp,
                                           K)
@@ -565,15 +673,18 @@ def rattle_loop(D, C, S, W, have_w, velocity_free, pieces, fracs, closing, comp,
             have_fs = False
         # ... with a tangent velocity
         op_velocity(D, S, N)  # noqa: F821
+        k0 = op_kinetic(D, S) if driven and on_manifold else 0.0  # noqa: F821
         projected, have_fs, ok = rattle_project_velocity(D, S, N, Bt0, Bh0, bmax, Fs, have_fs, Pm, pm_diag, 1.0,
                                                          eye, no, half, yes, pres, mu, imp)
         if not ok:
-            status[0] = 1
+            status[0] = 3
             info[0] = np.nan
             break
         if projected:
             have_w = False
             op_velocity(D, S, N)  # noqa: F821
+            if driven and on_manifold:  # the support's impulse sets the free nodes in motion: its work
+                ext += op_kinetic(D, S) - k0  # noqa: F821
         if not have_w:
             if velocity_free:
                 op_force(D, C, t, N, W, K)  # noqa: F821
@@ -581,13 +692,23 @@ def rattle_loop(D, C, S, W, have_w, velocity_free, pieces, fracs, closing, comp,
                 op_force(D, C, t, Z, W, K)  # noqa: F821 - in this call, an earlier one or before a restart
                 _damped(D, W, N)  # noqa: F821
             nforce += 1
+        if pending:
+            p0d, p0e = op_powers(D, C, N, t, K)  # noqa: F821
+            pw, have_fs, ok = _rattle_support_power(D, C, S, N, W, comp, Bt0, Bh0, Pm, pm_diag, Fs, have_fs, work, acc,
+                                                    dnu, cp, rq, Cd, Btd, Bhd, Aed, Xed, K, no)
+            if not ok:
+                status[0] = 3
+                info[0] = np.nan
+                break
+            p0e += pw
+            pending = False
         for i in range(n):
             for k in range(R_):  # noqa: F821
                 S0[i, k] = S[i, k]
         _rattle_copy(C, C0)
         if not have_fs:
             if not rattle_factor_sym(D, Bt0, Bh0, Pm, Fs, pm_diag):
-                status[0] = 1
+                status[0] = 3
                 info[0] = np.nan
                 break
             have_fs = True
@@ -706,7 +827,7 @@ def rattle_loop(D, C, S, W, have_w, velocity_free, pieces, fracs, closing, comp,
                                                    half, no, pres, mu, imp)
                 have_fs = False
         if not ok:
-            status[0] = 1
+            status[0] = 3
             info[0] = np.nan
             break
         nforce += 1
@@ -716,7 +837,21 @@ def rattle_loop(D, C, S, W, have_w, velocity_free, pieces, fracs, closing, comp,
             _damped(D, W, N)  # noqa: F821
         t = t1
         done += 1
-        p0d, p0e, diss, ext, blown = _book(D, C, S, N, t, dt, p0d, p0e, diss, ext, K, check, limit)  # noqa: F821
+        if driven:  # the loads' powers and the rows' on the driven nodes (W: the force at the step's end)
+            p1d, p1e = op_powers(D, C, N, t, K)  # noqa: F821
+            pw, have_fs, ok = _rattle_support_power(D, C, S, N, W, comp, Bt0, Bh0, Pm, pm_diag, Fs, have_fs, work, acc,
+                                                    dnu, cp, rq, Cd, Btd, Bhd, Aed, Xed, K, no)
+            if not ok:
+                status[0] = 3
+                info[0] = np.nan
+                break
+            p1e += pw
+            diss += 0.5 * dt * (p0d + p1d)
+            ext += 0.5 * dt * (p0e + p1e)
+            p0d, p0e = p1d, p1e
+            blown = _blown(D, C, S, check, limit)  # noqa: F821
+        else:
+            p0d, p0e, diss, ext, blown = _book(D, C, S, N, t, dt, p0d, p0e, diss, ext, K, check, limit)  # noqa: F821
         if blown:
             break
     status[1] = niter
@@ -725,10 +860,12 @@ def rattle_loop(D, C, S, W, have_w, velocity_free, pieces, fracs, closing, comp,
 
 def loop_fragment() -> Fragment:
     """The rattle loop, its helpers and the block-tridiagonal solver as one fragment of a
-    generated module (it uses ``_lie_poisson``, ``_damped`` and ``_book`` of :mod:`cartan.integrators.loops`)."""
+    generated module (it uses ``_lie_poisson``, ``_damped``, ``_book`` and ``_blown`` of
+    :mod:`cartan.integrators.loops`)."""
     return Fragment(constants={"MAX_ITERATIONS_": MAX_ITERATIONS, "SLOW_": SLOW},
-                    source=njit_source(small_inverse, bt_factor, bt_solve, bs_factor, bs_solve, rattle_values,
-                                       rattle_rows, rattle_metric, _rattle_flow_jacobian, _rattle_diagonal,
-                                       _rattle_right, _rattle_left, rattle_factor, rattle_factor_sym, rattle_apply,
-                                       rattle_impulse, rattle_project_velocity, _rattle_project_config, _rattle_rate,
-                                       _rattle_predict, _rattle_copy, _rattle_factors, rattle_loop))
+                    source=njit_source(small_inverse, bt_factor, bt_solve, bs_factor, bs_solve, _rattle_fixed,
+                                       rattle_values, rattle_rows, rattle_metric, _rattle_flow_jacobian,
+                                       _rattle_diagonal, _rattle_right, _rattle_left, rattle_factor, rattle_factor_sym,
+                                       rattle_apply, rattle_impulse, rattle_project_velocity, _rattle_project_config,
+                                       _rattle_rate, _rattle_predict, _rattle_support_power, _rattle_copy,
+                                       _rattle_factors, rattle_loop))

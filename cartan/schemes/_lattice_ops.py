@@ -61,8 +61,8 @@ components, ``lie-verlet``'s free flow moves a node along its free components on
 the held ones) and the kinetic energy is ``½ w N·MN`` with those N (``metric`` M).  The
 velocity, constraint and kinetic energy are shared with the collocation set, whose data
 carries the same three fields with nothing held (``any_held`` False).
-The loops that read ``clamped`` themselves (``kinematic``'s prescribed velocity, ``rattle``'s
-node operators) decline partly held problems in their integrators; ``overdamped`` takes
+The loops that read ``clamped`` themselves (``kinematic``'s prescribed velocity) decline partly
+held problems in their integrators (``rattle``'s node operators read ``held``); ``overdamped`` takes
 N = Γ⁻¹W, zero on the held components with W.
 
 Driven ends (``Driven``; the lattice only): the driven nodes are held (``clamped``) and listed
@@ -70,8 +70,9 @@ with their ξ and ∂K/∂N(ξ) (``dnodes``, ``xi_d``, ``S_d``); a set that has 
 :func:`driven_fragment` after the loops (``OperatorSet.late``), whose operators give the velocity
 ξ, the momentum ∂K/∂N(ξ), the kinetic energy ½wξ·Mξ there and add the supports' power
 ``−w W·ξ`` (``Scheme._driven_power``) to the external power, and ``op_free_flow`` moves them by
-:func:`_driven_flow`; it serves the loops of ``lie-verlet``, ``lie-euler``, ``rkmk4`` and
-``overdamped`` only (``OperatorSet.loops``: not ``ok``), serially (no threaded build).
+:func:`_driven_flow`; it serves the loops of ``lie-verlet``, ``lie-euler``, ``rkmk4``,
+``overdamped``, ``rattle`` and ``implicit-midpoint`` only (``OperatorSet.loops``: not ``ok``),
+serially (no threaded build).
 
 Energies (paper §VI.C)
     Edge sum ``V = cell Σ_e U(X_e; X₀_e)`` with the other axes at rest, or, for coupled media,
@@ -1392,13 +1393,13 @@ def lattice_operators(scheme, reference: type):
                        accepts=accepts, nodes=n, threaded=[threaded_fragment()])
 
 
-#: the loops that move driven ends (``lie-verlet``, ``lie-euler``, ``rkmk4``, ``overdamped``:
+#: the loops that move driven ends (``lie-verlet``, ``lie-euler``, ``rkmk4``, ``overdamped``, ``rattle``,
+#: ``implicit-midpoint``:
 #: their Python steps move a driven node by exp(Δtξ), ``Integrator.driven_reason``)
-DRIVEN_LOOPS = ("lie_verlet_loop", "euler_loop", "rkmk_loop")
+DRIVEN_LOOPS = ("lie_verlet_loop", "euler_loop", "rkmk_loop", "rattle_loop", "implicit_loop")
 #: why a set with driven nodes serves those loops only
-DRIVEN_REASON = ("a Driven end runs compiled in the loops of lie-verlet, lie-euler, rkmk4 and overdamped only; "
-                 "the other compiled paths (implicit-midpoint's Newton loop, rattle's loop with constraint rows, "
-                 "the compiled diagnostics) leave it to the numpy path")
+DRIVEN_REASON = ("a Driven end runs compiled in the loops of lie-verlet, lie-euler, rkmk4, overdamped, rattle and "
+                 "implicit-midpoint only; the compiled diagnostics leave it to the numpy path")
 
 
 def _driven_data(scheme, data: LatticeData, n: int, r: int) -> dict:

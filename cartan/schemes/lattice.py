@@ -73,7 +73,8 @@ Compiled loops
     (:class:`~cartan.problem.Held`, :class:`~cartan.problem.Symmetry`: the operators' ``held``
     mask, :meth:`_clamp_mask`), and driven ends (:class:`~cartan.problem.Driven`: the driven
     nodes' ξ and ∂K/∂N(ξ) in the operators' data, in the loops of ``lie-verlet``, ``lie-euler``,
-    ``rkmk4`` and ``overdamped`` only, serially).  SE(3) rods (d = 1) with a quadratic potential and loads that
+    ``rkmk4``, ``overdamped``, ``rattle`` and ``implicit-midpoint`` only, serially).
+    SE(3) rods (d = 1) with a quadratic potential and loads that
     are data (damping, body-frame uniform force, constant-field potentials, end loads,
     clamps) run ``lie-verlet`` and ``overdamped`` (order 1) in the hand-written
     structure-of-arrays loops of :meth:`Lattice.compiled_advance`
@@ -214,7 +215,8 @@ class Lattice(Scheme):
         (:class:`~cartan.problem.Held` ends, :class:`~cartan.problem.Symmetry` faces: the
         operators' ``held`` mask, :meth:`_clamp_mask`) and :class:`~cartan.problem.Driven` ends
         (their nodes, ξ and ∂K/∂N(ξ) in the data; a set that serves the loops of ``lie-verlet``,
-        ``lie-euler``, ``rkmk4`` and ``overdamped`` only, :attr:`OperatorSet.loops`)."""
+        ``lie-euler``, ``rkmk4``, ``overdamped``, ``rattle`` and ``implicit-midpoint`` only,
+        :attr:`OperatorSet.loops`)."""
         ops = self.__dict__.get("_operators")
         if ops is None:
             if self._glue:
