@@ -98,8 +98,8 @@ class PenaltySupport(PotentialLoad):
     per unit reference volume (chart area for d = 2).
 
     x is a node's position and p_i = R e_i its directors, i over ``directors``, all in the
-    spatial frame; x̄ and p̄_i the held values (those of the first configuration the load sees,
-    the initial state, or set by :meth:`hold`).  On the nodes of the listed faces
+    spatial frame; x̄ and p̄_i the held values (those of the problem's initial state, taken by
+    :meth:`attach`, or set by :meth:`hold`).  On the nodes of the listed faces
     K = diag(``position_stiffness``) and S = s Σ t tᵀ, summed over the faces through the node and,
     for each, over its reference tangents t = R̄ e_b, b < d the other axes (R̄e₂ on u-faces and
     R̄e₁ on v-faces of a d = 2 chart): with ``director_stiffness`` s > 0 a held director may turn
@@ -142,6 +142,15 @@ class PenaltySupport(PotentialLoad):
         if q_r is None or np.shape(q_r) != (4, 4) or not np.allclose(q_r, np.eye(4)):
             raise ValueError(f"{type(self).__name__} needs a medium whose points are SE(3) frames q = Φ (q_r = I), "
                              f"not {getattr(medium, 'name', medium)!r}")
+
+    def attach(self, problem: Any) -> None:
+        """Hold the problem's initial state, unless :meth:`hold` or an earlier problem set the held
+        values: they are the start's, not those of whatever configuration is evaluated first (a
+        Jacobian's finite differences may evaluate the load at a displaced state before the start)."""
+        if self._held is None:
+            Phi = getattr(problem.initial, "Phi", None)
+            if Phi is not None and np.shape(Phi)[-2:] == (4, 4):
+                self.hold(Phi)
 
     def _shape(self, Phi: np.ndarray) -> tuple[int, ...]:
         shape = Phi.shape[:-2]
@@ -203,8 +212,8 @@ class SymmetrySupport(PenaltySupport):
     of the listed faces, 0 elsewhere.
 
     n is a fixed spatial unit vector, x a node's position and p_i = R e_i its directors, i over
-    ``directors``; x̄ and p̄_i the held values (those of the first configuration the load sees,
-    or set by :meth:`hold`).  On a symmetry plane through the held nodes with normal n, a
+    ``directors``; x̄ and p̄_i the held values (those of the problem's initial state, taken by
+    :meth:`attach`, or set by :meth:`hold`).  On a symmetry plane through the held nodes with normal n, a
     mirror-symmetric deformation has n·u = 0 and keeps every frame vector that lies in the
     plane in it: the rotation is about n, so the tangential moment and the transverse force
     through the plane vanish by symmetry and need no condition.

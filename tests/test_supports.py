@@ -163,3 +163,22 @@ def test_surface_reduction_is_todays_shell_energy():
     assert np.allclose(pen.potential_energy(q), expected, rtol=1e-13, atol=0)
     grad = sym.potential_gradient(q)
     assert np.all(grad[..., 1:, 1:3] == 0.0)                  # e₁, e₂ free: the drill is a gauge
+
+
+def test_supports_hold_the_initial_state_not_the_first_configuration_evaluated():
+    """The held x̄, p̄ are the problem's initial state (``attach``): a Jacobian's finite differences
+    may evaluate the load at a displaced state first, which must not become the support's rest
+    (it did: a solve whose first call was such a difference held a displaced plane)."""
+    from cartan_kirchhoff_love import cases
+
+    problem = cases.helfrich_tube_problem(5)
+    Phi0 = np.asarray(problem.initial.Phi)
+    displaced = Phi0.copy()
+    displaced[..., 1:, 0] += 1e-3
+    for load in problem.loads:
+        assert np.all(np.isfinite(load.potential_energy(displaced)))  # the first evaluation: displaced
+        np.testing.assert_array_equal(load._held[2], Phi0[..., 1:, 0])
+        assert np.all(load.potential_energy(Phi0) == 0.0)
+    explicit = PenaltySupport(None, (1.0, 1.0, 1.0), 1.0).hold(displaced)  # an explicit hold is kept
+    cartan.Problem(problem.medium, problem.grid, problem.initial, loads=[explicit])
+    np.testing.assert_array_equal(explicit._held[2], displaced[..., 1:, 0])
