@@ -71,6 +71,11 @@ Failure
     damped step, or steps below ``xtol`` or a stagnation with the residual far above its
     round-off floor, :func:`_residual_floor`) or the Jacobian is singular at a load step's
     start (a singular or ill-posed problem, e.g. a free body under an unbalanced load).
+Free rigid motions
+    Before the first step the rigid motions the supports leave free are found on the first
+    Jacobian (:mod:`cartan.rigid_modes`): a ``ValueError`` when the external loads have power
+    along one, otherwise an :class:`UnsupportedRigidMotion` warning naming them and (default
+    ``rigid_gauge=True``) one bordered row per motion holding its mean at zero.
 
 References: P. Deuflhard, *Newton Methods for Nonlinear Problems: Affine Invariance and
 Adaptive Algorithms*, Springer 2011, §3.3 (NLEQ-ERR) and §5.1 (continuation step sizes);
@@ -91,9 +96,10 @@ import numpy as np
 
 from .constraints import HeldFunctional, StrainConstraints
 from .problem import InitialState, Problem, dead_to_body
+from .rigid_modes import RigidMotions, UnsupportedRigidMotion, rigid_gauges, unsupported_rigid_motions
 from .scatter import scatter_add
 
-__all__ = ["ConvergenceError", "solve_static"]
+__all__ = ["ConvergenceError", "UnsupportedRigidMotion", "solve_static"]
 
 
 class ConvergenceError(RuntimeError):
@@ -1660,7 +1666,11 @@ def _residual_floor(eq: _Equilibrium, state: Any, mu: np.ndarray, lam: float) ->
         nu = np.abs(mu[eq._held])
         rows[: eq.nunk] += G @ (nu + float(np.max(nu)))
         C = np.abs(eq.hold_values(state))
-        rows[eq.nunk + eq.npin + eq.ncon: eq.m] = (C + np.abs(eq.hold_target)) / eq.hold_scale
+        # a functional that sums terms cancelling to C (a rigid-motion gauge: C = 0 from terms of
+        # the frames' size) states their magnitude (``round_off_scale``)
+        terms = np.array([float(h.round_off_scale(eq.sch, state)) if hasattr(h, "round_off_scale") else 0.0
+                          for h in eq.holds])
+        rows[eq.nunk + eq.npin + eq.ncon: eq.m] = (C + np.abs(eq.hold_target) + terms) / eq.hold_scale
     floor = FLOOR_FACTOR * emach * rows
     # a row whose terms all vanish in exact arithmetic (e.g. the force rows of an unloaded
     # inextensible filament, its multipliers ≈ 1e-31) holds products of round-off: ε times the
@@ -2008,10 +2018,12 @@ def _low_rank_slogdet(solve: Callable[[np.ndarray], np.ndarray], low: tuple[np.n
 
 
 def _factorise(eq: _Equilibrium, state: Any, mu: np.ndarray, lam: float,
-               offset: list[np.ndarray] | None) -> Callable[[np.ndarray], np.ndarray]:
+               offset: list[np.ndarray] | None, built: tuple[Any, Any] | None = None
+               ) -> Callable[[np.ndarray], np.ndarray]:
     """The solve of the whole Jacobian of ``eq`` at (state, μ, λ): the sparse LU of
-    :meth:`_Equilibrium.jacobian` and the loads' rank-k part by :func:`_low_rank_solve`."""
-    J, low = eq.jacobian(state, mu, lam, offset, low_rank=True)
+    :meth:`_Equilibrium.jacobian` and the loads' rank-k part by :func:`_low_rank_solve`
+    (``built``: that ``(J, low)``, already assembled at this point)."""
+    J, low = built if built is not None else eq.jacobian(state, mu, lam, offset, low_rank=True)
     return _low_rank_solve(_lu_solve(J, eq.lu_order), low)
 
 
@@ -2077,6 +2089,70 @@ def check_rigid_gauge(reaction: np.ndarray, forces: np.ndarray, length: float, t
                          f"max {worst:.3e} > {bound:.3e}; balance the loads or hold the body (Clamped, pins)")
 
 
+def _rigid_motions(eq: _Equilibrium, J: Any, low: tuple[np.ndarray, np.ndarray] | None,
+                   lam: float) -> RigidMotions:
+    """The rigid motions the supports of ``eq`` leave free at its Newton matrix ``J`` at the start
+    (+ ``low``, the loads' rank-k part; λ = ``lam``): :func:`cartan.rigid_modes.
+    unsupported_rigid_motions` with the finite-difference Jacobian's loads' part apart, and the
+    external forces at the round-off of the force passes counted as none."""
+    internal, external = eq.parts(eq.state0)
+    if not float(np.max(np.abs(external), initial=0.0)) > EXT_ROUNDOFF * _EPS * float(np.max(np.abs(internal),
+                                                                                         initial=0.0)):
+        external = np.zeros_like(external)  # the round-off of the force passes: no load (as in the solve)
+
+    def loads() -> Any:
+        """The loads' part of J's stiffness block at λ (the finite-difference Jacobian's own parts)."""
+        if eq.kind != "fd":
+            return None
+        KL = eq._local_jacobian(eq.state0, lam)
+        if any(not load.local for load in eq.problem.loads):
+            KL = KL + eq._neighbour_jacobian(eq.state0, lam)[0]
+        return KL
+
+    return unsupported_rigid_motions(eq, J, low, external, loads)
+
+
+def _check_rigid_motions(eq: _Equilibrium, J: Any, low: tuple[np.ndarray, np.ndarray] | None, lam: float,
+                         gauge: bool = True) -> RigidMotions:
+    """The rigid motions the supports of ``eq`` leave free, at its first Newton matrix ``J``
+    (+ ``low``, the loads' rank-k part): :func:`cartan.rigid_modes.unsupported_rigid_motions`
+    (``gauge``: whether the solve will hold them, for the warning's text).
+
+    Raises
+    ------
+    ValueError
+        The external loads have power along a free rigid motion (an unbalanced resultant or
+        moment on a body free to move along it: no static equilibrium exists).
+
+    Warns
+    -----
+    UnsupportedRigidMotion
+        Free rigid motions along which the loads have no power: the equilibrium is determined
+        up to them only.
+    """
+    import warnings
+
+    rigid = _rigid_motions(eq, J, low, lam)
+    if not rigid.count:
+        return rigid
+    free = "; ".join(rigid.names)
+    fix = ("hold it with a pin or a Held component (solve_static(..., pins={node: components}), "
+           "boundaries={...: cartan.Held(components)}, a Clamped end; pins='rigid' for a free body)")
+    if rigid.loaded:
+        from .rigid_modes import describe_motion
+
+        worst = describe_motion(eq.g, rigid.loaded_direction())
+        raise ValueError(f"solve_static: the supports leave the rigid motion(s) {free} free and the external loads "
+                         f"have power along {worst} (an unbalanced resultant or moment, relative power "
+                         f"{float(np.max(np.abs(rigid.power))) / rigid.power_scale:.3e}): a body free to move along "
+                         f"it has no static equilibrium; {fix}, or balance the loads")
+    then = ("held at their mean from the start (rigid_gauge=True)" if gauge else
+            "the Newton matrix is singular along them and the solve may add an arbitrary multiple")
+    warnings.warn(f"solve_static: the supports leave {rigid.count} rigid motion(s) free: {free}; the equilibrium "
+                  f"is determined up to them only ({then}); {fix}", UnsupportedRigidMotion, stacklevel=2)
+    return rigid
+
+
 def solve_static(
     problem: Problem,
     scheme: str = "lattice",
@@ -2098,6 +2174,7 @@ def solve_static(
     pins: dict | str | None = None,
     pole: str = "corners",
     holds: Sequence[HeldFunctional] = (),
+    rigid_gauge: bool = True,
 ):
     """An equilibrium of ``problem`` by Newton's method on the group.
 
@@ -2176,6 +2253,16 @@ def solve_static(
         load step has converged when ``|C_k − C₀_k| ≤ tol·s_k`` too.  They hold at every load
         factor λ.  Outputs ``held_value`` C_k and ``held_multiplier`` μ_k (the equilibrium of
         E + Σ μ_k (C_k − C₀_k)) along ``held``, whose coordinate is their names.
+    rigid_gauge : bool
+        The rigid motions the supports leave free are found on the first Newton matrix
+        (:func:`cartan.rigid_modes.unsupported_rigid_motions`: the held components, the bordered
+        rows and the Jacobian do not resist them), with an :class:`UnsupportedRigidMotion`
+        warning that names them, or a ``ValueError`` when the external loads have power along
+        one (no equilibrium exists).  True (default): each is then held by a bordered row, its
+        mean over the nodes at zero (:class:`cartan.rigid_modes.RigidMotionGauge`; outputs along
+        ``held`` as ``rigid_motion_k``), so the equilibrium is the one without rigid motion from
+        the start; False: no row (the Newton matrix stays singular along them, and the result may
+        carry an arbitrary rigid motion or the solve fail on a zero pivot).
 
     Returns
     -------
@@ -2202,12 +2289,24 @@ def solve_static(
         multipliers: edge stresses conjugate to the constrained components; NaN on edges between
         fixed nodes), ``constraint_residual`` ``[time]`` and the attributes
         ``constraint_components``, ``constraint_values`` and ``constraint_residual_max``.
+        Always ``unsupported_rigid_motions``, the number of rigid motions the supports leave free
+        (``rigid_gauge``), and when there are some ``unsupported_rigid_motion_names`` (in words,
+        ``"; "``-separated) and ``unsupported_rigid_motion_directions`` (their ξ ∈ 𝔤, flattened
+        ``k × dim 𝔤``).
 
     Raises
     ------
     ValueError
         Bad options; ``jacobian="analytic"`` for a medium without an analytic Jacobian of
-        this problem; a :meth:`~cartan.medium.Medium.static_jacobian` of the wrong shape.
+        this problem; a :meth:`~cartan.medium.Medium.static_jacobian` of the wrong shape; the
+        external loads have power along a rigid motion the supports leave free (no equilibrium
+        exists), naming it.
+
+    Warns
+    -----
+    UnsupportedRigidMotion
+        The supports leave rigid motions free (the loads have no power along them), named in the
+        message with how to hold them.
     ConvergenceError
         No equilibrium was found (see the module docstring).
     """
@@ -2228,6 +2327,8 @@ def solve_static(
     reuse = float(reuse)
     if isinstance(min_load_step, (bool, str)) or not 0.0 < float(min_load_step) <= 1.0:
         raise ValueError(f"min_load_step must be in (0, 1], got {min_load_step!r}")
+    if not isinstance(rigid_gauge, (bool, np.bool_)):
+        raise ValueError(f"rigid_gauge must be True or False, got {rigid_gauge!r}")
     start = time.perf_counter()
     init = _initial_phi(problem, initial)
     if init is not problem.initial:
@@ -2238,6 +2339,18 @@ def solve_static(
     pins_option, pins = pins, rigid_gauge_pins(problem, pins)
     eq = _Equilibrium(problem, jacobian=jacobian, fd_step=fd_step, t=t, probe_lam=1.0 / nsteps, pins=pins,
                       pole=pole, holds=holds)
+    # the rigid motions the supports leave free, on the first Newton matrix (reused by the first step)
+    lam_first = 1.0 if 1.0 / nsteps >= 1.0 - 1e-12 else 1.0 / nsteps
+    first: list[Any] = []
+    rigid = RigidMotions(np.zeros((0, eq.r_dim)), np.zeros((eq.nnode, eq.r_dim, 0)))
+    if eq.nunk:
+        J0, low0 = eq.jacobian(eq.state0, np.zeros(eq.nmult), lam_first, None, low_rank=True)
+        rigid = _check_rigid_motions(eq, J0, low0, lam_first, bool(rigid_gauge))
+        if rigid.count and rigid_gauge:  # one bordered row per free direction: the solve is well posed
+            eq = _Equilibrium(problem, jacobian=jacobian, fd_step=fd_step, t=t, probe_lam=1.0 / nsteps, pins=pins,
+                              pole=pole, holds=(*holds, *rigid_gauges(eq, rigid)))
+        else:
+            first.append((J0, low0))
     sch, g, nunk = eq.sch, eq.g, eq.nunk
     mu0 = np.zeros(eq.nmult)  # the pins' multipliers, then the strain constraints'
     pin_tol = tol * eq.length
@@ -2264,6 +2377,11 @@ def solve_static(
         )
 
     def factorise(pt: _Point, offset: list[np.ndarray] | None) -> Callable[[np.ndarray], np.ndarray]:
+        if first:
+            J, low = first.pop()
+            if (pt.state is eq.state0 and pt.lam == lam_first and not np.any(pt.mu)
+                    and (offset is None or not any(np.any(o) for o in offset))):
+                return _factorise(eq, pt.state, pt.mu, pt.lam, offset, built=(J, low))
         return _factorise(eq, pt.state, pt.mu, pt.lam, offset)
 
     def residual(pt: _Point) -> np.ndarray:
@@ -2351,6 +2469,7 @@ def solve_static(
             "t": float(t),
             **({"pins": pins_option} if pins_option else {}),
             **({"holds": [h.name for h in eq.holds]} if eq.nhold else {}),
+            **({"rigid_gauge": False} if not rigid_gauge else {}),
         },
         "counters": {"newton_iterations": len(alphas), "load_steps": len(attempts), "wall_time": wall},
     }
@@ -2408,6 +2527,11 @@ def solve_static(
     ds.attrs["newton_load_step_failures"] = int(sum(1 - a[2] for a in attempts))
     ds.attrs["newton_wall_time"] = float(wall)
     ds.attrs["newton_jacobian"] = eq.kind
+    # the rigid motions the supports leave free (UnsupportedRigidMotion), in words and in 𝔤
+    ds.attrs["unsupported_rigid_motions"] = int(rigid.count)
+    if rigid.count:
+        ds.attrs["unsupported_rigid_motion_names"] = "; ".join(rigid.names)
+        ds.attrs["unsupported_rigid_motion_directions"] = [float(x) for x in rigid.directions.ravel()]
     ds.attrs["newton_residual_final"] = float(history[-1]) if history else 0.0
     ds.attrs["newton_converged"] = 1
     # how the last load step (λ = 1) converged, and its residual against the tolerance tol·f

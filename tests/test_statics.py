@@ -125,12 +125,11 @@ def test_free_rod_under_unbalanced_load_raises(follower):
         rod.initial_state(grid, "straight"),
         {"end": cartan.Free(load=[0, 0, -F, 0, 0, 0], follower=follower)},
     )
-    with pytest.raises(ConvergenceError, match=r"Newton iteration.*residual.*(singular|stagnates)") as info:
+    # the rigid motions the supports leave free are found on the first Jacobian, before any Newton
+    # step, and the load has power along them (cartan.rigid_modes)
+    with pytest.raises(ValueError, match=r"leave the rigid motion\(s\) translation along .* free and the external "
+                                         r"loads have power along"):
         solve_static(prob)
-    # the singular Jacobian is recognised at once, not after the default budget of load steps and iterations
-    assert info.value.iterations <= 10, info.value.iterations
-    assert isinstance(info.value, RuntimeError)
-    assert info.value.residual > 1.0
 
 
 def test_iteration_limit_is_reported():
