@@ -669,6 +669,8 @@ class _Equilibrium:
                             for n, k in self.pins])
         self.kind = "fd"
         self._probe: tuple[Any, float, Any] | None = None
+        #: (state, λ, the loads' part of the stiffness block) of the last finite-difference Jacobian
+        self.last_loads: tuple[Any, float, Any] | None = None
         supports = [type(load).__name__ for load in problem.loads if not load.scaled]
         if supports and jacobian == "analytic":
             raise ValueError(f"jacobian='analytic': the medium's analytic Jacobian scales every load by λ, but "
@@ -1416,11 +1418,16 @@ class _Equilibrium:
 
             K = (self._corner_tangent(state, offset) if self.sch.coupled and not self.glued
                  else self._fd(state, nodal))
-            K = K + self._local_jacobian(state, lam)
+            KL = self._local_jacobian(state, lam)
+            K = K + KL
         low = None
         if any(not load.local for load in self.problem.loads):  # on the lattice's stencil, like the internal force
             Kn, low = self._neighbour_jacobian(state, lam)
             K = K + Kn
+            if self.kind != "analytic":
+                KL = KL + Kn
+        if self.kind != "analytic":  # the loads' part, kept for the rigid-motion check at the start
+            self.last_loads = (state, lam, KL)
             if low is not None:  # zero rows for the multipliers
                 low = tuple(np.concatenate([x, np.zeros((self.nmult, x.shape[1]))]) for x in low)
         if not self.nmult:
@@ -2104,6 +2111,9 @@ def _rigid_motions(eq: _Equilibrium, J: Any, low: tuple[np.ndarray, np.ndarray] 
         """The loads' part of J's stiffness block at λ (the finite-difference Jacobian's own parts)."""
         if eq.kind != "fd":
             return None
+        kept = getattr(eq, "last_loads", None)  # J's own loads' part, when J was built at the start
+        if kept is not None and kept[0] is eq.state0 and kept[1] == lam:
+            return kept[2]
         KL = eq._local_jacobian(eq.state0, lam)
         if any(not load.local for load in eq.problem.loads):
             KL = KL + eq._neighbour_jacobian(eq.state0, lam)[0]
