@@ -21,6 +21,13 @@ on-disk cache) never lands inside a timing; Δt is a tenth of the integrator's C
 ``STEPS`` steps; ``MediaStep.track_node_step`` reports the median cost per node-step in
 nanoseconds over ``SAMPLES`` samples (a number comparable across media and sizes: the
 performance goals are stated per node, PERFORMANCE.md).
+
+``python benchmarks/bench_media.py --t9`` measures T9 in one process (:func:`t9`): the T1 rod
+(n = 1000) on its hand-written structure-of-arrays loop and on the generated loop, the
+cosserat-surface plate at 64², the cosserat-solid periodic box at 16³
+(:func:`bench_solid.solid_problem`) and the relativistic Nambu–Goto loop at 512 nodes, each on
+the generated ``lie-verlet`` loop, timed in turn (CPU time) for ``--rounds`` rounds; it prints
+the medians over the rounds and their ratios to the rod's SoA loop.
 """
 
 from __future__ import annotations
@@ -39,13 +46,13 @@ SAMPLES = 5
 CASES = ["surface-plate", "solid-block", "relativistic-loop"]
 
 
-def _problem(case: str) -> cartan.Problem:
-    """The case's problem."""
+def _problem(case: str, size: int | None = None) -> cartan.Problem:
+    """The case's problem (``size``: nodes per axis instead of the table's)."""
     from cartan.problem import Clamped
 
     if case == "surface-plate":
         medium = cartan.medium("cosserat-surface", E=1.0, poisson=0.3, thickness=0.05, density=1.0)
-        grid = cartan.Grid((32, 32), length=(1.0, 1.0))
+        grid = cartan.Grid((size or 32, size or 32), length=(1.0, 1.0))
         loads = [medium.make_load("gravity", g=[0.0, 0.0, -1e-3])]
         return cartan.Problem(medium, grid, medium.initial_state(grid, "flat"), {"u-start": Clamped()}, loads)
     if case == "solid-block":
@@ -55,7 +62,7 @@ def _problem(case: str) -> cartan.Problem:
                               {"u-start": Clamped()})
     if case == "relativistic-loop":
         medium = cartan.medium("relativistic-rod")
-        grid = cartan.Grid(256, length=2 * math.pi, periodic=True)
+        grid = cartan.Grid(size or 256, length=2 * math.pi, periodic=True)
         return cartan.Problem(medium, grid, medium.initial_state(grid, "loop"))
     raise ValueError(f"unknown case {case!r}; allowed: {', '.join(CASES)}")
 
@@ -111,8 +118,43 @@ class MediaStep(_generated.GeneratedLoops):
     track_node_step.unit = "ns"
 
 
+def t9(rounds: int = 5) -> dict[str, float]:  # pragma: no cover - a report for the terminal
+    """T9 in one process: ns per node-step (CPU time) of the T1 rod on its SoA loop and on the
+    generated loop, the 64² surface plate, the 16³ solid box and the 512-node Nambu–Goto loop
+    (generated ``lie-verlet`` loops), each the median over ``rounds`` rounds in which every case
+    runs in turn (``bench_solid.Run.node_step``: the median of its samples); printed with the
+    ratios to the rod's SoA loop, and returned."""
+    import bench_solid
+
+    rod, rod_dt = bench_solid.rod_problem()
+    runs = {"rod SoA": bench_solid.Run(rod, rod_dt, hand_written=True), "rod generated": bench_solid.Run(rod, rod_dt),
+            "surface 64^2": bench_solid.Run(_problem("surface-plate", 64)),
+            "solid 16^3": bench_solid.Run(bench_solid.solid_problem(16)),
+            "relativistic 512": bench_solid.Run(_problem("relativistic-loop", 512))}
+    steps = {"rod SoA": 200, "rod generated": 50, "relativistic 512": 40}
+    samples: dict[str, list[float]] = {name: [] for name in runs}
+    for _ in range(rounds):
+        for name, run in runs.items():
+            samples[name].append(run.node_step(steps.get(name, 10), 3))
+    cost = {name: float(sorted(v)[len(v) // 2]) for name, v in samples.items()}
+    for name, v in cost.items():
+        rounds_ = ", ".join(f"{x:.0f}" for x in samples[name])
+        print(f"{name:18s} {runs[name].nodes:6d} nodes  {v:8.1f} ns per node-step  "
+              f"{v / cost['rod SoA']:5.2f}× the rod's SoA loop  (rounds: {rounds_})")
+    return cost
+
+
 def main() -> None:  # pragma: no cover - a report for the terminal
-    """Print the compiled path and the cost per node-step of every case."""
+    """Print the compiled path and the cost per node-step of every case (``--t9``: :func:`t9`)."""
+    import argparse
+
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--t9", action="store_true", help="T9 in one process (see the module docstring)")
+    parser.add_argument("--rounds", type=int, default=5)
+    args = parser.parse_args()
+    if args.t9:
+        t9(args.rounds)
+        return
     for case in CASES:
         run = _Run(case)
         cost = _generated._median_time(run, SAMPLES) * 1e9

@@ -142,7 +142,9 @@ def _inline(name: str) -> str:
     costs more than their arithmetic (≈ 16 ns against ≈ 7 ns for SE(3)'s ``g_axis_flow``, and
     ≈ 38 ns when a tuple of work arrays is passed).  (IR-inlining ``g_compose`` and ``g_inverse``
     into the lattice's edge update, ``op_move``, takes it from 112 to 51 ns per node on the SE(3)
-    rod but adds ≈ 1.6 s of CPU time to every lattice loop's compile, ≈ 7 %: not taken.)
+    rod but adds ≈ 1.6 s of CPU time to every lattice loop's compile, ≈ 7 %: not taken.  SE(3)'s
+    passes over edges and nodes — ``se3_log_chunk_point``, ``se3_move_chunk_point`` … — call
+    functions compiled once and cached instead, which no generated module compiles again.)
     """
     return "never" if name.startswith("g_") and name not in INLINED_KERNELS else "always"
 

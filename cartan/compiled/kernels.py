@@ -49,6 +49,47 @@ def g_dexp_inv_T_pair(xi, v, out, out_neg):
             s += A[j, k] * v[j]
         out_neg[k] = s
 """
+#: the edge passes of the lattice's force over the edges ``lo ≤ e < hi``: ``XI[e] = log G[e]``, and
+#: both ends' terms ``VT[e] = s_e dexp⁻¹(ξ_e)ᵀq_e``, ``VH[e] = s_e dexp⁻¹(−ξ_e)ᵀq_e`` (``s_e = scale[e]``,
+#: or 1 for an empty ``scale``); here one point kernel per edge (vectorised across edges:
+#: ``se3_log_chunk_point``, ``se3_dexp_inv_T_pair_chunk_point``)
+FUSED_OPS["log_chunk"] = """
+def g_log_chunk(G, lo, hi, XI):
+    for e in range(lo, hi):
+        g_log(G[e], XI[e])
+"""
+FUSED_OPS["dexp_inv_T_pair_chunk"] = """
+def g_dexp_inv_T_pair_chunk(XI, Q, scale, lo, hi, VT, VH):
+    vec = np.empty(R_)
+    vec2 = np.empty(R_)
+    scaled = scale.shape[0] > 0
+    for e in range(lo, hi):
+        g_dexp_inv_T_pair(XI[e], Q[e], vec, vec2)
+        s = scale[e] if scaled else 1.0
+        for k in range(R_):
+            VT[e, k] = s * vec[k]
+            VH[e, k] = s * vec2[k]
+"""
+#: the lattice's update by the nodes' motions ``Dn`` (``op_move``): ``G[e] ← Di[tail[e]] G[e] Dn[head[e]]``
+#: over edges, and ``Di[i] ← Dn[i]⁻¹``, ``Φ_i ← Φ_i Dn_i`` over nodes (rows of Φ among them)
+FUSED_OPS["move_chunk"] = """
+def g_move_chunk(Di, Dn, G, tail, head, lo, hi):
+    tmp = np.empty((M_, M_))
+    for e in range(lo, hi):
+        g_compose(Di[tail[e]], G[e], tmp)
+        g_compose(tmp, Dn[head[e]], G[e])
+"""
+FUSED_OPS["frames_chunk"] = """
+def g_frames_chunk(Dn, Di, Phi, lo, hi):
+    tmp = np.empty((M_, M_))
+    for i in range(lo, hi):
+        g_inverse(Dn[i], Di[i])
+    for i in range(lo, min(hi, Phi.shape[0])):
+        for a in range(M_):
+            for b in range(M_):
+                tmp[a, b] = Phi[i, a, b]
+        g_compose(tmp, Dn[i], Phi[i])
+"""
 #: ``out[a] = Ad_{g⁻¹} X[a]`` for every row of ``X`` ``(k, r)`` (the strains of a node moved by g)
 FUSED_OPS["Ad_inv_apply"] = """
 def g_Ad_inv_apply(g, X, out, work):
@@ -119,6 +160,38 @@ def g_axis_flow(k, t, s, acc, work):
             acc[a, b] = tmp[a, b]
 """
 
+#: ``lie-verlet``'s free flow at the nodes ``lo ≤ i < hi`` when every piece is axial (``_flow_plan`` of the
+#: lattice's operators: per piece its τ, directions and ``(P_p)_kk``): ``Dn_i`` from the identity, then per
+#: piece the times of its directions (zero at clamped nodes and held components) and ``g_axis_flow`` along
+#: each; whether a node moved.  The operators call it only where the group has it in closed form
+#: (``AXIAL_FLOW_CLOSED_``, a constant of the generated module: ``se3_axial_flow_chunk_point``), and
+#: otherwise run these same steps themselves
+FUSED_OPS["axial_flow_chunk"] = """
+def g_axial_flow_chunk(lo, hi, S, Dn, any_clamped, clamped, any_held, held, npieces, tau, naxes, axes, coef):
+    wk = g_work()
+    TK = np.empty((max(hi - lo, 0), R_))
+    xi = np.zeros(R_)
+    for i in range(lo, hi):
+        g_exp(xi, Dn[i])
+    moved = False
+    for p in range(npieces):
+        for c in range(naxes[p]):
+            k = axes[p, c]
+            for i in range(lo, hi):
+                t = tau[p] * (coef[p, c] * S[i, k])
+                if (any_clamped and clamped[i]) or (any_held and held[i, k]):
+                    t = 0.0
+                TK[i - lo, c] = t
+        for c in range(naxes[p]):
+            k = axes[p, c]
+            for i in range(lo, hi):
+                t = TK[i - lo, c]
+                if t != 0.0:
+                    g_axis_flow(k, t, S[i], Dn[i], wk)
+                    moved = True
+    return moved
+"""
+
 #: the scratch of the default fused operations, allocated once by their callers and passed as
 #: ``work`` (closed forms ignore it): ``(m × m, r × r, r × r, m × m, 2 × r)``
 _WORK = """
@@ -158,6 +231,12 @@ def group_fragment(module: str, prefix: str, ops=GROUP_OPS) -> Fragment | None:
     ``g_dexp_inv_apply(xi, v, out, work)``     ``out = dexp⁻¹(ξ) v``
     ``g_coad_exp(xi, s, E, work)``             ``E = exp(ξ)``, ``s ← Ad_Eᵀs`` in place
     ``g_axis_flow(k, t, s, acc, work)``        ``E = exp(t b_k)``, ``s ← Ad_Eᵀs``, ``acc ← acc E`` in place
+    ``g_log_chunk(G, lo, hi, XI)``             ``XI[e] = log G[e]`` for ``lo ≤ e < hi``, G ``(E, m, m)``, XI ``(E, r)``
+    ``g_dexp_inv_T_pair_chunk(XI, Q, scale, lo, hi, VT, VH)``  ``VT[e] = s_e dexp⁻¹(ξ_e)ᵀq_e``,
+                                               ``VH[e] = s_e dexp⁻¹(−ξ_e)ᵀq_e`` (``s_e = scale[e]``, 1 if empty)
+    ``g_move_chunk(Di, Dn, G, tail, head, lo, hi)``  ``G[e] ← Di[tail[e]] G[e] Dn[head[e]]`` for ``lo ≤ e < hi``
+    ``g_axial_flow_chunk(lo, hi, S, Dn, …)``   the free flow of every (axial) piece at nodes ``lo ≤ i < hi``
+    ``g_frames_chunk(Dn, Di, Phi, lo, hi)``    ``Di[i] ← Dn[i]⁻¹``, ``Φ_i ← Φ_i Dn_i`` (rows of Φ), ``lo ≤ i < hi``
 
     ``work`` is the scratch ``g_work()`` returns (allocated once by the caller; closed forms do
     not touch it); ``out`` must not alias the inputs."""
@@ -180,18 +259,23 @@ def group_fragment(module: str, prefix: str, ops=GROUP_OPS) -> Fragment | None:
 
 def with_fused(frag: Fragment, module: str | None = None, prefix: str = "") -> Fragment:
     """Add the fused operations to a group's fragment: those it binds already, else the module's
-    closed forms where it has them, else the defaults of :data:`FUSED_OPS`; and ``g_work()``,
-    the defaults' scratch."""
+    closed forms where it has them, else the defaults of :data:`FUSED_OPS`; ``g_work()``, the
+    defaults' scratch; and the constant ``AXIAL_FLOW_CLOSED_``, whether ``g_axial_flow_chunk``
+    is a closed form (the lattice's free flow calls it only then)."""
     mod = importlib.import_module(module) if module else None
     sources = [frag.source] if frag.source.strip() else []
+    closed = set()
     for op, default in FUSED_OPS.items():
         name = f"{prefix}_{op}_point"
         if f"g_{op}" in frag.imports:  # bound by the group already
+            closed.add(op)
             continue
         if mod is not None and hasattr(mod, name):
             frag.imports[f"g_{op}"] = (module, name)
+            closed.add(op)
         else:
             sources.append(default)
+    frag.constants.setdefault("AXIAL_FLOW_CLOSED_", "axial_flow_chunk" in closed)
     if "g_work" not in frag.imports:
         sources.append(_WORK)
     frag.source = "\n\n".join(s.strip("\n") + "\n" for s in sources)

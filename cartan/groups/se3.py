@@ -40,7 +40,9 @@ from .so3 import (
     TAYLOR_A,
     TAYLOR_B,
     TAYLOR_C,
+    TAYLOR_CINV,
     _C_direct,
+    _cinv_direct,
     _exp_coeffs_direct,
     cross3,
     cross_np,
@@ -53,6 +55,7 @@ from .so3 import (
     poly_np,
     so3_dexp_inv_coeff,
     so3_log_point,
+    so3_log_trace_series,
     so3_poly_point,
     so3_vee_point,
     vee_np,
@@ -65,11 +68,13 @@ __all__ = [
     "se3_E_apply_point",
     "se3_E_point",
     "se3_act_point",
+    "se3_axial_flow_chunk_point",
     "se3_axis_flow_point",
     "se3_ad_point",
     "se3_bracket_point",
     "se3_compose_point",
     "se3_dexp_coeffs",
+    "se3_dexp_inv_T_pair_chunk_point",
     "se3_dexp_inv_T_pair_point",
     "se3_dexp_inv_apply_point",
     "se3_dexp_inv_point",
@@ -78,7 +83,10 @@ __all__ = [
     "se3_exp_point",
     "se3_hat_point",
     "se3_inverse_point",
+    "se3_log_chunk_point",
     "se3_log_point",
+    "se3_frames_chunk_point",
+    "se3_move_chunk_point",
     "se3_vee_point",
 ]
 
@@ -396,6 +404,131 @@ def se3_axis_flow_point(k, t, s, acc, work):
 
 
 @njit(cache=True, inline='always')
+def se3_axial_flow_chunk_point(lo, hi, S, Dn, any_clamped, clamped, any_held, held, npieces, tau, naxes, axes,
+                               coef):
+    """The free flow of ``lie-verlet`` at the nodes ``lo ≤ i < hi`` when every piece is axial (a
+    diagonal kinetic metric): piece by piece, the times ``t = τ_p (P_p)_kk S_k`` of the piece's
+    directions k (zero at clamped nodes and held components), then :func:`se3_axis_flow_point`
+    along each, ``S`` ``(n, 6)`` in place and the motions ``Dn`` ``(n, 4, 4)`` (whose rows
+    ``lo … hi − 1`` it sets: from the identity); returns whether a node moved (a time not zero).
+    The plan's arrays are those of the lattice's ``_flow_plan``: ``tau [P]``, ``naxes [P]``,
+    ``axes [P, r]``, ``coef [P, r]``.
+
+    :func:`_axial_flow_chunk`, compiled once and cached: the nodes' momenta and motions as one
+    row per entry (structure of arrays), each axis flow a branch-free pass over them with the
+    rows of its axis as constants (the rotation's cosine and sine from the series of
+    :func:`se3_exp_coeffs`, those turning by 0.1 rad or more again by its closed form), which
+    LLVM vectorises.  The operations of :func:`se3_axis_flow_point` node by node, so its results
+    to the bit, except that a node whose time is zero is turned by the identity (``1·x + 0·y``:
+    the same value, but ``+0`` for ``−0``) instead of being skipped."""
+    return _axial_flow_chunk(lo, hi, S, Dn, any_clamped, clamped, any_held, held, npieces, tau, naxes, axes, coef)
+
+
+@register_jitable(inline='always')
+def _shift_node(F, i0, t, j, p, q):
+    """The flow along translation ``e_j`` (``p = j + 1``, ``q = j + 2`` mod 3) by ``t`` of column
+    ``i0`` of the rows ``F`` of :func:`_axial_flow_chunk`: ``L_p += t P_q``, ``L_q −= t P_p``, and
+    the motion's translation ``+= t`` times its rotation's column j (:func:`se3_axis_flow_point`)."""
+    F[3 + p, i0] += t * F[q, i0]
+    F[3 + q, i0] -= t * F[p, i0]
+    F[6, i0] += t * F[9 + j, i0]
+    F[7, i0] += t * F[12 + j, i0]
+    F[8, i0] += t * F[15 + j, i0]
+
+
+@register_jitable(inline='always')
+def _turn_node(F, i0, cs, sn, p, q):
+    """The plane (p, q) of both halves of S and of the motion's rotation turned by (cos, sin) =
+    ``(cs, sn)`` in column ``i0`` of the rows ``F`` of :func:`_axial_flow_chunk`
+    (:func:`se3_axis_flow_point`)."""
+    for u in (0, 3, 9, 12, 15):
+        x, y = F[u + p, i0], F[u + q, i0]
+        F[u + p, i0] = cs * x + sn * y
+        F[u + q, i0] = cs * y - sn * x
+
+
+@njit(cache=True, error_model='numpy')
+def _axial_flow_chunk(lo, hi, S, Dn, any_clamped, clamped, any_held, held, npieces, tau, naxes, axes, coef):
+    lo = max(lo, 0)
+    nb = hi - lo
+    # rows: S (0–5), the motion's translation (6–8) and rotation row by row (9–17), from the identity
+    F = np.zeros((18, nb))
+    T = np.empty((6, nb))
+    CS = np.empty(nb)
+    SN = np.empty(nb)
+    for i0 in range(nb):
+        i = lo + i0
+        for k in range(6):
+            F[k, i0] = S[i, k]
+        F[9, i0] = 1.0
+        F[13, i0] = 1.0
+        F[17, i0] = 1.0
+    moved = 0
+    for p in range(npieces):
+        taup = tau[p]
+        for c in range(naxes[p]):  # every time of the piece first (its flows leave its S alone)
+            k = axes[p, c]
+            cp = coef[p, c]
+            for i0 in range(nb):
+                i = lo + i0
+                t = taup * (cp * F[k, i0])
+                T[c, i0] = 0.0 if (any_clamped and clamped[i]) or (any_held and held[i, k]) else t
+        for c in range(naxes[p]):
+            k = axes[p, c]
+            for i0 in range(nb):
+                moved += T[c, i0] != 0.0
+            if k == 0:
+                for i0 in range(nb):
+                    _shift_node(F, i0, T[c, i0], 0, 1, 2)
+                continue
+            if k == 1:
+                for i0 in range(nb):
+                    _shift_node(F, i0, T[c, i0], 1, 2, 0)
+                continue
+            if k == 2:
+                for i0 in range(nb):
+                    _shift_node(F, i0, T[c, i0], 2, 0, 1)
+                continue
+            nbad = 0
+            for i0 in range(nb):  # the cosines and sines: series, then closed forms where t² ≥ SMALL_THETA2
+                t = T[c, i0]
+                t2 = t * t
+                nbad += t2 >= SMALL_THETA2
+                a, b = horner(t2, TAYLOR_A), horner(t2, TAYLOR_B)
+                CS[i0] = 1.0 - b * t2
+                SN[i0] = a * t
+            if nbad:
+                for i0 in range(nb):
+                    t = T[c, i0]
+                    if t * t >= SMALL_THETA2:
+                        a, b, _ = _exp_coeffs3_direct(t * t)
+                        CS[i0] = 1.0 - b * (t * t)
+                        SN[i0] = a * t
+            if k == 3:
+                for i0 in range(nb):
+                    _turn_node(F, i0, CS[i0], SN[i0], 1, 2)
+            elif k == 4:
+                for i0 in range(nb):
+                    _turn_node(F, i0, CS[i0], SN[i0], 2, 0)
+            else:
+                for i0 in range(nb):
+                    _turn_node(F, i0, CS[i0], SN[i0], 0, 1)
+    for i0 in range(nb):
+        i = lo + i0
+        for k in range(6):
+            S[i, k] = F[k, i0]
+        Dn[i, 0, 0] = 1.0
+        Dn[i, 0, 1] = 0.0
+        Dn[i, 0, 2] = 0.0
+        Dn[i, 0, 3] = 0.0
+        for r in range(3):
+            Dn[i, 1 + r, 0] = F[6 + r, i0]
+            for b in range(3):
+                Dn[i, 1 + r, 1 + b] = F[9 + 3 * r + b, i0]
+    return moved > 0
+
+
+@njit(cache=True, inline='always')
 def se3_Ad_T_point(g, v, out):
     """``out`` (6,) ← ``Ad_gᵀ v = (Aᵀv_t; Aᵀ(v_r − a × v_t))`` for ``g = (a; A)`` (4, 4)."""
     u0, u1, u2 = cross3(g[1, 0], g[2, 0], g[3, 0], v[0], v[1], v[2])
@@ -432,6 +565,232 @@ def se3_dexp_inv_T_pair_point(xi, q, out, out_neg):
     c0, c1, c2 = cross3(q[3], q[4], q[5], w0, w1, w2)
     out_neg[0], out_neg[1], out_neg[2] = out[0] + a0, out[1] + a1, out[2] + a2
     out_neg[3], out_neg[4], out_neg[5] = out[3] + (b0 + c0), out[4] + (b1 + c1), out[5] + (b2 + c2)
+
+
+#: edges per block of the edge passes (:func:`se3_log_chunk_point`,
+#: :func:`se3_dexp_inv_T_pair_chunk_point`): their structure-of-arrays scratch (≤ 25 rows of
+#: SOA_BLOCK numbers) stays in the L1 cache
+SOA_BLOCK = 128
+
+
+@register_jitable(inline='always')
+def _log_series12(b0, b1, b2, r00, r01, r02, r10, r11, r12, r20, r21, r22):
+    """``log (b; R)`` by :func:`cartan.groups.so3.so3_log_trace_series` and the series of
+    ``J⁻¹``'s coefficient, branch-free: ``(a1, a2, bad)`` as 7 scalars, ``bad`` where that is
+    not :func:`se3_log_point`'s result to round-off (θ ≥ 0.1, or not the trace case)."""
+    w0, w1, w2, bad = so3_log_trace_series(r00, r01, r02, r10, r11, r12, r20, r21, r22)
+    t2 = w0 * w0 + w1 * w1 + w2 * w2
+    t = _V_apply(w0, w1, w2, -0.5, horner(t2, TAYLOR_CINV), b0, b1, b2)
+    return t[0], t[1], t[2], w0, w1, w2, bad | (t2 >= SMALL_THETA2)
+
+
+@njit(cache=True, inline='always')
+def se3_log_chunk_point(G, lo, hi, XI):
+    """``XI[e]`` (6,) ← ``log G[e]`` for ``lo ≤ e < hi``, ``G`` ``(E, 4, 4)``, ``XI`` ``(E, 6)``:
+    :func:`_log_chunk`, a function compiled once and cached (not compiled again into every
+    generated module that calls it: ≈ 2–3 s of compile time each; the same for the other
+    passes below)."""
+    _log_chunk(G, lo, hi, XI)
+
+
+@njit(cache=True, error_model='numpy')
+def _log_chunk(G, lo, hi, XI):
+    """``XI[e]`` (6,) ← ``log G[e]`` (:func:`se3_log_point`) for ``lo ≤ e < hi``, ``G`` ``(E, 4, 4)``,
+    ``XI`` ``(E, 6)``: the edge pass of the lattice's force, vectorised across edges.
+
+    In blocks of :data:`SOA_BLOCK` edges: the entries are copied into one row per entry
+    (structure of arrays), the logarithms taken by the branch-free series of
+    :func:`_log_series12` in one loop that LLVM vectorises, written back, and the edges that
+    series does not cover (a turn of 0.1 rad or more; a rotation whose trace is not its largest
+    diagonal entry) taken again by :func:`se3_log_point`.  The results are
+    :func:`se3_log_point`'s to round-off (``atan(x)/x`` from its series instead of ``atan2``)."""
+    A = np.empty((12, SOA_BLOCK))
+    L = np.empty((6, SOA_BLOCK))
+    bad = np.empty(SOA_BLOCK, dtype=np.bool_)
+    lo = max(lo, 0)
+    for c0 in range(lo, hi, SOA_BLOCK):
+        nb = min(hi - c0, SOA_BLOCK)
+        for e0 in range(nb):
+            e = c0 + e0
+            A[0, e0] = G[e, 1, 0]
+            A[1, e0] = G[e, 2, 0]
+            A[2, e0] = G[e, 3, 0]
+            A[3, e0] = G[e, 1, 1]
+            A[4, e0] = G[e, 1, 2]
+            A[5, e0] = G[e, 1, 3]
+            A[6, e0] = G[e, 2, 1]
+            A[7, e0] = G[e, 2, 2]
+            A[8, e0] = G[e, 2, 3]
+            A[9, e0] = G[e, 3, 1]
+            A[10, e0] = G[e, 3, 2]
+            A[11, e0] = G[e, 3, 3]
+        nbad = 0
+        for e0 in range(nb):
+            v = _log_series12(A[0, e0], A[1, e0], A[2, e0], A[3, e0], A[4, e0], A[5, e0], A[6, e0], A[7, e0],
+                              A[8, e0], A[9, e0], A[10, e0], A[11, e0])
+            L[0, e0] = v[0]
+            L[1, e0] = v[1]
+            L[2, e0] = v[2]
+            L[3, e0] = v[3]
+            L[4, e0] = v[4]
+            L[5, e0] = v[5]
+            bad[e0] = v[6]
+            nbad += v[6]
+        for e0 in range(nb):
+            e = c0 + e0
+            for k in range(6):
+                XI[e, k] = L[k, e0]
+        if nbad:
+            for e0 in range(nb):
+                if bad[e0]:
+                    se3_log_point(G[c0 + e0], XI[c0 + e0])
+
+
+@njit(cache=True, inline='always')
+def se3_dexp_inv_T_pair_chunk_point(XI, Q, scale, lo, hi, VT, VH):
+    """``VT[e]`` ← ``s_e dexp(ξ_e)⁻ᵀ q_e`` and ``VH[e]`` ← ``s_e dexp(−ξ_e)⁻ᵀ q_e`` for
+    ``lo ≤ e < hi``: :func:`_dexp_inv_T_pair_chunk`, compiled once and cached (see
+    :func:`se3_log_chunk_point`)."""
+    _dexp_inv_T_pair_chunk(XI, Q, scale, lo, hi, VT, VH)
+
+
+@njit(cache=True, error_model='numpy')
+def _dexp_inv_T_pair_chunk(XI, Q, scale, lo, hi, VT, VH):
+    """``VT[e]`` ← ``s_e dexp(ξ_e)⁻ᵀ q_e`` and ``VH[e]`` ← ``s_e dexp(−ξ_e)⁻ᵀ q_e``
+    (:func:`se3_dexp_inv_T_pair_point`) for ``lo ≤ e < hi``, with ``ξ_e = XI[e]``,
+    ``q_e = Q[e]`` (all ``(E, 6)``) and ``s_e = scale[e]`` (``scale`` ``(E,)``, or empty: 1):
+    both ends' terms of the lattice's edge stresses, vectorised across edges.
+
+    In blocks of :data:`SOA_BLOCK` edges, as :func:`_log_chunk`: the coefficients ``c`` of
+    ``J⁻¹`` and ``C``, ``D``, ``E`` of the Q block from their series (the branch of
+    :func:`so3_dexp_inv_coeff` and :func:`se3_dexp_coeffs` below θ = 0.1) and, for the edges
+    turning by 0.1 rad or more, from their closed forms, first; then one branch-free loop over
+    the block that LLVM vectorises.  The same coefficients and operations as
+    :func:`se3_dexp_inv_T_pair_point`: its results to the bit."""
+    A = np.empty((12, SOA_BLOCK))
+    B = np.empty((12, SOA_BLOCK))
+    K = np.empty((4, SOA_BLOCK))  # the coefficients c of J⁻¹ and C, D, E of the Q block
+    lo = max(lo, 0)
+    scaled = scale.shape[0] > 0
+    for c0 in range(lo, hi, SOA_BLOCK):
+        nb = min(hi - c0, SOA_BLOCK)
+        for e0 in range(nb):
+            e = c0 + e0
+            for k in range(6):
+                A[k, e0] = XI[e, k]
+                A[k + 6, e0] = Q[e, k]
+        nbad = 0
+        for e0 in range(nb):  # the series (θ < 0.1) everywhere, then the closed forms where θ ≥ 0.1
+            t2 = A[3, e0] * A[3, e0] + A[4, e0] * A[4, e0] + A[5, e0] * A[5, e0]
+            nbad += t2 >= SMALL_THETA2
+            K[0, e0] = horner(t2, TAYLOR_CINV)
+            K[1, e0] = horner(t2, TAYLOR_C)
+            K[2, e0] = horner(t2, TAYLOR_D)
+            K[3, e0] = horner(t2, TAYLOR_E)
+        if nbad:
+            for e0 in range(nb):
+                t2 = A[3, e0] * A[3, e0] + A[4, e0] * A[4, e0] + A[5, e0] * A[5, e0]
+                if t2 >= SMALL_THETA2:
+                    _, cc, dd, ee = _dexp_coeffs_direct(t2)
+                    K[0, e0], K[1, e0], K[2, e0], K[3, e0] = _cinv_direct(t2), cc, dd, ee
+        for e0 in range(nb):
+            r0, r1, r2, w0, w1, w2 = A[0, e0], A[1, e0], A[2, e0], A[3, e0], A[4, e0], A[5, e0]
+            q0, q1, q2, q3, q4, q5 = A[6, e0], A[7, e0], A[8, e0], A[9, e0], A[10, e0], A[11, e0]
+            cinv = K[0, e0]
+            a0, a1, a2 = _V_apply(w0, w1, w2, 0.5, cinv, q0, q1, q2)
+            b = _Q_apply(r0, r1, r2, -w0, -w1, -w2, K[1, e0], K[2, e0], K[3, e0], a0, a1, a2)
+            v0, v1, v2 = _V_apply(w0, w1, w2, 0.5, cinv, q3 + b[0], q4 + b[1], q5 + b[2])
+            x0, x1, x2 = cross3(q0, q1, q2, w0, w1, w2)
+            y0, y1, y2 = cross3(q0, q1, q2, r0, r1, r2)
+            z0, z1, z2 = cross3(q3, q4, q5, w0, w1, w2)
+            B[0, e0], B[1, e0], B[2, e0], B[3, e0], B[4, e0], B[5, e0] = a0, a1, a2, v0, v1, v2
+            B[6, e0], B[7, e0], B[8, e0] = a0 + x0, a1 + x1, a2 + x2
+            B[9, e0], B[10, e0], B[11, e0] = v0 + (y0 + z0), v1 + (y1 + z1), v2 + (y2 + z2)
+        for e0 in range(nb):
+            e = c0 + e0
+            s = scale[e] if scaled else 1.0
+            for k in range(6):
+                VT[e, k] = s * B[k, e0]
+                VH[e, k] = s * B[k + 6, e0]
+
+
+@register_jitable(inline='always')
+def _compose12(g10, g20, g30, g11, g12, g13, g21, g22, g23, g31, g32, g33,
+               h10, h20, h30, h11, h12, h13, h21, h22, h23, h31, h32, h33):
+    """:func:`se3_compose_point` on the 12 entries ``(a; A)`` of each factor (translation
+    first, then the rotation row by row), the same operations in the same order: 12 scalars."""
+    return (g11 * h10 + g12 * h20 + g13 * h30 + g10,
+            g21 * h10 + g22 * h20 + g23 * h30 + g20,
+            g31 * h10 + g32 * h20 + g33 * h30 + g30,
+            g11 * h11 + g12 * h21 + g13 * h31, g11 * h12 + g12 * h22 + g13 * h32, g11 * h13 + g12 * h23 + g13 * h33,
+            g21 * h11 + g22 * h21 + g23 * h31, g21 * h12 + g22 * h22 + g23 * h32, g21 * h13 + g22 * h23 + g23 * h33,
+            g31 * h11 + g32 * h21 + g33 * h31, g31 * h12 + g32 * h22 + g33 * h32, g31 * h13 + g32 * h23 + g33 * h33)
+
+
+@njit(cache=True, inline='always')
+def se3_move_chunk_point(Di, Dn, G, tail, head, lo, hi):
+    """``G[e]`` ← ``Di[tail[e]] G[e] Dn[head[e]]`` for ``lo ≤ e < hi`` (``Di[i] = Dn[i]⁻¹``; all
+    ``(·, 4, 4)``): the lattice's edge update by the nodes' motions, as two
+    :func:`se3_compose_point` (the same operations: their results to the bit) in scalar code,
+    :func:`_move_chunk`, compiled once and cached."""
+    _move_chunk(Di, Dn, G, tail, head, lo, hi)
+
+
+@njit(cache=True, error_model='numpy')
+def _move_chunk(Di, Dn, G, tail, head, lo, hi):
+    for e in range(max(lo, 0), hi):
+        i, j = tail[e], head[e]
+        t = _compose12(Di[i, 1, 0], Di[i, 2, 0], Di[i, 3, 0], Di[i, 1, 1], Di[i, 1, 2], Di[i, 1, 3],
+                       Di[i, 2, 1], Di[i, 2, 2], Di[i, 2, 3], Di[i, 3, 1], Di[i, 3, 2], Di[i, 3, 3],
+                       G[e, 1, 0], G[e, 2, 0], G[e, 3, 0], G[e, 1, 1], G[e, 1, 2], G[e, 1, 3],
+                       G[e, 2, 1], G[e, 2, 2], G[e, 2, 3], G[e, 3, 1], G[e, 3, 2], G[e, 3, 3])
+        o = _compose12(t[0], t[1], t[2], t[3], t[4], t[5], t[6], t[7], t[8], t[9], t[10], t[11],
+                       Dn[j, 1, 0], Dn[j, 2, 0], Dn[j, 3, 0], Dn[j, 1, 1], Dn[j, 1, 2], Dn[j, 1, 3],
+                       Dn[j, 2, 1], Dn[j, 2, 2], Dn[j, 2, 3], Dn[j, 3, 1], Dn[j, 3, 2], Dn[j, 3, 3])
+        _store12(G, e, o)
+
+
+@register_jitable(inline='always')
+def _store12(A, e, o):
+    """``A[e]`` ← the SE(3) element of the 12 entries ``o`` (:func:`_compose12`'s order)."""
+    A[e, 0, 0] = 1.0
+    A[e, 0, 1] = 0.0
+    A[e, 0, 2] = 0.0
+    A[e, 0, 3] = 0.0
+    A[e, 1, 0] = o[0]
+    A[e, 2, 0] = o[1]
+    A[e, 3, 0] = o[2]
+    A[e, 1, 1] = o[3]
+    A[e, 1, 2] = o[4]
+    A[e, 1, 3] = o[5]
+    A[e, 2, 1] = o[6]
+    A[e, 2, 2] = o[7]
+    A[e, 2, 3] = o[8]
+    A[e, 3, 1] = o[9]
+    A[e, 3, 2] = o[10]
+    A[e, 3, 3] = o[11]
+
+
+@njit(cache=True, inline='always')
+def se3_frames_chunk_point(Dn, Di, Phi, lo, hi):
+    """``Di[i]`` ← ``Dn[i]⁻¹`` (:func:`se3_inverse_point`) for ``lo ≤ i < hi``, and ``Phi[i]`` ←
+    ``Phi[i] Dn[i]`` (:func:`se3_compose_point`) for the rows of ``Phi`` among them (``Phi``
+    ``(f, 4, 4)``, f = n or 1): the nodes' part of the lattice's update by their motions, the same
+    operations as those kernels in scalar code, :func:`_frames_chunk`, compiled once and cached."""
+    _frames_chunk(Dn, Di, Phi, lo, hi)
+
+
+@njit(cache=True, error_model='numpy')
+def _frames_chunk(Dn, Di, Phi, lo, hi):
+    lo = max(lo, 0)
+    for i in range(lo, hi):
+        se3_inverse_point(Dn[i], Di[i])
+    for i in range(lo, min(hi, Phi.shape[0])):
+        o = _compose12(Phi[i, 1, 0], Phi[i, 2, 0], Phi[i, 3, 0], Phi[i, 1, 1], Phi[i, 1, 2], Phi[i, 1, 3],
+                       Phi[i, 2, 1], Phi[i, 2, 2], Phi[i, 2, 3], Phi[i, 3, 1], Phi[i, 3, 2], Phi[i, 3, 3],
+                       Dn[i, 1, 0], Dn[i, 2, 0], Dn[i, 3, 0], Dn[i, 1, 1], Dn[i, 1, 2], Dn[i, 1, 3],
+                       Dn[i, 2, 1], Dn[i, 2, 2], Dn[i, 2, 3], Dn[i, 3, 1], Dn[i, 3, 2], Dn[i, 3, 3])
+        _store12(Phi, i, o)
 
 
 @njit(cache=True, inline='always')

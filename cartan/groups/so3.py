@@ -188,6 +188,31 @@ def _log_factor_direct(s, c):
 #: |q_v| ≤ LOG_SMALL_RATIO·|q_w| selects the series for θ/|q_v| (θ ≲ 2e-4).
 LOG_SMALL_RATIO = 1e-4
 
+#: atan(x)/x = Σ (−1)ᵏ x²ᵏ/(2k+1), highest power first: below x² = 1/400 (θ < 0.1) nine
+#: terms leave a truncation below 1e-24 (the branch-free logarithm of the edge passes)
+ATAN_SERIES = (1.0 / 17.0, -1.0 / 15.0, 1.0 / 13.0, -1.0 / 11.0, 1.0 / 9.0, -1.0 / 7.0, 1.0 / 5.0, -1.0 / 3.0, 1.0)
+#: the range of :data:`ATAN_SERIES` in x² = (|q_v|/q_w)²
+ATAN_SERIES_X2 = 1.0 / 400.0
+
+
+@register_jitable(inline='always')
+def so3_log_trace_series(r00, r01, r02, r10, r11, r12, r20, r21, r22):
+    """``(w0, w1, w2, bad)``: the rotation vector of ``R`` by the arithmetic of
+    :func:`so3_log_point` in its trace case — the quaternion ``(1 + tr R, vee(R − Rᵀ))``,
+    ``w = (2/q_w)(atan(x)/x) q_v`` with ``x = |q_v|/q_w`` — with ``atan(x)/x`` from
+    :data:`ATAN_SERIES` instead of ``atan2``, and no branch (so that a loop of it vectorises).
+    ``bad`` says that it is not :func:`so3_log_point`'s result to round-off: outside the trace
+    case (a diagonal entry above the trace) or ``x² ≥ ATAN_SERIES_X2`` (θ ≥ 0.1); a NaN entry
+    gives NaN and not ``bad``.  The same formulas as ``so3_log_point`` off the group too (where
+    forward Euler takes the edges), since both read the same quaternion."""
+    tr = r00 + r11 + r22
+    qw = 1.0 + tr
+    qx, qy, qz = r21 - r12, r02 - r20, r10 - r01
+    x2 = (qx * qx + qy * qy + qz * qz) / (qw * qw)
+    f = (2.0 / qw) * horner(x2, ATAN_SERIES)
+    bad = (x2 >= ATAN_SERIES_X2) | (r00 > tr) | (r11 > tr) | (r22 > tr)
+    return f * qx, f * qy, f * qz, bad
+
 
 # ---------------------------------------------------------------------- numba point kernels
 # ``inline='always'``: a kernel and the kernels it calls are compiled into the function that calls

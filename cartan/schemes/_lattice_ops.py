@@ -152,9 +152,12 @@ class LatticeData(NamedTuple):
 # Plain Python: compiled in each generated module (see the module docstring).
 
 def op_work(D):
+    """``(Dn, Di, XI, QE, VT, VH)``: the nodes' motions and their inverses ``[n, m, m]``, the edges'
+    logarithms, stresses and both ends' force terms ``[E, r]``."""
     n = D.winv.shape[0]
     ne = D.tail.shape[0]
-    return (np.empty((n, M_, M_)), np.empty((n, M_, M_)), np.empty((ne, R_)), np.empty((ne, R_)))  # noqa: F821
+    return (np.empty((n, M_, M_)), np.empty((n, M_, M_)), np.empty((ne, R_)), np.empty((ne, R_)),  # noqa: F821
+            np.empty((ne, R_)), np.empty((ne, R_)))  # noqa: F821
 
 
 def op_velocity(D, S, N):
@@ -207,35 +210,24 @@ def _field_force(D, Phi, W):
             W[i, k] += s
 
 
-def _edge_to_nodes(D, e, xi, q, s, W, vec, vec2):
-    """Add the edge stress ``s·q`` of edge e (log ``xi``) to its end nodes:
-    ``W_i += dexp⁻¹(ξ)ᵀ sq``, ``W_j −= dexp⁻¹(−ξ)ᵀ sq`` (both from ξ in one call of
-    ``g_dexp_inv_T_pair``, as the reference path does: the identity dexp⁻¹(−ξ)ᵀ = Ad_Gᵀ dexp⁻¹(ξ)ᵀ
-    fails off the group, where forward Euler takes the edges)."""
-    i, j = D.tail[e], D.head[e]
-    g_dexp_inv_T_pair(xi, q, vec, vec2)  # noqa: F821
-    for k in range(R_):  # noqa: F821
-        W[i, k] += s * vec[k]
-        W[j, k] -= s * vec2[k]
-
-
 def op_force(D, C, t, N, W, K):
+    """Passes over the edges, each of independent iterations: the logarithms (``g_log_chunk``), the
+    stresses (per edge, or per corner gathered to the edges), both ends' terms
+    ``s dexp⁻¹(±ξ)ᵀq`` (``g_dexp_inv_T_pair_chunk``, both from ξ, as the reference path takes
+    them: the identity dexp⁻¹(−ξ)ᵀ = Ad_Gᵀ dexp⁻¹(ξ)ᵀ fails off the group, where forward Euler
+    takes the edges), then those terms added to the nodes in edge order.  The two group passes
+    are vectorised across edges where the group has them in closed form (SE(3))."""
     G, Phi = C
     vec = np.empty(R_)  # noqa: F821
-    vec2 = np.empty(R_)  # noqa: F821
     X = np.empty((D_, R_))  # noqa: F821
     Q = np.empty((D_, R_))  # noqa: F821
-    XI, QE = K[2], K[3]
+    XI, QE, VT, VH = K[2], K[3], K[4], K[5]
     n = W.shape[0]
     ne = G.shape[0]
     for i in range(n):
         for k in range(R_):  # noqa: F821
             W[i, k] = 0.0
-    # three passes over the edges, each of independent iterations: the logarithms, the stresses
-    # (per edge, or per corner gathered to the edges), the dexp⁻¹ᵀ pairs added to the nodes in
-    # edge order
-    for e in range(ne):
-        g_log(G[e], XI[e])  # noqa: F821
+    g_log_chunk(G, 0, ne, XI)  # noqa: F821
     if D.coupled:
         for e in range(ne):
             for k in range(R_):  # noqa: F821
@@ -262,8 +254,12 @@ def op_force(D, C, t, N, W, K):
             m_stress(X, D.X0e[e], D.params, Q)  # noqa: F821
             for k in range(R_):  # noqa: F821
                 QE[e, k] = Q[a, k]
+    g_dexp_inv_T_pair_chunk(XI, QE, np.empty(0) if D.coupled else D.escale, 0, ne, VT, VH)  # noqa: F821
     for e in range(ne):
-        _edge_to_nodes(D, e, XI[e], QE[e], 1.0 if D.coupled else D.escale[e], W, vec, vec2)
+        i, j = D.tail[e], D.head[e]
+        for k in range(R_):  # noqa: F821
+            W[i, k] += VT[e, k]
+            W[j, k] -= VH[e, k]
     for i in range(n):
         for k in range(R_):  # noqa: F821
             W[i, k] = W[i, k] * D.winv[i] - D.damp[k] * N[i, k] + D.ubody[k]
@@ -286,20 +282,12 @@ def op_force(D, C, t, N, W, K):
 
 
 def op_move(D, C, Dn, K):
-    """Move every node i by ``Dn[i]``: ``G_e ← Dn_i⁻¹ G_e Dn_j``, ``Φ_i ← Φ_i Dn_i``."""
+    """Move every node i by ``Dn[i]``: ``Di_i = Dn_i⁻¹`` and ``Φ_i ← Φ_i Dn_i`` (``g_frames_chunk``),
+    ``G_e ← Di_i G_e Dn_j`` (``g_move_chunk``)."""
     G, Phi = C
     Di = K[1]
-    tmp = np.empty((M_, M_))  # noqa: F821
-    for i in range(Dn.shape[0]):
-        g_inverse(Dn[i], Di[i])  # noqa: F821
-    for e in range(G.shape[0]):
-        g_compose(Di[D.tail[e]], G[e], tmp)  # noqa: F821
-        g_compose(tmp, Dn[D.head[e]], G[e])  # noqa: F821 - G_e is not an input of this product
-    for i in range(Phi.shape[0]):
-        for a in range(M_):  # noqa: F821
-            for b in range(M_):  # noqa: F821
-                tmp[a, b] = Phi[i, a, b]
-        g_compose(tmp, Dn[i], Phi[i])  # noqa: F821
+    g_frames_chunk(Dn, Di, Phi, 0, Dn.shape[0])  # noqa: F821
+    g_move_chunk(Di, Dn, G, D.tail, D.head, 0, G.shape[0])  # noqa: F821
 
 
 def op_free_flow(D, C, S, pieces, fracs, dt, Dn, K):
@@ -325,7 +313,9 @@ def op_free_flow(D, C, S, pieces, fracs, dt, Dn, K):
     motions ``Dn`` in place; ``g_axis_flow`` is compiled into this pass,
     ``codegen.INLINED_KERNELS``), whose iterations are independent — each node takes the same
     operations in the same order as one node at a time would, so the results are those to the
-    bit, and the chunk's rows stay in the cache."""
+    bit, and the chunk's rows stay in the cache.  Where every piece is axial and the group has
+    the chunk's flow in closed form (SE(3): ``se3_axial_flow_chunk_point``), those passes run on
+    a structure-of-arrays copy of the chunk, vectorised across its nodes."""
     npieces, tau, axial, naxes, axes, coef, cnt, col = _flow_plan(pieces, fracs, dt)
     xi = np.zeros(R_)  # noqa: F821
     out = np.empty(R_)  # noqa: F821
@@ -403,7 +393,16 @@ def _flow_chunk(lo, hi, S, Dn, any_clamped, clamped, any_held, held, pieces, npi
                 coef, cnt, col, eye, xi, out, E, tmp, wk, TK):
     """The free flow of :func:`op_free_flow` at the nodes ``lo ≤ i < hi`` (``hi − lo ≤`` the rows of
     ``TK``, the directions' times): ``Dn_i`` from the identity, then each piece as passes over the
-    nodes; returns whether a node moved."""
+    nodes; returns whether a node moved.  When every piece is axial and the group has the whole
+    chunk's flow in closed form (``AXIAL_FLOW_CLOSED_``: SE(3)), ``g_axial_flow_chunk`` runs the
+    same steps as passes vectorised across the chunk's nodes (the same results, to the bit)."""
+    if AXIAL_FLOW_CLOSED_:  # noqa: F821 - every piece axial: the group's pass over the chunk (SE(3))
+        every = True
+        for p in range(npieces):
+            every = every and axial[p]
+        if every:
+            return g_axial_flow_chunk(lo, hi, S, Dn, any_clamped, clamped, any_held, held, npieces, tau,  # noqa: F821
+                                      naxes, axes, coef)
     moved = False
     for i in range(lo, hi):
         for a in range(M_):  # noqa: F821
@@ -617,7 +616,7 @@ def op_new_config(C):
     return (C[0].copy(), C[1].copy())
 
 
-_OPERATORS = (op_work, op_velocity, op_constrain, _dead_to_body, _field_force, _edge_to_nodes, op_force, op_move,
+_OPERATORS = (op_work, op_velocity, op_constrain, _dead_to_body, _field_force, op_force, op_move,
               op_free_flow, _driven_flow, _flow_plan, _flow_chunk, op_drift, op_drift_naive, op_powers, op_kinetic,
               op_potential, op_nodal_strains, op_finite_config, op_copy_config, op_new_config)
 
@@ -855,8 +854,7 @@ def op_work_threaded(D):
         for b in range(D_):  # noqa: F821
             sides[c * D_ + b] = D.cedge[c, b]  # noqa: F821
     cptr, ccorner = _t_incidence(sides, nc * D_, ne if D.coupled else 0)  # noqa: F821
-    nce = ne if D.coupled else 0
-    return (np.empty((n, M_, M_)), np.empty((n, M_, M_)), np.empty((nce, R_)), np.empty((nce, R_)),  # noqa: F821
+    return (np.empty((n, M_, M_)), np.empty((n, M_, M_)), np.empty((ne, R_)), np.empty((ne, R_)),  # noqa: F821
             np.empty((ne, R_)), np.empty((ne, R_)), nptr, nedge, np.empty((nc, D_, R_)), cptr, ccorner)  # noqa: F821
 
 
@@ -927,17 +925,13 @@ def op_force_threaded(D, C, t, N, W, K):
     d_ubody = D.ubody
     d_winv = D.winv
     G, Phi = C
-    VT, VH, nptr, nedge = K[4], K[5], K[6], K[7]
+    XI, QE, VT, VH, nptr, nedge = K[2], K[3], K[4], K[5], K[6], K[7]
     ne = G.shape[0]
     n = W.shape[0]
     if d_coupled:
-        XI, QC, cptr, ccorner = K[2], K[8], K[9], K[10]
+        QC, cptr, ccorner = K[8], K[9], K[10]
         for ch in prange(_t_chunks(ne)):  # noqa: F821
-            xi = np.empty(R_)  # noqa: F821
-            for e in range(ch * TCHUNK_, min(ne, (ch + 1) * TCHUNK_)):  # noqa: F821
-                g_log(G[e], xi)  # noqa: F821
-                for k in range(R_):  # noqa: F821
-                    XI[e, k] = xi[k]
+            g_log_chunk(G, ch * TCHUNK_, min(ne, (ch + 1) * TCHUNK_), XI)  # noqa: F821
         nc = d_cw.shape[0]
         for ch in prange(_t_chunks(nc)):  # noqa: F821
             X = np.empty((D_, R_))  # noqa: F821
@@ -952,49 +946,34 @@ def op_force_threaded(D, C, t, N, W, K):
                     for k in range(R_):  # noqa: F821
                         QC[c, b, k] = Q[b, k]
         for ch in prange(_t_chunks(ne)):  # noqa: F821
-            xi = np.empty(R_)  # noqa: F821
-            q = np.empty(R_)  # noqa: F821
-            vec = np.empty(R_)  # noqa: F821
-            vec2 = np.empty(R_)  # noqa: F821
-            for e in range(ch * TCHUNK_, min(ne, (ch + 1) * TCHUNK_)):  # noqa: F821
+            lo, hi = ch * TCHUNK_, min(ne, (ch + 1) * TCHUNK_)  # noqa: F821
+            for e in range(lo, hi):
                 for k in range(R_):  # noqa: F821
-                    q[k] = 0.0
+                    QE[e, k] = 0.0
                 for p in range(cptr[e], cptr[e + 1]):
                     c = ccorner[p] // D_  # noqa: F821
                     b = ccorner[p] - c * D_  # noqa: F821
                     f = d_cw[c] * d_einvh[e]
                     for k in range(R_):  # noqa: F821
-                        q[k] += f * QC[c, b, k]
-                for k in range(R_):  # noqa: F821
-                    xi[k] = XI[e, k]
-                g_dexp_inv_T_pair(xi, q, vec, vec2)  # noqa: F821
-                for k in range(R_):  # noqa: F821
-                    VT[e, k] = 1.0 * vec[k]
-                    VH[e, k] = 1.0 * vec2[k]
+                        QE[e, k] += f * QC[c, b, k]
+            g_dexp_inv_T_pair_chunk(XI, QE, np.empty(0), lo, hi, VT, VH)  # noqa: F821
     else:
         for ch in prange(_t_chunks(ne)):  # noqa: F821
-            xi = np.empty(R_)  # noqa: F821
-            vec = np.empty(R_)  # noqa: F821
-            vec2 = np.empty(R_)  # noqa: F821
             X = np.empty((D_, R_))  # noqa: F821
             Q = np.empty((D_, R_))  # noqa: F821
-            q = np.empty(R_)  # noqa: F821
-            for e in range(ch * TCHUNK_, min(ne, (ch + 1) * TCHUNK_)):  # noqa: F821
+            lo, hi = ch * TCHUNK_, min(ne, (ch + 1) * TCHUNK_)  # noqa: F821
+            g_log_chunk(G, lo, hi, XI)  # noqa: F821
+            for e in range(lo, hi):
                 a = d_eaxis[e]
-                g_log(G[e], xi)  # noqa: F821
                 for b in range(D_):  # noqa: F821
                     for k in range(R_):  # noqa: F821
                         X[b, k] = d_X0e[e, b, k]
                 for k in range(R_):  # noqa: F821
-                    X[a, k] = xi[k] * d_einvh[e]
+                    X[a, k] = XI[e, k] * d_einvh[e]
                 m_stress(X, d_X0e[e], d_params, Q)  # noqa: F821
                 for k in range(R_):  # noqa: F821
-                    q[k] = Q[a, k]
-                g_dexp_inv_T_pair(xi, q, vec, vec2)  # noqa: F821
-                s = d_escale[e]
-                for k in range(R_):  # noqa: F821
-                    VT[e, k] = s * vec[k]
-                    VH[e, k] = s * vec2[k]
+                    QE[e, k] = Q[a, k]
+            g_dexp_inv_T_pair_chunk(XI, QE, d_escale, lo, hi, VT, VH)  # noqa: F821
     nf = d_field.shape[0]
     for ch in prange(_t_chunks(n)):  # noqa: F821
         for i in range(ch * TCHUNK_, min(n, (ch + 1) * TCHUNK_)):  # noqa: F821
@@ -1044,22 +1023,10 @@ def op_move_threaded(D, C, Dn, K):
     Di = K[1]
     n = Dn.shape[0]
     ne = G.shape[0]
-    nf = Phi.shape[0]
     for ch in prange(_t_chunks(n)):  # noqa: F821
-        for i in range(ch * TCHUNK_, min(n, (ch + 1) * TCHUNK_)):  # noqa: F821
-            g_inverse(Dn[i], Di[i])  # noqa: F821
+        g_frames_chunk(Dn, Di, Phi, ch * TCHUNK_, min(n, (ch + 1) * TCHUNK_))  # noqa: F821
     for ch in prange(_t_chunks(ne)):  # noqa: F821
-        tmp = np.empty((M_, M_))  # noqa: F821
-        for e in range(ch * TCHUNK_, min(ne, (ch + 1) * TCHUNK_)):  # noqa: F821
-            g_compose(Di[d_tail[e]], G[e], tmp)  # noqa: F821
-            g_compose(tmp, Dn[d_head[e]], G[e])  # noqa: F821
-    for ch in prange(_t_chunks(nf)):  # noqa: F821
-        tmp = np.empty((M_, M_))  # noqa: F821
-        for i in range(ch * TCHUNK_, min(nf, (ch + 1) * TCHUNK_)):  # noqa: F821
-            for a in range(M_):  # noqa: F821
-                for b in range(M_):  # noqa: F821
-                    tmp[a, b] = Phi[i, a, b]
-            g_compose(tmp, Dn[i], Phi[i])  # noqa: F821
+        g_move_chunk(Di, Dn, G, d_tail, d_head, ch * TCHUNK_, min(ne, (ch + 1) * TCHUNK_))  # noqa: F821
 
 
 def op_free_flow_threaded(D, C, S, pieces, fracs, dt, Dn, K):
