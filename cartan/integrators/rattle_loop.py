@@ -427,10 +427,9 @@ def _rattle_rate(D, N, comp, Ae, Xe, out):
             out[e, a] = (0.5 * p + (1.0 / 12.0) * q) * D.einvh[e]
 
 
-def _rattle_predict(D, S, N, W, Bt, Bh, F, comp, Ae, Xe, work, acc, nu, rate):
-    """The force-level multiplier at the step's start (the Python step's ``_predict``):
-    ``(B P Bᵀ)λ = −B[M⁺(ad_NᵀS + W)] − Ḃ_c N`` (:func:`_rattle_rate`), ``F`` the block Cholesky
-    factors of ``B P Bᵀ`` (:func:`rattle_factor_sym`); λ into ``nu``; ``rate`` ``[E, c]`` is scratch."""
+def _rattle_accelerations(D, S, N, W, Bt, Bh, work, acc, out):
+    """``out = B[M⁺(ad_NᵀS + W)]`` ``[E, c]``: the rows of the unconstrained acceleration ``acc``
+    ``[n, r]`` (zero on the components that are no unknowns); ``work`` ``[n, r]`` is scratch."""
     n = S.shape[0]
     _lie_poisson(N, S, W, work)  # noqa: F821 - W + ad_NᵀS (cartan.integrators.loops)
     for i in range(n):
@@ -439,7 +438,14 @@ def _rattle_predict(D, S, N, W, Bt, Bh, F, comp, Ae, Xe, work, acc, nu, rate):
             for j in range(R_):  # noqa: F821
                 s += D.inv_metric[k, j] * work[i, j]
             acc[i, k] = 0.0 if _rattle_fixed(D, i, k) else s
-    rattle_apply(D, Bt, Bh, acc, nu)
+    rattle_apply(D, Bt, Bh, acc, out)
+
+
+def _rattle_predict(D, S, N, W, Bt, Bh, F, comp, Ae, Xe, work, acc, nu, rate):
+    """The force-level multiplier at the step's start (the Python step's ``_predict``):
+    ``(B P Bᵀ)λ = −B[M⁺(ad_NᵀS + W)] − Ḃ_c N`` (:func:`_rattle_rate`), ``F`` the block Cholesky
+    factors of ``B P Bᵀ`` (:func:`rattle_factor_sym`); λ into ``nu``; ``rate`` ``[E, c]`` is scratch."""
+    _rattle_accelerations(D, S, N, W, Bt, Bh, work, acc, nu)
     _rattle_rate(D, N, comp, Ae, Xe, rate)
     for e in range(nu.shape[0]):
         for a in range(nu.shape[1]):
@@ -465,15 +471,8 @@ def _rattle_support_power(D, C, S, N, W, comp, Bt, Bh, P, pdiag, F, factored, wo
         if not rattle_factor_sym(D, Bt, Bh, P, F, pdiag):
             return 0.0, False, False
         factored = True
+    _rattle_accelerations(D, S, N, W, Bt, Bh, work, acc, lam)
     n = S.shape[0]
-    _lie_poisson(N, S, W, work)  # noqa: F821 - W + ad_NᵀS (cartan.integrators.loops)
-    for i in range(n):
-        for k in range(R_):  # noqa: F821
-            s = 0.0
-            for j in range(R_):  # noqa: F821
-                s += D.inv_metric[k, j] * work[i, j]
-            acc[i, k] = 0.0 if _rattle_fixed(D, i, k) else s
-    rattle_apply(D, Bt, Bh, acc, lam)
     nmax = 0.0
     for i in range(n):
         for k in range(R_):  # noqa: F821
@@ -867,5 +866,6 @@ def loop_fragment() -> Fragment:
                                        rattle_values, rattle_rows, rattle_metric, _rattle_flow_jacobian,
                                        _rattle_diagonal, _rattle_right, _rattle_left, rattle_factor, rattle_factor_sym,
                                        rattle_apply, rattle_impulse, rattle_project_velocity, _rattle_project_config,
-                                       _rattle_rate, _rattle_predict, _rattle_support_power, _rattle_copy,
+                                       _rattle_rate, _rattle_accelerations, _rattle_predict,
+                                       _rattle_support_power, _rattle_copy,
                                        _rattle_factors, rattle_loop))
