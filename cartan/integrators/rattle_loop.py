@@ -508,6 +508,17 @@ def _rattle_support_power(D, C, S, N, W, comp, Bt, Bh, P, pdiag, F, factored, wo
     return power, factored, True
 
 
+def _rattle_powers(D, C, S, N, W, t, comp, Bt, Bh, P, pdiag, F, factored, work, acc, lam, rate, rp, Cd, Btd, Bhd,
+                   Aed, Xed, K, no):
+    """The loads' powers at (C, N, t) with the rows' power on the driven nodes added to the external
+    one (:func:`_rattle_support_power`, same arguments); returns ``(dissipated, external,
+    factored, ok)``."""
+    pd, pe = op_powers(D, C, N, t, K)  # noqa: F821
+    pw, factored, ok = _rattle_support_power(D, C, S, N, W, comp, Bt, Bh, P, pdiag, F, factored, work, acc, lam,
+                                             rate, rp, Cd, Btd, Bhd, Aed, Xed, K, no)
+    return pd, pe + pw, factored, ok
+
+
 def _rattle_copy(src, dst):
     """``dst ← src`` for configurations of 3-D arrays (the lattice's ``(G, Phi)``)."""
     for a in range(len(src)):
@@ -692,14 +703,12 @@ def rattle_loop(D, C, S, W, have_w, velocity_free, pieces, fracs, closing, comp,
                 _damped(D, W, N)  # noqa: F821
             nforce += 1
         if pending:
-            p0d, p0e = op_powers(D, C, N, t, K)  # noqa: F821
-            pw, have_fs, ok = _rattle_support_power(D, C, S, N, W, comp, Bt0, Bh0, Pm, pm_diag, Fs, have_fs, work, acc,
-                                                    dnu, cp, rq, Cd, Btd, Bhd, Aed, Xed, K, no)
+            p0d, p0e, have_fs, ok = _rattle_powers(D, C, S, N, W, t, comp, Bt0, Bh0, Pm, pm_diag, Fs, have_fs, work,
+                                                   acc, dnu, cp, rq, Cd, Btd, Bhd, Aed, Xed, K, no)
             if not ok:
                 status[0] = 3
                 info[0] = np.nan
                 break
-            p0e += pw
             pending = False
         for i in range(n):
             for k in range(R_):  # noqa: F821
@@ -837,14 +846,12 @@ def rattle_loop(D, C, S, W, have_w, velocity_free, pieces, fracs, closing, comp,
         t = t1
         done += 1
         if driven:  # the loads' powers and the rows' on the driven nodes (W: the force at the step's end)
-            p1d, p1e = op_powers(D, C, N, t, K)  # noqa: F821
-            pw, have_fs, ok = _rattle_support_power(D, C, S, N, W, comp, Bt0, Bh0, Pm, pm_diag, Fs, have_fs, work, acc,
-                                                    dnu, cp, rq, Cd, Btd, Bhd, Aed, Xed, K, no)
+            p1d, p1e, have_fs, ok = _rattle_powers(D, C, S, N, W, t, comp, Bt0, Bh0, Pm, pm_diag, Fs, have_fs, work,
+                                                   acc, dnu, cp, rq, Cd, Btd, Bhd, Aed, Xed, K, no)
             if not ok:
                 status[0] = 3
                 info[0] = np.nan
                 break
-            p1e += pw
             diss += 0.5 * dt * (p0d + p1d)
             ext += 0.5 * dt * (p0e + p1e)
             p0d, p0e = p1d, p1e
@@ -867,5 +874,5 @@ def loop_fragment() -> Fragment:
                                        _rattle_diagonal, _rattle_right, _rattle_left, rattle_factor, rattle_factor_sym,
                                        rattle_apply, rattle_impulse, rattle_project_velocity, _rattle_project_config,
                                        _rattle_rate, _rattle_accelerations, _rattle_predict,
-                                       _rattle_support_power, _rattle_copy,
+                                       _rattle_support_power, _rattle_powers, _rattle_copy,
                                        _rattle_factors, rattle_loop))
