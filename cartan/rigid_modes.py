@@ -286,10 +286,9 @@ def _unresisted(X: Any, low: tuple[np.ndarray, np.ndarray] | None, H: np.ndarray
         Y = np.hstack([untouched, Rinv @ vh[int(np.sum(ratio > 1.0)):].T])
         Y = np.linalg.qr(Y)[0] if Y.shape[1] else Y
         return Y, np.concatenate([ratio, np.zeros(k - moved)])
-    else:
-        mag = absX @ np.abs(H)
-        if low is not None:
-            mag = mag + np.abs(low[0]) @ (np.abs(low[1]).T @ np.abs(H))
+    mag = absX @ np.abs(H)
+    if low is not None:
+        mag = mag + np.abs(low[0]) @ (np.abs(low[1]).T @ np.abs(H))
     bound = tol * max(float(np.max(np.linalg.norm(mag, axis=0), initial=0.0)), 1e-300)
     sv, vh = _right_svd(XH)
     ratio = np.concatenate([sv, np.zeros(k - sv.size)]) / bound
