@@ -21,6 +21,12 @@ integrator (:mod:`cartan.integrators.constrained`) keeps them in time.
 constrained (every edge with an unknown at either end), the values, the Jacobian ``B_c`` and
 the edge stresses of given multipliers.  It knows no medium beyond the declaration.
 
+On the ``collocation`` scheme the strains are stored at the nodes and drift by the
+compatibility equation ∂_tX = ∂_uN + ad_X N (§III) with the scheme's difference operator:
+:class:`NodalStrainConstraints` holds one row per node and component, ``X_i[k] − value_k``,
+with ``B_c δ = [Dδ + ad_X δ]_k`` (``rattle``'s rows there, :meth:`Collocation.constraint_rows
+<cartan.schemes.collocation.Collocation.constraint_rows>`).
+
 Glued axes (a chart closed over poles, :class:`~cartan.grid.Grid` ``glued``; the sphere's)
     The edges across the ends are rows like the others: the strain of an edge whose end is a
     ghost, ``G_e = Φ_i⁻¹Φ_j'Γ`` (or ``Γ⁻¹Φ_j'⁻¹Φ_i``), moves with the node j' it stands for by
@@ -42,7 +48,7 @@ import numpy as np
 
 from .scatter import scatter_add
 
-__all__ = ["HeldFunctional", "StrainConstraints"]
+__all__ = ["HeldFunctional", "NodalStrainConstraints", "StrainConstraints"]
 
 
 class HeldFunctional:
@@ -410,3 +416,312 @@ class StrainConstraints:
                 q[copy] = np.where(active[orig][:, None], q[orig] @ np.linalg.inv(self.copy_map[axis]), np.nan)
             rows.append(q)
         return np.concatenate(rows, axis=0)
+
+
+class NodalStrainConstraints:
+    """The constrained strain rows of a problem on the ``collocation`` scheme: one row per node,
+    axis and held component of the stored nodal strains (paper §III, §III.E).
+
+    The collocation scheme carries the strains X_α as state and drifts them by the
+    compatibility equation of §III, ``∂_tX_α = ∂_αN + ad_{X_α}N`` (its exact Lie group
+    integrator, §V), with ∂_α the scheme's difference operator D_α.  The rows
+
+        c_{i,α,k}(X) = X_{α,i}[k] − value_k
+
+    are linear in the state, and their rate along the drift Φ ← Φ exp(εδ) is linear in δ,
+
+        B_c δ = [D_α δ + ad_{X_α} δ]_{i,k}        (exact: X(ε)′ at ε = 0),
+
+    as is its rate along the drift with N fixed, ``Ḃ_c N = [ad_{D_αN + ad_{X_α}N} N]_{i,k}``
+    (exact too: B_c depends on X through ad_X only).  The reaction ``B_cᵀν`` of the multipliers
+    is the collocation's internal force of a stress whose held components are ``−ν/w_i`` (the
+    scheme's force is ``−Lᵀ(wQ)/w`` with summation by parts, L = D + ad_X): ν is the fictitious
+    stress of §IV.E times ``−w_i``.
+
+    A row is kept when its stencil (the nodes D_α reads and the node itself) holds an unknown;
+    a row whose columns are all fixed (between clamped nodes) keeps its value.  The interface
+    is :class:`StrainConstraints`' (``ncon``, ``comp``, ``value``, :meth:`values`,
+    :meth:`matrix`, :meth:`fixed_rate`, :meth:`fixed_force`) plus :meth:`rows_rate`, so
+    ``rattle`` takes either.
+
+    Rank.  Along an open axis a central D has one more row than independent tangential
+    velocities (n rows, rank n − 1 of D restricted to the free nodes: its left null vector is
+    the odd–even pattern of a collocated grid), so at a straight configuration the rows of the
+    stretch component are dependent, and near one the multiplier systems are ill-conditioned
+    (smallest singular value ≈ |κ|/4 at n = 11, κ the curvature in the plane of the motion).
+    The rows held are therefore ``Tᵀc``: the nodal rows less their combinations that are
+    dependent at the reference strains (X[comp] = value, 0 elsewhere: straight, untwisted),
+    found once by an SVD, T sparse (:func:`_complement`).  ``ncon`` counts the held rows,
+    ``nrow`` the nodal ones; the combination left out (the stretch's odd–even ripple) is a
+    discretization error, second order in h (docs/integrators.md, "rattle on the collocation
+    scheme").  The multipliers ν are those of the held rows; ``Tν`` the nodal ones.
+
+    Parameters
+    ----------
+    scheme : Collocation
+        The scheme (its ``D``, ``grid``, ``group``).
+    unknown : array of bool ``[*shape, r]``
+        The node components that move (live, not clamped).
+    state : State
+        A state of the scheme at which the medium's stress is probed (the stress must not
+        depend on a constrained component).
+    check : bool
+        Probe the medium's stress.
+
+    Attributes
+    ----------
+    ncon : int
+        Number of held rows (``nrow`` less the dependent combinations).
+    nrow : int
+        Number of nodal rows (active (node, axis) pairs × held components).
+    T : scipy sparse ``(nrow, ncon)`` or None
+        The held combinations of the nodal rows (None: all of them, independent).
+    comp, value : ndarray ``(c,)``
+        The constrained components and their values.
+    active : bool array ``[nnode, d]``
+        The (node, axis) pairs whose rows are held.
+    """
+
+    #: :meth:`rows_rate` is exact (rattle's force-level multipliers take it as it is)
+    exact_rate = True
+
+    def __init__(self, scheme: Any, unknown: np.ndarray, state: Any, check: bool = True):
+        import scipy.sparse as sp
+
+        medium = scheme.medium
+        self.sch = scheme
+        self.g = scheme.group
+        self.r_dim = r = scheme.group.dim
+        grid = scheme.grid
+        d = grid.d
+        nnode = int(np.prod(grid.shape))
+        flat = np.asarray(unknown, dtype=bool).reshape(nnode, r)
+        self.unknown_flat = flat.ravel()
+        self.nunk = int(flat.sum())
+        self.index = -np.ones((nnode, r), dtype=np.int64)
+        self.index[flat] = np.arange(self.nunk)
+        self.comp = np.zeros(0, dtype=np.int64)
+        self.value = np.zeros(0)
+        self.active = np.zeros((nnode, d), dtype=bool)
+        self.ncon = self.nrow = 0
+        self.T = None
+        spec = medium.constrained_strains() if hasattr(medium, "constrained_strains") else None
+        if spec is None:
+            return
+        comp, val = spec
+        comp = np.atleast_1d(np.asarray(comp)).astype(np.int64)
+        val = np.atleast_1d(np.asarray(val, dtype=float))
+        if comp.shape != val.shape or comp.ndim != 1 or len(set(comp.tolist())) != comp.size:
+            raise ValueError(f"constrained_strains: {type(medium).__name__} must return distinct components and "
+                             f"as many values, got components {comp.tolist()} and values {val.tolist()}")
+        if np.any(comp < 0) or np.any(comp >= r) or not np.all(np.isfinite(val)):
+            raise ValueError(f"constrained_strains: components must be in [0, {r}) and values finite, got "
+                             f"components {comp.tolist()} and values {val.tolist()}")
+        if check:
+            self.check_stress(state, comp)
+        self.comp, self.value = comp, val
+        # per axis, D_α on the flattened nodes (C order): kron(I, D_α, I)
+        self._D = []
+        for axis, D in enumerate(scheme.D):
+            mats = [sp.identity(int(m), format="csr") for m in grid.shape]
+            mats[axis] = sp.csr_matrix(D.matrix())
+            full = mats[0]
+            for m in mats[1:]:
+                full = sp.kron(full, m, format="csr")
+            self._D.append(full.tocsr())
+        live_node = flat.any(axis=1).astype(float)
+        for axis, Dm in enumerate(self._D):
+            reach = (abs(Dm) @ live_node) > 0.0
+            self.active[:, axis] = reach | (live_node > 0.0)
+        self.ncon = int(self.active.sum()) * comp.size
+        c = comp.size
+        # the rows' pattern (node, axis, comp) → multiplier index, and the D part of B_c (fixed)
+        self._rowid = -np.ones((nnode, d, c), dtype=np.int64)
+        self._rowid[self.active] = np.arange(self.ncon).reshape(-1, c)
+        rows, cols, vals = [], [], []
+        for axis, Dm in enumerate(self._D):
+            coo = Dm.tocoo()
+            keep = self.active[coo.row, axis]
+            i, j, v = coo.row[keep], coo.col[keep], coo.data[keep]
+            for kk, k in enumerate(comp):
+                rows.append(self._rowid[i, axis, kk])
+                cols.append(j * r + k)
+                vals.append(v)
+        self._Dpart = sp.csr_matrix((np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols))),
+                                    shape=(self.ncon, nnode * r))
+        # the ad part's pattern: row (i, α, k) with every component of node i
+        ia = np.argwhere(self.active)  # [na, 2]: (node, axis)
+        self._ad_rows = np.repeat(self._rowid[ia[:, 0], ia[:, 1]][:, :, None], r, axis=2)  # [na, c, r]
+        self._ad_cols = np.broadcast_to((ia[:, 0] * r)[:, None, None] + np.arange(r), self._ad_rows.shape)
+        self._ia = ia
+        # the held combinations: the nodal rows less their dependent ones at the reference strains
+        # X[comp] = value, X = 0 elsewhere (the straight, untwisted state: the odd–even modes)
+        self.nrow = self.ncon
+        Xref = np.zeros((nnode, d, r))
+        Xref[..., comp] = val
+        Bref = self._full(Xref)[:, self.unknown_flat].toarray()
+        U, sv, _ = np.linalg.svd(Bref)
+        rank = int(np.sum(sv > 1e-10 * (sv[0] if sv.size else 0.0)))
+        if rank < self.nrow:
+            self.T = _complement(U[:, rank:])  # (nrow, ncon) sparse: the independent combinations
+            self.ncon = rank
+
+    def check_stress(self, state: Any, comp: np.ndarray) -> None:
+        """``ValueError`` when the medium's point stress at the nodal strains ``[*, d, r]`` depends
+        on a constrained component (probed as they are and moved by a seeded random 1 %, each
+        held component moved by 1e-3·max(1, |X[k]|); bound 1e-9·max(1, |Q|))."""
+        medium, sch = self.sch.medium, self.sch
+        X = np.asarray(sch.nodal_strains(state), dtype=float)
+        X = X.reshape(-1, *X.shape[-2:])
+        rest = sch.nodal_rest_strains()
+        X0 = None if rest is None else np.asarray(rest, dtype=float).reshape(X.shape)
+
+        def stress(Y: np.ndarray) -> np.ndarray:
+            with np.errstate(all="ignore"):
+                return medium.stress(Y) if X0 is None else medium.stress_at(Y, X0)
+
+        rng = np.random.default_rng(20240611)
+        moved_all = X + 1e-2 * np.maximum(1.0, np.abs(X)) * rng.standard_normal(X.shape)
+        for probe in (X, moved_all):
+            q0 = stress(probe)
+            if not np.all(np.isfinite(q0)):
+                continue
+            bound = 1e-9 * max(1.0, float(np.max(np.abs(q0), initial=0.0)))
+            for k in comp:
+                moved = probe.copy()
+                moved[..., k] += 1e-3 * max(1.0, float(np.max(np.abs(probe[..., k]), initial=0.0)))
+                dq = float(np.max(np.abs(stress(moved) - q0), initial=0.0))
+                if not dq <= bound:
+                    raise ValueError(
+                        f"constrained_strains: the stress of medium {medium.name!r} depends on the constrained "
+                        f"strain component {int(k)} (change {dq:.3e}); a constrained component's stress is a "
+                        "reaction and must not be constitutive")
+
+    # ------------------------------------------------------------------ rows
+    def _X(self, state: Any) -> np.ndarray:
+        """The nodal strains ``[nnode, d, r]``."""
+        return np.asarray(self.sch.nodal_strains(state), dtype=float).reshape(-1, self.sch.grid.d, self.r_dim)
+
+    def nodal_values(self, state: Any) -> np.ndarray:
+        """``X_{α,i}[k] − value_k`` on every row of the active (node, axis) pairs ``(nrow,)``
+        (order: node, axis, component)."""
+        if not self.ncon:
+            return np.zeros(0)
+        return (self._X(state)[..., self.comp] - self.value)[self.active].ravel()
+
+    def values(self, state: Any, active_only: bool = True) -> np.ndarray:
+        """The held rows ``(ncon,)``: ``Tᵀ(X_{α,i}[k] − value_k)`` (T the independent
+        combinations, the identity when the nodal rows are independent), or with
+        ``active_only=False`` the nodal rows on every (node, axis) ``[nnode·d, c]``."""
+        if not self.ncon:
+            return np.zeros(0) if active_only else np.zeros((0, 0))
+        if not active_only:
+            return (self._X(state)[..., self.comp] - self.value).reshape(-1, self.comp.size)
+        c = self.nodal_values(state)
+        return c if self.T is None else self.T.T @ c
+
+    def _full(self, X: np.ndarray):
+        """The nodal rows' ``B`` on every node component ``(nrow, nnode·r)`` at the strains X
+        ``[nnode, d, r]`` (scipy CSR): ``[D_α δ + ad_{X_α} δ]_{i,k}``."""
+        import scipy.sparse as sp
+
+        ia = self._ia
+        adx = self.g.ad(X[ia[:, 0], ia[:, 1]])[:, self.comp, :]  # [na, c, r]
+        ad = sp.csr_matrix((adx.ravel(), (self._ad_rows.ravel(), self._ad_cols.ravel())),
+                           shape=self._Dpart.shape)
+        return (self._Dpart + ad).tocsr()
+
+    def full_matrix(self, state: Any):
+        """``B_c`` of the held rows on every node component ``(ncon, nnode·r)`` (scipy CSR):
+        ``Tᵀ[D_α δ + ad_{X_α} δ]_{i,k}``."""
+        import scipy.sparse as sp
+
+        B = self._full(self._X(state))
+        return B if self.T is None else sp.csr_matrix(self.T.T @ B)
+
+    def matrix(self, state: Any):
+        """``B_c`` ``(ncon, nunk)`` (scipy CSR): the rows' exact rate along the drift
+        Φ_i ← Φ_i exp(δ_i), δ on the unknowns."""
+        return self.full_matrix(state)[:, self.unknown_flat].tocsr()
+
+    def fixed_rate(self, state: Any, N: np.ndarray) -> np.ndarray:
+        """``(ncon,)``: the rows' rate from the velocity ``N`` ``[*shape, r]`` of the components
+        that are not unknowns (zero on clamped nodes: N is read there only)."""
+        Nf = np.asarray(N, dtype=float).reshape(-1)
+        fixed = np.where(self.unknown_flat, 0.0, Nf)
+        if not self.ncon or not fixed.any():
+            return np.zeros(self.ncon)
+        return self.full_matrix(state) @ fixed
+
+    def fixed_force(self, state: Any, nu: np.ndarray) -> np.ndarray:
+        """``[nnode, r]``: ``B_cᵀν`` on the components that are not unknowns (zero on the
+        unknowns): the constraint force the clamps balance."""
+        out = np.zeros(self.index.shape)
+        if self.ncon:
+            out = (self.full_matrix(state).T @ np.asarray(nu, dtype=float)).reshape(self.index.shape)
+        out[self.index >= 0] = 0.0
+        return out
+
+    def rows_rate(self, state: Any, N: np.ndarray) -> np.ndarray:
+        """``Ḃ_c N`` ``(ncon,)``, exact: the rows' second derivative along the drift
+        Φ ← Φ exp(εN), N ``[*shape, r]`` constant, ``[ad_{Ẋ_α} N]_{i,k}`` with
+        ``Ẋ_α = D_αN + ad_{X_α}N`` (the compatibility equation, paper §III)."""
+        if not self.ncon:
+            return np.zeros(0)
+        g, r = self.g, self.r_dim
+        X = self._X(state)
+        Nf = np.asarray(N, dtype=float).reshape(-1, r)
+        out = np.zeros(X.shape[:2] + (self.comp.size,))
+        for axis, Dm in enumerate(self._D):
+            Xdot = Dm @ Nf + g.bracket(X[:, axis, :], Nf)
+            out[:, axis, :] = g.bracket(Xdot, Nf)[:, self.comp]
+        out = out[self.active].ravel()
+        return out if self.T is None else self.T.T @ out
+
+    def stress(self, nu: np.ndarray, weights: np.ndarray) -> np.ndarray:
+        """The nodal stresses ``[nnode, d, c]`` of the held components, ``−ν/w_i`` (NaN on the
+        rows not held): the fictitious stress of §IV.E whose collocation force is ``B_cᵀν``."""
+        out = np.full((*self.active.shape, self.comp.size), np.nan)
+        w = np.asarray(weights, dtype=float).reshape(-1)
+        nodal = np.asarray(nu, dtype=float) if self.T is None else self.T @ np.asarray(nu, dtype=float)
+        out[self.active] = -nodal.reshape(-1, self.comp.size) / w[np.nonzero(self.active)[0]][:, None]
+        return out
+
+
+def _complement(Y: np.ndarray):
+    """``T`` ``(nrow, nrow − m)`` (scipy CSC) whose columns span the complement of the dependent
+    combinations ``Y`` ``(nrow, m)`` (orthonormal): ``Tᵀc = 0`` exactly when c ∈ span Y.
+
+    When the columns of Y have disjoint supports (the odd–even mode of each open line of nodes,
+    nonzero at each of its rows), T is sparse: the rows off the supports as they are, and along
+    each support s₀ < s₁ < … the chain ``(y[s_{t+1}] c[s_t] − y[s_t] c[s_{t+1}])/|(y[s_t],
+    y[s_{t+1}])|`` (two nonzeros per column: the held rows stay banded).  Otherwise the dense
+    orthonormal complement."""
+    import scipy.sparse as sp
+
+    nrow, m = Y.shape
+    tol = 1e-8 * float(np.max(np.abs(Y), initial=0.0))
+    support = np.abs(Y) > tol
+    if np.all(support.sum(axis=1) <= 1):  # disjoint supports: the chains
+        rows, cols, vals = [], [], []
+        col = 0
+        off = np.flatnonzero(~support.any(axis=1))
+        rows.append(off)
+        cols.append(np.arange(off.size))
+        vals.append(np.ones(off.size))
+        col = off.size
+        for j in range(m):
+            idx = np.flatnonzero(support[:, j])
+            a, b = idx[:-1], idx[1:]
+            ya, yb = Y[a, j], Y[b, j]
+            norm = np.hypot(ya, yb)
+            k = col + np.arange(a.size)
+            rows += [a, b]
+            cols += [k, k]
+            vals += [yb / norm, -ya / norm]
+            col += a.size
+        if col == nrow - m:
+            return sp.csc_matrix((np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols))),
+                                 shape=(nrow, col))
+    full = np.linalg.svd(Y, full_matrices=True)[0][:, m:]
+    return sp.csc_matrix(full)

@@ -222,14 +222,15 @@ def test_without_constraints_rattle_is_lie_verlet():
 
 def test_simulate_picks_rattle_and_refuses_the_others():
     """A medium with constrained strains runs with ``rattle`` by default; an integrator that does
-    not hold the constraints, or a scheme without edge strains, is refused with a clear error."""
+    not hold the constraints is refused with a clear error; the collocation scheme holds them on
+    its nodal strains (``tests/test_rattle_collocation.py``)."""
     prob = _filament(n=5)
     ds = cartan.simulate(prob, dt=5e-3, t_end=0.01, progress=False, compiled=False)
     assert "constraint_residual" in ds and float(ds["constraint_residual"].max()) < 1e-12
     with pytest.raises(ValueError, match="integrator='rattle'"):
         cartan.simulate(prob, integrator="lie-verlet", dt=5e-3, t_end=0.01, progress=False)
-    with pytest.raises(ValueError, match="scheme='lattice'"):
-        cartan.simulate(prob, scheme="collocation", dt=5e-3, t_end=0.01, progress=False)
+    dc = cartan.simulate(prob, scheme="collocation", dt=5e-3, t_end=0.01, progress=False, compiled=False)
+    assert float(dc["constraint_residual"].max()) < 1e-12
 
 
 @pytest.mark.parametrize("compiled", [False, pytest.param(True, marks=pytest.mark.slow)])

@@ -71,7 +71,14 @@ velocity is zero).  :meth:`Rattle.support_reaction` gives the reaction on every 
 the constraint force on it included.  The compiled loop restricts its node operators to the
 free components by the operator set's ``held`` mask: the same steps, round-off apart.
 
-Runs on the ``lattice`` scheme (whose edges carry the exact strains); a medium without
+Runs on the ``lattice`` scheme (whose edges carry the exact strains) and on any scheme that
+supplies rows of its own, ``scheme.constraint_rows(unknown, state)`` with the interface of
+:class:`~cartan.constraints.StrainConstraints` (``ncon``, ``values``, ``matrix``,
+``fixed_rate``, ``fixed_force``, and ``rows_rate`` for Ḃ_c N): the ``collocation`` scheme's
+:class:`~cartan.constraints.NodalStrainConstraints`, the held components of its stored nodal
+strains, with ``B_c δ = P(D δ + ad_X δ)`` from the compatibility equation (paper §III) and the
+combination dependent at a straight configuration (the odd–even mode) left out
+(docs/integrators.md, "rattle on the collocation scheme"; numpy step only).  A medium without
 constrained strains gets lie-verlet's steps unchanged.  On an open chain of nodes (d = 1, not
 periodic) whose operator set compiles (group and medium point kernels, the loads of the
 generated loops), the steps run in the generated ``rattle_loop``
@@ -241,6 +248,8 @@ class Rattle(LieVerlet):
         guess): the central difference of the exact rows' rate ``B_c(Φ exp(εN)) N`` over
         ε = ±ε₀, ε₀ = 1e-5/max|N| (truncation ≈ ε₀²|N|³, round-off ≈ 1e-16/ε₀: ≈ 1e-10 relative)."""
         con, unknown, _, _ = held
+        if getattr(con, "exact_rate", False):  # the scheme's rows give Ḃ_c N in closed form (collocation)
+            return con.rows_rate(state, N)
         eps = 1e-5 / max(float(np.max(np.abs(N), initial=0.0)), 1e-300)
         rates = []
         for sign in (1.0, -1.0):
@@ -333,7 +342,8 @@ class Rattle(LieVerlet):
         group and medium point kernels, data-like loads — are checked by
         :meth:`~cartan.integrators.base.Integrator.run_compiled_loop`)."""
         if not hasattr(scheme, "edge_nodes") or not hasattr(scheme, "edge_strains"):
-            return f"scheme {scheme.name!r} has no edge strains (the Python step says so)"
+            return (f"scheme {scheme.name!r} has no edge strains: the generated rattle_loop holds the lattice's edge "
+                    "rows only (the collocation's nodal rows run the Python step)")
         grid = scheme.grid
         if grid.d != 1:
             return (f"d = {grid.d}: the multiplier systems are block-tridiagonal for a chain of nodes only "
@@ -437,13 +447,15 @@ class Rattle(LieVerlet):
             return self._held[1]
         from ..constraints import StrainConstraints
 
-        if not hasattr(scheme, "edge_strains") or not hasattr(scheme, "edge_nodes"):
-            raise ValueError(f"integrator 'rattle' holds the constrained strains on the lattice's edges; scheme "
-                             f"{scheme.name!r} has none: use scheme='lattice'")
+        rows = getattr(scheme, "constraint_rows", None)  # the scheme's own rows (collocation: nodal strains)
+        if rows is None and (not hasattr(scheme, "edge_strains") or not hasattr(scheme, "edge_nodes")):
+            raise ValueError(f"integrator 'rattle' holds the constrained strains on the scheme's rows (the lattice's "
+                             f"edge strains, the collocation's nodal strains); scheme {scheme.name!r} has neither: "
+                             "use scheme='lattice' or scheme='collocation'")
         r = scheme.group.dim
         unknown = np.broadcast_to(scheme.live, (*scheme.grid.shape, r)).copy()
         unknown[scheme._clamped] = False
-        con = StrainConstraints(scheme, unknown, state)
+        con = rows(unknown, state) if rows is not None else StrainConstraints(scheme, unknown, state)
         if con.ncon and scheme.grid.glued is not None:
             raise ValueError("integrator 'rattle' does not support strain constraints on a grid with a glued axis "
                              "(Grid.glued, the sphere's chart): its multiplier systems take no ghost ends; use "
@@ -583,6 +595,8 @@ class Rattle(LieVerlet):
         4e-6 relative measured at n = 11 under the tip wrench against a fourth-order difference):
         a starting guess, whose error is O(Δt) anyway (the steps take the same iterations with
         the exact rate and with the one-sided difference this replaces)."""
+        if hasattr(con, "rows_rate"):  # the scheme's rows (collocation): exact
+            return con.rows_rate(state, N)
         g, r = scheme.group, scheme.group.dim
         Nf = N.reshape(-1, r)
         out = []
@@ -613,7 +627,7 @@ class Rattle(LieVerlet):
         if scheme.medium.constrained_strains() is None:
             return 0.0
         con = self._constraints(scheme, state)[0]
-        if edge_strains is None or not con.ncon:
+        if edge_strains is None or not con.ncon or not hasattr(con, "tails"):
             return float(np.max(np.abs(con.values(state)), initial=0.0))
         big = 0.0
         for x, active in zip(edge_strains, con.active, strict=True):

@@ -447,6 +447,29 @@ class Collocation(Scheme):
             )
         return out
 
+    # ------------------------------------------------------------------ constrained strains
+    def constraint_rows(self, unknown: np.ndarray, state: State):
+        """The medium's constrained strain rows on the nodal strains (``rattle``'s rows).
+
+        One row per node, axis and held component, ``c = X_{α,i}[k] − value_k``, with the row
+        operator ``B_c δ = [D_α δ + ad_{X_α} δ]_k`` of the compatibility equation (paper §III),
+        less the combinations that are dependent at the straight reference (the odd–even mode
+        of each open line: :class:`cartan.constraints.NodalStrainConstraints`, "Rank").
+
+        Parameters
+        ----------
+        unknown : array of bool ``[*shape, r]``
+            The node components that move (live, not clamped).
+        state : State
+
+        Returns
+        -------
+        NodalStrainConstraints
+        """
+        from ..constraints import NodalStrainConstraints
+
+        return NodalStrainConstraints(self, unknown, state)
+
     # ------------------------------------------------------------------ state
     def initial_state(self) -> State:
         """X₀ = Φ₀⁻¹∂Φ₀ by :meth:`strain_from_frames`, S₀ = ∂K/∂N(N₀), frames as configured."""
