@@ -92,7 +92,7 @@ def test_bad_parameters(kwargs, word):
 def levels():
     """The case's levels M = 4, 8, 16 (25 + 49 + 98 rattle steps on up to 32² nodes):
     ``[(error, ds, problem, settings)]``.  Level 3 (M = 32, 196 Python rattle steps on 64²
-    nodes, minutes) runs in `cartan verify` (docs/verification/kirchhoff-love)."""
+    nodes, ≈ 40 ms each) runs in `cartan verify` (docs/verification/kirchhoff-love)."""
     return run_levels(CASE, CASE.levels[:3])
 
 
