@@ -124,3 +124,62 @@ def test_axial_flow_pass_equals_the_axis_flows():
     assert moved
     assert np.array_equal(S, S_ref) and np.array_equal(Dn, Dn_ref)
     assert np.array_equal(Dn[3], np.eye(4))
+
+
+# ------------------------------------------------------------------ the shared scalar kernels
+# The rod's structure-of-arrays loop (cartan.schemes._lattice_compiled_soa) and the passes above
+# take their arithmetic from the same scalar kernels of cartan.groups.se3; these tests check the
+# kernels against their definitions.  Tolerances: different operation orders of O(1) quantities,
+# 1e-13 relative to the largest entry (a few hundred ulps; observed ≲ 1e-15).
+
+
+def _hat3(v: np.ndarray) -> np.ndarray:
+    return np.array([[0.0, -v[2], v[1]], [v[2], 0.0, -v[0]], [-v[1], v[0], 0.0]])
+
+
+def test_Q_kernel_equals_the_block_by_its_definition():
+    """``_Q_apply`` (seven cross products) against ``Q = ½P + C(KP + PK + KPK) + D(K²P + PK² −
+    3KPK) + E(KPK² + K²PK)`` formed as matrices, on both branches of the coefficients."""
+    xi, _ = _elements(60, seed=10)
+    v = np.random.default_rng(11).standard_normal((60, 3))
+    for e in range(60):
+        r, w = xi[e, :3], xi[e, 3:]
+        _, c, d, ee = se3.se3_dexp_coeffs(float(w @ w))
+        P, K = _hat3(r), _hat3(w)
+        Q = 0.5 * P + c * (K @ P + P @ K + K @ P @ K) + d * (K @ K @ P + P @ K @ K - 3.0 * K @ P @ K) \
+            + ee * (K @ P @ K @ K + K @ K @ P @ K)
+        ref = Q @ v[e]
+        got = np.array(se3._Q_apply(*r, *w, c, d, ee, *v[e]))
+        assert np.max(np.abs(got - ref)) <= 1e-13 * max(1.0, np.max(np.abs(Q))) * np.max(np.abs(v[e]))
+
+
+def test_head_term_by_Ad_T_equals_the_pair_kernel_to_round_off():
+    """``Ad_Gᵀ dexp(ξ)⁻ᵀq`` (the rod loop's head term, ``_Ad_T12``) against ``dexp(−ξ)⁻ᵀq`` of
+    :func:`se3_dexp_inv_T_pair_point` for ``G = exp ξ`` (``dexp(−ξ)⁻ᵀ = Ad_Gᵀ dexp(ξ)⁻ᵀ``, which
+    holds on the group only); ``_Ad_T12`` is :func:`se3_Ad_T_point` to the bit."""
+    xi, G = _elements(200, seed=12)
+    Q = np.random.default_rng(13).standard_normal(xi.shape)
+    out, neg, ad = np.empty(6), np.empty(6), np.empty(6)
+    for e in range(200):
+        se3.se3_dexp_inv_T_pair_point(xi[e], Q[e], out, neg)
+        g = G[e]
+        got = np.array(se3._Ad_T12(g[1, 0], g[2, 0], g[3, 0], *g[1, 1:], *g[2, 1:], *g[3, 1:], *out))
+        se3.se3_Ad_T_point(g, out, ad)
+        assert np.array_equal(got, ad)
+        assert np.max(np.abs(got - neg)) <= 1e-13 * max(1.0, np.max(np.abs(neg)))
+
+
+def test_inverse_compose_kernel_equals_the_products():
+    """``_inv_compose12(D, h) = D⁻¹h`` (the rod loop's edge update) against
+    :func:`se3_inverse_point` and :func:`se3_compose_point`."""
+    _, D = _elements(50, seed=14)
+    _, H = _elements(50, seed=15)
+    inv, ref = np.empty((4, 4)), np.empty((4, 4))
+    for e in range(50):
+        d, h = D[e], H[e]
+        got = se3._inv_compose12(d[1, 0], d[2, 0], d[3, 0], *d[1, 1:], *d[2, 1:], *d[3, 1:],
+                                 h[1, 0], h[2, 0], h[3, 0], *h[1, 1:], *h[2, 1:], *h[3, 1:])
+        se3.se3_inverse_point(d, inv)
+        se3.se3_compose_point(inv, h, ref)
+        want = np.concatenate([ref[1:, 0], ref[1:, 1:].ravel()])
+        assert np.max(np.abs(np.array(got) - want)) <= 1e-13 * max(1.0, np.max(np.abs(want)))

@@ -101,12 +101,16 @@ __all__ = [
     "poincare_axis_flow_point",
     "poincare_bracket_point",
     "poincare_compose_point",
+    "poincare_dexp_inv_T_pair_chunk_point",
     "poincare_dexp_inv_T_pair_point",
     "poincare_dexp_inv_point",
     "poincare_exp_point",
+    "poincare_frames_chunk_point",
     "poincare_hat_point",
     "poincare_inverse_point",
+    "poincare_log_chunk_point",
     "poincare_log_point",
+    "poincare_move_chunk_point",
     "poincare_vee_point",
 ]
 
@@ -270,14 +274,17 @@ def poincare_vee_point(A, out):
 @njit(cache=True)
 def poincare_compose_point(g, h, out):
     """``out`` (5, 5) ← ``g h`` ``= (t_g + Λ_g t_h; Λ_g Λ_h)``; no aliasing."""
+    _compose5(g, h, out)
+
+
+@register_jitable(inline='always')
+def _compose5(g, h, out):
+    """:func:`poincare_compose_point`'s arithmetic, inlined into the passes below."""
     out[0, 0] = 1.0
     for j in range(1, 5):
         out[0, j] = 0.0
-    for i in range(1, 5):
-        s = g[i, 0]
-        for k in range(1, 5):
-            s += g[i, k] * h[k, 0]
-        out[i, 0] = s
+    for i in range(1, 5):  # (no accumulator across iterations: numba's IR inlining keeps it out of scope)
+        out[i, 0] = g[i, 0] + g[i, 1] * h[1, 0] + g[i, 2] * h[2, 0] + g[i, 3] * h[3, 0] + g[i, 4] * h[4, 0]
         for j in range(1, 5):
             out[i, j] = g[i, 1] * h[1, j] + g[i, 2] * h[2, j] + g[i, 3] * h[3, j] + g[i, 4] * h[4, j]
 
@@ -285,6 +292,12 @@ def poincare_compose_point(g, h, out):
 @njit(cache=True)
 def poincare_inverse_point(g, out):
     """``out`` (5, 5) ← ``(−Λ⁻¹t; Λ⁻¹)`` with ``Λ⁻¹ = ηΛᵀη``; no aliasing."""
+    _inverse5(g, out)
+
+
+@register_jitable(inline='always')
+def _inverse5(g, out):
+    """:func:`poincare_inverse_point`'s arithmetic, inlined into the passes below."""
     out[0, 0] = 1.0
     for j in range(1, 5):
         out[0, j] = 0.0
@@ -293,11 +306,8 @@ def poincare_inverse_point(g, out):
         for j in range(4):
             sj = -1.0 if j == 0 else 1.0
             out[i + 1, j + 1] = si * sj * g[j + 1, i + 1]
-    for i in range(4):
-        s = 0.0
-        for j in range(4):
-            s += out[i + 1, j + 1] * g[j + 1, 0]
-        out[i + 1, 0] = -s
+    for i in range(1, 5):
+        out[i, 0] = -(0.0 + out[i, 1] * g[1, 0] + out[i, 2] * g[2, 0] + out[i, 3] * g[3, 0] + out[i, 4] * g[4, 0])
 
 
 @njit(cache=True)
@@ -340,14 +350,14 @@ def _solve4(V, t, out):
             out[i] = np.nan
 
 
-@njit(cache=True)
+@register_jitable(inline='always')
 def _pure_translation(g):
-    """Whether the Lorentz block of ``g`` (5, 5) is exactly the identity."""
-    for i in range(4):
-        for j in range(4):
-            if g[i + 1, j + 1] != (1.0 if i == j else 0.0):
-                return False
-    return True
+    """Whether the Lorentz block of ``g`` (5, 5) is exactly the identity (straight-line and
+    without short-circuits, so that numba's IR inlining takes it into the passes' loops cleanly)."""
+    return ((g[1, 1] == 1.0) & (g[2, 2] == 1.0) & (g[3, 3] == 1.0) & (g[4, 4] == 1.0)
+            & (g[1, 2] == 0.0) & (g[1, 3] == 0.0) & (g[1, 4] == 0.0) & (g[2, 1] == 0.0)
+            & (g[2, 3] == 0.0) & (g[2, 4] == 0.0) & (g[3, 1] == 0.0) & (g[3, 2] == 0.0)
+            & (g[3, 4] == 0.0) & (g[4, 1] == 0.0) & (g[4, 2] == 0.0) & (g[4, 3] == 0.0))
 
 
 @njit(cache=True)
@@ -887,3 +897,137 @@ def poincare_axis_flow_point(k, t, s, acc, work):
     for i in range(1, 5):
         x, y = acc[i, 2 + p], acc[i, 2 + q]
         acc[i, 2 + p], acc[i, 2 + q] = c * x + sn * y, c * y - sn * x
+
+
+# ---------------------------------------------------------------------- passes over edges and nodes
+# The lattice's generated loops call these (``g_<op>`` of :data:`cartan.compiled.kernels.FUSED_OPS`)
+# instead of the forms built from the point kernels: the same arithmetic, without an out-of-line
+# call per element, and for the string's edges (pure translations: Λ = I exactly) the closed
+# forms of the logarithm and of dexp⁻¹(±ξ)ᵀ.
+
+
+@njit(cache=True, inline='always')
+def poincare_log_chunk_point(G, lo, hi, XI):
+    """``XI[e]`` (10,) ← ``log G[e]`` (:func:`poincare_log_point`) for ``lo ≤ e < hi``, ``G``
+    ``(E, 5, 5)``, ``XI`` ``(E, 10)``: :func:`_log_chunk`, compiled once and cached."""
+    _log_chunk(G, lo, hi, XI)
+
+
+@njit(cache=True, error_model='numpy')
+def _log_chunk(G, lo, hi, XI):
+    """A pure translation ``(t; I)`` gives ``{t; 0}`` in line; any other edge
+    :func:`poincare_log_point`: its results to the bit."""
+    for e in range(max(lo, 0), hi):
+        g = G[e]
+        if _pure_translation(g):
+            XI[e, 0], XI[e, 1], XI[e, 2], XI[e, 3] = g[1, 0], g[2, 0], g[3, 0], g[4, 0]
+            for k in range(4, 10):
+                XI[e, k] = 0.0
+        else:
+            poincare_log_point(g, XI[e])
+
+
+@register_jitable(inline='always')
+def _translation_ad_T(y0, y1, y2, y3, v0, v1, v2, v3):
+    """The Lorentz part of ``ad_ξᵀ v`` for a pure translation ``ξ = {y; 0}`` (its translation
+    part is zero): ``−N(y)ᵀ v_y``, ``N(y) = [[y⃗ᵀ, 0], [y₀ I, −ŷ⃗]]``, each entry the sum of
+    :func:`poincare_ad_point`'s two non-zero products in its order: 6 scalars."""
+    return (-y1 * v0 + -y0 * v1, -y2 * v0 + -y0 * v2, -y3 * v0 + -y0 * v3,
+            y3 * v2 + -y2 * v3, -y3 * v1 + y1 * v3, y2 * v1 + -y1 * v2)
+
+
+@njit(cache=True, inline='always')
+def poincare_dexp_inv_T_pair_chunk_point(XI, Q, scale, lo, hi, VT, VH):
+    """``VT[e]`` ← ``s_e dexp⁻¹(ξ_e)ᵀq_e`` and ``VH[e]`` ← ``s_e dexp⁻¹(−ξ_e)ᵀq_e``
+    (:func:`poincare_dexp_inv_T_pair_point`) for ``lo ≤ e < hi`` (``XI``, ``Q``, ``VT``, ``VH``
+    ``(E, 10)``; ``scale`` ``(E,)`` or empty: 1): :func:`_pair_chunk`, compiled once and cached."""
+    _pair_chunk(XI, Q, scale, lo, hi, VT, VH)
+
+
+@njit(cache=True, error_model='numpy')
+def _pair_chunk(XI, Q, scale, lo, hi, VT, VH):
+    """A pure translation ``ξ = {y; 0}`` (ad_ξ² = 0): ``dexp⁻¹(±ξ)ᵀq = q ∓ ½ad_ξᵀq`` with
+    :func:`_translation_ad_T`, in line; any other edge :func:`poincare_dexp_inv_T_pair_point`.
+    The point kernel's values (== ; a zero may differ in sign)."""
+    scaled = scale.shape[0] > 0
+    out = np.empty(10)
+    neg = np.empty(10)
+    for e in range(max(lo, 0), hi):
+        xi = XI[e]
+        q = Q[e]
+        f = scale[e] if scaled else 1.0
+        if xi[4] == 0.0 and xi[5] == 0.0 and xi[6] == 0.0 and xi[7] == 0.0 and xi[8] == 0.0 and xi[9] == 0.0:
+            a = _translation_ad_T(xi[0], xi[1], xi[2], xi[3], q[0], q[1], q[2], q[3])
+            for k in range(4):
+                VT[e, k] = f * (q[k] - 0.5 * 0.0)
+                VH[e, k] = f * (q[k] + 0.5 * 0.0)
+            for k in range(6):
+                VT[e, 4 + k] = f * (q[4 + k] - 0.5 * a[k])
+                VH[e, 4 + k] = f * (q[4 + k] + 0.5 * a[k])
+        else:
+            poincare_dexp_inv_T_pair_point(xi, q, out, neg)
+            for k in range(10):
+                VT[e, k] = f * out[k]
+                VH[e, k] = f * neg[k]
+
+
+@njit(cache=True, inline='always')
+def poincare_move_chunk_point(Di, Dn, G, tail, head, lo, hi):
+    """``G[e]`` ← ``Di[tail[e]] G[e] Dn[head[e]]`` for ``lo ≤ e < hi`` (all ``(·, 5, 5)``): two
+    :func:`poincare_compose_point` in line (their results to the bit), :func:`_move_chunk`."""
+    _move_chunk(Di, Dn, G, tail, head, lo, hi)
+
+
+@njit(cache=True, error_model='numpy')
+def _move_chunk(Di, Dn, G, tail, head, lo, hi):
+    """Where ``Di[tail[e]]``, ``G[e]`` and ``Dn[head[e]]`` are pure translations (the string's
+    edges and motions), ``G[e]``'s translation becomes ``(t_i + t_e) + t_j`` and its Lorentz
+    block stays the identity: the products' values (their other terms are exact zeros and
+    ones)."""
+    tmp = np.empty((5, 5))
+    for e in range(max(lo, 0), hi):
+        a, g, b = Di[tail[e]], G[e], Dn[head[e]]
+        if _pure_translation(a) & _pure_translation(g) & _pure_translation(b):
+            for r in range(1, 5):
+                g[r, 0] = (a[r, 0] + g[r, 0]) + b[r, 0]
+            continue
+        _compose5(a, g, tmp)
+        _compose5(tmp, b, g)
+
+
+@njit(cache=True, inline='always')
+def poincare_frames_chunk_point(Dn, Di, Phi, lo, hi):
+    """``Di[i]`` ← ``Dn[i]⁻¹`` for ``lo ≤ i < hi`` and ``Phi[i]`` ← ``Phi[i] Dn[i]`` for the rows
+    of ``Phi`` among them: :func:`poincare_inverse_point` and :func:`poincare_compose_point` in
+    line (their results to the bit), :func:`_frames_chunk`."""
+    _frames_chunk(Dn, Di, Phi, lo, hi)
+
+
+@njit(cache=True, error_model='numpy')
+def _frames_chunk(Dn, Di, Phi, lo, hi):
+    """Where ``Dn[i]`` is a pure translation ``(t; I)``: ``Di[i] = (−t; I)`` and ``Phi[i]``'s
+    translation ``+= Λ t`` (its Lorentz block unchanged): the products' values (their other
+    terms are exact zeros and ones)."""
+    tmp = np.empty((5, 5))
+    lo = max(lo, 0)
+    for i in range(lo, hi):
+        d = Dn[i]
+        if _pure_translation(d):
+            for a in range(5):
+                for b in range(5):
+                    Di[i, a, b] = 1.0 if a == b else 0.0
+            for r in range(1, 5):
+                Di[i, r, 0] = -d[r, 0]
+        else:
+            _inverse5(d, Di[i])
+    for i in range(lo, min(hi, Phi.shape[0])):
+        d = Dn[i]
+        f = Phi[i]
+        if _pure_translation(d):
+            for r in range(1, 5):
+                f[r, 0] = f[r, 0] + f[r, 1] * d[1, 0] + f[r, 2] * d[2, 0] + f[r, 3] * d[3, 0] + f[r, 4] * d[4, 0]
+            continue
+        for a in range(5):
+            for b in range(5):
+                tmp[a, b] = f[a, b]
+        _compose5(tmp, d, f)

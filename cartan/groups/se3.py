@@ -133,24 +133,69 @@ def _V_apply(w0, w1, w2, b, c, v0, v1, v2):
 @register_jitable(inline='always')
 def _Q_apply(r0, r1, r2, p0, p1, p2, c, d, e, v0, v1, v2):
     """``Q v`` for translation ``r`` (``P = r̂``), rotation ``p`` (``K = p̂``) and coefficients
-    ``(C, D, E)``, by chained cross products."""
-    Pv = cross3(r0, r1, r2, v0, v1, v2)
-    Kv = cross3(p0, p1, p2, v0, v1, v2)
-    KPv = cross3(p0, p1, p2, Pv[0], Pv[1], Pv[2])
-    PKv = cross3(r0, r1, r2, Kv[0], Kv[1], Kv[2])
-    KKv = cross3(p0, p1, p2, Kv[0], Kv[1], Kv[2])
-    KPKv = cross3(p0, p1, p2, PKv[0], PKv[1], PKv[2])
-    KKPv = cross3(p0, p1, p2, KPv[0], KPv[1], KPv[2])
-    PKKv = cross3(r0, r1, r2, KKv[0], KKv[1], KKv[2])
-    KPKKv = cross3(p0, p1, p2, PKKv[0], PKKv[1], PKKv[2])
-    KKPKv = cross3(p0, p1, p2, KPKv[0], KPKv[1], KPKv[2])
-    out0 = (0.5 * Pv[0] + c * (KPv[0] + PKv[0] + KPKv[0])
-            + d * (KKPv[0] + PKKv[0] - 3.0 * KPKv[0]) + e * (KPKKv[0] + KKPKv[0]))
-    out1 = (0.5 * Pv[1] + c * (KPv[1] + PKv[1] + KPKv[1])
-            + d * (KKPv[1] + PKKv[1] - 3.0 * KPKv[1]) + e * (KPKKv[1] + KKPKv[1]))
-    out2 = (0.5 * Pv[2] + c * (KPv[2] + PKv[2] + KPKv[2])
-            + d * (KKPv[2] + PKKv[2] - 3.0 * KPKv[2]) + e * (KPKKv[2] + KKPKv[2]))
-    return out0, out1, out2
+    ``(C, D, E)``: ``Q = ½P + C(KP + PK + KPK) + D(K²P + PK² − 3KPK) + E(KPK² + K²PK)``
+    grouped as ``½u₁ + Cu₂ + Du₃ + K(y + Kz)`` with ``u_k = P Kᵏ⁻¹v``,
+    ``y = Cu₁ + (C − 3D)u₂ + Eu₃``, ``z = Du₁ + Eu₂``: seven cross products."""
+    b0, b1, b2 = cross3(p0, p1, p2, v0, v1, v2)
+    k0, k1, k2 = cross3(p0, p1, p2, b0, b1, b2)
+    u0, u1, u2 = cross3(r0, r1, r2, v0, v1, v2)
+    w0, w1, w2 = cross3(r0, r1, r2, b0, b1, b2)
+    x0, x1, x2 = cross3(r0, r1, r2, k0, k1, k2)
+    c3 = c - 3.0 * d
+    z = cross3(p0, p1, p2, d * u0 + e * w0, d * u1 + e * w1, d * u2 + e * w2)
+    y0 = c * u0 + c3 * w0 + e * x0 + z[0]
+    y1 = c * u1 + c3 * w1 + e * x1 + z[1]
+    y2 = c * u2 + c3 * w2 + e * x2 + z[2]
+    t = cross3(p0, p1, p2, y0, y1, y2)
+    return (0.5 * u0 + c * w0 + d * x0 + t[0], 0.5 * u1 + c * w1 + d * x1 + t[1],
+            0.5 * u2 + c * w2 + d * x2 + t[2])
+
+
+@register_jitable(inline='always')
+def _compose12(g10, g20, g30, g11, g12, g13, g21, g22, g23, g31, g32, g33,
+               h10, h20, h30, h11, h12, h13, h21, h22, h23, h31, h32, h33):
+    """:func:`se3_compose_point` on the 12 entries ``(a; A)`` of each factor (translation
+    first, then the rotation row by row), the same operations in the same order: 12 scalars."""
+    return (g11 * h10 + g12 * h20 + g13 * h30 + g10,
+            g21 * h10 + g22 * h20 + g23 * h30 + g20,
+            g31 * h10 + g32 * h20 + g33 * h30 + g30,
+            g11 * h11 + g12 * h21 + g13 * h31, g11 * h12 + g12 * h22 + g13 * h32, g11 * h13 + g12 * h23 + g13 * h33,
+            g21 * h11 + g22 * h21 + g23 * h31, g21 * h12 + g22 * h22 + g23 * h32, g21 * h13 + g22 * h23 + g23 * h33,
+            g31 * h11 + g32 * h21 + g33 * h31, g31 * h12 + g32 * h22 + g33 * h32, g31 * h13 + g32 * h23 + g33 * h33)
+
+
+@register_jitable(inline='always')
+def _inv_compose12(t0, t1, t2, r00, r01, r02, r10, r11, r12, r20, r21, r22,
+                   h10, h20, h30, h11, h12, h13, h21, h22, h23, h31, h32, h33):
+    """``D⁻¹h = (Rᵀ(b − t); RᵀM)`` for ``D = (t; R)`` and ``h = (b; M)`` (12 entries each, in
+    :func:`_compose12`'s order), without forming ``D⁻¹``: 12 scalars."""
+    u0, u1, u2 = h10 - t0, h20 - t1, h30 - t2
+    return (r00 * u0 + r10 * u1 + r20 * u2, r01 * u0 + r11 * u1 + r21 * u2, r02 * u0 + r12 * u1 + r22 * u2,
+            r00 * h11 + r10 * h21 + r20 * h31, r00 * h12 + r10 * h22 + r20 * h32, r00 * h13 + r10 * h23 + r20 * h33,
+            r01 * h11 + r11 * h21 + r21 * h31, r01 * h12 + r11 * h22 + r21 * h32, r01 * h13 + r11 * h23 + r21 * h33,
+            r02 * h11 + r12 * h21 + r22 * h31, r02 * h12 + r12 * h22 + r22 * h32, r02 * h13 + r12 * h23 + r22 * h33)
+
+
+@register_jitable(inline='always')
+def _turn(cs, sn, x, y):
+    """``(x, y)`` turned by the plane rotation of cosine ``cs`` and sine ``sn``:
+    ``(cs x + sn y, cs y − sn x)`` (the components in the turned basis)."""
+    return cs * x + sn * y, cs * y - sn * x
+
+
+@register_jitable(inline='always')
+def _turn_coeffs_series(t):
+    """``(cos t, sin t)`` as ``(1 − Bt², At)`` with ``A``, ``B`` from their series (t² < 0.01)."""
+    t2 = t * t
+    return 1.0 - horner(t2, TAYLOR_B) * t2, horner(t2, TAYLOR_A) * t
+
+
+@register_jitable(inline='always')
+def _turn_coeffs_direct(t):
+    """``(cos t, sin t)`` as ``(1 − Bt², At)`` with ``A``, ``B`` in closed form (t ≠ 0)."""
+    t2 = t * t
+    a, b = _exp_coeffs_direct(t2)
+    return 1.0 - b * t2, a * t
 
 
 _UNIT = ((1.0, 0.0, 0.0), (0.0, 1.0, 0.0), (0.0, 0.0, 1.0))
@@ -392,15 +437,11 @@ def se3_axis_flow_point(k, t, s, acc, work):
         for i in range(1, 4):
             acc[i, 0] += t * acc[i, 1 + j]
         return
-    a, b, _ = se3_exp_coeffs(t * t)
-    c, sn = 1.0 - b * (t * t), a * t
-    x, y = s[p], s[q]
-    s[p], s[q] = c * x + sn * y, c * y - sn * x
-    x, y = s[3 + p], s[3 + q]
-    s[3 + p], s[3 + q] = c * x + sn * y, c * y - sn * x
+    c, sn = _turn_coeffs_series(t) if t * t < SMALL_THETA2 else _turn_coeffs_direct(t)
+    s[p], s[q] = _turn(c, sn, s[p], s[q])
+    s[3 + p], s[3 + q] = _turn(c, sn, s[3 + p], s[3 + q])
     for i in range(1, 4):
-        x, y = acc[i, 1 + p], acc[i, 1 + q]
-        acc[i, 1 + p], acc[i, 1 + q] = c * x + sn * y, c * y - sn * x
+        acc[i, 1 + p], acc[i, 1 + q] = _turn(c, sn, acc[i, 1 + p], acc[i, 1 + q])
 
 
 @njit(cache=True, inline='always')
@@ -442,9 +483,7 @@ def _turn_node(F, i0, cs, sn, p, q):
     ``(cs, sn)`` in column ``i0`` of the rows ``F`` of :func:`_axial_flow_chunk`
     (:func:`se3_axis_flow_point`)."""
     for u in (0, 3, 9, 12, 15):
-        x, y = F[u + p, i0], F[u + q, i0]
-        F[u + p, i0] = cs * x + sn * y
-        F[u + q, i0] = cs * y - sn * x
+        F[u + p, i0], F[u + q, i0] = _turn(cs, sn, F[u + p, i0], F[u + q, i0])
 
 
 @njit(cache=True, error_model='numpy')
@@ -492,18 +531,13 @@ def _axial_flow_chunk(lo, hi, S, Dn, any_clamped, clamped, any_held, held, npiec
             nbad = 0
             for i0 in range(nb):  # the cosines and sines: series, then closed forms where t² ≥ SMALL_THETA2
                 t = T[c, i0]
-                t2 = t * t
-                nbad += t2 >= SMALL_THETA2
-                a, b = horner(t2, TAYLOR_A), horner(t2, TAYLOR_B)
-                CS[i0] = 1.0 - b * t2
-                SN[i0] = a * t
+                nbad += t * t >= SMALL_THETA2
+                CS[i0], SN[i0] = _turn_coeffs_series(t)
             if nbad:
                 for i0 in range(nb):
                     t = T[c, i0]
                     if t * t >= SMALL_THETA2:
-                        a, b, _ = _exp_coeffs3_direct(t * t)
-                        CS[i0] = 1.0 - b * (t * t)
-                        SN[i0] = a * t
+                        CS[i0], SN[i0] = _turn_coeffs_direct(t)
             if k == 3:
                 for i0 in range(nb):
                     _turn_node(F, i0, CS[i0], SN[i0], 1, 2)
@@ -531,11 +565,21 @@ def _axial_flow_chunk(lo, hi, S, Dn, any_clamped, clamped, any_held, held, npiec
 @njit(cache=True, inline='always')
 def se3_Ad_T_point(g, v, out):
     """``out`` (6,) ← ``Ad_gᵀ v = (Aᵀv_t; Aᵀ(v_r − a × v_t))`` for ``g = (a; A)`` (4, 4)."""
-    u0, u1, u2 = cross3(g[1, 0], g[2, 0], g[3, 0], v[0], v[1], v[2])
-    w0, w1, w2 = v[3] - u0, v[4] - u1, v[5] - u2
-    for j in range(3):
-        out[j] = g[1, j + 1] * v[0] + g[2, j + 1] * v[1] + g[3, j + 1] * v[2]
-        out[j + 3] = g[1, j + 1] * w0 + g[2, j + 1] * w1 + g[3, j + 1] * w2
+    out[0], out[1], out[2], out[3], out[4], out[5] = _Ad_T12(
+        g[1, 0], g[2, 0], g[3, 0], g[1, 1], g[1, 2], g[1, 3], g[2, 1], g[2, 2], g[2, 3], g[3, 1], g[3, 2], g[3, 3],
+        v[0], v[1], v[2], v[3], v[4], v[5])
+
+
+@register_jitable(inline='always')
+def _Ad_T12(a0, a1, a2, m00, m01, m02, m10, m11, m12, m20, m21, m22, v0, v1, v2, v3, v4, v5):
+    """``Ad_gᵀ v = (Aᵀv_t; Aᵀ(v_r − a × v_t))`` for ``g = (a; A)`` given by its 12 entries
+    (:func:`_compose12`'s order): :func:`se3_Ad_T_point` on scalars, 6 scalars.  With
+    ``v = dexp(ξ)⁻ᵀq`` and ``g = exp ξ`` it is the head term ``dexp(−ξ)⁻ᵀq`` of an edge (as
+    :func:`_ad_T_add12`, to round-off)."""
+    u0, u1, u2 = cross3(a0, a1, a2, v0, v1, v2)
+    w0, w1, w2 = v3 - u0, v4 - u1, v5 - u2
+    return (m00 * v0 + m10 * v1 + m20 * v2, m01 * v0 + m11 * v1 + m21 * v2, m02 * v0 + m12 * v1 + m22 * v2,
+            m00 * w0 + m10 * w1 + m20 * w2, m01 * w0 + m11 * w1 + m21 * w2, m02 * w0 + m12 * w1 + m22 * w2)
 
 
 @njit(cache=True, inline='always')
@@ -545,12 +589,9 @@ def se3_dexp_inv_T_point(xi, q, out):
     :func:`se3_dexp_inv_point`)."""
     r0, r1, r2, w0, w1, w2 = xi[0], xi[1], xi[2], xi[3], xi[4], xi[5]
     t2 = w0 * w0 + w1 * w1 + w2 * w2
-    cinv = so3_dexp_inv_coeff(t2)
-    _, c, d, e = se3_dexp_coeffs(t2)
-    a0, a1, a2 = _V_apply(w0, w1, w2, 0.5, cinv, q[0], q[1], q[2])
-    b = _Q_apply(r0, r1, r2, -w0, -w1, -w2, c, d, e, a0, a1, a2)
-    v0, v1, v2 = _V_apply(w0, w1, w2, 0.5, cinv, q[3] + b[0], q[4] + b[1], q[5] + b[2])
-    out[0], out[1], out[2], out[3], out[4], out[5] = a0, a1, a2, v0, v1, v2
+    k = _pair_coeffs_series(t2) if t2 < SMALL_THETA2 else _pair_coeffs_direct(t2)
+    out[0], out[1], out[2], out[3], out[4], out[5] = _dexp_inv_T12(r0, r1, r2, w0, w1, w2, k[0], k[1], k[2], k[3],
+                                                                   q[0], q[1], q[2], q[3], q[4], q[5])
 
 
 @njit(cache=True, inline='always')
@@ -559,12 +600,45 @@ def se3_dexp_inv_T_pair_point(xi, q, out, out_neg):
     ``dexp(−ξ)⁻ᵀ q = dexp(ξ)⁻ᵀ q + ad_ξᵀ q`` (``dexp⁻¹(−ξ) = dexp⁻¹(ξ) + ad_ξ``), with
     ``ad_ξᵀ q = (q_t × w; q_t × r + q_r × w)``."""
     se3_dexp_inv_T_point(xi, q, out)
-    r0, r1, r2, w0, w1, w2 = xi[0], xi[1], xi[2], xi[3], xi[4], xi[5]
-    a0, a1, a2 = cross3(q[0], q[1], q[2], w0, w1, w2)
-    b0, b1, b2 = cross3(q[0], q[1], q[2], r0, r1, r2)
-    c0, c1, c2 = cross3(q[3], q[4], q[5], w0, w1, w2)
-    out_neg[0], out_neg[1], out_neg[2] = out[0] + a0, out[1] + a1, out[2] + a2
-    out_neg[3], out_neg[4], out_neg[5] = out[3] + (b0 + c0), out[4] + (b1 + c1), out[5] + (b2 + c2)
+    out_neg[0], out_neg[1], out_neg[2], out_neg[3], out_neg[4], out_neg[5] = _ad_T_add12(
+        xi[0], xi[1], xi[2], xi[3], xi[4], xi[5], q[0], q[1], q[2], q[3], q[4], q[5],
+        out[0], out[1], out[2], out[3], out[4], out[5])
+
+
+@register_jitable(inline='always')
+def _pair_coeffs_series(t2):
+    """``(c, C, D, E)``: the coefficient ``c`` of ``J⁻¹`` (:func:`so3_dexp_inv_coeff`) and those of
+    the Q block (:func:`se3_dexp_coeffs`) from their series (θ² < ``SMALL_THETA2``)."""
+    return horner(t2, TAYLOR_CINV), horner(t2, TAYLOR_C), horner(t2, TAYLOR_D), horner(t2, TAYLOR_E)
+
+
+@register_jitable(inline='always')
+def _pair_coeffs_direct(t2):
+    """``(c, C, D, E)`` of :func:`_pair_coeffs_series` in closed form (θ² ≥ ``SMALL_THETA2``)."""
+    _, c, d, e = _dexp_coeffs_direct(t2)
+    return _cinv_direct(t2), c, d, e
+
+
+@register_jitable(inline='always')
+def _dexp_inv_T12(r0, r1, r2, w0, w1, w2, cinv, c, d, e, q0, q1, q2, q3, q4, q5):
+    """``dexp(ξ)⁻ᵀ q = (a; J⁻ᵀ(q_r + Q(r, −w) a))``, ``a = J⁻ᵀq_t``, for ``ξ = (r; w)`` with the
+    coefficients ``(c, C, D, E)`` of :func:`_pair_coeffs_series` (``Qᵀ(r, w) = −Q(r, −w)``;
+    :func:`se3_dexp_inv_T_point` on scalars, branch-free): 6 scalars."""
+    a0, a1, a2 = _V_apply(w0, w1, w2, 0.5, cinv, q0, q1, q2)
+    b = _Q_apply(r0, r1, r2, -w0, -w1, -w2, c, d, e, a0, a1, a2)
+    v0, v1, v2 = _V_apply(w0, w1, w2, 0.5, cinv, q3 + b[0], q4 + b[1], q5 + b[2])
+    return a0, a1, a2, v0, v1, v2
+
+
+@register_jitable(inline='always')
+def _ad_T_add12(r0, r1, r2, w0, w1, w2, q0, q1, q2, q3, q4, q5, o0, o1, o2, o3, o4, o5):
+    """``o + ad_ξᵀ q = o + (q_t × w; q_t × r + q_r × w)`` for ``ξ = (r; w)``: with
+    ``o = dexp(ξ)⁻ᵀ q`` (:func:`_dexp_inv_T12`), ``dexp(−ξ)⁻ᵀ q`` (``dexp⁻¹(−ξ) = dexp⁻¹(ξ) + ad_ξ``),
+    the head term of an edge: 6 scalars."""
+    a0, a1, a2 = cross3(q0, q1, q2, w0, w1, w2)
+    b0, b1, b2 = cross3(q0, q1, q2, r0, r1, r2)
+    c0, c1, c2 = cross3(q3, q4, q5, w0, w1, w2)
+    return o0 + a0, o1 + a1, o2 + a2, o3 + (b0 + c0), o4 + (b1 + c1), o5 + (b2 + c2)
 
 
 #: edges per block of the edge passes (:func:`se3_log_chunk_point`,
@@ -576,12 +650,13 @@ SOA_BLOCK = 128
 @register_jitable(inline='always')
 def _log_series12(b0, b1, b2, r00, r01, r02, r10, r11, r12, r20, r21, r22):
     """``log (b; R)`` by :func:`cartan.groups.so3.so3_log_trace_series` and the series of
-    ``J⁻¹``'s coefficient, branch-free: ``(a1, a2, bad)`` as 7 scalars, ``bad`` where that is
-    not :func:`se3_log_point`'s result to round-off (θ ≥ 0.1, or not the trace case)."""
+    ``J⁻¹``'s coefficient ``c``, branch-free: ``(a1, a2, c, bad)`` as 8 scalars, ``bad`` where
+    that is not :func:`se3_log_point`'s result to round-off (θ ≥ 0.1, or not the trace case)."""
     w0, w1, w2, bad = so3_log_trace_series(r00, r01, r02, r10, r11, r12, r20, r21, r22)
     t2 = w0 * w0 + w1 * w1 + w2 * w2
-    t = _V_apply(w0, w1, w2, -0.5, horner(t2, TAYLOR_CINV), b0, b1, b2)
-    return t[0], t[1], t[2], w0, w1, w2, bad | (t2 >= SMALL_THETA2)
+    cinv = horner(t2, TAYLOR_CINV)
+    t = _V_apply(w0, w1, w2, -0.5, cinv, b0, b1, b2)
+    return t[0], t[1], t[2], w0, w1, w2, cinv, bad | (t2 >= SMALL_THETA2)
 
 
 @njit(cache=True, inline='always')
@@ -634,8 +709,8 @@ def _log_chunk(G, lo, hi, XI):
             L[3, e0] = v[3]
             L[4, e0] = v[4]
             L[5, e0] = v[5]
-            bad[e0] = v[6]
-            nbad += v[6]
+            bad[e0] = v[7]
+            nbad += v[7]
         for e0 in range(nb):
             e = c0 + e0
             for k in range(6):
@@ -683,48 +758,25 @@ def _dexp_inv_T_pair_chunk(XI, Q, scale, lo, hi, VT, VH):
         for e0 in range(nb):  # the series (θ < 0.1) everywhere, then the closed forms where θ ≥ 0.1
             t2 = A[3, e0] * A[3, e0] + A[4, e0] * A[4, e0] + A[5, e0] * A[5, e0]
             nbad += t2 >= SMALL_THETA2
-            K[0, e0] = horner(t2, TAYLOR_CINV)
-            K[1, e0] = horner(t2, TAYLOR_C)
-            K[2, e0] = horner(t2, TAYLOR_D)
-            K[3, e0] = horner(t2, TAYLOR_E)
+            K[0, e0], K[1, e0], K[2, e0], K[3, e0] = _pair_coeffs_series(t2)
         if nbad:
             for e0 in range(nb):
                 t2 = A[3, e0] * A[3, e0] + A[4, e0] * A[4, e0] + A[5, e0] * A[5, e0]
                 if t2 >= SMALL_THETA2:
-                    _, cc, dd, ee = _dexp_coeffs_direct(t2)
-                    K[0, e0], K[1, e0], K[2, e0], K[3, e0] = _cinv_direct(t2), cc, dd, ee
+                    K[0, e0], K[1, e0], K[2, e0], K[3, e0] = _pair_coeffs_direct(t2)
         for e0 in range(nb):
             r0, r1, r2, w0, w1, w2 = A[0, e0], A[1, e0], A[2, e0], A[3, e0], A[4, e0], A[5, e0]
             q0, q1, q2, q3, q4, q5 = A[6, e0], A[7, e0], A[8, e0], A[9, e0], A[10, e0], A[11, e0]
-            cinv = K[0, e0]
-            a0, a1, a2 = _V_apply(w0, w1, w2, 0.5, cinv, q0, q1, q2)
-            b = _Q_apply(r0, r1, r2, -w0, -w1, -w2, K[1, e0], K[2, e0], K[3, e0], a0, a1, a2)
-            v0, v1, v2 = _V_apply(w0, w1, w2, 0.5, cinv, q3 + b[0], q4 + b[1], q5 + b[2])
-            x0, x1, x2 = cross3(q0, q1, q2, w0, w1, w2)
-            y0, y1, y2 = cross3(q0, q1, q2, r0, r1, r2)
-            z0, z1, z2 = cross3(q3, q4, q5, w0, w1, w2)
-            B[0, e0], B[1, e0], B[2, e0], B[3, e0], B[4, e0], B[5, e0] = a0, a1, a2, v0, v1, v2
-            B[6, e0], B[7, e0], B[8, e0] = a0 + x0, a1 + x1, a2 + x2
-            B[9, e0], B[10, e0], B[11, e0] = v0 + (y0 + z0), v1 + (y1 + z1), v2 + (y2 + z2)
+            o = _dexp_inv_T12(r0, r1, r2, w0, w1, w2, K[0, e0], K[1, e0], K[2, e0], K[3, e0], q0, q1, q2, q3, q4, q5)
+            h = _ad_T_add12(r0, r1, r2, w0, w1, w2, q0, q1, q2, q3, q4, q5, o[0], o[1], o[2], o[3], o[4], o[5])
+            B[0, e0], B[1, e0], B[2, e0], B[3, e0], B[4, e0], B[5, e0] = o
+            B[6, e0], B[7, e0], B[8, e0], B[9, e0], B[10, e0], B[11, e0] = h
         for e0 in range(nb):
             e = c0 + e0
             s = scale[e] if scaled else 1.0
             for k in range(6):
                 VT[e, k] = s * B[k, e0]
                 VH[e, k] = s * B[k + 6, e0]
-
-
-@register_jitable(inline='always')
-def _compose12(g10, g20, g30, g11, g12, g13, g21, g22, g23, g31, g32, g33,
-               h10, h20, h30, h11, h12, h13, h21, h22, h23, h31, h32, h33):
-    """:func:`se3_compose_point` on the 12 entries ``(a; A)`` of each factor (translation
-    first, then the rotation row by row), the same operations in the same order: 12 scalars."""
-    return (g11 * h10 + g12 * h20 + g13 * h30 + g10,
-            g21 * h10 + g22 * h20 + g23 * h30 + g20,
-            g31 * h10 + g32 * h20 + g33 * h30 + g30,
-            g11 * h11 + g12 * h21 + g13 * h31, g11 * h12 + g12 * h22 + g13 * h32, g11 * h13 + g12 * h23 + g13 * h33,
-            g21 * h11 + g22 * h21 + g23 * h31, g21 * h12 + g22 * h22 + g23 * h32, g21 * h13 + g22 * h23 + g23 * h33,
-            g31 * h11 + g32 * h21 + g33 * h31, g31 * h12 + g32 * h22 + g33 * h32, g31 * h13 + g32 * h23 + g33 * h33)
 
 
 @njit(cache=True, inline='always')

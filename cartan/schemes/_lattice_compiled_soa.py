@@ -23,8 +23,17 @@ however long the rod: each row of the state is read from memory once per step, n
 times (a rod of 10⁶ elements: 50 → 43 ns per element-step; 10⁴ elements, in the L3 cache:
 31–32 ns either way).  The chunks form contiguous blocks, one per thread (``prange``; serial unless threads are
 enabled, and then with the same results); the edge pass keeps the logarithms and stresses
-of a chunk in its block's small scratch.  The arithmetic is that of
-:mod:`cartan.schemes._lattice_compiled_kernels` (round-off agreement with the reference path).
+of a chunk in its block's small scratch.  The SE(3) arithmetic is the scalar kernels of
+:mod:`cartan.groups.se3` that the group's own passes (``se3_log_chunk_point``,
+``se3_dexp_inv_T_pair_chunk_point``, ``se3_frames_chunk_point``, the axial free flow) are made
+of — the logarithm's series ``_log_series12``, ``_dexp_inv_T12`` with ``_pair_coeffs_*``,
+``_Ad_T12``, ``_compose12`` / ``_inv_compose12``, ``_turn`` with ``_turn_coeffs_*`` — one
+implementation for both loops; these passes differ from the group's in their layout (the
+state stays in rows across steps; the group's passes read ``(E, 4, 4)`` arrays) and in the
+head term of an edge, ``Ad_Gᵀ`` of the tail term here (cheaper in this loop than the pair
+pass's ``+ ad_ξᵀq``, equal to round-off).  The closed form of the logarithm and the chunking
+come from :mod:`cartan.schemes._lattice_compiled_kernels` (round-off agreement with the
+reference path).
 
 ``overdamped`` of order 1 on SE(3) rods (d = 1) reuses these passes: the exponentials of the
 node velocities with the frames (series or closed forms per chunk, as the free flow), the
@@ -43,25 +52,30 @@ import numpy as np
 from numba import prange
 
 from .._threads import threaded_twins
-from ..groups.se3 import TAYLOR_D, TAYLOR_E, _V_apply
+from ..groups.se3 import (
+    TAYLOR_D,
+    TAYLOR_E,
+    _Ad_T12,
+    _compose12,
+    _dexp_inv_T12,
+    _inv_compose12,
+    _log_series12,
+    _pair_coeffs_direct,
+    _turn,
+    _turn_coeffs_direct,
+    _turn_coeffs_series,
+    _V_apply,
+)
 from ..groups.so3 import SMALL_THETA2, TAYLOR_A, TAYLOR_B, TAYLOR_C, _poly_entries, cross3, horner
 from ._lattice_compiled_kernels import (
-    ATAN_SERIES_X2,
     KIND_SE3_TRANSLATION,
-    _ad_T,
     _chunk,
-    _edge_terms6,
     _exp3_coeffs,
     _inline,
     _jit,
-    _q_coeffs,
-    _rot_coeffs,
-    _se3_dexp_inv_T,
     _se3_log12,
     _stress6,
     _sum_parts,
-    _turn,
-    so3_log_series,
 )
 from ._lattice_compiled_plan import (
     CHECK_CONFIGURATION,
@@ -139,21 +153,17 @@ def _edges_chunk(P, g, D, conj, OUT, INC, c, XI, QS, bad):
     nbad = 0
     for e0 in range(hi - lo):
         e = lo + e0
-        m00, m01, m02 = g[3, e], g[4, e], g[5, e]
-        m10, m11, m12 = g[6, e], g[7, e], g[8, e]
-        m20, m21, m22 = g[9, e], g[10, e], g[11, e]
-        w0, w1, w2, tr, x2, t2, cinv = so3_log_series(m00, m01, m02, m10, m11, m12, m20, m21, m22)
-        t = _V_apply(w0, w1, w2, -0.5, cinv, g[0, e], g[1, e], g[2, e])
-        XI[0, e0] = t[0]
-        XI[1, e0] = t[1]
-        XI[2, e0] = t[2]
-        XI[3, e0] = w0
-        XI[4, e0] = w1
-        XI[5, e0] = w2
-        XI[6, e0] = cinv
-        flag = (x2 >= ATAN_SERIES_X2) | (t2 >= SMALL_THETA2) | (m00 > tr) | (m11 > tr) | (m22 > tr)
-        bad[e0] = flag
-        nbad += flag
+        v = _log_series12(g[0, e], g[1, e], g[2, e], g[3, e], g[4, e], g[5, e], g[6, e], g[7, e], g[8, e],
+                          g[9, e], g[10, e], g[11, e])
+        XI[0, e0] = v[0]
+        XI[1, e0] = v[1]
+        XI[2, e0] = v[2]
+        XI[3, e0] = v[3]
+        XI[4, e0] = v[4]
+        XI[5, e0] = v[5]
+        XI[6, e0] = v[6]
+        bad[e0] = v[7]
+        nbad += v[7]
     if nbad:
         for e0 in range(hi - lo):
             e = lo + e0
@@ -175,103 +185,82 @@ def _edges_chunk(P, g, D, conj, OUT, INC, c, XI, QS, bad):
             q = _stress6(X0, C, False, 1.0, XI[0, e0], XI[1, e0], XI[2, e0], XI[3, e0], XI[4, e0], XI[5, e0], h)
             for k in range(6):
                 QS[k, e0] = q[k]
-    # tail terms, then head terms: two short loops vectorise where one long one does not
+    # tail terms dexp(ξ)⁻ᵀq, then head terms dexp(−ξ)⁻ᵀq = Ad_Gᵀ(tail): two short loops vectorise
+    # where one long one does not (the head as tail + ad_ξᵀq, as the group's pair pass takes it,
+    # reads three scratch rows' worth more and costs ≈ 2 ns more per edge here)
     for e0 in range(hi - lo):
         e = lo + e0
-        r0, r1, r2, p0, p1, p2 = XI[0, e0], XI[1, e0], XI[2, e0], XI[3, e0], XI[4, e0], XI[5, e0]
-        cinv = XI[6, e0]
-        t2 = p0 * p0 + p1 * p1 + p2 * p2
-        o = _se3_dexp_inv_T(r0, r1, r2, p0, p1, p2, cinv, horner(t2, TAYLOR_C), horner(t2, TAYLOR_D),
-                            horner(t2, TAYLOR_E), QS[0, e0], QS[1, e0], QS[2, e0], QS[3, e0], QS[4, e0],
-                            QS[5, e0])
+        t2 = XI[3, e0] * XI[3, e0] + XI[4, e0] * XI[4, e0] + XI[5, e0] * XI[5, e0]
+        o = _dexp_inv_T12(XI[0, e0], XI[1, e0], XI[2, e0], XI[3, e0], XI[4, e0], XI[5, e0], XI[6, e0],
+                          horner(t2, TAYLOR_C), horner(t2, TAYLOR_D), horner(t2, TAYLOR_E), QS[0, e0], QS[1, e0],
+                          QS[2, e0], QS[3, e0], QS[4, e0], QS[5, e0])
         OUT[0, e] = o[0]
         OUT[1, e] = o[1]
         OUT[2, e] = o[2]
         OUT[3, e] = o[3]
         OUT[4, e] = o[4]
         OUT[5, e] = o[5]
+    if nbad:  # the Q block's coefficients in closed form (the logarithm gave c)
+        for e0 in range(hi - lo):
+            e = lo + e0
+            t2 = XI[3, e0] * XI[3, e0] + XI[4, e0] * XI[4, e0] + XI[5, e0] * XI[5, e0]
+            if bad[e0] and t2 >= SMALL_THETA2:
+                k = _pair_coeffs_direct(t2)
+                o = _dexp_inv_T12(XI[0, e0], XI[1, e0], XI[2, e0], XI[3, e0], XI[4, e0], XI[5, e0], XI[6, e0],
+                                  k[1], k[2], k[3], QS[0, e0], QS[1, e0], QS[2, e0], QS[3, e0], QS[4, e0], QS[5, e0])
+                for j in range(6):
+                    OUT[j, e] = o[j]
     for e0 in range(hi - lo):
         e = lo + e0
-        v = _ad_T(g[0, e], g[1, e], g[2, e], g[3, e], g[4, e], g[5, e], g[6, e], g[7, e], g[8, e], g[9, e],
-                  g[10, e], g[11, e], OUT[0, e], OUT[1, e], OUT[2, e], OUT[3, e], OUT[4, e], OUT[5, e])
+        v = _Ad_T12(g[0, e], g[1, e], g[2, e], g[3, e], g[4, e], g[5, e], g[6, e], g[7, e], g[8, e], g[9, e],
+                    g[10, e], g[11, e], OUT[0, e], OUT[1, e], OUT[2, e], OUT[3, e], OUT[4, e], OUT[5, e])
         INC[0, e] = v[0]
         INC[1, e] = v[1]
         INC[2, e] = v[2]
         INC[3, e] = v[3]
         INC[4, e] = v[4]
         INC[5, e] = v[5]
-    if nbad:
-        for e0 in range(hi - lo):
-            e = lo + e0
-            if bad[e0]:
-                r0, r1, r2, p0, p1, p2 = XI[0, e0], XI[1, e0], XI[2, e0], XI[3, e0], XI[4, e0], XI[5, e0]
-                cinv = XI[6, e0]
-                q0, q1, q2, q3, q4, q5 = _stress6(X0, C, diag, 1.0, r0, r1, r2, p0, p1, p2, h)
-                cc, dd, ee = _q_coeffs(p0 * p0 + p1 * p1 + p2 * p2)
-                v = _edge_terms6(r0, r1, r2, p0, p1, p2, cinv, cc, dd, ee, q0, q1, q2, q3, q4, q5,
-                                 g[0, e], g[1, e], g[2, e], g[3, e], g[4, e], g[5, e],
-                                 g[6, e], g[7, e], g[8, e], g[9, e], g[10, e], g[11, e])
-                for k in range(6):
-                    OUT[k, e] = v[k]
-                    INC[k, e] = v[k + 6]
-
-
-@_inline
-def _conj_translation(m00, m01, m02, m10, m11, m12, m20, m21, m22, b0, b1, b2,
-                      ti0, ti1, ti2, r00, r01, r02, r10, r11, r12, r20, r21, r22, tj0, tj1, tj2):
-    """Translation of ``D_i⁻¹ G D_j``: ``R_iᵀ(M t_j + b − t_i)`` for ``G = (b; M)``."""
-    u0 = m00 * tj0 + m01 * tj1 + m02 * tj2 + b0 - ti0
-    u1 = m10 * tj0 + m11 * tj1 + m12 * tj2 + b1 - ti1
-    u2 = m20 * tj0 + m21 * tj1 + m22 * tj2 + b2 - ti2
-    return (r00 * u0 + r10 * u1 + r20 * u2, r01 * u0 + r11 * u1 + r21 * u2, r02 * u0 + r12 * u1 + r22 * u2)
 
 
 @_jit
 def _conjugate(g, D, e0, count, head0):
-    """``G_e ← D_i⁻¹ G_e D_j`` for the edges ``e = e0 + k`` (``k < count``), tail node ``i = e``,
-    head node ``j = head0 + k``: translations first (they read the old rotation), then
-    rotations ``R_iᵀ M R_j``."""
+    """``G_e ← D_i⁻¹ G_e D_j`` (:func:`~cartan.groups.se3._compose12`, then
+    :func:`~cartan.groups.se3._inv_compose12`) for the edges ``e = e0 + k`` (``k < count``),
+    tail node ``i = e``, head node ``j = head0 + k``: translations first (they read the old
+    rotation), then rotations."""
     e0 = max(e0, 0)  # (stated: no negative-index test)
     head0 = max(head0, 0)
     for k in range(count):
         e = e0 + k
         j = head0 + k
-        u = _conj_translation(g[3, e], g[4, e], g[5, e], g[6, e], g[7, e], g[8, e], g[9, e], g[10, e], g[11, e],
-                              g[0, e], g[1, e], g[2, e], D[0, e], D[1, e], D[2, e], D[3, e], D[4, e], D[5, e],
-                              D[6, e], D[7, e], D[8, e], D[9, e], D[10, e], D[11, e], D[0, j], D[1, j], D[2, j])
+        u = _conj12(g, D, e, j)
         g[0, e] = u[0]
         g[1, e] = u[1]
         g[2, e] = u[2]
     for k in range(count):
         e = e0 + k
         j = head0 + k
-        m00, m01, m02 = g[3, e], g[4, e], g[5, e]
-        m10, m11, m12 = g[6, e], g[7, e], g[8, e]
-        m20, m21, m22 = g[9, e], g[10, e], g[11, e]
-        a00, a01, a02 = D[3, j], D[4, j], D[5, j]
-        a10, a11, a12 = D[6, j], D[7, j], D[8, j]
-        a20, a21, a22 = D[9, j], D[10, j], D[11, j]
-        n00 = m00 * a00 + m01 * a10 + m02 * a20
-        n01 = m00 * a01 + m01 * a11 + m02 * a21
-        n02 = m00 * a02 + m01 * a12 + m02 * a22
-        n10 = m10 * a00 + m11 * a10 + m12 * a20
-        n11 = m10 * a01 + m11 * a11 + m12 * a21
-        n12 = m10 * a02 + m11 * a12 + m12 * a22
-        n20 = m20 * a00 + m21 * a10 + m22 * a20
-        n21 = m20 * a01 + m21 * a11 + m22 * a21
-        n22 = m20 * a02 + m21 * a12 + m22 * a22
-        r00, r01, r02 = D[3, e], D[4, e], D[5, e]
-        r10, r11, r12 = D[6, e], D[7, e], D[8, e]
-        r20, r21, r22 = D[9, e], D[10, e], D[11, e]
-        g[3, e] = r00 * n00 + r10 * n10 + r20 * n20
-        g[4, e] = r00 * n01 + r10 * n11 + r20 * n21
-        g[5, e] = r00 * n02 + r10 * n12 + r20 * n22
-        g[6, e] = r01 * n00 + r11 * n10 + r21 * n20
-        g[7, e] = r01 * n01 + r11 * n11 + r21 * n21
-        g[8, e] = r01 * n02 + r11 * n12 + r21 * n22
-        g[9, e] = r02 * n00 + r12 * n10 + r22 * n20
-        g[10, e] = r02 * n01 + r12 * n11 + r22 * n21
-        g[11, e] = r02 * n02 + r12 * n12 + r22 * n22
+        u = _conj12(g, D, e, j)
+        g[3, e] = u[3]
+        g[4, e] = u[4]
+        g[5, e] = u[5]
+        g[6, e] = u[6]
+        g[7, e] = u[7]
+        g[8, e] = u[8]
+        g[9, e] = u[9]
+        g[10, e] = u[10]
+        g[11, e] = u[11]
+
+
+@_inline
+def _conj12(g, D, e, j):
+    """The 12 entries of ``D_e⁻¹ G_e D_j`` (rows of ``g`` and ``D``)."""
+    h = _compose12(g[0, e], g[1, e], g[2, e], g[3, e], g[4, e], g[5, e], g[6, e], g[7, e], g[8, e], g[9, e],
+                   g[10, e], g[11, e], D[0, j], D[1, j], D[2, j], D[3, j], D[4, j], D[5, j], D[6, j], D[7, j],
+                   D[8, j], D[9, j], D[10, j], D[11, j])
+    return _inv_compose12(D[0, e], D[1, e], D[2, e], D[3, e], D[4, e], D[5, e], D[6, e], D[7, e], D[8, e],
+                          D[9, e], D[10, e], D[11, e], h[0], h[1], h[2], h[3], h[4], h[5], h[6], h[7], h[8], h[9],
+                          h[10], h[11])
 
 
 @_inline
@@ -361,15 +350,13 @@ def _drift_chunk(P, s, w, half, D, phi, fac, kinds, axes, velocity, Nv, c):
             for i0 in range(hi - lo):
                 i = lo + i0
                 th = f * s[3 + k, i]
-                q2 = th * th
-                a, b = _rot_coeffs(q2)
-                _soa_turn_node(s, D, i, pp, qq, 1.0 - b * q2, a * th)
+                cs, sn = _turn_coeffs_series(th) if th * th < SMALL_THETA2 else _turn_coeffs_direct(th)
+                _soa_turn_node(s, D, i, pp, qq, cs, sn)
         else:
             for i0 in range(hi - lo):
                 i = lo + i0
-                th = f * s[3 + k, i]
-                q2 = th * th
-                _soa_turn_node(s, D, i, pp, qq, 1.0 - horner(q2, TAYLOR_B) * q2, horner(q2, TAYLOR_A) * th)
+                cs, sn = _turn_coeffs_series(f * s[3 + k, i])
+                _soa_turn_node(s, D, i, pp, qq, cs, sn)
     if constrained:
         _soa_constrain(clamped, live, s, lo, hi)
     if velocity:
@@ -383,12 +370,21 @@ def _soa_frames(phi, D, lo, hi):
     lo = max(lo, 0)  # (stated: no negative-index test)
     for i0 in range(hi - lo):
         i = lo + i0
-        for a in range(3):
-            f0, f1, f2 = phi[3 + 3 * a, i], phi[4 + 3 * a, i], phi[5 + 3 * a, i]
-            phi[a, i] = f0 * D[0, i] + f1 * D[1, i] + f2 * D[2, i] + phi[a, i]
-            phi[3 + 3 * a, i] = f0 * D[3, i] + f1 * D[6, i] + f2 * D[9, i]
-            phi[4 + 3 * a, i] = f0 * D[4, i] + f1 * D[7, i] + f2 * D[10, i]
-            phi[5 + 3 * a, i] = f0 * D[5, i] + f1 * D[8, i] + f2 * D[11, i]
+        o = _compose12(phi[0, i], phi[1, i], phi[2, i], phi[3, i], phi[4, i], phi[5, i], phi[6, i], phi[7, i],
+                       phi[8, i], phi[9, i], phi[10, i], phi[11, i], D[0, i], D[1, i], D[2, i], D[3, i], D[4, i],
+                       D[5, i], D[6, i], D[7, i], D[8, i], D[9, i], D[10, i], D[11, i])
+        phi[0, i] = o[0]
+        phi[1, i] = o[1]
+        phi[2, i] = o[2]
+        phi[3, i] = o[3]
+        phi[4, i] = o[4]
+        phi[5, i] = o[5]
+        phi[6, i] = o[6]
+        phi[7, i] = o[7]
+        phi[8, i] = o[8]
+        phi[9, i] = o[9]
+        phi[10, i] = o[10]
+        phi[11, i] = o[11]
 
 
 @_inline
