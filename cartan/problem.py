@@ -196,7 +196,8 @@ class Held(Boundary):
     -----
     The scheme holds the components like a clamp holds all of them (the ``lattice``: its numpy
     path and its generated compiled operators, every integrator, ``solve_static``; the
-    ``kinematic`` and ``rattle`` compiled loops and the ``collocation`` scheme decline it).  The
+    ``collocation`` scheme's numpy path; the ``kinematic`` compiled loop, the collocation's
+    compiled operators and ``rattle`` on the collocation scheme decline it).  The
     held momentum components are those of the reaction only when the kinetic metric does not
     couple them with the free live ones (checked).
     """

@@ -34,7 +34,7 @@ from numba import njit
 
 from .._backend import get_backend
 from ..medium import Medium
-from ..problem import Clamped, Driven, Problem
+from ..problem import Clamped, Driven, Problem, held_components
 from ..state import State  # re-exported: its home is cartan.state
 
 __all__ = ["Scheme", "State", "prefix_products"]
@@ -292,6 +292,19 @@ class Scheme(abc.ABC):
         return J
 
     def _clamp_mask(self) -> np.ndarray:
+        """The held nodes and components: the clamped and driven nodes ``(*shape)`` bool, or,
+        with :class:`~cartan.problem.Symmetry` faces or :class:`~cartan.problem.Held` ends, the
+        held body components ``(*shape, r)`` bool (:func:`~cartan.problem.held_components`, all
+        r at the clamped and driven nodes).  Either indexes the ``(*shape, r)`` velocities,
+        momenta and forces that are zeroed there (paper §IV.D: N = 0 on the held components,
+        whose force is the support's reaction); :meth:`held_nodes` gives the wholly held nodes.
+
+        Raises
+        ------
+        ValueError
+            From :func:`~cartan.problem.held_components`: a held set that is not a subalgebra,
+            a kinetic metric coupling held and free components, a symmetry face off SE(3).
+        """
         mask = np.zeros(self.grid.shape, dtype=bool)
         for axis in range(self.grid.d):
             if self.grid.periodic[axis]:
@@ -301,7 +314,11 @@ class Scheme(abc.ABC):
                     sl = [slice(None)] * self.grid.d
                     sl[axis] = idx
                     mask[tuple(sl)] = True
-        return mask
+        held = held_components(self.problem)
+        if held is None:
+            return mask
+        held[mask] = True
+        return held
 
     def _new_state(self, arrays: dict[str, np.ndarray]) -> State:
         """State at t = 0 with the scheme's configuration ``arrays``: adds the frames (all of

@@ -31,7 +31,11 @@ Open axes and boundary conditions (paper §IV.D, n_α Q^α = P on ∂M)
     which is what keeps the explicit time stepping stable.  (Closing with one-sided stencils
     of the interior order and replacing the end stress by n_α P before differencing is
     stable for fd2 but not for fd4: the semi-discrete wave operator then has eigenvalues
-    with Re λ ≈ 0.05 c/h.)  At a clamped end N = 0 and W = 0.  Solutions converge with
+    with Re λ ≈ 0.05 c/h.)  At a clamped end N = 0 and W = 0.  At a
+    :class:`~cartan.problem.Held` end or a :class:`~cartan.problem.Symmetry` face the held
+    body components get N = 0, S = 0 and W = 0 (the clamp mask ``(*shape, r)`` of
+    :meth:`~cartan.schemes.base.Scheme._clamp_mask`) and the free ones the penalty of an
+    unloaded free end (P = 0); the compiled operators decline them.  Solutions converge with
     order 2 (fd2) and about 3 (fd4, boundary rows of order 2) on open axes.
 Charts
     The grid is a chart of the body; the energy is summed with the quadrature weights
@@ -83,7 +87,7 @@ from typing import Any
 
 import numpy as np
 
-from ..problem import Clamped, Free, dead_to_body
+from ..problem import Clamped, Free, Held, Symmetry, dead_to_body
 from .base import Scheme, State, prefix_products
 
 __all__ = ["Collocation", "DerivativeOperator"]
@@ -123,6 +127,12 @@ _SBP = {
 }
 _SBP_NORM = {"fd2": (0.5,), "fd4": (17 / 48, 59 / 48, 43 / 48, 49 / 48)}
 _MIN_NODES = {"fd2": (3, 3), "fd4": (5, 8), "fourier": (3, 0)}  # (periodic, open)
+
+
+def _load_of(b: Free | Held | Symmetry) -> np.ndarray | None:
+    """The applied load P of an end: a :class:`~cartan.problem.Free` end's ``load``; None (no
+    load) at a held end or a symmetry face."""
+    return b.load if isinstance(b, Free) else None
 
 
 class DerivativeOperator:
@@ -311,12 +321,16 @@ class Collocation(Scheme):
             w = w * wa.reshape(shape)
         self.weights = w
         # natural boundary conditions n_α Q^α = P: (axis, node index, n_α, H_α at the end,
-        # Free, face weight) for every free end; the face weight integrates a traction over
-        # the other axes (1 for d = 1).
-        self._free_ends: list[tuple[int, tuple, float, float, Free, np.ndarray]] = []
-        if any(type(b) not in (Free, Clamped) for b in problem.boundaries.values()):
-            raise ValueError("the collocation scheme takes Free and Clamped boundaries; a Symmetry face or a Held "
-                             "end runs on scheme='lattice'")
+        # boundary, face weight) for every end that is not clamped: free ends (P their load),
+        # held ends and symmetry faces (P = 0 on their free components; the held ones are
+        # zeroed with the clamp mask); the face weight integrates a traction over the other
+        # axes (1 for d = 1).
+        self._free_ends: list[tuple[int, tuple, float, float, Free | Held | Symmetry, np.ndarray]] = []
+        kinds = (Free, Clamped, Held, Symmetry)
+        other = sorted({type(b).__name__ for b in problem.boundaries.values() if type(b) not in kinds})
+        if other:
+            raise ValueError(f"boundaries: the collocation scheme takes Free, Clamped, Held and Symmetry boundaries, "
+                             f"got {other}; a Driven end runs on scheme='lattice'")
         for axis in range(d):
             if grid.periodic[axis]:
                 continue
@@ -330,7 +344,7 @@ class Collocation(Scheme):
                 face = w[tuple(sl)] / H_end
                 self._free_ends.append((axis, tuple(sl), sign, H_end, b, face))
         # loaded ends, the attribute the integrators look for to book external work
-        self._end_loads = [e for e in self._free_ends if e[4].load is not None]
+        self._end_loads = [e for e in self._free_ends if _load_of(e[4]) is not None]
         # the rest strain field of a stress-free reference configuration (None: the medium's)
         self.rest = None
         if problem.reference is not None:
@@ -370,9 +384,18 @@ class Collocation(Scheme):
         ``fd2``, ``fd4``, ``fourier``, open and periodic axes, damping, body-frame uniform
         forces, constant-field potentials, free (loaded) and clamped ends or faces, any
         kinetic metric; a declined :class:`~cartan.compiled.operators.OperatorSet` says why
-        otherwise."""
+        otherwise (held components of :class:`~cartan.problem.Held` ends and
+        :class:`~cartan.problem.Symmetry` faces run on the numpy path: the operators zero
+        whole clamped nodes only)."""
         ops = self.__dict__.get("_operators")
         if ops is None:
+            if self._clamped.ndim > self.grid.d:
+                from ..compiled.operators import OperatorSet
+
+                ops = self._operators = OperatorSet.declined(
+                    "held components (a Held end or a Symmetry face): the collocation's compiled operators zero "
+                    "whole clamped nodes only; the numpy path holds them")
+                return ops
             from ._collocation_ops import collocation_operators
 
             ops = self._operators = collocation_operators(self, Collocation)
@@ -465,9 +488,19 @@ class Collocation(Scheme):
         Returns
         -------
         NodalStrainConstraints
+
+        Raises
+        ------
+        ValueError
+            With :class:`~cartan.problem.Held` ends or :class:`~cartan.problem.Symmetry` faces
+            (held components): the nodal rows' dependent combinations are found for clamped
+            and free ends only (``rattle`` runs them on scheme='lattice').
         """
         from ..constraints import NodalStrainConstraints
 
+        if self._clamped.ndim > self.grid.d:
+            raise ValueError("boundaries: integrator 'rattle' on the collocation scheme takes Clamped and Free ends; "
+                             "a Held end or a Symmetry face (held components) runs on scheme='lattice'")
         return NodalStrainConstraints(self, unknown, state)
 
     # ------------------------------------------------------------------ state
@@ -489,10 +522,11 @@ class Collocation(Scheme):
         return self.rest
 
     # ------------------------------------------------------------------ forces
-    def _end_load(self, Phi: np.ndarray | None, b: Free, idx: tuple) -> np.ndarray:
-        """Body components of the load P of a free end (dead loads rotated by Φ there)."""
+    def _end_load(self, Phi: np.ndarray | None, b: Free | Held | Symmetry, idx: tuple) -> np.ndarray:
+        """Body components of the load P of a free end (dead loads rotated by Φ there); zero
+        at a held end or a symmetry face (the natural condition on their free components)."""
         shape = (*self.weights[idx].shape, self.group.dim)
-        if b.load is None:
+        if _load_of(b) is None:
             return np.zeros(shape)
         if b.follower:
             return np.broadcast_to(b.load, shape)
