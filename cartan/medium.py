@@ -181,16 +181,34 @@ class MediumKernels:
     params : array, shape ``(k,)``
         The parameter vector ``p`` (float64).
 
+    coupled_velocity : numba function ``(S, X, p, N) -> bool``, optional
+        For a medium whose Lagrangian couples N and X (:attr:`Medium.coupled_lagrangian`):
+        the inverse Legendre map ``N = ∂H/∂S(S, X)`` at one point (one node's momentum ``S``
+        ``(r,)`` with one edge's strain ``X`` ``(d, r)``) into ``N`` ``(r,)``, gauge
+        components as the medium fixes them (:meth:`Medium.velocity_at`); False when there is
+        none (the momentum is outside the range of the Legendre map, or its solve failed).
+    coupled_stress : numba function ``(S, X, N, p, Q) -> None``, optional
+        The Hamiltonian stress ``Q = ∂H/∂X(S, X)`` ``(d, r)`` at the same point
+        (:meth:`Medium.stress_with`), ``N`` being what ``coupled_velocity`` gave there (one
+        solve of the Legendre map serves both).
+
     ``X`` (the strain), ``X0`` (the rest strain at that point) and ``Q`` have shape ``(d, r)``.
-    Both functions are module-level ``@njit`` functions (the generated loops import them by
+    Every function is a module-level ``@njit`` function (the generated loops import them by
     name, and a change to their module's source recompiles the loops that use them);
     ``cartan.testing.check_medium`` checks that the stress is the gradient of the energy
-    and that both agree with :meth:`Medium.potential` and :meth:`Medium.stress`.
+    and that both agree with :meth:`Medium.potential` and :meth:`Medium.stress`.  A coupled
+    medium declares ``energy`` and ``stress`` as its potential ``U(X) = H(0, X)`` and both
+    coupled kernels; the lattice's compiled operators check them against
+    :meth:`Medium.velocity_at` and :meth:`Medium.stress_with` (d = 1; docs/design.md, "Media
+    whose Lagrangian couples N and X").  Without the coupled kernels a coupled medium steps on
+    the numpy path.
     """
 
     energy: Callable
     stress: Callable
     params: np.ndarray
+    coupled_velocity: Callable | None = None
+    coupled_stress: Callable | None = None
 
 
 @njit(cache=True)
@@ -290,7 +308,9 @@ class Medium(abc.ABC):
         N is held at zero.  A diagonal metric lets ``lie-verlet`` split the free motion into
         exactly integrable one-parameter flows.  A medium whose Lagrangian ℓ(N, X) couples
         velocity and strain declares :attr:`coupled_lagrangian` and its pointwise Legendre map
-        (:meth:`momentum_at`, :meth:`velocity_at`, :meth:`stress_with`, :meth:`hamiltonian`).
+        (:meth:`momentum_at`, :meth:`velocity_at`, :meth:`stress_with`, :meth:`hamiltonian`),
+        and, to run in the compiled loops, the same at one point as numba kernels
+        (:meth:`point_kernels`, :class:`MediumKernels` ``coupled_velocity`` and ``coupled_stress``).
 
     Potential energy
         ``U(X)`` per unit reference volume and its gradient ``Q^α = ∂U/∂X_α``.  The stress
@@ -703,8 +723,11 @@ class Medium(abc.ABC):
     #: (``Scheme.supports_coupled_lagrangian``: the ``lattice`` for d = 1) step the Hamiltonian
     #: system ``Φ̇ = ΦN``, ``Ṡ + ad*_N S = D*Q`` with ``N = ∂H/∂S(S, X)`` and ``Q = ∂H/∂X(S, X)``
     #: (docs/design.md, "Media whose Lagrangian couples N and X").  The integrators that split
-    #: K(S) + U(X) (``lie-verlet``, ``rattle``) and the compiled loops refuse it;
-    #: ``implicit-midpoint`` runs it as a discrete Lagrangian method (symplectic).
+    #: K(S) + U(X) (``lie-verlet``, ``rattle``) refuse it; ``implicit-midpoint`` runs it as a
+    #: discrete Lagrangian method (symplectic).  ``rkmk4``, ``lie-euler`` and ``forward-euler``
+    #: run it in the generated compiled loops when :meth:`point_kernels` declares the coupled
+    #: kernels (:class:`MediumKernels`: ``coupled_velocity``, ``coupled_stress``), else on the
+    #: numpy path.
     coupled_lagrangian: ClassVar[bool] = False
 
     def momentum_at(self, N: np.ndarray, X: np.ndarray) -> np.ndarray:

@@ -179,8 +179,8 @@ class Integrator(abc.ABC):
         from .._threads import loop_threads, numba_threads
         from ..compiled.codegen import first_call
 
-        if get_backend() != "numba" or getattr(scheme, "coupled_lagrangian", False):
-            return False  # (a Lagrangian coupling N and X runs on the numpy path: cartan.schemes._coupled)
+        if get_backend() != "numba" or (getattr(scheme, "coupled_lagrangian", False) and not self.uses_momentum):
+            return False  # (a Lagrangian coupling N and X enters through the momentum: cartan.schemes._coupled)
         self._check_driven(scheme)
         operators = getattr(scheme, "compiled_operators", None)
         ops = operators() if operators is not None else None

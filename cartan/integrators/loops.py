@@ -9,6 +9,11 @@ momentum (``check = 1``; configuration for ``check = 2``) is not finite or whose
 energy exceeds ``limit``.
 
 Every loop returns ``(done, nforce, t, dissipated, external)``.
+
+The loops of ``lie-euler``/``forward-euler`` and ``rkmk4`` take the velocity and the force of a
+state through :func:`op_state_velocity` and :func:`op_state_force`, which receive both the
+configuration and the momentum: ``op_velocity`` and ``op_force`` here, rebound by a set whose
+Lagrangian couples N and X (docs/design.md, the compiled layer, "Coupled Lagrangians").
 """
 
 from __future__ import annotations
@@ -31,6 +36,20 @@ def op_drive(D, N):
     :func:`cartan.schemes._lattice_ops.driven_fragment`), with the velocity and constraint
     operators, which then give ξ and ∂K/∂N(ξ) there themselves."""
     return
+
+
+def op_state_velocity(D, C, S, N, K):
+    """N of the state (C, S): ``op_velocity(D, S, N)`` here, the configuration unused.  A set
+    whose Legendre map depends on the strain (a Lagrangian coupling N and X) rebinds it after
+    the loops (``OperatorSet.late``, :func:`cartan.schemes._lattice_ops.coupled_fragment`);
+    the loops of ``lie-euler``, ``forward-euler`` and ``rkmk4`` call it."""
+    op_velocity(D, S, N)  # noqa: F821
+
+
+def op_state_force(D, C, S, t, N, W, K):
+    """The force W at the state (C, S) and velocity N: ``op_force(D, C, t, N, W, K)`` here, the
+    momentum unused (rebound with :func:`op_state_velocity` where the stress depends on S)."""
+    op_force(D, C, t, N, W, K)  # noqa: F821
 
 
 def _coad_exp(D, tau, N, S):
@@ -154,11 +173,11 @@ def euler_loop(D, C, S, geometric, t, dt, nsteps, diss, ext, check, limit):
     Sdot = np.empty((n, R_))  # noqa: F821
     E = np.empty((R_, R_))  # noqa: F821
     xi = np.empty(R_)  # noqa: F821
-    op_velocity(D, S, N)  # noqa: F821
+    op_state_velocity(D, C, S, N, K)
     p0d, p0e = op_powers(D, C, N, t, K)  # noqa: F821
     done = 0
     for _ in range(nsteps):
-        op_force(D, C, t, N, W, K)  # noqa: F821
+        op_state_force(D, C, S, t, N, W, K)
         if geometric:
             _coad_exp(D, dt, N, S)
             for i in range(n):
@@ -179,7 +198,7 @@ def euler_loop(D, C, S, geometric, t, dt, nsteps, diss, ext, check, limit):
             op_drift_naive(D, C, dt, N, K)  # noqa: F821
         op_constrain(D, S)  # noqa: F821
         t = t + dt
-        op_velocity(D, S, N)  # noqa: F821
+        op_state_velocity(D, C, S, N, K)
         done += 1
         p0d, p0e, diss, ext, blown = _book(D, C, S, N, t, dt, p0d, p0e, diss, ext, K, check, limit)
         if blown:
@@ -223,7 +242,7 @@ def _stage_velocity(D, C, S, t, mode, gam_inv, N, W, K):
         _kinematic_velocity(D, C, t, N)
         return 0
     if mode == 0:
-        op_velocity(D, S, N)  # noqa: F821
+        op_state_velocity(D, C, S, N, K)
         return 0
     n = N.shape[0]
     for i in range(n):
@@ -302,7 +321,7 @@ def rkmk_loop(D, C, S, A, b, c, dynamics, mode, gam_inv, N0, have, t, dt, nsteps
                     row[k] = N[i, k]
                 g_dexp_inv_apply(xi, row, ksig[st, i], wk)  # noqa: F821
             if dynamics:
-                op_force(D, Cst, ti, N, W, K)  # noqa: F821
+                op_state_force(D, Cst, Sst, ti, N, W, K)
                 nforce += 1
                 _lie_poisson(N, Sst, W, kS[st])
         for i in range(n):
@@ -343,8 +362,9 @@ def loop_fragment() -> Fragment:
     """The loops and their helpers as one fragment of a generated module (``KINEMATIC_`` False:
     :func:`kinematic_fragment` sets it in the modules that carry a prescribed velocity)."""
     return Fragment(constants={"KINEMATIC_": False},
-                    source=njit_source(op_drive, _coad_exp, _blown, _damped, _book, lie_verlet_loop, _lie_poisson,
-                                       euler_loop, _kinematic_velocity, _stage_velocity, rkmk_loop))
+                    source=njit_source(op_drive, op_state_velocity, op_state_force, _coad_exp, _blown, _damped, _book,
+                                       lie_verlet_loop, _lie_poisson, euler_loop, _kinematic_velocity,
+                                       _stage_velocity, rkmk_loop))
 
 
 def _closure_digest(py: Callable) -> int | None:

@@ -25,6 +25,11 @@ would leave the zigzag mode without energy).  The semi-discrete system
 Hamiltonian H_d: H_d is conserved by its flow, and when H is invariant under the left action
 the momentum map ``Σ w_i Ad*_{Φ_i⁻¹} S_i`` is conserved too.  For ℓ = K(N) − U(X) it is the
 lattice's usual system (N_i = M⁺S_i, Q_e = ∂U/∂X(X_e)).
+
+These are the reference path's operators.  A medium that declares its coupled point kernels
+(:class:`cartan.medium.MediumKernels` ``coupled_velocity``, ``coupled_stress``) runs the same
+formulas in the lattice's generated loops of ``rkmk4``, ``lie-euler`` and ``forward-euler``
+(:func:`cartan.schemes._lattice_ops.coupled_fragment`).
 """
 
 from __future__ import annotations

@@ -33,6 +33,13 @@ Operators (``D`` the data, ``C`` the configuration, ``K`` the work arrays of :fu
 ``op_copy_config(C, C2)``         C2 ← C (RKMK stages)
 ``op_new_config(C)``              a copy of C
 
+The loops of ``lie-euler``, ``forward-euler`` and ``rkmk4`` reach the velocity and the force
+through ``op_state_velocity(D, C, S, N, K)`` and ``op_state_force(D, C, S, t, N, W, K)``
+(:mod:`cartan.integrators.loops`: ``op_velocity`` and ``op_force`` there); a set of a medium
+whose Lagrangian couples N and X (d = 1) rebinds them to the half-edge operators of
+:func:`coupled_fragment` (the medium's ``m_coupled_velocity``, ``m_coupled_stress``) and serves
+those loops only (``OperatorSet.loops``, serially).
+
 Threaded build (``docs/performance.md``, "Threads"): :func:`threaded_fragment` adds
 ``op_x_threaded`` variants of ``op_work``, ``op_velocity``, ``op_constrain``, ``op_force``,
 ``op_move``, ``op_free_flow``, ``op_drift`` and ``op_kinetic`` (``prange`` over fixed chunks,
@@ -217,11 +224,10 @@ def op_force(D, C, t, N, W, K):
     them: the identity dexp⁻¹(−ξ)ᵀ = Ad_Gᵀ dexp⁻¹(ξ)ᵀ fails off the group, where forward Euler
     takes the edges), then those terms added to the nodes in edge order.  The two group passes
     are vectorised across edges where the group has them in closed form (SE(3))."""
-    G, Phi = C
-    vec = np.empty(R_)  # noqa: F821
+    G = C[0]
     X = np.empty((D_, R_))  # noqa: F821
     Q = np.empty((D_, R_))  # noqa: F821
-    XI, QE, VT, VH = K[2], K[3], K[4], K[5]
+    XI, QE = K[2], K[3]
     n = W.shape[0]
     ne = G.shape[0]
     for i in range(n):
@@ -254,6 +260,18 @@ def op_force(D, C, t, N, W, K):
             m_stress(X, D.X0e[e], D.params, Q)  # noqa: F821
             for k in range(R_):  # noqa: F821
                 QE[e, k] = Q[a, k]
+    _edge_force(D, C, N, W, K)
+
+
+def _edge_force(D, C, N, W, K):
+    """The rest of :func:`op_force` once the edges' logarithms ``K[2]`` and stresses ``K[3]`` are
+    known (and W zero): both ends' terms, gathered to the nodes, divided by the weights, the
+    loads, the clamps."""
+    G, Phi = C
+    vec = np.empty(R_)  # noqa: F821
+    XI, QE, VT, VH = K[2], K[3], K[4], K[5]
+    n = W.shape[0]
+    ne = G.shape[0]
     g_dexp_inv_T_pair_chunk(XI, QE, np.empty(0) if D.coupled else D.escale, 0, ne, VT, VH)  # noqa: F821
     for e in range(ne):
         i, j = D.tail[e], D.head[e]
@@ -616,7 +634,7 @@ def op_new_config(C):
     return (C[0].copy(), C[1].copy())
 
 
-_OPERATORS = (op_work, op_velocity, op_constrain, _dead_to_body, _field_force, op_force, op_move,
+_OPERATORS = (op_work, op_velocity, op_constrain, _dead_to_body, _field_force, op_force, _edge_force, op_move,
               op_free_flow, _driven_flow, _flow_plan, _flow_chunk, op_drift, op_drift_naive, op_powers, op_kinetic,
               op_potential, op_nodal_strains, op_finite_config, op_copy_config, op_new_config)
 
@@ -802,6 +820,140 @@ def driven_fragment() -> Fragment:
     keep = "\n".join(f"{name}_plain = {name}" for name in _DRIVEN_REPLACED)
     rebind = "\n".join(f"{name} = {name}_driven" for name in (*_DRIVEN_REPLACED, "op_drive"))
     return Fragment(source=keep + "\n\n\n" + njit_source(*_DRIVEN) + "\n\n\n" + rebind + "\n")
+
+
+# ---------------------------------------------------------------------------- coupled Lagrangians
+# A medium whose Lagrangian couples N and X (``Medium.coupled_lagrangian``, d = 1): the half-edge
+# discretisation of :mod:`cartan.schemes._coupled` with the medium's coupled point kernels
+# (``m_coupled_velocity``, ``m_coupled_stress``, :class:`cartan.medium.MediumKernels`).  The
+# loops of ``lie-euler``, ``forward-euler`` and ``rkmk4`` reach the state through
+# ``op_state_velocity(D, C, S, N, K)`` and ``op_state_force(D, C, S, t, N, W, K)``
+# (:mod:`cartan.integrators.loops`), which :func:`coupled_fragment` rebinds to the functions
+# below after the loops (``OperatorSet.late``); every other operator is the lattice's own.
+# The work arrays of :func:`op_work_coupled` add the half-edge velocities ``[E, 2, r]`` and the
+# momenta and edge logarithms they were solved at: the force at the state whose velocity was
+# just computed (every stage of those loops) reuses them, so that each half-edge's Legendre
+# map is solved once per stage — the result being a function of (S, X) alone either way.
+
+def op_work_coupled(D):
+    """:func:`op_work`'s arrays and ``(NH [E, 2, r], SK [n, r], XK [E, r], valid [1])``: the
+    half-edge velocities N(S_tail, X_e), N(S_head, X_e), the momenta and logarithms they belong
+    to, and whether they are set."""
+    n = D.winv.shape[0]
+    ne = D.tail.shape[0]
+    return (np.empty((n, M_, M_)), np.empty((n, M_, M_)), np.empty((ne, R_)), np.empty((ne, R_)),  # noqa: F821
+            np.empty((ne, R_)), np.empty((ne, R_)), np.empty((ne, 2, R_)), np.empty((n, R_)),  # noqa: F821
+            np.empty((ne, R_)), np.zeros(1, dtype=np.int64))  # noqa: F821
+
+
+def _coupled_solve(D, C, S, K):
+    """The edges' logarithms into ``K[2]`` and, unless they and S are those of the last solve
+    (bit for bit), the half-edge velocities ``K[6]``: the medium's ``m_coupled_velocity`` at
+    (S_i, X_e = log(G_e)/h) for both ends i of every edge.
+
+    Raises
+    ------
+    ValueError
+        When the medium finds no velocity at a half-edge (the momentum is outside the range of
+        its Legendre map), as the reference path's ``Medium.velocity_at`` raises."""
+    G = C[0]
+    XI, NH, SK, XK, valid = K[2], K[6], K[7], K[8], K[9]
+    ne = G.shape[0]
+    n = S.shape[0]
+    g_log_chunk(G, 0, ne, XI)  # noqa: F821
+    if valid[0] != 0:
+        same = True
+        for e in range(ne):
+            for k in range(R_):  # noqa: F821
+                if XI[e, k] != XK[e, k]:
+                    same = False
+        for i in range(n):
+            for k in range(R_):  # noqa: F821
+                if S[i, k] != SK[i, k]:
+                    same = False
+        if same:
+            return
+    valid[0] = 0
+    X = np.empty((D_, R_))  # noqa: F821
+    for e in range(ne):
+        for k in range(R_):  # noqa: F821
+            X[0, k] = XI[e, k] / D.cell
+        if not (m_coupled_velocity(S[D.tail[e]], X, D.params, NH[e, 0])  # noqa: F821
+                and m_coupled_velocity(S[D.head[e]], X, D.params, NH[e, 1])):  # noqa: F821
+            raise ValueError("the Legendre map N(S, X) of the medium has no inverse at a node's momentum and an "
+                             "adjacent edge's strain (its coupled_velocity kernel found no velocity: the momentum "
+                             "is outside the range of the Legendre map); reduce the time step")
+    for e in range(ne):
+        for k in range(R_):  # noqa: F821
+            XK[e, k] = XI[e, k]
+    for i in range(n):
+        for k in range(R_):  # noqa: F821
+            SK[i, k] = S[i, k]
+    valid[0] = 1
+
+
+def op_state_velocity_coupled(D, C, S, N, K):
+    """``N_i = Σ_{e∋i} (h/2w_i) N(S_i, X_e)`` (``cartan.schemes._coupled.coupled_velocity``),
+    zero at clamped nodes (``Scheme.velocity``)."""
+    _coupled_solve(D, C, S, K)
+    NH = K[6]
+    n = S.shape[0]
+    half = 0.5 * D.cell
+    for i in range(n):
+        for k in range(R_):  # noqa: F821
+            N[i, k] = 0.0
+    for e in range(D.tail.shape[0]):
+        i = D.tail[e]
+        for k in range(R_):  # noqa: F821
+            N[i, k] += half * NH[e, 0, k]
+    for e in range(D.tail.shape[0]):
+        j = D.head[e]
+        for k in range(R_):  # noqa: F821
+            N[j, k] += half * NH[e, 1, k]
+    for i in range(n):
+        zero = D.any_clamped and D.clamped[i]
+        for k in range(R_):  # noqa: F821
+            N[i, k] = 0.0 if zero else N[i, k] / D.w[i]
+
+
+def op_state_force_coupled(D, C, S, t, N, W, K):
+    """:func:`op_force` with the Hamiltonian edge stress ``Q_e = ½[Q(S_i, X_e) + Q(S_j, X_e)]``
+    (``cartan.schemes._coupled.coupled_stress``; the medium's ``m_coupled_stress`` at the
+    half-edge velocities of :func:`_coupled_solve`)."""
+    _coupled_solve(D, C, S, K)
+    XI, QE, NH = K[2], K[3], K[6]
+    X = np.empty((D_, R_))  # noqa: F821
+    Qt = np.empty((D_, R_))  # noqa: F821
+    Qh = np.empty((D_, R_))  # noqa: F821
+    for i in range(W.shape[0]):
+        for k in range(R_):  # noqa: F821
+            W[i, k] = 0.0
+    for e in range(D.tail.shape[0]):
+        for k in range(R_):  # noqa: F821
+            X[0, k] = XI[e, k] / D.cell
+        m_coupled_stress(S[D.tail[e]], X, NH[e, 0], D.params, Qt)  # noqa: F821
+        m_coupled_stress(S[D.head[e]], X, NH[e, 1], D.params, Qh)  # noqa: F821
+        for k in range(R_):  # noqa: F821
+            QE[e, k] = 0.5 * (Qt[0, k] + Qh[0, k])
+    _edge_force(D, C, N, W, K)
+
+
+_COUPLED = (op_work_coupled, _coupled_solve, op_state_velocity_coupled, op_state_force_coupled)
+#: the loops that run a coupled Lagrangian (``lie-euler``, ``forward-euler``: ``euler_loop``;
+#: ``rkmk4``: ``rkmk_loop``); the integrators without momentum (``overdamped``, ``kinematic``),
+#: which share ``rkmk_loop``, decline it (``Integrator.run_compiled_loop``)
+COUPLED_LOOPS = ("euler_loop", "rkmk_loop")
+#: why a set of a coupled Lagrangian serves those loops only
+COUPLED_REASON = ("a Lagrangian coupling N and X runs compiled in the loops of lie-euler, forward-euler and rkmk4 "
+                  "only; implicit-midpoint and the compiled diagnostics leave it to the numpy path")
+
+
+def coupled_fragment() -> Fragment:
+    """The coupled operators (see above) and the rebinding of ``op_work``, ``op_state_velocity``
+    and ``op_state_force`` to them, to follow the loops in a generated module
+    (``OperatorSet.late``)."""
+    rebind = "\n".join(f"{name} = {name}_coupled" for name in ("op_work", "op_state_velocity", "op_state_force"))
+    return Fragment(source=njit_source(*_COUPLED) + "\n\n\n" + rebind + "\n")
 
 
 # ---------------------------------------------------------------------------- threaded build
@@ -1203,8 +1355,13 @@ def _why_not(scheme, reference: type) -> str | None:
     medium = scheme.medium
     if scheme.group.point_kernels() is None:
         return f"the group {scheme.group!r} has no numba point kernels"
-    if medium.point_kernels() is None:
+    kernels = medium.point_kernels()
+    if kernels is None:
         return f"the medium {medium.name!r} declares no point kernels (Medium.point_kernels)"
+    if scheme.coupled_lagrangian and (getattr(kernels, "coupled_velocity", None) is None
+                                      or getattr(kernels, "coupled_stress", None) is None):
+        return (f"the medium {medium.name!r} couples N and X and declares no coupled point kernels "
+                "(MediumKernels.coupled_velocity, coupled_stress)")
     for name in ("force", "internal_force", "drift", "frames", "_boundary_power", "_axis_stress", "initial_state",
                  "_key"):
         if getattr(type(scheme), name) is not getattr(reference, name):
@@ -1246,6 +1403,34 @@ def check_kernels(medium, kernels, d: int, r: int) -> None:
                 f"medium {medium.name!r}: point_kernels() disagree with stress() (relative difference "
                 f"{float(np.max(np.abs(Q - ref))) / scale:.1e} at a strain near the rest strain); fix the kernels, "
                 "or return None from point_kernels() to run the medium on the numpy path")
+
+
+def check_coupled_kernels(medium, kernels, r: int) -> None:
+    """Raise ``ValueError`` naming the medium when its coupled point kernels
+    (``MediumKernels.coupled_velocity``, ``coupled_stress``) disagree with its
+    :meth:`~cartan.medium.Medium.velocity_at` and :meth:`~cartan.medium.Medium.stress_with` at a
+    few small momenta (on the live components) and strains near the rest strain (d = 1)."""
+    X0 = np.ascontiguousarray(np.asarray(medium.rest_strain(), dtype=float).reshape(1, r))
+    live = ~np.asarray(medium.gauge_mask(), dtype=bool)
+    params = np.ascontiguousarray(kernels.params, dtype=float).ravel()
+    rng = np.random.default_rng(0)
+    scale = max(float(np.max(np.abs(X0))), 1.0)
+    for _ in range(3):
+        X = np.ascontiguousarray(X0 + 0.05 * scale * rng.standard_normal((1, r)))
+        S = np.ascontiguousarray(np.where(live, 0.05 * rng.standard_normal(r), 0.0))
+        N, Q = np.empty(r), np.empty((1, r))
+        ok = kernels.coupled_velocity(S, X, params, N)
+        if ok:
+            kernels.coupled_stress(S, X, N, params, Q)
+        N_ref = np.asarray(medium.velocity_at(S[None], X[None]), dtype=float).reshape(r)
+        Q_ref = np.asarray(medium.stress_with(S[None], X[None]), dtype=float).reshape(1, r)
+        for what, got, ref in (("velocity_at", N, N_ref), ("stress_with", Q, Q_ref)):
+            top = max(float(np.max(np.abs(ref))), 1e-300)
+            if not (ok and float(np.max(np.abs(got - ref))) <= 1e-9 * top):
+                raise ValueError(
+                    f"medium {medium.name!r}: the coupled point kernels disagree with {what}() at a momentum "
+                    "near zero and a strain near the rest strain; fix the kernels, or declare no coupled_velocity "
+                    "and coupled_stress in point_kernels() to run the medium on the numpy path")
 
 
 def _nodal_scale(n: int, d: int, tails: list, heads: list) -> np.ndarray:
@@ -1352,6 +1537,11 @@ def lattice_operators(scheme, reference: type):
                           constants={"D_": d, "R_": r, "M_": m, "FCHUNK_": FLOW_CHUNK},
                           source=njit_source(*_OPERATORS, *_HELD))]
     label, key = f"lattice × {group!r} × {medium.name}", f"lattice-{group!r}-{kernel_stem(kernels)}"
+    if scheme.coupled_lagrangian:  # (d = 1, no driven ends or held components: the scheme refuses them)
+        check_coupled_kernels(medium, kernels, r)
+        return OperatorSet(label=label + " (coupled Lagrangian)", key=key + "-coupled", fragments=fragments,
+                           data=data, pack=pack, unpack=unpack, accepts=accepts, nodes=n, late=[coupled_fragment()],
+                           reason=COUPLED_REASON, loops=COUPLED_LOOPS)
     if data.any_driven:  # (no threaded build: its passes over the nodes know no driven node)
         return OperatorSet(label=label + " (driven ends)", key=key + "-driven", fragments=fragments, data=data,
                            pack=pack, unpack=unpack, accepts=accepts, nodes=n, late=[driven_fragment()],

@@ -216,7 +216,9 @@ class Lattice(Scheme):
         operators' ``held`` mask, :meth:`_clamp_mask`) and :class:`~cartan.problem.Driven` ends
         (their nodes, ξ and ∂K/∂N(ξ) in the data; a set that serves the loops of ``lie-verlet``,
         ``lie-euler``, ``rkmk4``, ``overdamped``, ``rattle`` and ``implicit-midpoint`` only,
-        :attr:`OperatorSet.loops`)."""
+        :attr:`OperatorSet.loops`); a medium whose Lagrangian couples N and X with its coupled
+        point kernels (the loops of ``lie-euler``, ``forward-euler`` and ``rkmk4`` only,
+        :func:`cartan.schemes._lattice_ops.coupled_fragment`)."""
         ops = self.__dict__.get("_operators")
         if ops is None:
             if self._glue:

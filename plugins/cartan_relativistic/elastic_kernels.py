@@ -12,9 +12,12 @@ temporal-gauge forms of :mod:`cartan_relativistic.elastic` for the built-in laws
   :func:`velocity_point` solved (one Newton solve per half-edge serves both);
 * :func:`hamiltonian_point` — H = p⃗·v⃗ − ℓ − μc².
 
-These are the point kernels a compiled coupled-Lagrangian path needs from the medium (the
-half-edge velocities and stresses of :mod:`cartan.schemes._coupled`); no compiled loop calls
-them yet — the medium steps on the numpy path.  The law enters as ``(kind, params)``
+These are the point kernels the compiled coupled-Lagrangian path needs from the medium (the
+half-edge velocities and stresses of :mod:`cartan.schemes._coupled`): :func:`medium_kernels`
+declares them in the contract's form (:class:`cartan.medium.MediumKernels`, over the whole
+Poincaré algebra, with :func:`velocity_solve`'s continuation when Newton's method from the
+Newtonian start fails), and the lattice's generated loops of ``rkmk4``, ``lie-euler`` and
+``forward-euler`` call them (docs/media/relativistic-rod.md §3).  The law enters as ``(kind, params)``
 (:func:`law_kernel`): ``kind`` 0 is ``quadratic`` (k), 1 ``quartic`` (k, q); ``mc2`` is μc².
 A law without kernels (a registered user law) has none.
 """
@@ -29,8 +32,9 @@ from numba import njit
 
 from cartan.compiled.linalg import solve_augmented
 
-__all__ = ["hamiltonian_point", "law_kernel", "law_point", "momentum_hessian_point", "stress_point",
-           "velocity_batch", "velocity_point"]
+__all__ = ["coupled_stress_point", "coupled_velocity_point", "energy_point", "hamiltonian_point", "law_kernel",
+           "law_point", "medium_kernels", "momentum_hessian_point", "potential_stress_point", "stress_point",
+           "velocity_batch", "velocity_point", "velocity_solve"]
 
 #: the built-in laws with kernels, by kind
 KINDS = ("quadratic", "quartic")
@@ -123,6 +127,31 @@ def velocity_point(p, x, kind, prm, mc2, c, iterations, v):  # pragma: no cover 
     if speed >= 0.9 * c:
         for i in range(3):
             v[i] *= 0.9 * c / speed
+    return _newton_from(p, x, kind, prm, mc2, c, iterations, v)
+
+
+@njit(cache=True)
+def velocity_solve(p, x, kind, prm, mc2, c, iterations, v):  # pragma: no cover - compiled
+    """:func:`velocity_point`, and when it fails the continuation from p⃗ = 0 in 32 stages of
+    :func:`cartan_relativistic.elastic.temporal_velocity` (fast motion along the string); False
+    when that fails too."""
+    if velocity_point(p, x, kind, prm, mc2, c, iterations, v):
+        return True
+    ps = np.empty(3)
+    for i in range(3):
+        v[i] = 0.0
+    for stage in range(1, 33):
+        s = stage / 32.0
+        for i in range(3):
+            ps[i] = s * p[i]
+        if not _newton_from(ps, x, kind, prm, mc2, c, iterations, v):
+            return False
+    return True
+
+
+@njit(cache=True)
+def _newton_from(p, x, kind, prm, mc2, c, iterations, v):  # pragma: no cover - compiled
+    """Newton's method for p⃗(v⃗) = p⃗ from the start ``v`` (3,), in place; False when it fails."""
     P = np.empty(3)
     J = np.empty((3, 3))
     R = np.empty(3)
@@ -184,3 +213,59 @@ def velocity_batch(P, X, kind, prm, mc2, c, iterations, V, ok):  # pragma: no co
     """:func:`velocity_point` over points ``P``, ``X`` ``[n, 3]`` into ``V`` ``[n, 3]`` and ``ok`` ``[n]``."""
     for i in range(P.shape[0]):
         ok[i] = velocity_point(P[i], X[i], kind, prm, mc2, c, iterations, V[i])
+
+
+# ---------------------------------------------------------------------------- the medium's kernels
+# The contract's point kernels (cartan.medium.MediumKernels) over the Poincaré algebra, r = 10,
+# d = 1: X ``(1, 10)`` with x⃗′ = X[0, 1:4], S and N ``(10,)`` with p⃗ = S[1:4], v⃗ = N[1:4], and the
+# parameters ``prm`` = (kind, μc², c, Newton iterations, law parameters…) of :func:`medium_kernels`.
+
+@njit(cache=True)
+def energy_point(X, X0, prm):  # pragma: no cover - compiled
+    """U(X) = H(0, X) = W(|x⃗′|) (``ElasticRelativisticRod.potential``)."""
+    x = X[0, 1:4]
+    return law_point(int(prm[0]), prm[4:], math.sqrt(x[0] * x[0] + x[1] * x[1] + x[2] * x[2]))[0]
+
+
+@njit(cache=True)
+def potential_stress_point(X, X0, prm, Q):  # pragma: no cover - compiled
+    """Q = ∂U/∂X: :func:`stress_point` at v⃗ = 0 on slots 1–3, zero elsewhere (``stress``)."""
+    for k in range(Q.shape[1]):
+        Q[0, k] = 0.0
+    stress_point(np.zeros(3), X[0, 1:4], int(prm[0]), prm[4:], prm[1], prm[2], Q[0, 1:4])
+
+
+@njit(cache=True)
+def coupled_velocity_point(S, X, prm, N):  # pragma: no cover - compiled
+    """N = (c, v⃗(p⃗, x⃗′), 0₆) (``velocity_at``) by :func:`velocity_solve`; False when it fails."""
+    for k in range(N.shape[0]):
+        N[k] = 0.0
+    N[0] = prm[2]
+    return velocity_solve(S[1:4], X[0, 1:4], int(prm[0]), prm[4:], prm[1], prm[2], int(prm[3]), N[1:4])
+
+
+@njit(cache=True)
+def coupled_stress_point(S, X, N, prm, Q):  # pragma: no cover - compiled
+    """Q = ∂H/∂X(S, X): :func:`stress_point` at v⃗ = N[1:4] on slots 1–3, zero elsewhere (``stress_with``)."""
+    for k in range(Q.shape[1]):
+        Q[0, k] = 0.0
+    stress_point(N[1:4], X[0, 1:4], int(prm[0]), prm[4:], prm[1], prm[2], Q[0, 1:4])
+
+
+#: Newton iterations of the compiled Legendre map (as :func:`cartan_relativistic.elastic.temporal_velocity`)
+ITERATIONS = 40
+
+
+def medium_kernels(law: Any, mu: float, c: float):
+    """The :class:`cartan.medium.MediumKernels` of the elastic string with the law ``law``
+    (potential and coupled kernels, parameters (kind, μc², c, iterations, law parameters…)),
+    or None for a law without kernels (:func:`law_kernel`)."""
+    from cartan.medium import MediumKernels
+
+    found = law_kernel(law)
+    if found is None:
+        return None
+    kind, prm = found
+    params = np.concatenate([[float(kind), float(mu) * float(c) ** 2, float(c), float(ITERATIONS)], prm])
+    return MediumKernels(energy_point, potential_stress_point, params, coupled_velocity=coupled_velocity_point,
+                         coupled_stress=coupled_stress_point)

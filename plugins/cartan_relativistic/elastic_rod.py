@@ -16,8 +16,10 @@ point (:meth:`velocity_at`, N₀ = c: the gauge), the Hamiltonian stress Q⃗ = 
 μc² per unit u is left out of the core's energies and added back in the output ``energy``).
 The lattice steps the Hamiltonian system with ``rkmk4`` (order 4), ``lie-euler`` (order 1) or
 ``implicit-midpoint`` (order 2, symplectic: the discrete Lagrangian method of the Legendre
-transform of H_d) on the numpy path (:mod:`cartan.schemes._coupled`); ``lie-verlet`` and the
-compiled loops refuse it.
+transform of H_d) (:mod:`cartan.schemes._coupled`); ``lie-verlet`` refuses it.  With the
+built-in laws (``quadratic``, ``quartic``) the medium declares compiled point kernels
+(:meth:`point_kernels`) and ``rkmk4``, ``lie-euler`` and ``forward-euler`` run in the generated
+compiled loops; ``implicit-midpoint`` and the other laws step on the numpy path.
 
 A general rest-frame energy ε(λ) = μc² + W(λ) is given as ``law``
 (:class:`cartan_relativistic.elastic.ElasticLaw`: W, W′, W″), checked on construction at λ = 1
@@ -32,7 +34,7 @@ from typing import Any, ClassVar
 import numpy as np
 
 from cartan import accumulators
-from cartan.medium import check_finite, check_keywords, check_positive
+from cartan.medium import MediumKernels, check_finite, check_keywords, check_positive
 from cartan.problem import InitialState
 
 from .elastic import (
@@ -241,9 +243,15 @@ class ElasticRelativisticRod(RelativisticRod):
         X0[0, 1] = 1.0
         return X0
 
-    def point_kernels(self) -> None:
-        """None: the Lagrangian couples N and X, which the compiled loops do not run."""
-        return None
+    def point_kernels(self) -> MediumKernels | None:
+        """The potential U = H(0, X) and the coupled kernels (the Legendre map and the Hamiltonian
+        stress at one half-edge) of the built-in laws (:func:`cartan_relativistic.elastic_kernels.medium_kernels`):
+        the generated loops of ``rkmk4``, ``lie-euler`` and ``forward-euler`` then run the string
+        compiled (docs §3).  None for a law without kernels (a registered user law, bare
+        callables): the numpy path."""
+        from .elastic_kernels import medium_kernels
+
+        return medium_kernels(self.elastic_law, self.mu, self.c)
 
     def _static(self, X: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         x = np.asarray(X, dtype=float)[..., 0, 1:4]
