@@ -193,7 +193,7 @@ def test_bad_input():
         def constrained_strains(self):
             return np.array([0, 1, 2]), np.array([1.0, 0.0, 0.0])
 
-    with pytest.raises(ValueError, match="has neither"):  # a scheme without rows of its own or edge strains
+    with pytest.raises(ValueError, match="has none"):  # a scheme without rows (Scheme.constraint_rows)
         Rattle()._constraints(SimpleNamespace(name="other"), None)
 
     stiff = Stiff(**params)

@@ -71,10 +71,10 @@ velocity is zero).  :meth:`Rattle.support_reaction` gives the reaction on every 
 the constraint force on it included.  The compiled loop restricts its node operators to the
 free components by the operator set's ``held`` mask: the same steps, round-off apart.
 
-Runs on the ``lattice`` scheme (whose edges carry the exact strains) and on any scheme that
-supplies rows of its own, ``scheme.constraint_rows(unknown, state)`` with the interface of
-:class:`~cartan.constraints.StrainConstraints` (``ncon``, ``values``, ``matrix``,
-``fixed_rate``, ``fixed_force``, and ``rows_rate`` for Ḃ_c N): the ``collocation`` scheme's
+Runs on any scheme that supplies its rows, ``scheme.constraint_rows(unknown, state)``: the
+``lattice``'s :class:`~cartan.constraints.StrainConstraints` on its edges (whose strains are
+exact) and, with the same interface (``ncon``, ``values``, ``matrix``, ``fixed_rate``,
+``fixed_force``, and ``rows_rate`` for Ḃ_c N), the ``collocation`` scheme's
 :class:`~cartan.constraints.NodalStrainConstraints`, the held components of its stored nodal
 strains, with ``B_c δ = P(D δ + ad_X δ)`` from the compatibility equation (paper §III) and the
 combination dependent at a straight configuration (the odd–even mode) left out
@@ -473,17 +473,15 @@ class Rattle(LieVerlet):
         the scheme, built once."""
         if self._held is not None and self._held[0] is scheme:
             return self._held[1]
-        from ..constraints import StrainConstraints
-
-        rows = getattr(scheme, "constraint_rows", None)  # the scheme's own rows (collocation: nodal strains)
-        if rows is None and (not hasattr(scheme, "edge_strains") or not hasattr(scheme, "edge_nodes")):
+        rows = getattr(scheme, "constraint_rows", None)  # the scheme's rows (lattice: edges; collocation: nodes)
+        if rows is None:
             raise ValueError(f"integrator 'rattle' holds the constrained strains on the scheme's rows (the lattice's "
-                             f"edge strains, the collocation's nodal strains); scheme {scheme.name!r} has neither: "
+                             f"edge strains, the collocation's nodal strains); scheme {scheme.name!r} has none: "
                              "use scheme='lattice' or scheme='collocation'")
         r = scheme.group.dim
         unknown = np.broadcast_to(scheme.live, (*scheme.grid.shape, r)).copy()
         unknown[scheme._clamped] = False
-        con = rows(unknown, state) if rows is not None else StrainConstraints(scheme, unknown, state)
+        con = rows(unknown, state)
         if con.ncon and scheme.grid.glued is not None:
             raise ValueError("integrator 'rattle' does not support strain constraints on a grid with a glued axis "
                              "(Grid.glued, the sphere's chart): its multiplier systems take no ghost ends; use "

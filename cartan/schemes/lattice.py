@@ -90,7 +90,7 @@ from typing import Any
 
 import numpy as np
 
-from ..problem import Free, axis_glues, axis_holonomies, dead_to_body, held_components
+from ..problem import Free, axis_glues, axis_holonomies, dead_to_body
 from ..scatter import scatter_add
 from .base import Scheme, State, prefix_products
 
@@ -320,6 +320,25 @@ class Lattice(Scheme):
         return self._new_state(arrays)
 
     # ------------------------------------------------------------------ strains and forces
+    def constraint_rows(self, unknown: np.ndarray, state: State):
+        """The medium's constrained strain rows on the edge strains (``rattle``'s rows): one row
+        per edge and held component, exact on the lattice (paper §III.E;
+        :class:`cartan.constraints.StrainConstraints`).
+
+        Parameters
+        ----------
+        unknown : array of bool ``[*shape, r]``
+            The node components that move (live, not clamped).
+        state : State
+
+        Returns
+        -------
+        StrainConstraints
+        """
+        from ..constraints import StrainConstraints
+
+        return StrainConstraints(self, unknown, state)
+
     def edge_strains(self, state: State) -> list[np.ndarray]:
         """Per axis, the edge strains ``X_e = log(G_e)/h`` ``[*edge_shape, r]`` (the chord-length
         strains X″ with ``pole="cap"``: :mod:`cartan.schemes._pole_cell`)."""
@@ -552,21 +571,6 @@ class Lattice(Scheme):
             inc = np.einsum("...ji,...j->...i", g.dexp_inv(-xi), Q)
             self._scatter(F, out, -inc, axis)
         return F
-
-    def _clamp_mask(self) -> np.ndarray:
-        """The clamped nodes ``(*shape)``, or with :class:`~cartan.problem.Symmetry` faces or
-        :class:`~cartan.problem.Held` ends the held body components ``(*shape, r)``
-        (:func:`~cartan.problem.held_components`, all r at clamped nodes): either indexes the
-        ``(*shape, r)`` velocities, momenta and forces that are zeroed there.  The compiled
-        operators (:meth:`compiled_operators`) take it as their ``held`` ``[n, r]`` mask; the
-        structure-of-arrays loops of :meth:`compiled_advance` take clamps only and decline
-        held components (their boundary check)."""
-        mask = super()._clamp_mask()
-        held = held_components(self.problem)
-        if held is None:
-            return mask
-        held[mask] = True
-        return held
 
     def force(self, state: State, N: np.ndarray, t: float, raw: bool = False) -> np.ndarray:
         """The force density W ``[*shape, r]`` (module docstring of :mod:`cartan.schemes.base`);
