@@ -121,6 +121,31 @@ class HeldFunctional:
         return float(target), float(scale)
 
 
+def _constrained_spec(medium: Any, r: int) -> tuple[np.ndarray, np.ndarray] | None:
+    """The medium's ``constrained_strains()`` as ``(components int [k], values [k])``, checked
+    against the algebra's dimension ``r``; None when it constrains none.
+
+    Raises
+    ------
+    ValueError
+        Components that repeat, fall outside ``[0, r)``, or values that are not finite or not
+        one per component.
+    """
+    spec = medium.constrained_strains() if hasattr(medium, "constrained_strains") else None
+    if spec is None:
+        return None
+    comp, val = spec
+    comp = np.atleast_1d(np.asarray(comp)).astype(np.int64)
+    val = np.atleast_1d(np.asarray(val, dtype=float))
+    if comp.shape != val.shape or comp.ndim != 1 or len(set(comp.tolist())) != comp.size:
+        raise ValueError(f"constrained_strains: {type(medium).__name__} must return distinct components and "
+                         f"as many values, got components {comp.tolist()} and values {val.tolist()}")
+    if np.any(comp < 0) or np.any(comp >= r) or not np.all(np.isfinite(val)):
+        raise ValueError(f"constrained_strains: components must be in [0, {r}) and values finite, got "
+                         f"components {comp.tolist()} and values {val.tolist()}")
+    return comp, val
+
+
 class StrainConstraints:
     """The constrained strain rows of a problem on a lattice.
 
@@ -175,18 +200,10 @@ class StrainConstraints:
         self.copy_map: dict[int, np.ndarray] = {}
         self.unit = -1.0 / float(np.prod(scheme.h))
         self.ncon = 0
-        spec = medium.constrained_strains() if hasattr(medium, "constrained_strains") else None
+        spec = _constrained_spec(medium, r_dim)
         if spec is None:
             return
         comp, val = spec
-        comp = np.atleast_1d(np.asarray(comp)).astype(np.int64)
-        val = np.atleast_1d(np.asarray(val, dtype=float))
-        if comp.shape != val.shape or comp.ndim != 1 or len(set(comp.tolist())) != comp.size:
-            raise ValueError(f"constrained_strains: {type(medium).__name__} must return distinct components and "
-                             f"as many values, got components {comp.tolist()} and values {val.tolist()}")
-        if np.any(comp < 0) or np.any(comp >= r_dim) or not np.all(np.isfinite(val)):
-            raise ValueError(f"constrained_strains: components must be in [0, {r_dim}) and values finite, got "
-                             f"components {comp.tolist()} and values {val.tolist()}")
         if check:  # the energy must not depend on the constrained components: their stress is the multiplier
             self.check_stress(state, comp)
         tails, heads = scheme.edge_nodes()
@@ -505,18 +522,10 @@ class NodalStrainConstraints:
         self.active = np.zeros((nnode, d), dtype=bool)
         self.ncon = self.nrow = 0
         self.T = None
-        spec = medium.constrained_strains() if hasattr(medium, "constrained_strains") else None
+        spec = _constrained_spec(medium, r)
         if spec is None:
             return
         comp, val = spec
-        comp = np.atleast_1d(np.asarray(comp)).astype(np.int64)
-        val = np.atleast_1d(np.asarray(val, dtype=float))
-        if comp.shape != val.shape or comp.ndim != 1 or len(set(comp.tolist())) != comp.size:
-            raise ValueError(f"constrained_strains: {type(medium).__name__} must return distinct components and "
-                             f"as many values, got components {comp.tolist()} and values {val.tolist()}")
-        if np.any(comp < 0) or np.any(comp >= r) or not np.all(np.isfinite(val)):
-            raise ValueError(f"constrained_strains: components must be in [0, {r}) and values finite, got "
-                             f"components {comp.tolist()} and values {val.tolist()}")
         if check:
             self.check_stress(state, comp)
         self.comp, self.value = comp, val

@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from toys import check_move_and_frames_passes
 
 from cartan.groups import poincare as pc
 
@@ -73,21 +74,6 @@ def test_move_and_frames_passes_equal_the_products(pure):
     G = _elements(45, seed=5, pure=pure)
     Phi = _elements(30, seed=6)
     Phi[::2, 1:, 0] = 0.0  # some frames at the origin: a zero translation
-    rng = np.random.default_rng(7)
-    tail, head = rng.integers(0, 30, 45), rng.integers(0, 30, 45)
-    Di = np.empty_like(Dn)
-    Phi2, G2 = Phi.copy(), G.copy()
-    pc.poincare_frames_chunk_point(Dn, Di, Phi2, 0, 30)
-    pc.poincare_move_chunk_point(Di, Dn, G2, tail, head, 0, 45)
-    inv, tmp, ref = np.empty((5, 5)), np.empty((5, 5)), np.empty((5, 5))
-    for i in range(30):
-        pc.poincare_inverse_point(Dn[i], inv)
-        assert np.array_equal(Di[i], inv)
-        pc.poincare_compose_point(Phi[i], Dn[i], ref)
-        assert np.array_equal(Phi2[i], ref)
-    for e in range(45):
-        pc.poincare_inverse_point(Dn[tail[e]], inv)
-        pc.poincare_compose_point(inv, G[e], tmp)
-        pc.poincare_compose_point(tmp, Dn[head[e]], ref)
-        assert np.array_equal(G2[e], ref)
+    check_move_and_frames_passes(pc.poincare_frames_chunk_point, pc.poincare_move_chunk_point,
+                                 pc.poincare_inverse_point, pc.poincare_compose_point, Dn, G, Phi, seed=7)
 

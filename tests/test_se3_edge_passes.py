@@ -20,6 +20,7 @@ largest component (a few ulps of O(1) quantities, observed ≤ 3e-16), on the gr
 from __future__ import annotations
 
 import numpy as np
+from toys import check_move_and_frames_passes
 
 from cartan.groups import se3
 
@@ -73,23 +74,8 @@ def test_move_and_frames_passes_equal_the_products():
     _, Dn = _elements(40, seed=5)
     _, G = _elements(60, seed=6)
     _, Phi = _elements(40, seed=7)
-    rng = np.random.default_rng(8)
-    tail, head = rng.integers(0, 40, 60), rng.integers(0, 40, 60)
-    Di = np.empty_like(Dn)
-    Phi2, G2 = Phi.copy(), G.copy()
-    se3.se3_frames_chunk_point(Dn, Di, Phi2, 0, 40)
-    se3.se3_move_chunk_point(Di, Dn, G2, tail, head, 0, 60)
-    inv, tmp, ref = np.empty((4, 4)), np.empty((4, 4)), np.empty((4, 4))
-    for i in range(40):
-        se3.se3_inverse_point(Dn[i], inv)
-        assert np.array_equal(Di[i], inv)
-        se3.se3_compose_point(Phi[i], Dn[i], ref)
-        assert np.array_equal(Phi2[i], ref)
-    for e in range(60):
-        se3.se3_inverse_point(Dn[tail[e]], inv)
-        se3.se3_compose_point(inv, G[e], tmp)
-        se3.se3_compose_point(tmp, Dn[head[e]], ref)
-        assert np.array_equal(G2[e], ref)
+    check_move_and_frames_passes(se3.se3_frames_chunk_point, se3.se3_move_chunk_point, se3.se3_inverse_point,
+                                 se3.se3_compose_point, Dn, G, Phi, seed=8)
 
 
 def test_axial_flow_pass_equals_the_axis_flows():

@@ -101,11 +101,14 @@ def test_full_circle_of_a_stiff_rod(ratio):
 def test_the_mixed_iteration_is_what_converges():
     """The same full circle (EA/B = 1e6, one load step) with the displacement-only iteration
     (``mixed=False``, same damping): the first full step raises the stretch forces to 4e6, the old
-    Jacobian maps them to a useless simplified correction, every step is damped to nothing and the
-    residual stays at M = 6.28 until max_iter (measured; with adaptive load steps it needs 256 load
-    steps and 4903 iterations, against 1 and 5 for the mixed iteration)."""
+    Jacobian maps them to a useless simplified correction, and the iteration fails at the full load
+    (with adaptive load steps it needs 256 load steps and 4903 iterations, against 1 and 5 for the
+    mixed iteration; measured).  How it fails depends on round-off along a diverging path: the
+    residual stayed at M = 6.28 until max_iter = 50, and with the SE(3) kernels' present grouping
+    of Barfoot–Furgale's block it grows to 5e7 and stagnates after 22 iterations; either is a
+    ConvergenceError at load factor 1."""
     problem, _ = _end_moment_cantilever()
-    with pytest.raises(ConvergenceError, match="max_iter = 50 was reached at load factor 1"):
+    with pytest.raises(ConvergenceError, match="at load factor 1"):
         solve_static(problem, mixed=False, adaptive_load=False)
     ds = solve_static(problem)
     assert ds.attrs["newton_iterations"] <= 6 and _run_settings(ds)["mixed"] is True

@@ -333,3 +333,28 @@ def assert_volume_gradient(load, g, Phi, nodes, tol: float, eps: float = 1e-6) -
             minus[i] = Phi[i] @ g.exp(-step)
             fd = (load.volume(plus) - load.volume(minus)) / (2 * eps)
             assert abs(fd - G[i][k]) <= tol * np.abs(G).max(), (i, k)
+
+
+def check_move_and_frames_passes(frames_pass, move_pass, inverse, compose, Dn, G, Phi, seed: int) -> None:
+    """Assert that a group's frame and edge-update passes equal the products of its point
+    kernels bit for bit: ``frames_pass(Dn, Di, Phi, 0, n)`` gives ``Di = Dn⁻¹`` and
+    ``Phi ← Phi·Dn``, ``move_pass(Di, Dn, G, tail, head, 0, E)`` gives
+    ``G_e ← Dn_tail⁻¹ G_e Dn_head`` (random ends drawn with ``seed``)."""
+    n, E, m = Dn.shape[0], G.shape[0], Dn.shape[-1]
+    rng = np.random.default_rng(seed)
+    tail, head = rng.integers(0, n, E), rng.integers(0, n, E)
+    Di = np.empty_like(Dn)
+    Phi2, G2 = Phi.copy(), G.copy()
+    frames_pass(Dn, Di, Phi2, 0, n)
+    move_pass(Di, Dn, G2, tail, head, 0, E)
+    inv, tmp, ref = np.empty((m, m)), np.empty((m, m)), np.empty((m, m))
+    for i in range(n):
+        inverse(Dn[i], inv)
+        assert np.array_equal(Di[i], inv)
+        compose(Phi[i], Dn[i], ref)
+        assert np.array_equal(Phi2[i], ref)
+    for e in range(E):
+        inverse(Dn[tail[e]], inv)
+        compose(inv, G[e], tmp)
+        compose(tmp, Dn[head[e]], ref)
+        assert np.array_equal(G2[e], ref)

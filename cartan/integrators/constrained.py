@@ -473,15 +473,10 @@ class Rattle(LieVerlet):
         the scheme, built once."""
         if self._held is not None and self._held[0] is scheme:
             return self._held[1]
-        rows = getattr(scheme, "constraint_rows", None)  # the scheme's rows (lattice: edges; collocation: nodes)
-        if rows is None:
-            raise ValueError(f"integrator 'rattle' holds the constrained strains on the scheme's rows (the lattice's "
-                             f"edge strains, the collocation's nodal strains); scheme {scheme.name!r} has none: "
-                             "use scheme='lattice' or scheme='collocation'")
         r = scheme.group.dim
         unknown = np.broadcast_to(scheme.live, (*scheme.grid.shape, r)).copy()
         unknown[scheme._clamped] = False
-        con = rows(unknown, state)
+        con = scheme.constraint_rows(unknown, state)  # the scheme's rows (lattice: edges; collocation: nodes)
         if con.ncon and scheme.grid.glued is not None:
             raise ValueError("integrator 'rattle' does not support strain constraints on a grid with a glued axis "
                              "(Grid.glued, the sphere's chart): its multiplier systems take no ghost ends; use "

@@ -219,6 +219,29 @@ class Scheme(abc.ABC):
     def integrability_residual(self, state: State) -> float:
         """Temporal integrability residual: stored X against X recomputed from Φ."""
 
+    def constraint_rows(self, unknown: np.ndarray, state: State) -> Any:
+        """The medium's constrained strain rows on this scheme (``rattle``'s rows, paper §III.E,
+        §IV.E): an object with ``ncon``, ``values(state)`` (c ``[ncon]``), ``matrix(state)``
+        (B_c, sparse ``(ncon, nunk)``: the rows' rate along the drift of the unknowns),
+        ``fixed_rate`` and ``fixed_force`` (the held nodes' part), as
+        :class:`cartan.constraints.StrainConstraints`; ``rows_rate(state, N)`` (Ḃ_c N) and
+        ``exact_rate = True`` when the scheme gives that rate in closed form.
+
+        Parameters
+        ----------
+        unknown : array of bool ``[*shape, r]``
+            The node components that move (live, not clamped).
+        state : State
+
+        Raises
+        ------
+        ValueError
+            Here: the scheme holds no strain rows (a scheme that does overrides this).
+        """
+        raise ValueError(f"integrator 'rattle' holds the constrained strains on the scheme's rows (the lattice's "
+                         f"edge strains, the collocation's nodal strains); scheme {self.name!r} has none: "
+                         "use scheme='lattice' or scheme='collocation'")
+
     # ------------------------------------------------------------------ shared
     def _run_compiled(self, module: str, integrator: Any, state: State, dt: float, nsteps: int,
                       kinetic_limit: float) -> bool:

@@ -472,30 +472,14 @@ class Collocation(Scheme):
 
     # ------------------------------------------------------------------ constrained strains
     def constraint_rows(self, unknown: np.ndarray, state: State):
-        """The medium's constrained strain rows on the nodal strains (``rattle``'s rows).
-
-        One row per node, axis and held component, ``c = X_{α,i}[k] − value_k``, with the row
-        operator ``B_c δ = [D_α δ + ad_{X_α} δ]_k`` of the compatibility equation (paper §III),
-        less the combinations that are dependent at the straight reference (the odd–even mode
-        of each open line: :class:`cartan.constraints.NodalStrainConstraints`, "Rank").
-
-        Parameters
-        ----------
-        unknown : array of bool ``[*shape, r]``
-            The node components that move (live, not clamped).
-        state : State
-
-        Returns
-        -------
-        NodalStrainConstraints
-
-        Raises
-        ------
-        ValueError
-            With :class:`~cartan.problem.Held` ends or :class:`~cartan.problem.Symmetry` faces
-            (held components): the nodal rows' dependent combinations are found for clamped
-            and free ends only (``rattle`` runs them on scheme='lattice').
-        """
+        """:meth:`Scheme.constraint_rows` on the nodal strains: one row per node, axis and held
+        component, ``c = X_{α,i}[k] − value_k``, with ``B_c δ = [D_α δ + ad_{X_α} δ]_k`` of the
+        compatibility equation (paper §III), less the combinations dependent at the straight
+        reference (the odd–even mode of each open line:
+        :class:`cartan.constraints.NodalStrainConstraints`, "Rank").  ``ValueError`` with
+        :class:`~cartan.problem.Held` ends or :class:`~cartan.problem.Symmetry` faces: the
+        dependent combinations are found for clamped and free ends only (``rattle`` runs them
+        on scheme='lattice')."""
         from ..constraints import NodalStrainConstraints
 
         if self._clamped.ndim > self.grid.d:

@@ -321,20 +321,8 @@ class Lattice(Scheme):
 
     # ------------------------------------------------------------------ strains and forces
     def constraint_rows(self, unknown: np.ndarray, state: State):
-        """The medium's constrained strain rows on the edge strains (``rattle``'s rows): one row
-        per edge and held component, exact on the lattice (paper §III.E;
-        :class:`cartan.constraints.StrainConstraints`).
-
-        Parameters
-        ----------
-        unknown : array of bool ``[*shape, r]``
-            The node components that move (live, not clamped).
-        state : State
-
-        Returns
-        -------
-        StrainConstraints
-        """
+        """:meth:`Scheme.constraint_rows` on the edge strains, exact on the lattice: one row per
+        edge and held component (:class:`cartan.constraints.StrainConstraints`)."""
         from ..constraints import StrainConstraints
 
         return StrainConstraints(self, unknown, state)
