@@ -12,9 +12,19 @@ second order in Δt for a smooth rate.  The values live in the state
 with it, written to the checkpoint and continued exactly by a restart; every saved frame
 records them as the output variable ``name`` ``(time, *nodes)`` with the declared long name
 and units.  A rate is a function of the state alone, so the rate after a step, kept for the
-next one, equals the one a restart computes afresh: restarts stay bit for bit.  The update runs
-on the reference (numpy) path after each step; the compiled loops, which take many steps per
-call, are not used for such a medium.  Media that declare none (all but a few) are untouched.
+next one, equals the one a restart computes afresh: restarts stay bit for bit.
+
+The update runs on the reference (numpy) path after each step (:func:`add`), or inside the
+lattice's generated loops (``lie-verlet``, ``lie-euler``/``forward-euler``, ``rkmk4``) when the
+medium's point kernels give the rates at a node from its velocity
+(:attr:`cartan.medium.MediumKernels.accumulator_rate`): the loops' ``op_accumulate`` hook
+(:mod:`cartan.integrators.loops`, :func:`cartan.schemes._lattice_ops.accumulate_fragment`)
+applies the same update in the same floating-point order, ``a + (½Δt)(r₀ + r₁)``, so the two
+paths differ only by the round-off of the states they step (measured bit for bit on the elastic
+string; ``tests/test_accumulators_compiled.py``).  Without that kernel, or for the other
+compiled paths (the integrators' own loops, the hand-written ones), such a medium steps one by
+one on the numpy path (:func:`cartan.simulate`).  Media that declare none (all but a few) are
+untouched.
 """
 
 from __future__ import annotations

@@ -191,6 +191,15 @@ class MediumKernels:
         The Hamiltonian stress ``Q = ∂H/∂X(S, X)`` ``(d, r)`` at the same point
         (:meth:`Medium.stress_with`), ``N`` being what ``coupled_velocity`` gave there (one
         solve of the Legendre map serves both).
+    accumulator_rate : numba function ``(N, p, out) -> None``, optional
+        For a medium that declares :meth:`Medium.accumulators`: their rates at one node from its
+        velocity ``N`` ``(r,)`` into ``out`` ``(a,)``, one per accumulator in the order of
+        :meth:`Medium.accumulators` — what :meth:`Medium.accumulator_rates` gives at that node
+        (a rate that needs only the node's velocity).  The generated loops of the lattice
+        (``lie-verlet``, ``lie-euler``, ``forward-euler``, ``rkmk4``) then integrate the
+        accumulators in the loop by the trapezoidal rule of :func:`cartan.accumulators.add`
+        (docs/design.md, "Per-node accumulators"); without it such a medium steps on the
+        numpy path.
 
     ``X`` (the strain), ``X0`` (the rest strain at that point) and ``Q`` have shape ``(d, r)``.
     Every function is a module-level ``@njit`` function (the generated loops import them by
@@ -209,6 +218,7 @@ class MediumKernels:
     params: np.ndarray
     coupled_velocity: Callable | None = None
     coupled_stress: Callable | None = None
+    accumulator_rate: Callable | None = None
 
 
 @njit(cache=True)
@@ -617,9 +627,11 @@ class Medium(abc.ABC):
         (default: none).
 
         Each accumulator is ``a_i(t) = ∫₀ᵗ r_i dt`` with the rate ``r_i`` of
-        :meth:`accumulator_rates`, integrated by the trapezoidal rule over every step on the
-        reference (numpy) path, ``a ← a + ½Δt (r(before) + r(after))`` (second order in Δt;
-        the compiled loops are not used for a medium that declares accumulators).  The values
+        :meth:`accumulator_rates`, integrated by the trapezoidal rule over every step,
+        ``a ← a + ½Δt (r(before) + r(after))`` (second order in Δt): on the reference (numpy)
+        path, or in the lattice's generated loops when the medium's point kernels declare the
+        rates (:attr:`MediumKernels.accumulator_rate`; otherwise the compiled loops are not
+        used for such a medium).  The values
         are part of the state (``state.arrays["accumulator_<name>"]``, zero at t = 0, in the
         checkpoint: a restart continues them exactly) and an output variable ``name``
         ``(time, *nodes)`` of every saved frame (:mod:`cartan.accumulators`).

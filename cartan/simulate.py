@@ -325,13 +325,17 @@ def _advance(
     at the last step done) is reported like a blow-up.  Integrators with a ``begin_block()``
     method (caches that change results, e.g. a kept Jacobian) are told that a block starts,
     where a restart could resume, so that restarts stay bit for bit.  A medium that declares
-    per-node accumulators (:mod:`cartan.accumulators`) is stepped one by one on this path, each
-    step followed by the trapezoidal update of its accumulators.
+    per-node accumulators (:mod:`cartan.accumulators`) takes the generated loops only when the
+    scheme's operator set integrates them there (``OperatorSet.accumulates``); otherwise it is
+    stepped one by one on this path, each step followed by the trapezoidal update of its
+    accumulators.
     """
     from .statics import ConvergenceError
 
     k = 0
-    acc = bool(accumulators.declared(scheme.medium))  # per-node accumulators: stepped one by one below
+    # per-node accumulators: integrated in the generated loops of an operator set that takes them
+    # (``OperatorSet.accumulates``; the other compiled paths know none), else stepped one by one below
+    acc = bool(accumulators.declared(scheme.medium))
     begin = getattr(integrator, "begin_block", None)
     if begin is not None:
         begin()
@@ -339,6 +343,9 @@ def _advance(
         # the compiled paths, in order of preference: the integrator's own blocks, the scheme's
         # hand-written loops, the integrator's generated loop over the scheme's operators
         paths = []
+        generic = getattr(integrator, "run_compiled_loop", None)
+        if compiled and acc and generic is not None and _takes_accumulators(scheme):
+            paths.append(generic)
         if compiled and not acc:
             own = getattr(integrator, "compiled_advance", None)
             if own is not None:
@@ -346,7 +353,6 @@ def _advance(
             fast = getattr(scheme, "compiled_advance", None)
             if fast is not None:
                 paths.append(lambda s, st, h, n, lim: fast(integrator, st, h, n, kinetic_limit=lim))
-            generic = getattr(integrator, "run_compiled_loop", None)
             if generic is not None:
                 paths.append(generic)
         energy_checks = getattr(guard, "energy_checks", True)
@@ -381,6 +387,19 @@ def _advance(
             if reason is not None:
                 return j + 1, reason
     return nsteps, None
+
+
+def _takes_accumulators(scheme: Scheme) -> bool:
+    """Whether the scheme's compiled operator set integrates the medium's per-node accumulators
+    in its loops (``OperatorSet.accumulates``; the integrator's ``run_compiled_loop`` declines
+    the loops that do not)."""
+    from ._backend import get_backend
+
+    operators = getattr(scheme, "compiled_operators", None)
+    if operators is None or get_backend() != "numba":
+        return False
+    ops = operators()
+    return bool(getattr(ops, "accumulates", ()))
 
 
 #: the reason :func:`_advance` gives for a whole block whose compiled loop stopped early

@@ -29,7 +29,7 @@ LAWS = {"quadratic": {"stiffness": 0.25}, "quartic": {"law": ElasticLaw.quartic(
 
 
 def _problem(kind: str, law: str = "quadratic", n: int = 9):
-    """An elastic string without clocks (the per-node accumulators step on the numpy path):
+    """An elastic string without clocks (the clocks in the loops: tests/test_accumulators_compiled.py):
     ``free`` (stretched, bent, moving in 3-D), ``clamped`` (the same, held at its start) or
     ``ring`` (a closed string, spinning and breathing)."""
     rod = cartan.medium("relativistic-rod", energy="elastic", clocks=False, **LAWS[law])

@@ -295,15 +295,17 @@ def _importable(func) -> bool:
 def medium_fragment(kernels) -> Fragment:
     """``m_energy`` and ``m_stress`` bound to a medium's declared point kernels (and
     ``m_coupled_velocity``, ``m_coupled_stress`` when it declares them, a Lagrangian coupling N
-    and X): imported from their module, or, when that module cannot be imported (a script, a
-    notebook, ``exec``), from :mod:`cartan.compiled.runtime`, where they are registered under a
-    name derived from their code."""
+    and X; ``m_accumulator_rate``, the rates of per-node accumulators): imported from their
+    module, or, when that module cannot be imported (a script, a notebook, ``exec``), from
+    :mod:`cartan.compiled.runtime`, where they are registered under a name derived from their
+    code."""
     from . import runtime
 
     imports = {}
     for alias, func in (("m_energy", kernels.energy), ("m_stress", kernels.stress),
                         ("m_coupled_velocity", getattr(kernels, "coupled_velocity", None)),
-                        ("m_coupled_stress", getattr(kernels, "coupled_stress", None))):
+                        ("m_coupled_stress", getattr(kernels, "coupled_stress", None)),
+                        ("m_accumulator_rate", getattr(kernels, "accumulator_rate", None))):
         if func is None:
             continue
         py = getattr(func, "py_func", func)
@@ -329,10 +331,10 @@ def stress_batch(X, X0, p, out):
 def kernel_stem(kernels) -> str:
     """A file-name stem naming a medium's point kernels (``energy-stress`` function names): the
     generated modules are named by the kernels they compile, not by the medium, so that media
-    declaring the same kernels (every ``QuadraticMedium``) share them; the coupled kernels,
-    when declared, join the stem."""
+    declaring the same kernels (every ``QuadraticMedium``) share them; the coupled kernels and
+    the accumulator rate, when declared, join the stem."""
     funcs = (kernels.energy, kernels.stress, getattr(kernels, "coupled_velocity", None),
-             getattr(kernels, "coupled_stress", None))
+             getattr(kernels, "coupled_stress", None), getattr(kernels, "accumulator_rate", None))
     return "-".join(getattr(getattr(f, "py_func", f), "__name__", "kernel") for f in funcs if f is not None)
 
 

@@ -67,6 +67,12 @@ class OperatorSet:
         With a :attr:`reason` (the set does not serve every loop), the loops of
         :mod:`cartan.integrators.loops` that run it all the same (:meth:`serves`); empty for a
         set that serves every loop or none.
+    accumulates : tuple of str
+        The loops of :mod:`cartan.integrators.loops` that integrate the medium's per-node
+        accumulators (:mod:`cartan.accumulators`) in the loop, the set's ``op_accumulate``
+        rebound (:attr:`late`), its ``pack``/``unpack`` moving them between the state and the
+        data; empty: the medium declares none, or they step on the numpy path
+        (:func:`cartan.simulate`'s ``_advance``).
     """
 
     label: str = ""
@@ -83,6 +89,7 @@ class OperatorSet:
     threaded_module: Any = None
     late: list[Fragment] = field(default_factory=list)
     loops: tuple[str, ...] = ()
+    accumulates: tuple[str, ...] = ()
 
     @classmethod
     def declined(cls, reason: str) -> OperatorSet:

@@ -189,6 +189,8 @@ class Integrator(abc.ABC):
         spec = self.compiled_loop(scheme, state, float(dt))
         if spec is None or not ops.serves(spec[0]):  # (a set with driven ends serves some loops only)
             return False
+        if ops.accumulates and not (self.uses_momentum and spec[0] in ops.accumulates):
+            return False  # (per-node accumulators: integrated in these loops only, cartan.accumulators)
         name, args = spec
         # the threaded build (cartan._threads) of the operator set's own module, on a large
         # enough grid with threads requested; an integrator with a module of its own runs serially

@@ -14,6 +14,11 @@ The loops of ``lie-euler``/``forward-euler`` and ``rkmk4`` take the velocity and
 state through :func:`op_state_velocity` and :func:`op_state_force`, which receive both the
 configuration and the momentum: ``op_velocity`` and ``op_force`` here, rebound by a set whose
 Lagrangian couples N and X (docs/design.md, the compiled layer, "Coupled Lagrangians").
+
+The loops of ``lie-verlet``, ``lie-euler``/``forward-euler`` and ``rkmk4`` (with momentum) call
+:func:`op_accumulate` with the velocity of the state at their start and after every step: a
+no-op here, rebound by a set that integrates a medium's per-node accumulators
+(:mod:`cartan.accumulators`, :func:`cartan.schemes._lattice_ops.accumulate_fragment`).
 """
 
 from __future__ import annotations
@@ -50,6 +55,14 @@ def op_state_force(D, C, S, t, N, W, K):
     """The force W at the state (C, S) and velocity N: ``op_force(D, C, t, N, W, K)`` here, the
     momentum unused (rebound with :func:`op_state_velocity` where the stress depends on S)."""
     op_force(D, C, t, N, W, K)  # noqa: F821
+
+
+def op_accumulate(D, C, S, N, dt, begin):
+    """The per-node accumulators' trapezoidal update at the state (C, S) of velocity N: nothing
+    here.  A set that integrates them (``OperatorSet.accumulates``) rebinds it after the loops
+    (``OperatorSet.late``): with ``begin`` it keeps the rates of the loop's first state, else it
+    adds ``½Δt (r(before) + r(after))`` and keeps the new rates (:func:`cartan.accumulators.add`)."""
+    return
 
 
 def _coad_exp(D, tau, N, S):
@@ -104,6 +117,7 @@ def lie_verlet_loop(D, C, S, W, have_w, velocity_free, pieces, fracs, closing, t
     rhs = np.empty(R_)  # noqa: F821
     nforce = 0
     op_velocity(D, S, N)  # noqa: F821
+    op_accumulate(D, C, S, N, dt, True)
     p0d, p0e = op_powers(D, C, N, t, K)  # noqa: F821
     done = 0
     for _ in range(nsteps):
@@ -140,6 +154,7 @@ def lie_verlet_loop(D, C, S, W, have_w, velocity_free, pieces, fracs, closing, t
         op_velocity(D, S, N)  # noqa: F821
         if not velocity_free:
             _damped(D, W, N)
+        op_accumulate(D, C, S, N, dt, False)
         t = t1
         done += 1
         p0d, p0e, diss, ext, blown = _book(D, C, S, N, t, dt, p0d, p0e, diss, ext, K, check, limit)
@@ -174,6 +189,7 @@ def euler_loop(D, C, S, geometric, t, dt, nsteps, diss, ext, check, limit):
     E = np.empty((R_, R_))  # noqa: F821
     xi = np.empty(R_)  # noqa: F821
     op_state_velocity(D, C, S, N, K)
+    op_accumulate(D, C, S, N, dt, True)
     p0d, p0e = op_powers(D, C, N, t, K)  # noqa: F821
     done = 0
     for _ in range(nsteps):
@@ -199,6 +215,7 @@ def euler_loop(D, C, S, geometric, t, dt, nsteps, diss, ext, check, limit):
         op_constrain(D, S)  # noqa: F821
         t = t + dt
         op_state_velocity(D, C, S, N, K)
+        op_accumulate(D, C, S, N, dt, False)
         done += 1
         p0d, p0e, diss, ext, blown = _book(D, C, S, N, t, dt, p0d, p0e, diss, ext, K, check, limit)
         if blown:
@@ -289,6 +306,8 @@ def rkmk_loop(D, C, S, A, b, c, dynamics, mode, gam_inv, N0, have, t, dt, nsteps
         known = mode == 1
     else:
         N[:, :] = 0.0
+    if mode == 0:
+        op_accumulate(D, C, S, N, dt, True)
     p0d, p0e = op_powers(D, C, N, t, K)  # noqa: F821
     done = 0
     for _ in range(nsteps):
@@ -344,6 +363,8 @@ def rkmk_loop(D, C, S, A, b, c, dynamics, mode, gam_inv, N0, have, t, dt, nsteps
         if mode == 0 or D.has_power:
             nforce += _stage_velocity(D, C, S, t, mode, gam_inv, N, W, K)
             known = mode == 1
+        if mode == 0:
+            op_accumulate(D, C, S, N, dt, False)
         done += 1
         p0d, p0e, diss, ext, blown = _book(D, C, S, N, t, dt, p0d, p0e, diss, ext, K, check, limit)
         if blown:
@@ -362,8 +383,8 @@ def loop_fragment() -> Fragment:
     """The loops and their helpers as one fragment of a generated module (``KINEMATIC_`` False:
     :func:`kinematic_fragment` sets it in the modules that carry a prescribed velocity)."""
     return Fragment(constants={"KINEMATIC_": False},
-                    source=njit_source(op_drive, op_state_velocity, op_state_force, _coad_exp, _blown, _damped, _book,
-                                       lie_verlet_loop, _lie_poisson, euler_loop, _kinematic_velocity,
+                    source=njit_source(op_drive, op_state_velocity, op_state_force, op_accumulate, _coad_exp, _blown,
+                                       _damped, _book, lie_verlet_loop, _lie_poisson, euler_loop, _kinematic_velocity,
                                        _stage_velocity, rkmk_loop))
 
 

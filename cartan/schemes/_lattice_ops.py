@@ -40,6 +40,12 @@ whose Lagrangian couples N and X (d = 1) rebinds them to the half-edge operators
 :func:`coupled_fragment` (the medium's ``m_coupled_velocity``, ``m_coupled_stress``) and serves
 those loops only (``OperatorSet.loops``, serially).
 
+Per-node accumulators (:mod:`cartan.accumulators`): a set of a medium whose point kernels give
+their rates (``m_accumulator_rate``) rebinds the loops' ``op_accumulate(D, C, S, N, dt, begin)``
+to :func:`op_accumulate_rates` (:func:`accumulate_fragment`, after the loops), the values and
+the last rates in the data (``acc``, ``acc_rate`` ``[a, n]``, moved by ``pack``/``unpack``), and
+names the loops that call it (``OperatorSet.accumulates``).
+
 Threaded build (``docs/performance.md``, "Threads"): :func:`threaded_fragment` adds
 ``op_x_threaded`` variants of ``op_work``, ``op_velocity``, ``op_constrain``, ``op_force``,
 ``op_move``, ``op_free_flow``, ``op_drift`` and ``op_kinetic`` (``prange`` over fixed chunks,
@@ -153,6 +159,9 @@ class LatticeData(NamedTuple):
     dcorner: np.ndarray = None  # [c] int64 the corners with one of those edges, increasing (coupled)
     dcptr: np.ndarray = None  # [k + 1] int64 CSR: ``dedge[p]``'s corners ``dcitem[dcptr[p]:dcptr[p + 1]]``
     dcitem: np.ndarray = None  # [·] int64 ``c·d + b``: row c of ``dcorner`` along axis b, increasing c
+    # Per-node accumulators (:func:`accumulate_fragment`; ``[0, n]`` without them)
+    acc: np.ndarray = None  # [a, n] the accumulators, loaded by ``pack`` and written back by ``unpack``
+    acc_rate: np.ndarray = None  # [a, n] their rates at the last state the loop accumulated at
 
 
 # ---------------------------------------------------------------------------- operators
@@ -956,6 +965,50 @@ def coupled_fragment() -> Fragment:
     return Fragment(source=njit_source(*_COUPLED) + "\n\n\n" + rebind + "\n")
 
 
+# ---------------------------------------------------------------------------- per-node accumulators
+# A medium that declares accumulators (``Medium.accumulators``, :mod:`cartan.accumulators`) and
+# their rates as a point kernel of the node's velocity (``MediumKernels.accumulator_rate``,
+# ``m_accumulator_rate``): :func:`accumulate_fragment` rebinds the loops' ``op_accumulate``
+# (:mod:`cartan.integrators.loops`) to :func:`op_accumulate_rates` after the loops
+# (``OperatorSet.late``).  The accumulators ride in the data (``D.acc`` ``[a, n]``: ``pack`` loads
+# them from the state, ``unpack`` writes them back), with the rates of the last state
+# (``D.acc_rate``), and are updated by the trapezoidal rule in the floating-point order of
+# :func:`cartan.accumulators.add`, ``a + (½Δt)(r_before + r_after)``.
+
+def op_accumulate_rates(D, C, S, N, dt, begin):
+    """``D.acc_rate`` ← the rates at velocity N (``m_accumulator_rate`` per node); unless
+    ``begin``, first ``D.acc += ½Δt (D.acc_rate + rates)``."""
+    A, R = D.acc, D.acc_rate
+    na = A.shape[0]
+    out = np.empty(na)
+    for i in range(N.shape[0]):
+        m_accumulator_rate(N[i], D.params, out)  # noqa: F821
+        for j in range(na):
+            if not begin:
+                A[j, i] = A[j, i] + 0.5 * dt * (R[j, i] + out[j])
+            R[j, i] = out[j]
+
+
+#: the loops that call ``op_accumulate`` (``lie-verlet``; ``lie-euler``, ``forward-euler``;
+#: ``rkmk4`` with momentum)
+ACCUMULATE_LOOPS = ("lie_verlet_loop", "euler_loop", "rkmk_loop")
+
+
+def accumulate_fragment() -> Fragment:
+    """:func:`op_accumulate_rates` and the rebinding of ``op_accumulate`` to it, to follow the
+    loops in a generated module (``OperatorSet.late``)."""
+    return Fragment(source=njit_source(op_accumulate_rates) + "\n\n\nop_accumulate = op_accumulate_rates\n")
+
+
+def _accumulated(medium, kernels) -> tuple[str, ...]:
+    """The names of the medium's accumulators the loops integrate: all it declares when its
+    kernels give their rates (``accumulator_rate``), else none (the numpy path)."""
+    from .. import accumulators
+
+    names = tuple(accumulators.declared(medium))
+    return names if names and getattr(kernels, "accumulator_rate", None) is not None else ()
+
+
 # ---------------------------------------------------------------------------- threaded build
 # The operators' passes over nodes, edges and corners as ``prange`` loops over fixed chunks of
 # ``TCHUNK_`` items (compiled with ``parallel=True`` in the threaded module only,
@@ -1513,10 +1566,16 @@ def lattice_operators(scheme, reference: type):
     data = data._replace(**_driven_data(scheme, data, n, r))
     keys = [scheme._key(a) for a in range(d)]
     frame_key = "Phi" if scheme.track else "Phi_root"
+    # per-node accumulators (not with driven ends, whose set serves the loops without the hook too)
+    acc_names = () if data.any_driven else _accumulated(medium, kernels)
+    acc_keys = [f"accumulator_{name}" for name in acc_names]  # (cartan.accumulators.key)
+    data = data._replace(acc=np.zeros((len(acc_names), n)), acc_rate=np.zeros((len(acc_names), n)))
 
     def pack(state):
         G = np.concatenate([np.asarray(state.arrays[k], dtype=float).reshape(-1, m, m) for k in keys])
         Phi = np.ascontiguousarray(state.arrays[frame_key], dtype=float).reshape(-1, m, m).copy()
+        for j, k in enumerate(acc_keys):
+            data.acc[j] = np.asarray(state.arrays[k], dtype=float).reshape(n)
         return (np.ascontiguousarray(G), Phi)
 
     def unpack(state, C):
@@ -1528,26 +1587,31 @@ def lattice_operators(scheme, reference: type):
             state.arrays[k] = G[start:start + count].reshape(shape_k).copy()
             start += count
         state.arrays[frame_key] = Phi.reshape(state.arrays[frame_key].shape).copy()
+        for j, k in enumerate(acc_keys):
+            state.arrays[k] = data.acc[j].reshape(shape).copy()
 
     def accepts(state) -> bool:
-        return set(state.arrays) == {*keys, frame_key}
+        return set(state.arrays) == {*keys, frame_key, *acc_keys}
 
     fragments = [group.point_kernels(), medium_fragment(kernels),
                  Fragment(imports={"LatticeData": (__name__, "LatticeData")},
                           constants={"D_": d, "R_": r, "M_": m, "FCHUNK_": FLOW_CHUNK},
                           source=njit_source(*_OPERATORS, *_HELD))]
     label, key = f"lattice × {group!r} × {medium.name}", f"lattice-{group!r}-{kernel_stem(kernels)}"
+    acc_late, acc_stem = ([accumulate_fragment()], "-acc") if acc_names else ([], "")
     if scheme.coupled_lagrangian:  # (d = 1, no driven ends or held components: the scheme refuses them)
         check_coupled_kernels(medium, kernels, r)
-        return OperatorSet(label=label + " (coupled Lagrangian)", key=key + "-coupled", fragments=fragments,
-                           data=data, pack=pack, unpack=unpack, accepts=accepts, nodes=n, late=[coupled_fragment()],
-                           reason=COUPLED_REASON, loops=COUPLED_LOOPS)
+        return OperatorSet(label=label + " (coupled Lagrangian)", key=key + "-coupled" + acc_stem, fragments=fragments,
+                           data=data, pack=pack, unpack=unpack, accepts=accepts, nodes=n,
+                           late=[coupled_fragment(), *acc_late], reason=COUPLED_REASON, loops=COUPLED_LOOPS,
+                           accumulates=COUPLED_LOOPS if acc_names else ())
     if data.any_driven:  # (no threaded build: its passes over the nodes know no driven node)
         return OperatorSet(label=label + " (driven ends)", key=key + "-driven", fragments=fragments, data=data,
                            pack=pack, unpack=unpack, accepts=accepts, nodes=n, late=[driven_fragment()],
                            reason=DRIVEN_REASON, loops=DRIVEN_LOOPS)
-    return OperatorSet(label=label, key=key, fragments=fragments, data=data, pack=pack, unpack=unpack,
-                       accepts=accepts, nodes=n, threaded=[threaded_fragment()])
+    return OperatorSet(label=label, key=key + acc_stem, fragments=fragments, data=data, pack=pack, unpack=unpack,
+                       accepts=accepts, nodes=n, threaded=[threaded_fragment()], late=acc_late,
+                       accumulates=ACCUMULATE_LOOPS if acc_names else ())
 
 
 #: the loops that move driven ends (``lie-verlet``, ``lie-euler``, ``rkmk4``, ``overdamped``, ``rattle``,

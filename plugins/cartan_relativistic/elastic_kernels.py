@@ -252,13 +252,23 @@ def coupled_stress_point(S, X, N, prm, Q):  # pragma: no cover - compiled
     stress_point(N[1:4], X[0, 1:4], int(prm[0]), prm[4:], prm[1], prm[2], Q[0, 1:4])
 
 
+@njit(cache=True)
+def proper_time_rate_point(N, prm, out):  # pragma: no cover - compiled
+    """dτ/dt = √(1 − |v⃗|²/c²) at one node, v⃗ = N[1:4], into ``out[0]`` (the rate of the
+    accumulator ``proper_time``, ``accumulator_rates``; in its floating-point order)."""
+    c = prm[2]
+    s = N[1] * N[1] + N[2] * N[2] + N[3] * N[3]
+    out[0] = math.sqrt(max(1.0 - s / (c * c), 0.0))
+
+
 #: Newton iterations of the compiled Legendre map (as :func:`cartan_relativistic.elastic.temporal_velocity`)
 ITERATIONS = 40
 
 
 def medium_kernels(law: Any, mu: float, c: float):
     """The :class:`cartan.medium.MediumKernels` of the elastic string with the law ``law``
-    (potential and coupled kernels, parameters (kind, μc², c, iterations, law parameters…)),
+    (potential and coupled kernels, the rate of the proper time, parameters (kind, μc², c,
+    iterations, law parameters…)),
     or None for a law without kernels (:func:`law_kernel`)."""
     from cartan.medium import MediumKernels
 
@@ -268,4 +278,4 @@ def medium_kernels(law: Any, mu: float, c: float):
     kind, prm = found
     params = np.concatenate([[float(kind), float(mu) * float(c) ** 2, float(c), float(ITERATIONS)], prm])
     return MediumKernels(energy_point, potential_stress_point, params, coupled_velocity=coupled_velocity_point,
-                         coupled_stress=coupled_stress_point)
+                         coupled_stress=coupled_stress_point, accumulator_rate=proper_time_rate_point)

@@ -82,7 +82,8 @@ class ElasticRelativisticRod(RelativisticRod):
         Stretches 0 < λ_min < λ_max over which the law is checked as well (201 points).
     clocks : bool, optional
         Accumulate each node's proper time in the run (default True: the output
-        ``proper_time``; docs §4).
+        ``proper_time``; docs §4), in the compiled loops too (the rate kernel of
+        :func:`cartan_relativistic.elastic_kernels.medium_kernels`).
 
     Notes
     -----
@@ -244,10 +245,11 @@ class ElasticRelativisticRod(RelativisticRod):
         return X0
 
     def point_kernels(self) -> MediumKernels | None:
-        """The potential U = H(0, X) and the coupled kernels (the Legendre map and the Hamiltonian
-        stress at one half-edge) of the built-in laws (:func:`cartan_relativistic.elastic_kernels.medium_kernels`):
-        the generated loops of ``rkmk4``, ``lie-euler`` and ``forward-euler`` then run the string
-        compiled (docs §3).  None for a law without kernels (a registered user law, bare
+        """The potential U = H(0, X), the coupled kernels (the Legendre map and the Hamiltonian
+        stress at one half-edge) and the proper time's rate of the built-in laws
+        (:func:`cartan_relativistic.elastic_kernels.medium_kernels`): the generated loops of
+        ``rkmk4``, ``lie-euler`` and ``forward-euler`` then run the string compiled, its clocks
+        included (docs §3).  None for a law without kernels (a registered user law, bare
         callables): the numpy path."""
         from .elastic_kernels import medium_kernels
 

@@ -150,8 +150,9 @@ class RelativisticRod(KernelMedium):
     clocks : bool, optional
         Accumulate each node's proper time τ in the run (the output ``proper_time``
         ``(time, node)``, continued exactly by restarts; :mod:`cartan.accumulators`).  Default:
-        off for the Nambu–Goto string (the accumulator steps on the numpy path, not the
-        compiled loops), on for the elastic string (numpy path anyway).
+        off for the Nambu–Goto string (its rate needs the node's Lorentz frame: the
+        accumulator steps on the numpy path, not the compiled loops), on for the elastic string
+        (its compiled loops integrate it, docs §3).
 
     Notes
     -----
