@@ -24,7 +24,7 @@ from cartan_relativistic.string import RelativisticRod
 from numba import njit
 
 import cartan
-from cartan.integrators.explicit import RKMK4, LieEuler, LieVerlet
+from cartan.integrators.explicit import RKMK4, LieEuler
 from cartan.medium import MediumKernels
 from cartan.schemes.lattice import Lattice
 
@@ -83,19 +83,6 @@ def test_rate_kernel_is_accumulator_rates_bit_for_bit():
 
 
 # ---------------------------------------------------------------------------- slow: compiled loops
-def _spy(monkeypatch, cls):
-    """Record what ``cls.run_compiled_loop`` returns (whether the generated loop took the steps)."""
-    calls = []
-    original = cls.run_compiled_loop
-
-    def spy(self, *args, **kwargs):
-        calls.append(original(self, *args, **kwargs))
-        return calls[-1]
-
-    monkeypatch.setattr(cls, "run_compiled_loop", spy)
-    return calls
-
-
 def _same(a, b, keys=None):
     """Every saved field (or those of ``keys``) of two runs agrees to 1e-12 of its scale
     (round-off; see the module)."""
@@ -108,9 +95,9 @@ def _same(a, b, keys=None):
 @pytest.mark.slow
 @pytest.mark.parametrize("kind", ["clamped", "ring"])
 @pytest.mark.parametrize(("name", "cls"), [("rkmk4", RKMK4), ("lie-euler", LieEuler)])
-def test_compiled_run_with_clocks_is_the_numpy_run(monkeypatch, name, cls, kind):
+def test_compiled_run_with_clocks_is_the_numpy_run(generated_runs, name, cls, kind):
     problem = _problem(kind)
-    calls = _spy(monkeypatch, cls)
+    calls = generated_runs
     kw = dict(integrator=name, dt=0.01, t_end=0.2, save_every=5, progress=False)
     compiled = cartan.simulate(problem, **kw)
     assert calls and all(calls)  # every block ran in the generated loop
@@ -131,11 +118,11 @@ def test_compiled_run_with_clocks_is_the_numpy_run(monkeypatch, name, cls, kind)
 
 
 @pytest.mark.slow
-def test_compiled_run_with_clocks_restarts_bit_for_bit(tmp_path, monkeypatch):
+def test_compiled_run_with_clocks_restarts_bit_for_bit(tmp_path, generated_runs):
     """8 steps in one block, and 4 steps then continued from the checkpoint (the rates computed
     afresh from the state there, as the loop kept them): the state and the accumulated proper time
     agree bit for bit, every block in the generated loop."""
-    calls = _spy(monkeypatch, RKMK4)
+    calls = generated_runs
     kw = dict(integrator="rkmk4", dt=0.02, progress=False)
     whole = cartan.simulate(_problem("ring"), t_end=0.16, save_every=8, **kw)
     cartan.simulate(_problem("ring"), t_end=0.08, save_every=4, output=tmp_path / "part.nc", **kw)
@@ -171,7 +158,7 @@ class _Timed(RelativisticRod):
 
 
 @pytest.mark.slow
-def test_lie_verlet_loop_integrates_accumulators(monkeypatch):
+def test_lie_verlet_loop_integrates_accumulators(generated_runs):
     """The loop of ``lie-verlet`` (a medium without coupled Lagrangian, the plain operator set):
     the compiled run is the numpy run to round-off (the loop and the numpy step agree to round-off
     on the state; the accumulator's rate and update are the same operations): the state, the
@@ -181,7 +168,7 @@ def test_lie_verlet_loop_integrates_accumulators(monkeypatch):
     grid = cartan.Grid(16, length=2 * math.pi, periodic=True)
     problem = cartan.Problem(med, grid, med.initial_state(grid, "loop"))
     assert Lattice(problem).compiled_operators().accumulates == ("lie_verlet_loop", "euler_loop", "rkmk_loop")
-    calls = _spy(monkeypatch, LieVerlet)
+    calls = generated_runs
     kw = dict(integrator="lie-verlet", dt=grid.spacing[0] / 2, t_end=0.5, save_every=4, progress=False)
     compiled = cartan.simulate(problem, **kw)
     assert calls and all(calls)

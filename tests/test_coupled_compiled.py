@@ -20,7 +20,7 @@ from cartan_relativistic.elastic import ElasticLaw
 from cartan_relativistic.string import RelativisticRod
 
 import cartan
-from cartan.integrators.explicit import RKMK4, ForwardEuler, LieEuler, Overdamped
+from cartan.integrators.explicit import RKMK4, LieEuler, Overdamped
 from cartan.schemes.lattice import Lattice
 
 pytestmark = pytest.mark.filterwarnings("ignore::cartan.StabilityWarning")
@@ -80,26 +80,13 @@ def test_integrators_without_momentum_decline_a_coupled_lagrangian():
 
 
 # ---------------------------------------------------------------------------- slow: compiled loops
-def _spy(monkeypatch, cls):
-    """Record what ``cls.run_compiled_loop`` returns (whether the generated loop took the steps)."""
-    calls = []
-    original = cls.run_compiled_loop
-
-    def spy(self, *args, **kwargs):
-        calls.append(original(self, *args, **kwargs))
-        return calls[-1]
-
-    monkeypatch.setattr(cls, "run_compiled_loop", spy)
-    return calls
-
-
 @pytest.mark.slow
 @pytest.mark.parametrize("kind", ["free", "clamped", "ring"])
 @pytest.mark.parametrize("law", list(LAWS))
 @pytest.mark.parametrize(("name", "cls"), [("rkmk4", RKMK4), ("lie-euler", LieEuler)])
-def test_compiled_coupled_run_is_the_numpy_run(monkeypatch, name, cls, law, kind):
+def test_compiled_coupled_run_is_the_numpy_run(generated_runs, name, cls, law, kind):
     problem = _problem(kind, law)
-    calls = _spy(monkeypatch, cls)
+    calls = generated_runs
     kw = dict(integrator=name, dt=0.01, t_end=0.2, save_every=5, progress=False)
     compiled = cartan.simulate(problem, **kw)
     assert calls and all(calls)  # every block ran in the generated loop
@@ -115,11 +102,11 @@ def test_compiled_coupled_run_is_the_numpy_run(monkeypatch, name, cls, law, kind
 
 
 @pytest.mark.slow
-def test_forward_euler_runs_the_coupled_string_compiled(monkeypatch):
+def test_forward_euler_runs_the_coupled_string_compiled(generated_runs):
     """forward-euler shares lie-euler's loop (naive drift, S += Δt Ṡ): the same run as numpy
     over 10 steps (unstable at every Δt, so a short run)."""
     problem = _problem("clamped", "quartic")
-    calls = _spy(monkeypatch, ForwardEuler)
+    calls = generated_runs
     kw = dict(integrator="forward-euler", dt=0.005, t_end=0.05, save_every=5, progress=False)
     compiled = cartan.simulate(problem, **kw)
     assert calls and all(calls)
