@@ -42,6 +42,7 @@ Glued axes (a chart closed over poles, :class:`~cartan.grid.Grid` ``glued``; the
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from typing import Any
 
 import numpy as np
@@ -76,8 +77,12 @@ class HeldFunctional:
       taken from it;
     * the term μ ∂²C of the Jacobian is the coloured central difference of ``μ·gradient`` on the
       lattice's force stencil: exact for a functional whose gradient at a node reads that node's
-      stencil; a global coupling (e.g. through the mean position of all nodes) is left out of the
-      Jacobian and Newton then contracts linearly by a factor of order μ times that coupling.
+      stencil.  A global coupling (e.g. through the mean position of all nodes) is not on the
+      stencil: a functional that has one declares it by :meth:`hessian_parts` (the gradient with
+      the global quantities frozen, differenced on the stencil, plus an exact rank-k rest U Vᵀ,
+      which the solve adds by the Sherman–Morrison–Woodbury identity, as a load's
+      :meth:`cartan.problem.Load.jacobian_parts`); without it the coupling is left out of the
+      Jacobian and Newton contracts linearly by a factor of order μ times that coupling.
 
     Parameters
     ----------
@@ -113,6 +118,21 @@ class HeldFunctional:
     def gradient(self, scheme: Any, state: Any) -> np.ndarray:
         """∂C/∂η_i ``[*shape, r]`` (body components, the drift Φ_i ← Φ_i exp(η_i)), exact."""
         raise NotImplementedError(f"{type(self).__name__}.gradient")
+
+    def hessian_parts(self, scheme: Any, state: Any) -> tuple[Callable[[Any], np.ndarray], np.ndarray,
+                                                                np.ndarray] | None:
+        """The Hessian ∂²C along the drifts at ``state`` split as a stencil part and a rank-k rest,
+        or None (default: the whole of :meth:`gradient` is differenced on the stencil).
+
+        Returns
+        -------
+        frozen : callable
+            A state → ``[*shape, r]``: the gradient with its global quantities held at their values
+            at ``state``, so that it reads each node's stencil only.
+        U, V : arrays ``[*shape, r, k]``
+            ``∂²C = ∂frozen/∂η + U Vᵀ`` (nodes and components flattened in C order).
+        """
+        return None
 
     def start(self, scheme: Any, state: Any) -> tuple[float, float]:
         """(C₀, s) at the starting configuration: the given target and scale, or their defaults."""

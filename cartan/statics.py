@@ -773,9 +773,11 @@ class _Equilibrium:
         return react, (self.hold_target - self.hold_values(state)) / self.hold_scale
 
     def _hold_jacobian(self, state: Any, nu: np.ndarray):
-        """The held functionals' part of the Jacobian ``(m, m)``: the columns and rows ``−g_k``
-        and, for multipliers μ_k ≠ 0, ``−Σ μ_k ∂²C_k`` by coloured central differences of the
-        gradients on the force stencil (:class:`~cartan.constraints.HeldFunctional`)."""
+        """The held functionals' part of the Jacobian: ``(J, low)``, J ``(m, m)`` the columns and
+        rows ``−g_k`` and, for multipliers μ_k ≠ 0, ``−Σ μ_k ∂²C_k`` by coloured central
+        differences of the gradients on the force stencil (of the frozen gradients of those with
+        :meth:`~cartan.constraints.HeldFunctional.hessian_parts`, whose rank-k rests ``−μ_k U_k V_kᵀ``
+        are ``low`` = (U, V) ``(m, k)`` each, None without any)."""
         import scipy.sparse as sp
 
         G = -self._hold_gradients(state)
@@ -785,17 +787,40 @@ class _Equilibrium:
                            (np.concatenate([rows, o + cols]), np.concatenate([o + cols, rows]))),
                           shape=(self.m, self.m))
         mu = nu / self.hold_scale
+        low = None
         if np.any(mu):
+            grads, Us, Vs = [], [], []
+            for h, m_ in zip(self.holds, mu, strict=True):
+                if not m_:
+                    continue
+                parts = h.hessian_parts(self.sch, state)
+                if parts is None:
+                    grads.append((lambda trial, h=h: h.gradient(self.sch, trial), m_))
+                    continue
+                frozen, U, V = parts
+                k = np.shape(U)[-1]
+                if np.shape(U) != (*self.shape, self.r_dim, k) or np.shape(V) != np.shape(U):
+                    raise ValueError(f"{type(h).__name__}.hessian_parts must return U and V of one shape "
+                                     f"{(*self.shape, self.r_dim, 'k')}, got {np.shape(U)} and {np.shape(V)}")
+                grads.append((frozen, m_))
+                rest = np.zeros((self.m, k))
+                Us.append(rest.copy())
+                Us[-1][: self.nunk] = -m_ * np.asarray(U, dtype=float).reshape(self.nnode, self.r_dim, k)[
+                    self.unknown_flat]
+                rest[: self.nunk] = np.asarray(V, dtype=float).reshape(self.nnode, self.r_dim, k)[self.unknown_flat]
+                Vs.append(rest)
+
             def reaction(trial: Any) -> np.ndarray:
                 out = np.zeros((*self.shape, self.r_dim))
-                for h, m_ in zip(self.holds, mu, strict=True):
-                    if m_:
-                        out -= m_ * h.gradient(self.sch, trial)
+                for gradient, m_ in grads:
+                    out -= m_ * gradient(trial)
                 return out
 
             H = sp.csc_matrix(self._fd(state, reaction))
             J = J + sp.block_diag([H, sp.csc_matrix((self.nmult, self.nmult))], format="csc")
-        return J
+            if Us:
+                low = (np.concatenate(Us, axis=1), np.concatenate(Vs, axis=1))
+        return J, low
 
     def _constraint_matrix(self, state: Any):
         """``B_c = ∂(X_e[k])/∂δ`` ``(ncon, nunk)``: the constrained rows of the strain rate
@@ -1441,7 +1466,11 @@ class _Equilibrium:
                 if self.dependent_constraints:
                     J = J + self._constraint_regularisation(state, K)
             if self.nhold:
-                J = J + self._hold_jacobian(state, mu[self._held])
+                Jh, low_h = self._hold_jacobian(state, mu[self._held])
+                J = J + Jh
+                if low_h is not None:
+                    low = low_h if low is None else tuple(
+                        np.concatenate([_padded(a, self.m), b], axis=1) for a, b in zip(low, low_h, strict=True))
             J = J.tocsc()
         return (J, low) if low_rank else J
 
@@ -1985,6 +2014,11 @@ def _lu_solve(K, order: np.ndarray | None = None) -> Callable[[np.ndarray], np.n
     except RuntimeError as exc:
         raise _Singular(str(exc)) from None
     return lu.solve
+
+
+def _padded(x: np.ndarray, m: int) -> np.ndarray:
+    """``x`` ``(p, k)`` with zero rows appended to ``(m, k)`` (the multipliers' rows)."""
+    return x if x.shape[0] == m else np.concatenate([x, np.zeros((m - x.shape[0], x.shape[1]))])
 
 
 def _low_rank_solve(solve: Callable[[np.ndarray], np.ndarray], low: tuple[np.ndarray, np.ndarray] | None

@@ -467,8 +467,10 @@ class HeldVolume(HeldFunctional):
     :class:`cartan_cosserat_surface.surface.VolumePressure` (the corner quadrature measured from
     the mean node position; :func:`surface_measures`), so the equilibrium of E + μ(V − V₀) is that
     of the problem under an added ``VolumePressure(−μ)``.  The gradient reads every node through
-    the mean position: the Jacobian's μ∂²V is the stencil part (Newton contracts linearly by a
-    factor of order |μ|/n)."""
+    the mean position r̄ and the sum a = Σ_i R_i c_i: :meth:`hessian_parts` gives ∂²V as the
+    gradient with r̄ and a frozen (differenced on the stencil) plus the exact rank-6 rest of
+    :meth:`~cartan_cosserat_surface.surface.VolumePressure.jacobian_parts`, so the Jacobian's
+    μ∂²V is whole and Newton converges quadratically."""
 
     name = "volume"
 
@@ -493,8 +495,14 @@ class HeldVolume(HeldFunctional):
     def gradient(self, scheme: Any, state: Any) -> np.ndarray:
         return self._measure(scheme, state)[1].copy()
 
+    def hessian_parts(self, scheme: Any, state: Any) -> tuple[Any, np.ndarray, np.ndarray]:
+        """∂²V_h = ∂(frozen gradient)/∂η + U Vᵀ: the unit pressure's
+        :meth:`~cartan_cosserat_surface.surface.VolumePressure.jacobian_parts` (force densities
+        per reference volume w_i J_i) times the nodes' volumes."""
+        frozen, U, V = self._load.jacobian_parts(scheme.frames(state), state.t)
+        vol = np.asarray(self._load.volumes, dtype=float)
+        return (lambda trial: frozen(scheme.frames(trial)) * vol[..., None]), U * vol[..., None, None], V
 
-# ====================================================================== the flow
 class Tether(PotentialLoad):
     """U = ½k|r − r̄|² per unit reference area at every node (the lattice weighs it with its node
     weights w_i J_i): the L² dissipation D = Σ w_i J_i |r_i − r̄_i|²/(2τ) of a minimizing-movement
