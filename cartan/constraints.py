@@ -493,12 +493,23 @@ class NodalStrainConstraints:
     discretization error, second order in h (docs/integrators.md, "rattle on the collocation
     scheme").  The multipliers ν are those of the held rows; ``Tν`` the nodal ones.
 
+    The SVD takes the live components of every node as columns, whatever the supports: the
+    combinations left out are the operator's own (the odd–even mode of each open line, the
+    same with clamped, free and :class:`~cartan.problem.Held` ends or
+    :class:`~cartan.problem.Symmetry` faces).  A dependence that only the supports add at the
+    straight reference — between two ends that hold the translations, the weighted stretch
+    Σ w(X₁ − 1), the length between them — is a real constraint on a slack (curved) shape and
+    stays held (leaving it out would let the length drift: 2.6e-4 of uniform stretch in
+    t = 0.4 on a clamped–clamped arc at n = 11); the multiplier system is then singular at a
+    straight shape between such supports, as the lattice's.
+
     Parameters
     ----------
     scheme : Collocation
         The scheme (its ``D``, ``grid``, ``group``).
     unknown : array of bool ``[*shape, r]``
-        The node components that move (live, not clamped).
+        The node components that move (live, not clamped, not held by a
+        :class:`~cartan.problem.Held` end or a :class:`~cartan.problem.Symmetry` face).
     state : State
         A state of the scheme at which the medium's stress is probed (the stress must not
         depend on a constrained component).
@@ -584,11 +595,14 @@ class NodalStrainConstraints:
         self._ad_cols = np.broadcast_to((ia[:, 0] * r)[:, None, None] + np.arange(r), self._ad_rows.shape)
         self._ia = ia
         # the held combinations: the nodal rows less their dependent ones at the reference strains
-        # X[comp] = value, X = 0 elsewhere (the straight, untwisted state: the odd–even modes)
+        # X[comp] = value, X = 0 elsewhere (the straight, untwisted state: the odd–even modes), on
+        # the live components of every node, supports or not ("Rank": a dependence the supports
+        # add is physical and kept)
         self.nrow = self.ncon
         Xref = np.zeros((nnode, d, r))
         Xref[..., comp] = val
-        Bref = self._full(Xref)[:, self.unknown_flat].toarray()
+        live_cols = np.tile(np.asarray(scheme.live, dtype=bool).reshape(-1), nnode)
+        Bref = self._full(Xref)[:, live_cols].toarray()
         U, sv, _ = np.linalg.svd(Bref)
         rank = int(np.sum(sv > 1e-10 * (sv[0] if sv.size else 0.0)))
         if rank < self.nrow:
@@ -684,7 +698,11 @@ class NodalStrainConstraints:
 
     def fixed_force(self, state: Any, nu: np.ndarray) -> np.ndarray:
         """``[nnode, r]``: ``B_cᵀν`` on the components that are not unknowns (zero on the
-        unknowns): the constraint force the clamps balance."""
+        unknowns), ν ``(ncon,)`` the held rows' multipliers: the constraint force the supports
+        balance (clamped nodes, held components), an impulse per unit time like ``wW`` (the
+        rows' force on a support node is the weak form ``Lᵀ`` of the nodal multipliers ``Tν``,
+        L = D_α + ad_{X_α}; :meth:`Rattle.support_reaction
+        <cartan.integrators.constrained.Rattle.support_reaction>` subtracts it)."""
         out = np.zeros(self.index.shape)
         if self.ncon:
             out = (self.full_matrix(state).T @ np.asarray(nu, dtype=float)).reshape(self.index.shape)

@@ -322,9 +322,16 @@ class Rattle(LieVerlet):
         ``B_cᵀλ`` (λ the force-level multipliers at ``state``: the rows' tension and shear on the
         edges that end there), which the support balances too.
 
+        On the ``collocation`` scheme W is its raw force (``force(raw=True)``: the clamped
+        end's stress enters as a free end's natural-condition term, so that ``−wW`` is the
+        weak-form force ``Lᵀ(wQ)`` less the loads, w the SBP weights) and ``B_cᵀλ`` the nodal
+        rows' (:meth:`~cartan.constraints.NodalStrainConstraints.fixed_force`); its reaction
+        balances the loads to the scheme's O(h²) (the discrete D has no product rule:
+        docs/integrators.md, "rattle on the collocation scheme"), the lattice's to round-off.
+
         Parameters
         ----------
-        scheme : Lattice
+        scheme : Lattice or Collocation
         state : State
 
         Returns

@@ -475,16 +475,12 @@ class Collocation(Scheme):
         """:meth:`Scheme.constraint_rows` on the nodal strains: one row per node, axis and held
         component, ``c = X_{α,i}[k] − value_k``, with ``B_c δ = [D_α δ + ad_{X_α} δ]_k`` of the
         compatibility equation (paper §III), less the combinations dependent at the straight
-        reference (the odd–even mode of each open line:
-        :class:`cartan.constraints.NodalStrainConstraints`, "Rank").  ``ValueError`` with
-        :class:`~cartan.problem.Held` ends or :class:`~cartan.problem.Symmetry` faces: the
-        dependent combinations are found for clamped and free ends only (``rattle`` runs them
-        on scheme='lattice')."""
+        reference (the odd–even mode of each open line, found with every live component free:
+        :class:`cartan.constraints.NodalStrainConstraints`, "Rank").  Clamped, free and
+        :class:`~cartan.problem.Held` ends and :class:`~cartan.problem.Symmetry` faces: the held
+        components are columns left out of ``B_c``, as a clamped node's."""
         from ..constraints import NodalStrainConstraints
 
-        if self._clamped.ndim > self.grid.d:
-            raise ValueError("boundaries: integrator 'rattle' on the collocation scheme takes Clamped and Free ends; "
-                             "a Held end or a Symmetry face (held components) runs on scheme='lattice'")
         return NodalStrainConstraints(self, unknown, state)
 
     # ------------------------------------------------------------------ state
@@ -537,17 +533,87 @@ class Collocation(Scheme):
             W *= self._inv_volume[..., None]
         return W
 
-    def force(self, state: State, N: np.ndarray, t: float) -> np.ndarray:
+    def force(self, state: State, N: np.ndarray, t: float, raw: bool = False) -> np.ndarray:
+        """The force density W ``[*shape, r]`` (:meth:`internal_force` plus the loads and the
+        medium's body force), zero at the clamped nodes and held components.
+
+        ``raw``: not zeroed there, and at the clamped ends with the natural condition's term
+        ``−n_α Q^α/H_end`` of an unloaded end (:meth:`_clamped_traction`), so that ``wW`` is the
+        force of the body and the loads on the held components, ``−Lᵀ(wQ)`` plus the loads (the
+        supports balance it: :meth:`support_reaction`)."""
         Phi = self.frames(state) if self.problem.needs_structure_field else None
         W = self.internal_force(state, Phi)
+        if raw:
+            W += self._clamped_traction(state)
         for load in self.problem.loads:
             W += load.force(Phi, N, t)
         T = self.medium.body_force(Phi, N, t)
         if T is not None:
             W += T
-        W[self._clamped] = 0.0
+        if not raw:
+            W[self._clamped] = 0.0
         W[..., ~self.live] = 0.0
         return W
+
+    def _clamped_traction(self, state: State) -> np.ndarray:
+        """``[*shape, r]``: ``−n_α Q^α/H_end`` at the nodes of the clamped ends (per unit reference
+        volume on a general chart), zero elsewhere.
+
+        With it the clamped nodes' force is the weak form of a free end's, ``wW = −Lᵀ(wQ)`` plus
+        the loads (L = D_α + ad_{X_α}, summation by parts: ``H D + (H D)ᵀ = diag(−1, 0, …, 0,
+        1)``), i.e. minus the derivative of the energy Σ w U(X) along the clamped node's drift —
+        the force the body exerts on it.  Without it the strong-form density ``D_αQ^α − ad_Xᵀ Q``
+        at the node, times its weight O(h), misses the end's stress: the traction the clamp
+        transmits (paper §IV.D, ``n_α Q^α = P`` with P the support's load)."""
+        W = np.zeros((*self.grid.shape, self.group.dim))
+        ends = []
+        for axis, D in enumerate(self.D):
+            if self.grid.periodic[axis]:
+                continue
+            for side, idx, sign in (("start", 0, -1.0), ("end", -1, 1.0)):
+                if isinstance(self.problem.boundary(axis, side), Clamped):
+                    sl = [slice(None)] * self.grid.d
+                    sl[axis] = idx
+                    ends.append((axis, tuple(sl), sign, float(D.norm()[idx])))
+        if not ends:
+            return W
+        X = state.arrays["X"]
+        Q = self.medium.stress(X) if self.rest is None else self.medium.stress_at(X, self.rest)
+        for axis, idx, sign, H_end in ends:
+            W[idx] -= sign * Q[idx][..., axis, :] / H_end
+        if self._inv_volume is not None:
+            W *= self._inv_volume[..., None]
+        return W
+
+    def support_reaction(self, state: State, N: np.ndarray | None = None, t: float | None = None) -> np.ndarray:
+        """The supports' reaction on their wholly held (clamped) nodes ``[*shape, r]``, body
+        components; zero at the other nodes.
+
+        As :meth:`Scheme.support_reaction <cartan.schemes.base.Scheme.support_reaction>`, the
+        balance of a node whose momentum stays zero, ``R = −w(W + ad_NᵀS)``, with W the
+        :meth:`force` with ``raw=True`` (the clamped end's natural-condition term included:
+        the end's stress is the traction the clamp transmits) and w the node's weight, the SBP
+        quadrature weight (times J on a general chart).  The collocation scheme moves no
+        :class:`~cartan.problem.Driven` end (:attr:`supports_driven_ends` stays False).
+
+        Parameters
+        ----------
+        state : State
+        N : numpy.ndarray, shape ``[*shape, r]``, optional
+            The velocity (default :meth:`velocity` of ``state``).
+        t : float, optional
+            The time of the forces (default ``state.t``).
+
+        Returns
+        -------
+        numpy.ndarray ``[*shape, r]``
+        """
+        N = self.velocity(state) if N is None else N
+        W = self.force(state, N, state.t if t is None else t, raw=True)
+        R = -self.weights[..., None] * (W + np.einsum("...ji,...j->...i", self.group.ad(N), state.S))
+        R[~self.held_nodes()] = 0.0
+        R[..., ~self.live] = 0.0
+        return R
 
     def _boundary_power(self, state, N, Phi):
         p = 0.0
