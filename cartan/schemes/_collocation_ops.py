@@ -17,7 +17,8 @@ Force (paper §IV balance law, §V ``W = D*_u Q + T``)
     ``W_i = Σ_α (∂_αQ^α)_i − ad_{X_iα}ᵀ Q_i^α`` with ``Q_i = ∂U/∂X(X_i; X0_i)`` from the
     medium's point kernel (all axes at once: axis-coupled energies are node-local here), the
     free-end penalties ``(P − n_α Q^α)/H_end`` (paper §IV.D), damping ``−ΓN``, a body-frame
-    force, a constant field ``Rᵀρf``; zero at clamped nodes and on gauge components.
+    force, a constant field ``Rᵀρf``; zero at clamped nodes, on held components and on gauge
+    components.
 Drift (paper §V, Eq. (X LGI))
     ``X_α ← Ad_{exp(−τN)} X_α + 𝓔(τ, −N) ∂_αN``, ``Φ ← Φ exp(τN)``; the naive update
     ``X_α ← X_α + τ(∂_αN − ad_N X_α)``, ``Φ ← Φ + τΦN̂``.
@@ -28,12 +29,23 @@ Move
     compose into one move: ``op_move`` after several free-flow pieces is not the reference's
     piece-by-piece drift (it is for one piece, e.g. an abelian group).  ``op_free_flow(D, C, S,
     pieces, fracs, dt, Dn, K)`` takes ``lie-verlet``'s free flow as the reference does: each
-    piece's momentum update and exact drift in turn.
+    piece's momentum update and exact drift in turn (N_p zero at clamped nodes and on held
+    components).
 Energies
     ``op_potential``: ``Σ_i w_i U(X_i; X0_i) − Σ_i w_i J_i ρf·x_i``; ``op_kinetic``:
     ``½Σ_i w_i J_i S_i·M⁺S_i`` over the unclamped nodes (``Scheme.kinetic_energy``); J_i = 1
     but on a general chart (the medium's reference volume, ``Collocation.weights``), where the
     internal force is divided by J_i too.
+Held components (``Held`` ends, ``Symmetry`` faces; paper §IV.D)
+    ``held`` ``[n, r]`` is the scheme's clamp mask (``Scheme._clamp_mask``, all r at clamped
+    nodes), ``clamped`` its rows that hold every component, ``any_held`` whether a node holds
+    some components and not all, as on the lattice (:mod:`cartan.schemes._lattice_ops`, "Held
+    components"): the velocity, the momentum's constraint and the force are zero on the held
+    components, ``lie-verlet``'s free flow moves a node along its free components only (N_p
+    zero on the held ones, as the reference's ``N = M⁺S`` zeroed there), and the kinetic
+    energy of a partly held node is ``½ w N·MN`` with those N (``metric`` M).  The free
+    components of a held end or a symmetry face take the penalty of an unloaded free end
+    (P = 0: ``end_loaded`` False, no power), as ``Collocation._end_load`` does.
 """
 
 from __future__ import annotations
@@ -86,9 +98,9 @@ class CollocationData(NamedTuple):
     live: np.ndarray  # [r] bool
     clamped: np.ndarray  # [n] bool
     any_clamped: bool
-    held: np.ndarray  # [n, r] bool, the clamp mask per component (the shared operators' field; nothing beyond clamps)
-    any_held: bool  # False: the collocation scheme declines Held ends and Symmetry faces
-    metric: np.ndarray  # [r, r] the kinetic metric M (the shared kinetic energy's partly held nodes: none here)
+    held: np.ndarray  # [n, r] bool, the held components (Held ends, Symmetry faces; all r at clamped nodes)
+    any_held: bool  # a node holds some of its components and not all (else ``clamped`` says everything)
+    metric: np.ndarray  # [r, r] the kinetic metric M (the kinetic energy ½N·MN of partly held nodes)
     damp: np.ndarray  # [r] damping coefficients Γ
     ubody: np.ndarray  # [r] body-frame uniform force density
     field: np.ndarray  # [k] ρf of the constant fields (gravity), k the space dimension (0: none)
@@ -98,7 +110,7 @@ class CollocationData(NamedTuple):
     end_sign: np.ndarray  # [e] outward normal n_α (±1)
     end_H: np.ndarray  # [e] the SBP end weight H_end of the axis
     end_load: np.ndarray  # [e, r] the applied load P (zero when unloaded)
-    end_loaded: np.ndarray  # [e] bool
+    end_loaded: np.ndarray  # [e] bool (False: an unloaded free end, a held end, a symmetry face)
     end_follow: np.ndarray  # [e] bool, follower (else dead)
     end_face: np.ndarray  # [e] w/H_end: the face area share (powers)
     has_power: bool
@@ -203,7 +215,7 @@ def op_force(D, C, t, N, W, K):
                     s += Phi[i, b + 1, k + 1] * D.field[b]
                 W[i, k] += s
         for k in range(R_):  # noqa: F821
-            if zero or not D.live[k]:
+            if zero or not D.live[k] or (D.any_held and D.held[i, k]):
                 W[i, k] = 0.0
 
 
@@ -233,9 +245,9 @@ def op_move(D, C, Dn, K):
 def op_free_flow(D, C, S, pieces, fracs, dt, Dn, K):
     """The free flow of ``lie-verlet`` as the reference takes it, piece by piece: for each
     piece p (``pieces`` ``[P, r, r]``, τ = ``fracs[p]``·Δt), ``N_p = P_p S`` (zero at clamped
-    nodes), ``S_i ← Ad*_{exp(τN_p,i)} S_i`` and the drift by N_p over τ, node by node with one
-    exponential (the drift reads N_p, never S); ``Dn`` is unused (the signature of a loop that
-    composes node motions).  Returns whether anything moved."""
+    nodes and on held components), ``S_i ← Ad*_{exp(τN_p,i)} S_i`` and the drift by N_p over
+    τ, node by node with one exponential (the drift reads N_p, never S); ``Dn`` is unused (the
+    signature of a loop that composes node motions).  Returns whether anything moved."""
     Np = K[1]
     xi, dn, U, V, tmp, wk = _c_move_work()
     row = np.empty(R_)  # noqa: F821
@@ -248,7 +260,7 @@ def op_free_flow(D, C, S, pieces, fracs, dt, Dn, K):
             clamped = D.any_clamped and D.clamped[i]
             for k in range(R_):  # noqa: F821
                 v = 0.0
-                if not clamped:
+                if not (clamped or (D.any_held and D.held[i, k])):
                     for j in range(R_):  # noqa: F821
                         v += pieces[p, k, j] * S[i, j]
                 Np[i, k] = v
@@ -347,10 +359,10 @@ def _why_not(scheme, reference: type) -> str | None:
             return f"the medium overrides {name}"
     if getattr(medium, "velocity_dependent_forces", False):
         return "the medium has velocity-dependent forces"
-    loads = _supported_loads(scheme)
+    loads = _supported_loads(scheme, held=True)
     if loads is None:
         return ("a load or boundary is not one of Damping, body-frame UniformForce, ConstantFieldPotential "
-                "(of the library's force), Free, Clamped")
+                "(of the library's force), Free, Clamped, Held, Symmetry")
     if scheme.problem.needs_structure_field and not scheme.track:
         return "a load needs the frames, which are not stepped (track_frames=False)"
     for a, op in enumerate(scheme.D):
@@ -407,6 +419,7 @@ def collocation_operators(scheme, reference: type):
     """
     from ..compiled.kernels import kernel_stem, medium_fragment
     from ..compiled.operators import OperatorSet
+    from .collocation import _load_of
 
     reason = _why_not(scheme, reference)
     if reason is not None:
@@ -432,13 +445,18 @@ def collocation_operators(scheme, reference: type):
             indptr[a, j] = len(entries)
             entries += row
             indptr[a, j + 1] = len(entries)
-    damp, ubody, field = _supported_loads(scheme)
+    damp, ubody, field = _supported_loads(scheme, held=True)
     node = np.arange(n).reshape(shape)
     ends = [(int(i), axis, sign, H, b, float(f))
             for axis, sl, sign, H, b, face in scheme._free_ends
             for i, f in zip(np.ravel(node[sl]), np.broadcast_to(face, np.shape(node[sl])).ravel(), strict=True)]
     weights = np.ascontiguousarray(scheme.weights, dtype=float).reshape(n)
-    clamped = np.ascontiguousarray(scheme._clamped, dtype=np.bool_).reshape(n)
+    # the clamp mask per component (Held ends, Symmetry faces), all r at clamped nodes
+    held = np.asarray(scheme._clamped, dtype=np.bool_)
+    held = np.ascontiguousarray(np.broadcast_to(held.reshape(*shape, -1), (*shape, r)).reshape(n, r))
+    clamped = np.ascontiguousarray(held.all(axis=1))
+    # the applied load P of each end entry: None at an unloaded free end, a held end, a symmetry face
+    loads = [_load_of(e[4]) for e in ends]
     data = CollocationData(
         d=d, r=r, m=m, affine=bool(getattr(group, "affine", False)), track=bool(scheme.track), shape=shape,
         coords=np.stack(np.meshgrid(*[grid.coordinates(a) for a in range(d)], indexing="ij"), -1).reshape(n, d),
@@ -451,15 +469,16 @@ def collocation_operators(scheme, reference: type):
                     else np.ascontiguousarray(scheme._inv_volume, dtype=float).reshape(n)),
         charted=scheme._inv_volume is not None, inv_metric=np.ascontiguousarray(scheme.inverse_metric, dtype=float),
         live=np.ascontiguousarray(scheme.live, dtype=np.bool_), clamped=clamped, any_clamped=bool(clamped.any()),
-        held=np.ascontiguousarray(np.repeat(clamped[:, None], r, axis=1)), any_held=False,
+        held=held, any_held=bool(np.any(held.any(axis=1) & ~clamped)),
         metric=np.ascontiguousarray(medium.kinetic_metric(), dtype=float).reshape(r, r),
         damp=damp, ubody=ubody, field=np.ascontiguousarray(field, dtype=float), has_field=bool(field.size),
         end_idx=np.array([e[0] for e in ends], dtype=np.int64), end_axis=np.array([e[1] for e in ends], dtype=np.int64),
         end_sign=np.array([e[2] for e in ends], dtype=float), end_H=np.array([e[3] for e in ends], dtype=float),
-        end_load=np.array([np.zeros(r) if e[4].load is None else np.asarray(e[4].load, dtype=float) for e in ends],
+        end_load=np.array([np.zeros(r) if P is None else np.asarray(P, dtype=float) for P in loads],
                           dtype=float).reshape(-1, r),
-        end_loaded=np.array([e[4].load is not None for e in ends], dtype=np.bool_),
-        end_follow=np.array([bool(e[4].follower) for e in ends], dtype=np.bool_),
+        end_loaded=np.array([P is not None for P in loads], dtype=np.bool_),
+        end_follow=np.array([P is not None and bool(e[4].follower) for P, e in zip(loads, ends, strict=True)],
+                            dtype=np.bool_),
         end_face=np.array([e[5] for e in ends], dtype=float), has_power=bool(scheme.has_external_power()),
         diagonal=bool(scheme.diagonal_metric),
     )

@@ -65,7 +65,7 @@ force ``Rᵀρf`` on the translations and no moment, paper §IV.B; energy ``−�
 translation of Φ), free ends or faces with follower or dead loads (``n_α Q^α = P``, paper §IV.D),
 clamped ends or faces, periodic axes.
 
-Held components (``Held`` ends, ``Symmetry`` faces; the lattice only): ``held`` ``[n, r]`` is
+Held components (``Held`` ends, ``Symmetry`` faces; the collocation set alike): ``held`` ``[n, r]`` is
 the scheme's clamp mask (:meth:`~cartan.schemes.lattice.Lattice._clamp_mask`, all r at clamped
 nodes), ``clamped`` ``[n]`` its rows that hold every component, ``any_held`` whether a node
 holds some components and not all.  As on the numpy path (``N[held] = 0``, ``S[held] = 0``,
@@ -73,7 +73,7 @@ holds some components and not all.  As on the numpy path (``N[held] = 0``, ``S[h
 components, ``lie-verlet``'s free flow moves a node along its free components only (N_p zero on
 the held ones) and the kinetic energy is ``½ w N·MN`` with those N (``metric`` M).  The
 velocity, constraint and kinetic energy are shared with the collocation set, whose data
-carries the same three fields with nothing held (``any_held`` False).
+carries the same three fields from its own clamp mask.
 The loops that read ``clamped`` themselves (``kinematic``'s prescribed velocity) decline partly
 held problems in their integrators (``rattle``'s node operators read ``held``); ``overdamped`` takes
 N = Γ⁻¹W, zero on the held components with W.

@@ -35,7 +35,7 @@ Open axes and boundary conditions (paper §IV.D, n_α Q^α = P on ∂M)
     :class:`~cartan.problem.Held` end or a :class:`~cartan.problem.Symmetry` face the held
     body components get N = 0, S = 0 and W = 0 (the clamp mask ``(*shape, r)`` of
     :meth:`~cartan.schemes.base.Scheme._clamp_mask`) and the free ones the penalty of an
-    unloaded free end (P = 0); the compiled operators decline them.  Solutions converge with
+    unloaded free end (P = 0), on the numpy path and the compiled one.  Solutions converge with
     order 2 (fd2) and about 3 (fd4, boundary rows of order 2) on open axes.
 Charts
     The grid is a chart of the body; the energy is summed with the quadrature weights
@@ -62,11 +62,11 @@ Compiled loops
     (:meth:`cartan.integrators.base.Integrator.run_compiled_loop`) the scheme's operators
     (:mod:`cartan.schemes._collocation_ops`) for any group and medium with point kernels: d = 1,
     2, 3, ``fd2``, ``fd4`` and ``fourier``, open and periodic axes, the loads that are data
-    (damping, body-frame uniform force, constant-field potentials, end loads, clamps).  The
-    CFL estimate (:meth:`~cartan.schemes.base.Scheme.dt_max`) and the blow-up guard's energies
-    run on the same operators (:mod:`cartan.compiled.diagnostics`).  Everything else stays on
-    this module's numpy path, the reference the compiled loops are tested against
-    (``docs/schemes.md``).
+    (damping, body-frame uniform force, constant-field potentials, end loads, clamps, held
+    ends and symmetry faces).  The CFL estimate (:meth:`~cartan.schemes.base.Scheme.dt_max`)
+    and the blow-up guard's energies run on the same operators
+    (:mod:`cartan.compiled.diagnostics`).  Everything else stays on this module's numpy path,
+    the reference the compiled loops are tested against (``docs/schemes.md``).
 
 What is exact and what is not
     Unlike the ``lattice`` scheme, the stored strains are independent unknowns: temporal
@@ -382,20 +382,13 @@ class Collocation(Scheme):
         once and kept on the scheme: any group with point kernels, any medium that declares
         point kernels (axis-coupled energies and a reference configuration included), d = 1–3,
         ``fd2``, ``fd4``, ``fourier``, open and periodic axes, damping, body-frame uniform
-        forces, constant-field potentials, free (loaded) and clamped ends or faces, any
-        kinetic metric; a declined :class:`~cartan.compiled.operators.OperatorSet` says why
-        otherwise (held components of :class:`~cartan.problem.Held` ends and
-        :class:`~cartan.problem.Symmetry` faces run on the numpy path: the operators zero
-        whole clamped nodes only)."""
+        forces, constant-field potentials, free (loaded) and clamped ends or faces,
+        :class:`~cartan.problem.Held` ends and :class:`~cartan.problem.Symmetry` faces (the
+        held components of the clamp mask zeroed as on the numpy path, their free components
+        under the natural condition P = 0), any kinetic metric; a declined
+        :class:`~cartan.compiled.operators.OperatorSet` says why otherwise."""
         ops = self.__dict__.get("_operators")
         if ops is None:
-            if self._clamped.ndim > self.grid.d:
-                from ..compiled.operators import OperatorSet
-
-                ops = self._operators = OperatorSet.declined(
-                    "held components (a Held end or a Symmetry face): the collocation's compiled operators zero "
-                    "whole clamped nodes only; the numpy path holds them")
-                return ops
             from ._collocation_ops import collocation_operators
 
             ops = self._operators = collocation_operators(self, Collocation)
