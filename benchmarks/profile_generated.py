@@ -6,7 +6,10 @@ directly on the case's packed configuration: ``op_force`` (edge logarithms or no
 medium stress, the transposed operators back to the nodes), the free flow (``op_free_flow``,
 or the loop's ``_free_flow`` where the operator set has none), ``op_move`` (lattice: the edges
 and frames follow the nodes), ``op_drift`` (collocation: one exact drift, strains and frames)
-and ``op_velocity``; each is reported in ns per node, the median of several repetitions.  A
+and ``op_velocity``; on the lattice also the force's two group passes over the edges alone
+(``force: logarithms``, ``g_log_chunk``; ``force: dexp⁻¹ᵀ pairs``, ``g_dexp_inv_T_pair_chunk``:
+the rest of ``force`` is the medium's stress per edge or corner with its gather and scatter,
+and the sum to the nodes); each is reported in ns per node, the median of several repetitions.  A
 report for the terminal::
 
     python benchmarks/profile_generated.py [--scheme lattice|collocation] [--wall] [--gross] [case ...]
@@ -83,12 +86,17 @@ def _null6(a, b, c, d, e, f):  # pragma: no cover - compiled
 
 
 @njit
+def _null7(a, b, c, d, e, f, g):  # pragma: no cover - compiled
+    return None
+
+
+@njit
 def _null8(a, b, c, d, e, f, g, h):  # pragma: no cover - compiled
     return None
 
 
 #: a compiled function that does nothing, by number of arguments
-_NULL = {3: _null3, 4: _null4, 5: _null5, 6: _null6, 8: _null8}
+_NULL = {3: _null3, 4: _null4, 5: _null5, 6: _null6, 7: _null7, 8: _null8}
 
 
 def call_cost(args, inner: int = 10) -> float:
@@ -159,6 +167,12 @@ def profile_run(scheme, integrator, state, dt: float, scheme_name: str = "lattic
     else:
         calls["drift"] = (module.op_drift, lambda: (D, C, tiny, N, K))
     calls["velocity"] = (module.op_velocity, lambda: (D, S, N))
+    if scheme_name == "lattice":  # the force's two group passes over the edges, alone
+        G, XI, QE, VT, VH = C[0], K[2], K[3], K[4], K[5]
+        ne = G.shape[0]
+        scale = np.empty(0) if D.coupled else D.escale
+        calls["force: logarithms"] = (module.g_log_chunk, lambda: (G, 0, ne, XI))
+        calls["force: dexp⁻¹ᵀ pairs"] = (module.g_dexp_inv_T_pair_chunk, lambda: (XI, QE, scale, 0, ne, VT, VH))
     cost, overhead = {}, {}
     for name, (func, args) in calls.items():
         func(*args())  # compiled (or loaded) before timing
