@@ -487,7 +487,8 @@ class NodalStrainConstraints:
     stretch component are dependent, and near one the multiplier systems are ill-conditioned
     (smallest singular value ≈ |κ|/4 at n = 11, κ the curvature in the plane of the motion).
     The rows held are therefore ``Tᵀc``: the nodal rows less their combinations that are
-    dependent at the reference strains (X[comp] = value, 0 elsewhere: straight, untwisted),
+    dependent at the reference strains (the translation part of the medium's rest strain, the
+    rotation part zero, X[comp] = value: straight and untwisted, or flat; :func:`_uncurved_reference`),
     found once by an SVD, T sparse (:func:`_complement`).  ``ncon`` counts the held rows,
     ``nrow`` the nodal ones; the combination left out (the stretch's odd–even ripple) is a
     discretization error, second order in h (docs/integrators.md, "rattle on the collocation
@@ -502,6 +503,13 @@ class NodalStrainConstraints:
     stays held (leaving it out would let the length drift: 2.6e-4 of uniform stretch in
     t = 0.4 on a clamped–clamped arc at n = 11); the multiplier system is then singular at a
     straight shape between such supports, as the lattice's.
+
+    On a surface (d = 2, ``kirchhoff-love``: θ_α,3 held) the flat reference θ_u = e₁,
+    θ_v = e₂ puts a rotation of the node itself in each row (row (i, u) reads ω₂, row (i, v)
+    ω₁, through ``ad_{θ_α}``), so no combination is dependent and all 2·nnode rows are held
+    (T is None).  The SVD is dense, O(nrow²·nnode): its singular values take 0.2 s at 9², 2.0 s
+    at 17², 43 s at 33² nodes (one core; docs/media/kirchhoff-love.md, "rattle on the
+    collocation scheme").
 
     Parameters
     ----------
@@ -595,17 +603,20 @@ class NodalStrainConstraints:
         self._ad_cols = np.broadcast_to((ia[:, 0] * r)[:, None, None] + np.arange(r), self._ad_rows.shape)
         self._ia = ia
         # the held combinations: the nodal rows less their dependent ones at the reference strains
-        # X[comp] = value, X = 0 elsewhere (the straight, untwisted state: the odd–even modes), on
-        # the live components of every node, supports or not ("Rank": a dependence the supports
-        # add is physical and kept)
+        # (the medium's rest strains without curvature: straight, untwisted, flat; X[comp] = value:
+        # the odd–even modes), on the live components of every node, supports or not ("Rank": a
+        # dependence the supports add is physical and kept)
         self.nrow = self.ncon
-        Xref = np.zeros((nnode, d, r))
+        Xref = np.broadcast_to(_uncurved_reference(medium, self.g, d, r), (nnode, d, r)).copy()
         Xref[..., comp] = val
         live_cols = np.tile(np.asarray(scheme.live, dtype=bool).reshape(-1), nnode)
         Bref = self._full(Xref)[:, live_cols].toarray()
-        U, sv, _ = np.linalg.svd(Bref)
+        # the singular values first (no vectors: a third of the time); the left singular vectors
+        # only when some combination is dependent (all of them when B_ref has fewer columns)
+        sv = np.linalg.svd(Bref, compute_uv=False)
         rank = int(np.sum(sv > 1e-10 * (sv[0] if sv.size else 0.0)))
         if rank < self.nrow:
+            U = np.linalg.svd(Bref, full_matrices=Bref.shape[0] > Bref.shape[1])[0]
             self.T = _complement(U[:, rank:])  # (nrow, ncon) sparse: the independent combinations
             self.ncon = rank
 
@@ -733,6 +744,18 @@ class NodalStrainConstraints:
         nodal = np.asarray(nu, dtype=float) if self.T is None else self.T @ np.asarray(nu, dtype=float)
         out[self.active] = -nodal.reshape(-1, self.comp.size) / w[np.nonzero(self.active)[0]][:, None]
         return out
+
+
+def _uncurved_reference(medium: Any, group: Any, d: int, r: int) -> np.ndarray:
+    """The reference strains ``(d, r)`` of :class:`NodalStrainConstraints`' rank test: the
+    translation part of the medium's rest strain (the chart's metric: ``θ_α = e_α`` on a flat
+    plate, the tangent of a rod), the rotation part (the curvatures) zero; zero on a group
+    without translations."""
+    ref = np.zeros((d, r))
+    if getattr(group, "affine", False):
+        k = int(group.space_dim)
+        ref[:, :k] = np.asarray(medium.rest_strain(), dtype=float).reshape(d, r)[:, :k]
+    return ref
 
 
 def _complement(Y: np.ndarray):

@@ -468,7 +468,8 @@ class Collocation(Scheme):
         """:meth:`Scheme.constraint_rows` on the nodal strains: one row per node, axis and held
         component, ``c = X_{α,i}[k] − value_k``, with ``B_c δ = [D_α δ + ad_{X_α} δ]_k`` of the
         compatibility equation (paper §III), less the combinations dependent at the straight
-        reference (the odd–even mode of each open line, found with every live component free:
+        (or flat) reference (the odd–even mode of each open line of a filament; none on a
+        Kirchhoff–Love surface, d = 2; found with every live component free:
         :class:`cartan.constraints.NodalStrainConstraints`, "Rank").  Clamped, free and
         :class:`~cartan.problem.Held` ends and :class:`~cartan.problem.Symmetry` faces: the held
         components are columns left out of ``B_c``, as a clamped node's."""
