@@ -708,10 +708,10 @@ def _assemble(data_vars: Mapping[str, tuple], coords: Mapping[str, tuple], attrs
         return xr.Dataset(data_vars=data_vars, coords=coords, attrs=attrs)
     variables: dict[str, xr.Variable] = {}
     for name, (dims, values, var_attrs) in data_vars.items():
-        variables[name] = xr.Variable(dims, values, var_attrs)
+        variables[name] = _variable(xr, dims, values, var_attrs)
     indexes: dict[str, Any] = {}
     for name, (dims, values, var_attrs) in coords.items():
-        var = xr.Variable(dims, values, var_attrs)
+        var = _variable(xr, dims, values, var_attrs)
         if var.dims == (name,):  # a dimension coordinate: the default index
             index = PandasIndex.from_variables({name: var}, options={})
             var = index.create_variables({name: var})[name]
@@ -722,6 +722,16 @@ def _assemble(data_vars: Mapping[str, tuple], coords: Mapping[str, tuple], attrs
         return construct(variables, set(coords), dims, dict(attrs) if attrs else None, indexes)
     except TypeError:  # pragma: no cover - another signature in another xarray version
         return xr.Dataset(data_vars=data_vars, coords=coords, attrs=attrs)
+
+
+def _variable(xr: Any, dims: Any, values: Any, attrs: Mapping[str, Any] | None) -> Any:
+    """``xr.Variable(dims, values, attrs)``; a numpy array of numbers or booleans (not a masked
+    array, no objects, dates or durations: what the constructor would wrap as it is) skips the
+    constructor's conversion of its data: the same Variable, ≈ 1 µs instead of ≈ 17 µs."""
+    if (type(values) is np.ndarray and values.dtype.kind in "biufc"
+            and len(dims if isinstance(dims, tuple) else (dims,)) == values.ndim):
+        return xr.Variable(dims, values, attrs, fastpath=True)
+    return xr.Variable(dims, values, attrs)
 
 
 def _dimensions(variables: Mapping[str, Any]) -> dict[str, int]:
