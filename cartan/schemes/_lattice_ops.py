@@ -123,6 +123,8 @@ class LatticeData(NamedTuple):
     cedge: np.ndarray  # [C, d] int64 the edge of each corner along each axis (global index)
     cw: np.ndarray  # [C] corner weights w_i/#corners_i
     cX0: np.ndarray  # [C, d, r] corner rest strains
+    cuniform: bool  # every corner has the same rest strain, ``cX0u`` (coupled)
+    cX0u: np.ndarray  # [d, r] that rest strain (zeros when not ``cuniform``)
     params: np.ndarray  # medium kernel parameters
     winv: np.ndarray  # [n] 1/w
     w: np.ndarray  # [n] node weights
@@ -247,17 +249,31 @@ def op_force(D, C, t, N, W, K):
         for e in range(ne):
             for k in range(R_):  # noqa: F821
                 QE[e, k] = 0.0
-        for c in range(D.cw.shape[0]):
-            for b in range(D_):  # noqa: F821
-                e = D.cedge[c, b]
-                for k in range(R_):  # noqa: F821
-                    X[b, k] = XI[e, k] * D.einvh[e]
-            m_stress(X, D.cX0[c], D.params, Q)  # noqa: F821
-            for b in range(D_):  # noqa: F821
-                e = D.cedge[c, b]
-                f = D.cw[c] * D.einvh[e]
-                for k in range(R_):  # noqa: F821
-                    QE[e, k] += f * Q[b, k]
+        if D.cuniform:  # one rest strain passed as one array, not as a view per corner
+            X0u = D.cX0u
+            for c in range(D.cw.shape[0]):
+                for b in range(D_):  # noqa: F821
+                    e = D.cedge[c, b]
+                    for k in range(R_):  # noqa: F821
+                        X[b, k] = XI[e, k] * D.einvh[e]
+                m_stress(X, X0u, D.params, Q)  # noqa: F821
+                for b in range(D_):  # noqa: F821
+                    e = D.cedge[c, b]
+                    f = D.cw[c] * D.einvh[e]
+                    for k in range(R_):  # noqa: F821
+                        QE[e, k] += f * Q[b, k]
+        else:
+            for c in range(D.cw.shape[0]):
+                for b in range(D_):  # noqa: F821
+                    e = D.cedge[c, b]
+                    for k in range(R_):  # noqa: F821
+                        X[b, k] = XI[e, k] * D.einvh[e]
+                m_stress(X, D.cX0[c], D.params, Q)  # noqa: F821
+                for b in range(D_):  # noqa: F821
+                    e = D.cedge[c, b]
+                    f = D.cw[c] * D.einvh[e]
+                    for k in range(R_):  # noqa: F821
+                        QE[e, k] += f * Q[b, k]
     else:
         for e in range(ne):
             a = D.eaxis[e]
@@ -1111,6 +1127,8 @@ def op_force_threaded(D, C, t, N, W, K):
     d_any_held = D.any_held
     d_held = D.held
     d_cX0 = D.cX0
+    d_cX0u = D.cX0u
+    d_cuniform = D.cuniform
     d_cedge = D.cedge
     d_clamped = D.clamped
     d_coupled = D.coupled
@@ -1146,7 +1164,10 @@ def op_force_threaded(D, C, t, N, W, K):
                     e = d_cedge[c, b]
                     for k in range(R_):  # noqa: F821
                         X[b, k] = XI[e, k] * d_einvh[e]
-                m_stress(X, d_cX0[c], d_params, Q)  # noqa: F821
+                if d_cuniform:  # one rest strain passed as one array (op_force)
+                    m_stress(X, d_cX0u, d_params, Q)  # noqa: F821
+                else:
+                    m_stress(X, d_cX0[c], d_params, Q)  # noqa: F821
                 for b in range(D_):  # noqa: F821
                     for k in range(R_):  # noqa: F821
                         QC[c, b, k] = Q[b, k]
@@ -1531,6 +1552,9 @@ def lattice_operators(scheme, reference: type):
         cw, cX0 = corners["weight"], corners["X0"]
     else:
         cedge, cw, cX0 = np.zeros((0, d), dtype=np.int64), np.zeros(0), np.zeros((0, d, r))
+    cX0 = np.asarray(cX0, dtype=float)
+    cuniform = bool(cX0.shape[0]) and bool(np.all(cX0 == cX0[:1]))
+    cX0u = np.ascontiguousarray(cX0[0]) if cuniform else np.zeros((d, r))
     damp, ubody, field = _supported_loads(scheme, held=True)
     weights = np.ascontiguousarray(scheme.weights, dtype=float).reshape(n)
     entries = scheme.end_load_entries()
@@ -1543,6 +1567,7 @@ def lattice_operators(scheme, reference: type):
         eaxis=np.concatenate(axes).astype(np.int64), einvh=np.concatenate(invh), escale=np.concatenate(scale),
         X0e=np.ascontiguousarray(X0e), coupled=bool(scheme.coupled), cedge=np.ascontiguousarray(cedge, dtype=np.int64),
         cw=np.ascontiguousarray(cw, dtype=float), cX0=np.ascontiguousarray(cX0, dtype=float),
+        cuniform=cuniform, cX0u=cX0u,
         params=np.ascontiguousarray(kernels.params, dtype=float).ravel(),
         winv=1.0 / weights, w=weights,
         inv_metric=np.ascontiguousarray(scheme.inverse_metric, dtype=float),
