@@ -26,7 +26,7 @@ runs
     integrators), and, for ``lie-verlet`` with no loads, energy conserved to the leapfrog bound
     (ωΔt)²/8 ≤ 5e-3 of every mode at 0.1 of the CFL estimate (checked at 1e-2 relative).
     An integrator that refuses the medium with a ``ValueError`` at its first step (e.g.
-    ``implicit-midpoint`` needs a positive diagonal metric) is skipped, with its reason; a
+    ``implicit-midpoint`` needs a diagonal kinetic metric) is skipped, with its reason; a
     medium with constrained strains is stepped only by the integrators that hold them
     (``rattle``, on the lattice).
 coupled Lagrangian

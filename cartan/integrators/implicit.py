@@ -195,8 +195,8 @@ class _Plan:
         if scheme.grid.glued is not None and not isinstance(scheme, Lattice):
             raise ValueError("implicit-midpoint supports a glued axis (Grid.glued, the sphere's chart) on the "
                              "'lattice' scheme only")
-        if not scheme.diagonal_metric or np.any(scheme.mass < 0):
-            raise ValueError("implicit-midpoint needs a positive diagonal kinetic metric (Medium.kinetic_metric); "
+        if not scheme.diagonal_metric:
+            raise ValueError("implicit-midpoint needs a diagonal kinetic metric (Medium.kinetic_metric); "
                              "use lie-verlet or rkmk4 for this medium")
         shape = tuple(scheme.grid.shape)
         r = scheme.group.dim
@@ -225,10 +225,10 @@ class _Plan:
             self.colour = np.arange(nnode)
             self.src, self.dst = (a.ravel() for a in np.meshgrid(np.arange(nnode), np.arange(nnode), indexing="ij"))
         w = scheme.weights[..., None]
-        m = scheme.mass
+        m = np.abs(scheme.mass)  # an indefinite metric (the Poincaré group's Minkowski one) measured by |M|
         inv = np.where(m > 0, 1.0 / np.where(m > 0, m, 1.0), 0.0)
-        self.w_over_m = np.broadcast_to(w * inv, (*shape, r))[unknown]  # ‖R‖_*² = Σ w R²/m
-        self.w_times_m = np.broadcast_to(w * m, (*shape, r))[unknown]  # ‖N‖_M² = Σ w m N²
+        self.w_over_m = np.broadcast_to(w * inv, (*shape, r))[unknown]  # ‖R‖_*² = Σ w R²/|m|
+        self.w_times_m = np.broadcast_to(w * m, (*shape, r))[unknown]  # ‖N‖_M² = Σ w |m| N²
         self.length = max(1.0, float(np.max(scheme.grid.length)))
         self.flat_unknown = np.flatnonzero(unknown)  # the unknowns in y.ravel() (the order of y[unknown])
         #: the compiled stage residual (:class:`cartan.integrators.newton.Stage`),
