@@ -610,6 +610,7 @@ class NodalStrainConstraints:
         Xref = np.broadcast_to(_uncurved_reference(medium, self.g, d, r), (nnode, d, r)).copy()
         Xref[..., comp] = val
         live_cols = np.tile(np.asarray(scheme.live, dtype=bool).reshape(-1), nnode)
+        _announce_dense_rank(self.nrow)
         Bref = self._full(Xref)[:, live_cols].toarray()
         # the singular values first (no vectors: a third of the time); the left singular vectors
         # only when some combination is dependent (all of them when B_ref has fewer columns)
@@ -744,6 +745,25 @@ class NodalStrainConstraints:
         nodal = np.asarray(nu, dtype=float) if self.T is None else self.T @ np.asarray(nu, dtype=float)
         out[self.active] = -nodal.reshape(-1, self.comp.size) / w[np.nonzero(self.active)[0]][:, None]
         return out
+
+
+#: nodal rows above which the dense rank test is announced (≈ 10 s on one core), and the most it takes
+#: (≈ 10 min: its cost grows as the rows cubed; docs/media/kirchhoff-love.md)
+DENSE_RANK_NOTE_ROWS, DENSE_RANK_MAX_ROWS = 1500, 6000
+
+
+def _announce_dense_rank(nrow: int) -> None:
+    """A line on stderr before a long dense rank test of ``nrow`` nodal rows; ``ValueError`` above
+    :data:`DENSE_RANK_MAX_ROWS`."""
+    import sys
+
+    if nrow > DENSE_RANK_MAX_ROWS:
+        raise ValueError(f"integrator 'rattle' on the collocation scheme: {nrow} nodal constraint rows, above the "
+                         f"{DENSE_RANK_MAX_ROWS} its dense rank test takes (a cost that grows as the rows cubed); "
+                         "use scheme='lattice' or a coarser grid")
+    if nrow > DENSE_RANK_NOTE_ROWS:
+        print(f"cartan: rattle on the collocation scheme: the rank of {nrow} nodal constraint rows by a dense SVD "
+              f"(about {43.0 * (nrow / 2178.0) ** 3:.0f} s on one core)", file=sys.stderr, flush=True)
 
 
 def _uncurved_reference(medium: Any, group: Any, d: int, r: int) -> np.ndarray:

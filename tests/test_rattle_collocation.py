@@ -202,6 +202,25 @@ def test_bad_input():
         Rattle()._constraints(scheme, scheme.initial_state())
 
 
+def test_dense_rank_test_is_announced_and_bounded(capsys, monkeypatch):
+    """The rows' rank test is a dense SVD (its cost grows as the rows cubed): above
+    ``DENSE_RANK_NOTE_ROWS`` it says so on stderr, above ``DENSE_RANK_MAX_ROWS`` it is refused with
+    a ValueError naming the rows and the lattice (limits lowered here to keep the test small)."""
+    import cartan.constraints as C
+
+    rod = cartan.medium("filament", bending=(1.0, 1.5), twist=0.8, rotational_inertia=0.01)
+    grid = cartan.Grid(11, length=1.0)
+    problem = cartan.Problem(rod, grid, rod.initial_state(grid, "arc", curvature=1.0),
+                             {"start": cartan.Clamped(), "end": cartan.Free()})
+    scheme = Collocation(problem, "fd2")
+    monkeypatch.setattr(C, "DENSE_RANK_NOTE_ROWS", 10)
+    Rattle()._constraints(scheme, scheme.initial_state())
+    assert "dense SVD" in capsys.readouterr().err
+    monkeypatch.setattr(C, "DENSE_RANK_MAX_ROWS", 20)
+    with pytest.raises(ValueError, match=r"nodal constraint rows, above the 20 .*scheme='lattice'"):
+        Rattle()._constraints(Collocation(problem, "fd2"), scheme.initial_state())
+
+
 @pytest.mark.slow
 def test_agrees_with_the_lattice_as_n_grows():
     """The clamped horizontal filament released from rest under gravity (ρAgL³/B = 9.81, the
