@@ -23,7 +23,17 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from toys import rel_error, run_both
+from toys import (
+    assert_agree_and_held,
+    assert_kinetic_of_held,
+    assert_pin_holds,
+    assert_symmetry_end_slides,
+    held_rod,
+    mirrored_rod,
+    pinned_rod,
+    rel_error,
+    run_both_held,
+)
 
 import cartan
 from cartan import Clamped, Damping, Free, Held, Symmetry, UniformForce
@@ -40,29 +50,18 @@ NSTEPS = 30
 DT = 1e-4
 
 
-def _rod():
-    return cartan.medium("cosserat-rod", E=1e6, G=1e4, radius=0.25, density=5000.0)
+_rod = held_rod
 
 
 def _pinned() -> cartan.Problem:
-    rod = _rod()
-    grid = cartan.Grid(9, length=1.0)
-    init = rod.initial_state(grid, "arc", curvature=1.0)
-    ends = {"start": Held(components=(0, 1, 2)),
-            "end": Free(load=[0.0, 0.0, 0.0, 0.0, 4.0, 10.0], follower=True)}
-    return cartan.Problem(rod, grid, init, ends, [Damping([0.1] * 6)])
+    return pinned_rod((0.0, 0.0, 0.0, 0.0, 4.0, 10.0))
 
 
-def _mirrored() -> cartan.Problem:
-    rod = _rod()
-    grid = cartan.Grid(9, length=1.0)
-    ends = {"start": Clamped(), "end": Symmetry()}  # the plane through the end ⊥ its tangent
-    return cartan.Problem(rod, grid, rod.initial_state(grid, "arc", curvature=1.0), ends,
-                          [UniformForce([0.0, 200.0, -500.0, 0.0, 0.0, 0.0])])
+_mirrored = mirrored_rod
 
 
 def _both_held() -> cartan.Problem:
-    rod = _rod()
+    rod = held_rod()
     grid = cartan.Grid(9, length=1.0)
     return cartan.Problem(rod, grid, rod.initial_state(grid, "arc", curvature=1.0),
                           {"start": Held(components=(0, 1, 2)), "end": Symmetry()},
@@ -70,43 +69,29 @@ def _both_held() -> cartan.Problem:
 
 
 def _run_both(problem, make=LieVerlet, dt=DT, nsteps=NSTEPS):
-    """The scheme, the start, the Python run and the compiled run (blocks 1, 2, nsteps − 3) of
-    ``make()``'s integrator on stepped frames, and that compiled run's integrator."""
-    scheme, (ref, _), (fast, fi) = run_both(Collocation, problem, make, dt, nsteps, (1, 2, nsteps - 3),
-                                            track_frames=True)
-    ops = scheme.compiled_operators()
-    assert ops.ok, ops.reason
-    assert ops.data.any_held  # some node holds some components and not all
-    start = scheme.initial_state()
-    start.scalars.setdefault("nstep", 0)
-    assert fast.scalars["nstep"] == ref.scalars["nstep"] == nsteps
-    return scheme, start, ref, fast, fi
+    """:func:`toys.run_both_held` on the collocation scheme."""
+    return run_both_held(Collocation, problem, make, dt, nsteps)
 
 
 def _assert_agree_and_held(scheme, start, ref, fast, dt=DT, nsteps=NSTEPS, momentum=True):
-    """Compiled against Python, and the held components zero (``momentum``: the free ones not;
-    the overdamped flow keeps S = 0)."""
-    assert fast.t == ref.t
-    # the run moved the body (not a comparison of two copies of the start)
-    assert rel_error(ref.arrays["Phi"], start.arrays["Phi"]) > 1e-7
+    """Compiled against Python (the force a density per unit volume here), held components zero."""
     force = float(np.max(np.abs(scheme.internal_force(start))))
-    assert float(np.max(np.abs(fast.S - ref.S))) <= nsteps * dt * force * FORCE_TOL
-    errors = {k: rel_error(fast.arrays[k], ref.arrays[k]) for k in ref.arrays}
-    assert max(errors.values()) <= TOL, errors
-    held = np.broadcast_to(scheme._clamped, fast.S.shape)
-    for state in (ref, fast):
-        assert np.all(state.S[held] == 0.0)
-        assert np.all(scheme.velocity(state)[held] == 0.0)
-        assert np.any(state.S[~held] != 0.0) or not momentum
+    assert_agree_and_held(scheme, start, ref, fast, nsteps * dt * force * FORCE_TOL, TOL, 1e-7, momentum)
 
 
-def _assert_kinetic(scheme, state):
-    """The kinetic energy of partly held nodes (``op_kinetic``) as ``Scheme.kinetic_energy`` takes
-    it: a sum of a few tens of positive terms, to 1e-14 relative."""
-    ops = scheme.compiled_operators()
-    S = np.ascontiguousarray(state.S.reshape(ops.nodes, -1))
-    K = scheme.kinetic_energy(state)
-    assert K > 0 and abs(ops.generated().op_kinetic(ops.data, S) - K) <= 1e-14 * K
+_assert_kinetic = assert_kinetic_of_held
+
+
+def _assert_simulate_agrees(problem, dt, nsteps, generated_runs):
+    """``simulate`` on the generated loop against ``compiled=False``: positions, frames, velocities
+    and kinetic energy to 1e-11 relative (round-off of the momenta's bound, over the run)."""
+    kw = dict(scheme="collocation", integrator="lie-verlet", dt=dt, t_end=nsteps * dt, save_every=4,
+              progress=False)
+    out = cartan.simulate(problem, **kw)
+    assert generated_runs and all(generated_runs)
+    slow = cartan.simulate(problem, **kw, compiled=False)
+    for name in ("position", "frame", "N", "kinetic_energy"):
+        assert rel_error(out[name].values, slow[name].values) <= 1e-11, name
 
 
 def test_operator_data_hold_the_components():
@@ -137,26 +122,14 @@ def test_pinned_end_runs_compiled_and_agrees_with_the_numpy_path():
     scheme, start, ref, fast, _ = _run_both(_pinned())
     _assert_agree_and_held(scheme, start, ref, fast)
     _assert_kinetic(scheme, fast)
-    # the pin holds its position exactly (its translation components never move), its frame turns
-    for state in (ref, fast):
-        Phi = scheme.frames(state)
-        assert np.array_equal(Phi[0, :, 0], start.arrays["Phi"][0, :, 0])
-        assert not np.array_equal(Phi[0, 1:, 1:], start.arrays["Phi"][0, 1:, 1:])
+    assert_pin_holds(scheme, start, (ref, fast))
 
 
 def test_symmetry_end_runs_compiled_and_agrees_with_the_numpy_path():
     scheme, start, ref, fast, _ = _run_both(_mirrored())
     _assert_agree_and_held(scheme, start, ref, fast)
     _assert_kinetic(scheme, fast)
-    # the symmetry end slides in its plane (normal n, the end's initial tangent) and its frame
-    # turns about n only: both to round-off of the O(1) frames
-    end = start.arrays["Phi"][-1]
-    n = end[1:, 1]
-    for state in (ref, fast):
-        Phi = scheme.frames(state)[-1]
-        assert abs(n @ (Phi[1:, 0] - end[1:, 0])) <= 1e-14
-        assert np.max(np.abs(Phi[1:, 1] - n)) <= 1e-14
-        assert np.max(np.abs(Phi[1:, 0] - end[1:, 0])) > 1e-7  # it slides
+    assert_symmetry_end_slides(scheme, start, (ref, fast), 1e-7)
 
 
 def test_rkmk4_and_overdamped_hold_the_components():
@@ -263,13 +236,7 @@ def test_d2_symmetry_edge_on_a_cosserat_surface(generated_runs):
         # the symmetry edge slides in the plane x = 0 (held v_x)
         assert np.array_equal(scheme.frames(state)[0, :, 1, 0], start.arrays["Phi"][0, :, 1, 0])
     _assert_kinetic(scheme, fast)
-    kw = dict(scheme="collocation", integrator="lie-verlet", dt=dt, t_end=nsteps * dt, save_every=4,
-              progress=False)
-    out = cartan.simulate(problem, **kw)
-    assert generated_runs and all(generated_runs)
-    slow = cartan.simulate(problem, **kw, compiled=False)
-    for name in ("position", "frame", "N", "kinetic_energy"):
-        assert rel_error(out[name].values, slow[name].values) <= 1e-11, name
+    _assert_simulate_agrees(problem, dt, nsteps, generated_runs)
 
 
 @pytest.mark.slow
@@ -301,10 +268,4 @@ def test_d3_symmetry_faces_on_a_cosserat_solid_octant(generated_runs):
         assert np.all(x[:, :, 0, 2] == x0[:, :, 0, 2])  # w = 0 in z = 0
         assert np.max(np.abs(x - x0)) > 1e-7
     _assert_kinetic(scheme, fast)
-    kw = dict(scheme="collocation", integrator="lie-verlet", dt=dt, t_end=nsteps * dt, save_every=4,
-              progress=False)
-    out = cartan.simulate(problem, **kw)
-    assert generated_runs and all(generated_runs)
-    slow = cartan.simulate(problem, **kw, compiled=False)
-    for name in ("position", "frame", "N", "kinetic_energy"):
-        assert rel_error(out[name].values, slow[name].values) <= 1e-11, name
+    _assert_simulate_agrees(problem, dt, nsteps, generated_runs)

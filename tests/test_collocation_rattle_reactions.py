@@ -16,13 +16,12 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from toys import PLANAR_PIN, frames_of, pinned_arc
 
 import cartan
 from cartan.integrators import Rattle
 from cartan.schemes import Lattice
 from cartan.schemes.collocation import Collocation
-
-PLANAR_PIN = (0, 1, 2, 3, 4)  # the position and the out-of-plane rotations held: Ω₃ free
 
 
 def filament():
@@ -114,16 +113,6 @@ def test_the_scheme_reaction_of_an_unconstrained_rod(cls):
     assert np.all(R[1:] == 0.0)
 
 
-def pinned_arc(n: int = 11, end=None) -> cartan.Problem:
-    """An arc of curvature 1.5 in the x–y plane (L = 1) pinned at s = 0 and at s = L (or ``end``),
-    released from rest under gravity −2e_y (tests/test_rattle_held.py's problem)."""
-    fil = cartan.medium("filament", bending=1.0, twist=1.0, mass=1.0, rotational_inertia=0.05)
-    grid = cartan.Grid(n, length=1.0)
-    return cartan.Problem(fil, grid, fil.initial_state(grid, "arc", curvature=1.5, centered=True),
-                          {"start": cartan.Held(PLANAR_PIN), "end": end or cartan.Held(PLANAR_PIN)},
-                          loads=[fil.make_load("gravity", g=[0.0, -2.0, 0.0])])
-
-
 def test_the_rows_keep_the_length_between_supports():
     """The dependent combinations are those of the operator (found with every node component
     free): the stretch's odd–even mode (½, −1, 1, …, ½) only, whatever the ends.  Between two
@@ -136,7 +125,7 @@ def test_the_rows_keep_the_length_between_supports():
     for ends in ({"start": cartan.Held(PLANAR_PIN), "end": cartan.Held(PLANAR_PIN)},
                  {"start": cartan.Clamped(), "end": cartan.Clamped()},
                  {"start": cartan.Held(PLANAR_PIN), "end": cartan.Free()}):
-        problem = pinned_arc(n)
+        problem = pinned_arc(n=n)
         problem = cartan.Problem(problem.medium, problem.grid, problem.initial, ends, loads=problem.loads)
         scheme = Collocation(problem)
         con = Rattle()._constraints(scheme, scheme.initial_state())[0]
@@ -144,28 +133,6 @@ def test_the_rows_keep_the_length_between_supports():
         mode = np.linalg.svd(con.T.toarray(), full_matrices=True)[0][:, -1].reshape(n, 3)  # the one left out
         assert np.max(np.abs(mode[:, 1:])) < 1e-12
         assert abs(abs(mode[:, 0] @ ripple) / np.linalg.norm(ripple) - 1.0) < 1e-12
-
-
-def test_pinned_arc_on_collocation():
-    """The pinned–pinned arc oscillating on the collocation scheme (n = 11): the held rows at
-    round-off at every save (bound 1e-12 on values of 1; measured 1e-13), the pins do not move
-    (exactly), the held components' velocity and momentum stay zero, the free rotation Ω₃ of the
-    pins moves, and the energy error quarters with Δt (measured 1.75e-3, 4.39e-4 to t = 0.6 at
-    Δt = 4e-3, 2e-3: ratio 3.99, the lattice's 2.1e-3, 5.4e-4; asserted 4 ± 0.6, to t = 0.4)."""
-    errors = []
-    for dt in (4e-3, 2e-3):
-        ds = cartan.simulate(pinned_arc(), scheme="collocation", integrator="rattle", dt=dt, t_end=0.4,
-                             save_every=int(round(0.02 / dt)), progress=False, compiled=False)
-        E = ds.kinetic_energy.values + ds.potential_energy.values
-        assert float(np.ptp(ds.kinetic_energy.values)) > 0.1
-        errors.append(float(np.max(np.abs(E - E[0]))))
-        assert float(np.max(ds.constraint_residual.values)) < 1e-12
-        ends = ds.position.values[:, [0, -1]]
-        assert np.array_equal(ends, np.broadcast_to(ends[0], ends.shape))
-        for var in ("N", "S"):
-            assert np.all(ds[var].values[:, [0, -1]][..., list(PLANAR_PIN)] == 0.0)
-        assert float(np.max(np.abs(ds.N.values[:, 0, 5]))) > 1e-2
-    assert errors[0] / errors[1] == pytest.approx(4.0, abs=0.6), errors
 
 
 def test_symmetry_face_on_collocation():
@@ -203,14 +170,6 @@ def cantilever(n: int, initial=None, damping=None) -> cartan.Problem:
                           {"start": cartan.Clamped(), "end": cartan.Free()}, loads=loads)
 
 
-def _frames(ds) -> np.ndarray:
-    pos, E = ds.position.values[-1], ds.frame.values[-1]
-    Phi = np.zeros((*pos.shape[:-1], 4, 4))
-    Phi[..., 0, 0] = 1.0
-    Phi[..., 1:, 0], Phi[..., 1:, 1:] = pos, E
-    return Phi
-
-
 @pytest.mark.slow  # ≈ 4000 Python steps (≈ 25 s)
 def test_cantilever_clamp_balances_the_weight_at_second_order():
     """The horizontal cantilever under its weight (ρAgL³/B = 2), started on the lattice's static
@@ -225,10 +184,10 @@ def test_cantilever_clamp_balances_the_weight_at_second_order():
     err_f, err_m, lat_f, lat_m = [], [], [], []
     for n in (11, 21):
         static = cartan.solve_static(cantilever(n), tol=1e-12)
-        lattice = Lattice(cantilever(n, cartan.InitialState(Phi=_frames(static))))
+        lattice = Lattice(cantilever(n, cartan.InitialState(Phi=frames_of(static))))
         st = lattice.initial_state()
         fL, mL = spatial_wrench(lattice, st, Rattle().support_reaction(lattice, st))
-        scheme = Collocation(cantilever(n, cartan.InitialState(Phi=_frames(static)), damping=[6.0] * 3 + [0.05] * 3))
+        scheme = Collocation(cantilever(n, cartan.InitialState(Phi=frames_of(static)), damping=[6.0] * 3 + [0.05] * 3))
         state, integ = scheme.initial_state(), Rattle()
         dt = 4e-3 * 11 / n
         for _ in range(6000):
@@ -258,7 +217,7 @@ def test_pinned_filament_agrees_with_the_lattice_as_n_grows():
     for n in (11, 21, 41):
         tips = []
         for cls in (Collocation, Lattice):
-            scheme, integ = cls(pinned_arc(n, end=cartan.Free())), Rattle()
+            scheme, integ = cls(pinned_arc(n=n, end=cartan.Free())), Rattle()
             state = scheme.initial_state()
             for _ in range(300):
                 integ.step(scheme, state, 1e-3)

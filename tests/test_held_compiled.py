@@ -20,10 +20,21 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from toys import rel_error, run_both, wave
+from toys import (
+    assert_agree_and_held,
+    assert_kinetic_of_held,
+    assert_pin_holds,
+    assert_symmetry_end_slides,
+    held_rod,
+    mirrored_rod,
+    pinned_rod,
+    rel_error,
+    run_both_held,
+    wave,
+)
 
 import cartan
-from cartan import Clamped, Damping, Free, Held, Symmetry, UniformForce
+from cartan import Clamped, Damping, Held, Symmetry
 from cartan.integrators import RKMK4, Kinematic, LieVerlet, Overdamped, Rattle
 from cartan.schemes.lattice import Lattice
 
@@ -38,88 +49,35 @@ NSTEPS = 30
 DT = 1e-4
 
 
-def _rod():
-    return cartan.medium("cosserat-rod", E=1e6, G=1e4, radius=0.25, density=5000.0)
-
-
-def _pinned() -> cartan.Problem:
-    rod = _rod()
-    grid = cartan.Grid(9, length=1.0)
-    init = rod.initial_state(grid, "arc", curvature=1.0)
-    ends = {"start": Held(components=(0, 1, 2)),
-            "end": Free(load=[0.0, 0.0, 0.0, 0.0, 0.0, 10.0], follower=True)}
-    return cartan.Problem(rod, grid, init, ends, [Damping([0.1] * 6)])
-
-
-def _mirrored() -> cartan.Problem:
-    rod = _rod()
-    grid = cartan.Grid(9, length=1.0)
-    ends = {"start": Clamped(), "end": Symmetry()}  # the plane through the end ⊥ its tangent
-    return cartan.Problem(rod, grid, rod.initial_state(grid, "arc", curvature=1.0), ends,
-                          [UniformForce([0.0, 200.0, -500.0, 0.0, 0.0, 0.0])])
+_rod, _pinned, _mirrored = held_rod, pinned_rod, mirrored_rod
 
 
 def _run_both(problem, make=LieVerlet, dt=DT, nsteps=NSTEPS):
-    """The scheme, the start, the Python run and the compiled run (blocks 1, 2, nsteps − 3; the
-    generated loop: the hand-written rod loops decline held components) of ``make()``'s
-    integrator, and that compiled run's integrator."""
-    scheme, (ref, _), (fast, fi) = run_both(Lattice, problem, make, dt, nsteps, (1, 2, nsteps - 3),
-                                            track_frames=True)  # (the stepped frames compared too)
-    ops = scheme.compiled_operators()
-    assert ops.ok, ops.reason
-    assert ops.data.any_held  # some node holds some components and not all
-    start = scheme.initial_state()
-    start.scalars.setdefault("nstep", 0)
+    """:func:`toys.run_both_held` on the lattice, whose generated loop takes the steps (the
+    hand-written rod loops decline held components)."""
+    scheme, start, ref, fast, fi = run_both_held(Lattice, problem, make, dt, nsteps)
     hand = getattr(scheme, "compiled_advance", None)
     assert hand is None or not hand(make(), start.copy(), dt, 1)  # so the generated loop took the steps
-    assert fast.scalars["nstep"] == ref.scalars["nstep"] == nsteps
     return scheme, start, ref, fast, fi
 
 
 def _assert_agree_and_held(scheme, start, ref, fast):
-    assert fast.t == ref.t
-    # the run moved the rod (not a comparison of two copies of the start)
-    assert rel_error(ref.arrays["Phi"], start.arrays["Phi"]) > 1e-6
+    """Compiled against Python and the held components zero; the kinetic energy of partly held nodes."""
     force = float(np.max(np.abs(scheme.internal_force(start) / scheme.weights[..., None])))
-    assert float(np.max(np.abs(fast.S - ref.S))) <= NSTEPS * DT * force * FORCE_TOL
-    errors = {k: rel_error(fast.arrays[k], ref.arrays[k]) for k in ref.arrays}
-    assert max(errors.values()) <= TOL, errors
-    held = np.broadcast_to(scheme._clamped, fast.S.shape)
-    for state in (ref, fast):
-        assert np.all(state.S[held] == 0.0)
-        assert np.all(scheme.velocity(state)[held] == 0.0)
-        assert np.any(state.S[~held] != 0.0)
-    # the kinetic energy of partly held nodes (op_kinetic) as Scheme.kinetic_energy takes it
-    ops = scheme.compiled_operators()
-    module = ops.generated()
-    S = np.ascontiguousarray(fast.S.reshape(ops.nodes, -1))
-    K = scheme.kinetic_energy(fast)
-    assert abs(module.op_kinetic(ops.data, S) - K) <= 1e-14 * K
+    assert_agree_and_held(scheme, start, ref, fast, NSTEPS * DT * force * FORCE_TOL, TOL, 1e-6)
+    assert_kinetic_of_held(scheme, fast)
 
 
 def test_pinned_end_runs_compiled_and_agrees_with_the_numpy_path():
     scheme, start, ref, fast, _ = _run_both(_pinned())
     _assert_agree_and_held(scheme, start, ref, fast)
-    # the pin holds its position exactly (its translation components never move), its frame turns
-    for state in (ref, fast):
-        Phi = scheme.frames(state)
-        assert np.array_equal(Phi[0, :, 0], start.arrays["Phi"][0, :, 0])
-        assert not np.array_equal(Phi[0, 1:, 1:], start.arrays["Phi"][0, 1:, 1:])
+    assert_pin_holds(scheme, start, (ref, fast))
 
 
 def test_symmetry_end_runs_compiled_and_agrees_with_the_numpy_path():
     scheme, start, ref, fast, _ = _run_both(_mirrored())
     _assert_agree_and_held(scheme, start, ref, fast)
-    # the symmetry end slides in its plane (normal n, the end's initial tangent) and its frame
-    # turns about n only: both to round-off of the O(1) frames (the updates R ← R exp(τω^) with
-    # ω ∥ e₀ keep R e₀ and n·x in exact arithmetic)
-    end = start.arrays["Phi"][-1]
-    n = end[1:, 1]
-    for state in (ref, fast):
-        Phi = scheme.frames(state)[-1]
-        assert abs(n @ (Phi[1:, 0] - end[1:, 0])) <= 1e-14
-        assert np.max(np.abs(Phi[1:, 1] - n)) <= 1e-14
-        assert np.max(np.abs(Phi[1:, 0] - end[1:, 0])) > 1e-6  # it slides (by 2.3e-6)
+    assert_symmetry_end_slides(scheme, start, (ref, fast), 1e-6)  # (it slides by 2.3e-6)
 
 
 def test_simulate_takes_the_generated_loop(generated_runs):

@@ -16,6 +16,7 @@ from types import SimpleNamespace
 
 import numpy as np
 import pytest
+from toys import assert_rows_follow_the_drift
 
 import cartan
 from cartan.constraints import NodalStrainConstraints
@@ -50,21 +51,7 @@ def test_rows_are_the_exact_rate_of_the_drift():
     1.2e-8 and 1.5e-8 relative, 1.2e-6 and 1.5e-6 at ε = 1e-3)."""
     scheme = Collocation(_filament(initial="arc"), "fd2")
     state, _ = _steps(scheme, 3, 5e-3)  # a curved, moving state
-    integ = Rattle()
-    integ.reset()
-    con, unknown, _, _ = integ._constraints(scheme, state)
-    rng = np.random.default_rng(3)
-    delta = np.where(unknown, rng.standard_normal(unknown.shape), 0.0)
-    eps = 1e-4
-    vals = []
-    for s in (1.0, -1.0, 0.0):
-        moved = state.copy()
-        scheme.drift(moved, s * eps, delta, exact=True)
-        vals.append(con.values(moved))
-    rate = (vals[0] - vals[1]) / (2 * eps)
-    second = (vals[0] - 2 * vals[2] + vals[1]) / eps**2
-    assert np.max(np.abs(con.matrix(state) @ delta[unknown] - rate)) < 1e-7 * np.max(np.abs(rate))
-    assert np.max(np.abs(con.rows_rate(state, delta) - second)) < 1e-6 * np.max(np.abs(second))
+    assert_rows_follow_the_drift(scheme, state, 3, 1e-7, 1e-6)
 
 
 def test_dependent_row_is_the_odd_even_mode():

@@ -358,3 +358,143 @@ def check_move_and_frames_passes(frames_pass, move_pass, inverse, compose, Dn, G
         compose(inv, G[e], tmp)
         compose(tmp, Dn[head[e]], ref)
         assert np.array_equal(G2[e], ref)
+
+
+# ---------------------------------------------------------------------------- held components, compiled
+def held_rod():
+    """The stiff SE(3) rod of the held-components tests (tests/test_held_compiled.py,
+    tests/test_collocation_held_compiled.py)."""
+    return cartan.medium("cosserat-rod", E=1e6, G=1e4, radius=0.25, density=5000.0)
+
+
+def pinned_rod(end_load=(0.0, 0.0, 0.0, 0.0, 0.0, 10.0)) -> Problem:
+    """A 9-node arc pinned at its start (translations held) under a follower end load, damped."""
+    from cartan.problem import Held
+
+    rod = held_rod()
+    grid = Grid(9, length=1.0)
+    init = rod.initial_state(grid, "arc", curvature=1.0)
+    ends = {"start": Held(components=(0, 1, 2)), "end": Free(load=list(end_load), follower=True)}
+    return Problem(rod, grid, init, ends, [Damping([0.1] * 6)])
+
+
+def mirrored_rod() -> Problem:
+    """A 9-node arc clamped at its start with a symmetry end (the plane through the end ⊥ its tangent)."""
+    from cartan.problem import Symmetry
+
+    rod = held_rod()
+    grid = Grid(9, length=1.0)
+    return Problem(rod, grid, rod.initial_state(grid, "arc", curvature=1.0), {"start": Clamped(), "end": Symmetry()},
+                   [UniformForce([0.0, 200.0, -500.0, 0.0, 0.0, 0.0])])
+
+
+def run_both_held(scheme_type, problem, make, dt: float, nsteps: int):
+    """The scheme, the start, the Python run and the compiled run (blocks 1, 2, nsteps − 3, stepped
+    frames) of ``make()``'s integrator on a problem with held components, and that compiled run's
+    integrator; asserts the operator set holds some components and not all of a node."""
+    scheme, (ref, _), (fast, fi) = run_both(scheme_type, problem, make, dt, nsteps, (1, 2, nsteps - 3),
+                                            track_frames=True)
+    ops = scheme.compiled_operators()
+    assert ops.ok, ops.reason
+    assert ops.data.any_held  # some node holds some components and not all
+    start = scheme.initial_state()
+    start.scalars.setdefault("nstep", 0)
+    assert fast.scalars["nstep"] == ref.scalars["nstep"] == nsteps
+    return scheme, start, ref, fast, fi
+
+
+def assert_agree_and_held(scheme, start, ref, fast, bound: float, tol: float, moved: float,
+                          momentum: bool = True) -> None:
+    """Compiled against Python: the momenta within ``bound``, the other arrays within ``tol``
+    relative; the run moved the frames by more than ``moved`` (not two copies of the start); the
+    held components zero in both (``momentum``: the free ones not)."""
+    assert fast.t == ref.t
+    assert rel_error(ref.arrays["Phi"], start.arrays["Phi"]) > moved
+    assert float(np.max(np.abs(fast.S - ref.S))) <= bound
+    errors = {k: rel_error(fast.arrays[k], ref.arrays[k]) for k in ref.arrays}
+    assert max(errors.values()) <= tol, errors
+    held = np.broadcast_to(scheme._clamped, fast.S.shape)
+    for state in (ref, fast):
+        assert np.all(state.S[held] == 0.0)
+        assert np.all(scheme.velocity(state)[held] == 0.0)
+        assert np.any(state.S[~held] != 0.0) or not momentum
+
+
+def assert_kinetic_of_held(scheme, state) -> None:
+    """The kinetic energy of partly held nodes (``op_kinetic``) as ``Scheme.kinetic_energy`` takes
+    it: a sum of a few tens of positive terms, to 1e-14 relative."""
+    ops = scheme.compiled_operators()
+    S = np.ascontiguousarray(state.S.reshape(ops.nodes, -1))
+    K = scheme.kinetic_energy(state)
+    assert K > 0 and abs(ops.generated().op_kinetic(ops.data, S) - K) <= 1e-14 * K
+
+
+def assert_rows_follow_the_drift(scheme, state, seed: int, rate_tol: float, second_tol: float) -> None:
+    """``rattle``'s rows on ``scheme`` at ``state``: ``B_c δ`` and ``Ḃ_c``-rate ``rows_rate`` against
+    central differences of the rows along the exact drift of a random δ (ε = 1e-4: truncation
+    O(ε²) relative), within ``rate_tol`` and ``second_tol`` of the largest entry."""
+    from cartan.integrators import Rattle
+
+    integ = Rattle()
+    integ.reset()
+    con, unknown, _, _ = integ._constraints(scheme, state)
+    rng = np.random.default_rng(seed)
+    delta = np.where(unknown, rng.standard_normal(unknown.shape), 0.0)
+    eps = 1e-4
+    vals = []
+    for s in (1.0, -1.0, 0.0):
+        moved = state.copy()
+        scheme.drift(moved, s * eps, delta, exact=True)
+        vals.append(con.values(moved))
+    rate = (vals[0] - vals[1]) / (2 * eps)
+    second = (vals[0] - 2 * vals[2] + vals[1]) / eps**2
+    assert np.max(np.abs(con.matrix(state) @ delta[unknown] - rate)) < rate_tol * np.max(np.abs(rate))
+    assert np.max(np.abs(con.rows_rate(state, delta) - second)) < second_tol * np.max(np.abs(second))
+
+
+def assert_pin_holds(scheme, start, states) -> None:
+    """The pinned start of :func:`pinned_rod` keeps its position exactly (its translation components
+    never move) while its frame turns."""
+    for state in states:
+        Phi = scheme.frames(state)
+        assert np.array_equal(Phi[0, :, 0], start.arrays["Phi"][0, :, 0])
+        assert not np.array_equal(Phi[0, 1:, 1:], start.arrays["Phi"][0, 1:, 1:])
+
+
+def assert_symmetry_end_slides(scheme, start, states, slide: float) -> None:
+    """The symmetry end of :func:`mirrored_rod` slides in its plane (normal n, the end's initial
+    tangent) by more than ``slide`` and its frame turns about n only, both to round-off of the O(1)
+    frames (the updates R ← R exp(τω^) with ω ∥ e₀ keep R e₀ and n·x in exact arithmetic)."""
+    end = start.arrays["Phi"][-1]
+    n = end[1:, 1]
+    for state in states:
+        Phi = scheme.frames(state)[-1]
+        assert abs(n @ (Phi[1:, 0] - end[1:, 0])) <= 1e-14
+        assert np.max(np.abs(Phi[1:, 1] - n)) <= 1e-14
+        assert np.max(np.abs(Phi[1:, 0] - end[1:, 0])) > slide
+
+
+#: a planar pin: the position and the out-of-plane rotations held, Ω₃ (about e₃ = z) free
+PLANAR_PIN = (0, 1, 2, 3, 4)
+
+
+def pinned_arc(pin=PLANAR_PIN, n: int = 11, end=None) -> Problem:
+    """A filament arc of curvature 1.5 in the x–y plane (L = 1, symmetric about x = 0) pinned at
+    both ends (``pin`` held; ``end`` replaces the pin at s = L), released from rest under gravity
+    −2e_y: not an equilibrium (the straight rest shape pushes the pins apart), it oscillates in its
+    plane (tests/test_rattle_held.py, tests/test_collocation_rattle_reactions.py)."""
+    from cartan.problem import Held
+
+    fil = cartan.medium("filament", bending=1.0, twist=1.0, mass=1.0, rotational_inertia=0.05)
+    grid = Grid(n, length=1.0)
+    return Problem(fil, grid, fil.initial_state(grid, "arc", curvature=1.5, centered=True),
+                   {"start": Held(pin), "end": end or Held(pin)}, loads=[fil.make_load("gravity", g=[0.0, -2.0, 0.0])])
+
+
+def frames_of(ds, k: int = -1) -> np.ndarray:
+    """The SE(3) frames Φ ``[*shape, 4, 4]`` of frame ``k`` of a rod's Dataset (``position``, ``frame``)."""
+    pos, E = ds.position.values[k], ds.frame.values[k]
+    Phi = np.zeros((*pos.shape[:-1], 4, 4))
+    Phi[..., 0, 0] = 1.0
+    Phi[..., 1:, 0], Phi[..., 1:, 1:] = pos, E
+    return Phi

@@ -119,9 +119,11 @@ class Scheme(abc.ABC):
     #: whether the scheme steps media whose Lagrangian couples N and X
     #: (:attr:`cartan.medium.Medium.coupled_lagrangian`, :mod:`cartan.schemes._coupled`); the others refuse them
     supports_coupled_lagrangian: ClassVar[bool] = False
-    #: whether the scheme moves :class:`~cartan.problem.Driven` ends (its ``force`` takes
-    #: ``raw=True``: the force density before the held nodes' is zeroed, for the reaction)
+    #: whether the scheme moves :class:`~cartan.problem.Driven` ends
     supports_driven_ends: ClassVar[bool] = False
+    #: whether the scheme's ``force`` takes ``raw=True`` (the force density before the held
+    #: nodes' is zeroed: :meth:`support_reaction`)
+    gives_raw_force: ClassVar[bool] = False
 
     def __init__(self, problem: Problem, **options: Any):
         if options:
@@ -478,9 +480,9 @@ class Scheme(abc.ABC):
         ------
         ValueError
             On a scheme whose :meth:`force` does not give the force before the held nodes'
-            (:attr:`supports_driven_ends` False).
+            (:attr:`gives_raw_force` False).
         """
-        if not self.supports_driven_ends:
+        if not self.gives_raw_force:
             raise ValueError(f"scheme {self.name!r} does not give the supports' reactions; use scheme='lattice'")
         N = self.velocity(state) if N is None else N
         W = self.force(state, N, state.t if t is None else t, raw=True)

@@ -288,6 +288,10 @@ class Collocation(Scheme):
 
     name = "collocation"
     order = 2
+    #: ``force(raw=True)`` adds the clamped ends' natural-condition term (:meth:`_clamped_traction`),
+    #: so that :meth:`~cartan.schemes.base.Scheme.support_reaction` is the clamp's reaction; no
+    #: :class:`~cartan.problem.Driven` end moves here (``supports_driven_ends`` False)
+    gives_raw_force = True
 
     def __init__(self, problem, derivative: str = "fd2", track_frames: bool | None = None):
         super().__init__(problem)
@@ -578,36 +582,6 @@ class Collocation(Scheme):
         if self._inv_volume is not None:
             W *= self._inv_volume[..., None]
         return W
-
-    def support_reaction(self, state: State, N: np.ndarray | None = None, t: float | None = None) -> np.ndarray:
-        """The supports' reaction on their wholly held (clamped) nodes ``[*shape, r]``, body
-        components; zero at the other nodes.
-
-        As :meth:`Scheme.support_reaction <cartan.schemes.base.Scheme.support_reaction>`, the
-        balance of a node whose momentum stays zero, ``R = −w(W + ad_NᵀS)``, with W the
-        :meth:`force` with ``raw=True`` (the clamped end's natural-condition term included:
-        the end's stress is the traction the clamp transmits) and w the node's weight, the SBP
-        quadrature weight (times J on a general chart).  The collocation scheme moves no
-        :class:`~cartan.problem.Driven` end (:attr:`supports_driven_ends` stays False).
-
-        Parameters
-        ----------
-        state : State
-        N : numpy.ndarray, shape ``[*shape, r]``, optional
-            The velocity (default :meth:`velocity` of ``state``).
-        t : float, optional
-            The time of the forces (default ``state.t``).
-
-        Returns
-        -------
-        numpy.ndarray ``[*shape, r]``
-        """
-        N = self.velocity(state) if N is None else N
-        W = self.force(state, N, state.t if t is None else t, raw=True)
-        R = -self.weights[..., None] * (W + np.einsum("...ji,...j->...i", self.group.ad(N), state.S))
-        R[~self.held_nodes()] = 0.0
-        R[..., ~self.live] = 0.0
-        return R
 
     def _boundary_power(self, state, N, Phi):
         p = 0.0

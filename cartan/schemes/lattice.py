@@ -107,6 +107,7 @@ class Lattice(Scheme):
     strain_location = "edge"
     supports_coupled_lagrangian = True  # d = 1: cartan.schemes._coupled
     supports_driven_ends = True  # cartan.Driven: numpy path, and the generated loops (compiled_operators)
+    gives_raw_force = True
 
     #: the treatment of a glued chart's poles (``"corners"`` or ``"cap"``: module docstring)
     pole = "corners"
