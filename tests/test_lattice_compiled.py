@@ -827,3 +827,22 @@ def test_second_process_loads_the_compiled_loops_from_the_cache():
         assert run.returncode == 0, run.stderr
     loop_hits, hits, misses = map(int, runs[1].stdout.split()[-3:])
     assert loop_hits == 1 and hits >= 1 and misses == 0, runs[1].stdout
+
+
+def test_hand_written_loops_decline_other_integrators_without_a_plan():
+    """``may_run`` is the static part of ``compiled_kind``: True for the built-in lie-verlet and
+    overdamped, False for the others and for subclasses; a declined integrator builds no plan
+    (``compiled_advance`` returns False before it)."""
+    from cartan.integrators import Rattle
+    from cartan.schemes._lattice_compiled import may_run
+    from cartan.schemes.lattice import Lattice
+
+    class MyVerlet(LieVerlet):
+        pass
+
+    assert may_run(LieVerlet()) and may_run(Overdamped())
+    assert not any(may_run(i) for i in (RKMK4(), LieEuler(), ForwardEuler(), Rattle(), MyVerlet()))
+    scheme = Lattice(rod_problem("cantilever"))
+    state = scheme.initial_state()
+    assert scheme.compiled_advance(RKMK4(), state.copy(), 1e-4, 1) is False
+    assert "_compiled_plan" not in scheme.__dict__

@@ -48,6 +48,7 @@ __all__ = [
     "finish_advance",
     "force_once",
     "lie_verlet_se3_loop",
+    "may_run",
     "overdamped_se3_loop",
     "runs",
 ]
@@ -124,6 +125,19 @@ def _rod_arrays(scheme, state) -> tuple[np.ndarray, np.ndarray] | None:
     G = state.arrays[key] = _writable(state.arrays[key])
     Phi = state.arrays[frame_key] = _writable(state.arrays[frame_key])
     return G, Phi.reshape(-1, 4, 4)
+
+
+#: the built-in integrators whose steps these loops take (:func:`compiled_kind` refines per problem)
+_KINDS = ("lie-verlet", "overdamped")
+
+
+def may_run(integrator) -> bool:
+    """Whether these loops can take the steps of ``integrator`` on some problem: one of the
+    built-in ``lie-verlet`` or ``overdamped`` (the type and name only, no plan built).  When False,
+    :func:`compiled_kind` is None on every scheme, so that
+    :meth:`~cartan.schemes.lattice.Lattice.compiled_advance` declines at once, before building the
+    plan, at every save block of the run (``rattle``, ``rkmk4``, … take the generated loops)."""
+    return type(integrator).__module__ == "cartan.integrators.explicit" and integrator.name in _KINDS
 
 
 def compiled_kind(scheme, integrator) -> tuple | None:

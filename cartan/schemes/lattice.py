@@ -193,7 +193,9 @@ class Lattice(Scheme):
         (``quadratic_energy()``), damping, body-frame uniform forces, constant-field
         potentials, free and clamped ends, stepped by ``lie-verlet`` (every free-flow piece in
         closed form: no zero inertia) or ``overdamped`` of order 1 (``docs/performance.md``);
-        the numpy backend always declines.  With ``CARTAN_THREADS`` (or
+        the numpy backend always declines.  An integrator these loops never take (``rattle``,
+        ``rkmk4``, …: :func:`cartan.schemes._lattice_compiled.may_run`, its type and name only) is
+        declined at once, before the plan is built, at each of the run's save blocks.  With ``CARTAN_THREADS`` (or
         :func:`cartan.set_threads`) above 1 and a rod of at least ``cartan._threads.MIN_NODES``
         nodes the loops run on threads, with the same results.
 
@@ -207,6 +209,10 @@ class Lattice(Scheme):
         """
         if self._glue or self._driven is not None:
             return False  # glued axes run on the numpy path, driven ends in the generated loops (module docstring)
+        from ._lattice_compiled import may_run
+
+        if not may_run(integrator):
+            return False  # (a static query: no plan built, the generated loops take the steps at once)
         return self._run_compiled(self.plan_module, integrator, state, dt, nsteps, kinetic_limit)
 
     def compiled_operators(self):
