@@ -419,7 +419,6 @@ def collocation_operators(scheme, reference: type):
     """
     from ..compiled.kernels import kernel_stem, medium_fragment
     from ..compiled.operators import OperatorSet
-    from .collocation import _load_of
 
     reason = _why_not(scheme, reference)
     if reason is not None:
@@ -456,7 +455,7 @@ def collocation_operators(scheme, reference: type):
     held = np.ascontiguousarray(np.broadcast_to(held.reshape(*shape, -1), (*shape, r)).reshape(n, r))
     clamped = np.ascontiguousarray(held.all(axis=1))
     # the applied load P of each end entry: None at an unloaded free end, a held end, a symmetry face
-    loads = [_load_of(e[4]) for e in ends]
+    loads = [getattr(e[4], "load", None) for e in ends]  # (Held ends and Symmetry faces have none)
     data = CollocationData(
         d=d, r=r, m=m, affine=bool(getattr(group, "affine", False)), track=bool(scheme.track), shape=shape,
         coords=np.stack(np.meshgrid(*[grid.coordinates(a) for a in range(d)], indexing="ij"), -1).reshape(n, d),

@@ -250,14 +250,18 @@ class Scheme(abc.ABC):
         """The body of a scheme's ``compiled_advance``: build its compiled plan once
         (``cartan.schemes.<module>.build_plan(self)``, None when the problem does not qualify)
         and run ``<module>.advance``; False when the numpy backend is selected or the problem
-        does not qualify (nothing touched)."""
+        does not qualify (nothing touched), and at once, before any plan is built, when the
+        module's optional ``may_run(integrator)`` says its loops never take that integrator."""
+        import importlib
+
+        plans = importlib.import_module(f"{__package__}.{module}")
+        may_run = getattr(plans, "may_run", None)
+        if may_run is not None and not may_run(integrator):
+            return False
         plan = None if self.coupled_lagrangian else self.compiled_plan(module)
         if plan is None:
             return False
-        import importlib
-
-        return importlib.import_module(f"{__package__}.{module}").advance(self, plan, integrator, state, dt, nsteps,
-                                                                          kinetic_limit)
+        return plans.advance(self, plan, integrator, state, dt, nsteps, kinetic_limit)
 
     def compiled_operators(self):
         """The scheme's compiled operator set for its problem

@@ -209,10 +209,7 @@ class Lattice(Scheme):
         """
         if self._glue or self._driven is not None:
             return False  # glued axes run on the numpy path, driven ends in the generated loops (module docstring)
-        from ._lattice_compiled import may_run
-
-        if not may_run(integrator):
-            return False  # (a static query: no plan built, the generated loops take the steps at once)
+        # (the plan module's may_run declines rattle, rkmk4, … before any plan is built)
         return self._run_compiled(self.plan_module, integrator, state, dt, nsteps, kinetic_limit)
 
     def compiled_operators(self):
