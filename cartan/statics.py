@@ -803,12 +803,10 @@ class _Equilibrium:
                     raise ValueError(f"{type(h).__name__}.hessian_parts must return U and V of one shape "
                                      f"{(*self.shape, self.r_dim, 'k')}, got {np.shape(U)} and {np.shape(V)}")
                 grads.append((frozen, m_))
-                rest = np.zeros((self.m, k))
-                Us.append(rest.copy())
-                Us[-1][: self.nunk] = -m_ * np.asarray(U, dtype=float).reshape(self.nnode, self.r_dim, k)[
-                    self.unknown_flat]
-                rest[: self.nunk] = np.asarray(V, dtype=float).reshape(self.nnode, self.r_dim, k)[self.unknown_flat]
-                Vs.append(rest)
+                U, V = (np.asarray(x, dtype=float).reshape(self.nnode, self.r_dim, k)[self.unknown_flat]
+                        for x in (U, V))
+                Us.append(_padded(-m_ * U, self.m))
+                Vs.append(_padded(V, self.m))
 
             def reaction(trial: Any) -> np.ndarray:
                 out = np.zeros((*self.shape, self.r_dim))
@@ -1454,7 +1452,7 @@ class _Equilibrium:
         if self.kind != "analytic":  # the loads' part, kept for the rigid-motion check at the start
             self.last_loads = (state, lam, KL)
             if low is not None:  # zero rows for the multipliers
-                low = tuple(np.concatenate([x, np.zeros((self.nmult, x.shape[1]))]) for x in low)
+                low = tuple(_padded(x, self.m) for x in low)
         if not self.nmult:
             J = sp.csc_matrix(K)
         else:

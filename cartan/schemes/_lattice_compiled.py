@@ -146,7 +146,7 @@ def compiled_kind(scheme, integrator) -> tuple | None:
     ``overdamped`` of order 1 with a positive drag on every live component (without, the
     reference path raises the error)."""
     # the built-in integrators (known by name; the loops below are their steps), not subclasses
-    kind = integrator.name if type(integrator).__module__ == "cartan.integrators.explicit" else None
+    kind = integrator.name if may_run(integrator) else None
     if kind == "lie-verlet":
         _, kinds = _lie_verlet_sequence(integrator, scheme, 1.0, _cache(scheme))
         return (kind, None) if np.all(kinds[:, 0] != KIND_GENERIC) else None

@@ -576,9 +576,9 @@ class Collocation(Scheme):
         if not ends:
             return W
         X = state.arrays["X"]
-        Q = self.medium.stress(X) if self.rest is None else self.medium.stress_at(X, self.rest)
-        for axis, idx, sign, H_end in ends:
-            W[idx] -= sign * Q[idx][..., axis, :] / H_end
+        for axis, idx, sign, H_end in ends:  # the stress at the end's nodes only
+            Q = self.medium.stress(X[idx]) if self.rest is None else self.medium.stress_at(X[idx], self.rest[idx])
+            W[idx] -= sign * Q[..., axis, :] / H_end
         if self._inv_volume is not None:
             W *= self._inv_volume[..., None]
         return W
