@@ -570,6 +570,39 @@ def _resolution_note(scheme: Scheme, good: State, failed: State) -> str:
     return ""
 
 
+def _default_dt(scheme: Scheme, integrator: Integrator, state: State, dt_max: float) -> float:
+    """The time step of a run that gives none: half the CFL estimate ``dt_max``, rounded down
+    to two significant digits.
+
+    An integrator without a stability limit (``dt_max = inf``: ``implicit-midpoint``) that
+    steps momenta takes the explicit time scale 1/ω_max of the linearised system
+    (:meth:`~cartan.schemes.base.Scheme.dt_max`, ω_max² = λ_max(M⁻¹K)), the step
+    ``lie-verlet`` takes by default: ω_max Δt = 1 resolves the fastest mode (the midpoint
+    rule's phase error there ≈ (ω_maxΔt)²/12 ≈ 8 %, smaller on every slower mode).  A larger
+    step is the user's to choose (``dt=``): it is stable, but it no longer resolves the
+    fastest modes.
+
+    Raises
+    ------
+    ValueError
+        No Δt is stable (``dt_max = 0``), or the integrator has no stability limit and no
+        inertial time scale (it prescribes the velocity: ``kinematic``; or the medium has no
+        stiffness).
+    """
+    if 0 < dt_max < math.inf:
+        return _round_down(0.5 * dt_max)
+    if dt_max == math.inf and integrator.uses_momentum:
+        scale = float(scheme.dt_max(state, rate=integrator.rate))  # 1/ω_max (1e150 without stiffness)
+        if 0 < scale < 1e100:
+            return _round_down(scale)
+        raise ValueError(f"dt is required: {integrator.name!r} has no stability limit and the problem no "
+                         f"stiffness that sets a time scale (1/ω_max = {scale:g})")
+    if dt_max == math.inf:
+        raise ValueError(f"dt is required: {integrator.name!r} has no stability limit and prescribes the "
+                         f"velocity, so no time scale of the problem sets a default step")
+    raise ValueError(f"dt is required: the CFL estimate of {integrator.name!r} is {dt_max:g} (no step is stable)")
+
+
 def _describe_dt(dt: float, dt_max: float) -> str:
     if dt_max == 0:
         return f"Δt = {dt:.3g} exceeds the CFL estimate 0 (no stable Δt for undamped motion)"
@@ -788,7 +821,8 @@ def simulate(
         Registered name (default ``"lattice"``) or class.
     dt : float, optional
         Time step, a finite real number > 0.  Default: half the integrator's CFL estimate,
-        rounded down to two significant digits.  A Δt above the estimate gives a
+        rounded down to two significant digits; for an integrator without a stability limit
+        (``implicit-midpoint``) the inertial time scale 1/ω_max (``_default_dt``).  A Δt above the estimate gives a
         :class:`StabilityWarning` (after every setting has been checked, just before the run).
     t_end : float
         Final time (required unless a scene or the restart file gives it).  When Δt does not
@@ -1026,9 +1060,7 @@ def _resolve_run(
     t_end = _real("t_end", t_end)
     dt = _first(dt, ck_run.get("dt"), run_defaults.get("dt"))
     if dt is None:
-        if not (0 < dt_max < math.inf):
-            raise ValueError(f"dt is required: the CFL estimate of {integ_obj.name!r} is {dt_max:g}")
-        dt = _round_down(0.5 * dt_max)
+        dt = _default_dt(scheme_obj, integ_obj, state, dt_max)
     dt = _real("dt", dt)
     if ck_info is not None:
         t0, step0 = float(ck_state.t), int(ck_info["step"])

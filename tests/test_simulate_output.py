@@ -16,6 +16,7 @@ up leaves its last good state beside the output, which stays as it was.
 from __future__ import annotations
 
 import importlib
+import json
 import math
 import os
 import re
@@ -29,6 +30,7 @@ from toys import arc_problem
 import cartan
 from cartan import io
 from cartan.grid import Grid
+from cartan.integrators import Kinematic
 from cartan.problem import Clamped, Problem
 
 simulate_module = importlib.import_module("cartan.simulate")  # the module, not the function
@@ -303,3 +305,19 @@ def test_problems_out_of_range_are_refused():
     medium = cartan.medium("cosserat-rod", radius=0.25, **rod)
     with pytest.raises(ValueError, match="the CFL estimate of 'lie-verlet' on 'lattice' is not a number"):
         cartan.simulate(Problem(medium, short, medium.initial_state(short, "straight")), **KW)
+
+
+def test_an_integrator_without_a_stability_limit_takes_the_inertial_time_scale(monkeypatch):
+    """Without dt, implicit-midpoint (no stability limit) takes 1/ω_max, the step lie-verlet's
+    default (half its CFL estimate 2/ω_max) also takes; kinematic, which has no time scale, asks for dt."""
+    monkeypatch.setenv("CARTAN_COMPILED", "0")
+    problem = arc_problem(7)
+    cfg = {}
+    for name in ("lie-verlet", "implicit-midpoint"):
+        ds = cartan.simulate(problem, integrator=name, t_end=0.05, progress=False, compiled=False)
+        cfg[name] = json.loads(ds.attrs["cartan_config"])["run"]
+    assert math.isinf(cfg["implicit-midpoint"]["dt_max"])
+    assert cfg["implicit-midpoint"]["dt"] == cfg["lie-verlet"]["dt"] > 0
+    with pytest.raises(ValueError, match="dt is required: 'kinematic' has no stability limit"):
+        cartan.simulate(problem, integrator=Kinematic(velocity=lambda t, u, X: np.zeros((*u.shape[:-1], 6))),
+                        t_end=0.05, progress=False)
