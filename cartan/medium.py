@@ -732,14 +732,15 @@ class Medium(abc.ABC):
     #: depends on X, Q = −∂ℓ/∂X on N), so that it is not K(N) − U(X).  The medium then gives its
     #: Legendre map and Hamiltonian pointwise — :meth:`momentum_at`, :meth:`velocity_at`,
     #: :meth:`stress_with`, :meth:`hamiltonian` — and the schemes that support it
-    #: (``Scheme.supports_coupled_lagrangian``: the ``lattice`` for d = 1) step the Hamiltonian
+    #: (``Scheme.supports_coupled_lagrangian``: the ``lattice`` and the ``collocation`` for d = 1;
+    #: ``Scheme.coupled_module`` discretises it) step the Hamiltonian
     #: system ``Φ̇ = ΦN``, ``Ṡ + ad*_N S = D*Q`` with ``N = ∂H/∂S(S, X)`` and ``Q = ∂H/∂X(S, X)``
     #: (docs/design.md, "Media whose Lagrangian couples N and X").  The integrators that split
     #: K(S) + U(X) (``lie-verlet``, ``rattle``) refuse it; ``implicit-midpoint`` runs it as a
     #: discrete Lagrangian method (symplectic).  ``rkmk4``, ``lie-euler`` and ``forward-euler``
     #: run it in the generated compiled loops when :meth:`point_kernels` declares the coupled
-    #: kernels (:class:`MediumKernels`: ``coupled_velocity``, ``coupled_stress``), else on the
-    #: numpy path.
+    #: kernels (:class:`MediumKernels`: ``coupled_velocity``, ``coupled_stress``) on the lattice,
+    #: else (and on the collocation) on the numpy path.
     coupled_lagrangian: ClassVar[bool] = False
 
     def momentum_at(self, N: np.ndarray, X: np.ndarray) -> np.ndarray:

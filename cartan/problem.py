@@ -135,8 +135,11 @@ class Driven(Boundary):
 
     Notes
     -----
-    Runs on the ``lattice`` scheme's numpy path (its compiled loops and operators hold clamped
-    nodes at rest and decline a driven end) with the integrators that move the end by exactly
+    Runs on the ``lattice`` scheme (its numpy path and the generated loops of its operator set;
+    its hand-written rod loops decline a driven end) and on the ``collocation`` scheme's numpy
+    path (its compiled operators decline it; frames stepped by default, the driven node's
+    strain drifted by the same Lie group integrator, docs/schemes.md "Driven ends") with the
+    integrators that move the end by exactly
     exp(Δtξ) per step: ``lie-euler``, ``rkmk4``, ``overdamped``, ``implicit-midpoint``,
     ``lie-verlet`` and ``rattle`` (the latter two when ξ's parts in the split free flow commute,
     e.g. a rotation about one body axis, any translation, and with a diagonal kinetic metric;

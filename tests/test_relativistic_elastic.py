@@ -3,7 +3,7 @@ path for Lagrangians that couple N and X (docs/media/relativistic-rod.md §2–�
 docs/design.md, "Media whose Lagrangian couples N and X").
 
 Fast tests run the numpy path only: the temporal-gauge Legendre map against its closed forms,
-the parameter checks, the refusals (``lie-verlet``, ``collocation``, the
+the parameter checks, the refusals (``lie-verlet``, the
 hand-written compiled loops), the Nambu–Goto string through the coupled path (the same run to round-off) and
 a short free-rod run whose 4-momentum is conserved to round-off.  Slow: the order of the energy
 and angular-momentum errors of ``rkmk4``, the Newtonian limit against ``cosserat-rod`` and the
@@ -137,10 +137,9 @@ def test_splitting_integrators_refuse_a_coupled_lagrangian():
         cartan.simulate(_free_string(5), integrator="lie-verlet", dt=0.01, t_end=0.01, progress=False)
 
 
-def test_collocation_refuses_and_compiled_loops_decline():
+def test_hand_written_compiled_loops_decline():
+    """(The collocation steps the medium on its numpy path: tests/test_collocation_coupled.py.)"""
     problem = _free_string(5)
-    with pytest.raises(ValueError, match="does not step such media"):
-        cartan.simulate(problem, scheme="collocation", integrator="rkmk4", dt=0.01, t_end=0.01, progress=False)
     scheme = Lattice(problem)
     state = scheme.initial_state()
     integ = RKMK4()

@@ -288,13 +288,14 @@ def test_long_run_energy_bounded_for_implicit_midpoint_drifting_for_rkmk4():
 @pytest.mark.slow
 def test_check_medium_passes_on_the_elastic_string():
     """The conformance kit on the coupled medium: contract, coupled-contract checks and the runs
-    (rkmk4, lie-euler, implicit-midpoint, kinematic, overdamped on the lattice; lie-verlet and
-    rattle refuse it and collocation does not step it: skipped with their reasons)."""
+    (rkmk4, lie-euler, implicit-midpoint, kinematic, overdamped on the lattice and the
+    collocation; lie-verlet and rattle refuse it: skipped with their reasons)."""
     from cartan.testing import check_medium
 
     rep = check_medium("relativistic-rod", {"energy": "elastic", "stiffness": 0.25})
     assert any("coupled contract" in p for p in rep.passed)
     assert any("lattice × implicit-midpoint" in p for p in rep.passed)
+    assert any("collocation × implicit-midpoint" in p for p in rep.passed)
 
 
 # ---------------------------------------------------------------------------- restarts

@@ -343,6 +343,8 @@ def _why_not(scheme, reference: type) -> str | None:
     from .base import Scheme
 
     medium = scheme.medium
+    if getattr(scheme, "_driven", None) is not None:
+        return "a Driven end runs on the numpy path (the operators hold clamped nodes at rest)"
     if scheme.group.point_kernels() is None:
         return f"the group {scheme.group!r} has no numba point kernels"
     if medium.point_kernels() is None:

@@ -119,6 +119,11 @@ class Scheme(abc.ABC):
     #: whether the scheme steps media whose Lagrangian couples N and X
     #: (:attr:`cartan.medium.Medium.coupled_lagrangian`, :mod:`cartan.schemes._coupled`); the others refuse them
     supports_coupled_lagrangian: ClassVar[bool] = False
+    #: the module that discretises such a Lagrangian on this scheme: its ``coupled_velocity(scheme,
+    #: state)``, ``initial_momentum(scheme, state, N, start=None)`` and ``kinetic_part(scheme, state)``
+    #: give :meth:`velocity`, :meth:`momentum` and :meth:`kinetic_energy` (the lattice's half edges,
+    #: :mod:`cartan.schemes._coupled`; the collocation's nodes, :mod:`cartan.schemes._collocation_coupled`)
+    coupled_module: ClassVar[str] = "cartan.schemes._coupled"
     #: whether the scheme moves :class:`~cartan.problem.Driven` ends
     supports_driven_ends: ClassVar[bool] = False
     #: whether the scheme's ``force`` takes ``raw=True`` (the force density before the held
@@ -131,7 +136,8 @@ class Scheme(abc.ABC):
         if getattr(problem.medium, "coupled_lagrangian", False) and not (
                 self.supports_coupled_lagrangian and problem.grid.d == 1):
             raise ValueError(f"medium {problem.medium.name!r} has a Lagrangian that couples N and X; scheme "
-                             f"{self.name!r} does not step such media (the 'lattice' does, for d = 1)")
+                             f"{self.name!r} does not step such media (the 'lattice' and the 'collocation' do, "
+                             "for d = 1)")
         self.problem = problem
         self.medium = problem.medium
         self.group = problem.medium.group
@@ -163,7 +169,7 @@ class Scheme(abc.ABC):
         if not ends:
             return None
         if not self.supports_driven_ends:
-            raise ValueError(f"scheme {self.name!r} does not move Driven ends; use scheme='lattice'")
+            raise ValueError(f"scheme {self.name!r} does not move Driven ends; use scheme='lattice' or 'collocation'")
         if self.coupled_lagrangian:
             raise ValueError(f"a Driven end is not supported with a Lagrangian that couples N and X (medium "
                              f"{self.medium.name!r}, Medium.coupled_lagrangian)")
@@ -360,9 +366,7 @@ class Scheme(abc.ABC):
         S = self.medium.momentum(self.problem.initial.N)
         state = State(0.0, np.ascontiguousarray(S, dtype=float), arrays)
         if self.coupled_lagrangian:  # S₀ such that N(S₀, X) = N₀ (the discrete Legendre map)
-            from ._coupled import initial_momentum
-
-            state.S = initial_momentum(self, state, self.problem.initial.N)
+            state.S = self._coupled().initial_momentum(self, state, self.problem.initial.N)
         self.constrain(state)
         return state
 
@@ -370,6 +374,12 @@ class Scheme(abc.ABC):
     def coupled_lagrangian(self) -> bool:
         """Whether the medium's Lagrangian couples N and X (:mod:`cartan.schemes._coupled`)."""
         return bool(getattr(self.medium, "coupled_lagrangian", False))
+
+    def _coupled(self) -> Any:
+        """The module :attr:`coupled_module` (imported on first use)."""
+        import importlib
+
+        return importlib.import_module(self.coupled_module)
 
     def momentum(self, state: State, N: np.ndarray, start: np.ndarray | None = None) -> np.ndarray:
         """The node momenta S ``[*shape, r]`` whose velocity (:meth:`velocity`) at ``state``'s
@@ -383,18 +393,14 @@ class Scheme(abc.ABC):
             Where the Legendre map has no inverse (a coupled Lagrangian outside its range).
         """
         if self.coupled_lagrangian:
-            from ._coupled import initial_momentum
-
-            return initial_momentum(self, state, N, start=start)
+            return self._coupled().initial_momentum(self, state, N, start=start)
         return self.medium.momentum(N)
 
     def velocity(self, state: State) -> np.ndarray:
         """N = ∂K*/∂S with gauge components and clamped nodes held at zero (N = ∂H_d/∂S, the
         discrete Legendre map of :mod:`cartan.schemes._coupled`, for a coupled Lagrangian)."""
         if self.coupled_lagrangian:
-            from ._coupled import coupled_velocity
-
-            N = coupled_velocity(self, state)
+            N = self._coupled().coupled_velocity(self, state)
         else:
             N = self.medium.velocity(state.S)
         if self._clamped.any():
@@ -415,10 +421,8 @@ class Scheme(abc.ABC):
             state.S[mask] = Sd[mask]
 
     def kinetic_energy(self, state: State) -> float:
-        if self.coupled_lagrangian:  # H_d − Σ h U(X_e): the kinetic part of the discrete Hamiltonian
-            from ._coupled import kinetic_part
-
-            return kinetic_part(self, state)
+        if self.coupled_lagrangian:  # H_d − Σ w U(X): the kinetic part of the discrete Hamiltonian
+            return self._coupled().kinetic_part(self, state)
         N = self.velocity(state)
         return float(np.sum(self.weights * self.medium.kinetic(N)))
 

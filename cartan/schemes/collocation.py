@@ -37,6 +37,15 @@ Open axes and boundary conditions (paper §IV.D, n_α Q^α = P on ∂M)
     :meth:`~cartan.schemes.base.Scheme._clamp_mask`) and the free ones the penalty of an
     unloaded free end (P = 0), on the numpy path and the compiled one.  Solutions converge with
     order 2 (fd2) and about 3 (fd4, boundary rows of order 2) on open axes.
+Driven ends (:class:`~cartan.problem.Driven`)
+    A clamp that moves with its body velocity ξ: at its nodes N = ξ and S = ∂K/∂N(ξ) at every
+    step (:meth:`~cartan.schemes.base.Scheme.velocity`, ``constrain``) and the force is not
+    applied, so the drift moves their frames by exp(τξ) (Φ(t) = Φ(0)exp(tξ) to round-off: the
+    frames are stepped by default) and their strains by the same Lie group integrator, with ξ in
+    ∂_αN.  The raw force there is the weak form of a clamped end's (:meth:`_clamped_traction`),
+    so the reaction ``R = −w(W + ad_ξᵀS)`` is the one whose power R·ξ closes the semi-discrete
+    energy balance ``d/dt Σ w(K + U) = Σ_driven R·ξ`` exactly (summation by parts).  Numpy path
+    only: the compiled operators decline a driven end.
 Charts
     The grid is a chart of the body; the energy is summed with the quadrature weights
     (:attr:`~Collocation.chart_weights`).  When the medium measures the reference volume of a
@@ -47,8 +56,9 @@ Charts
     energy balance Σ w_i J_i S·Ṅ = −Σ w_i U̇ still holds.  A free face's load P enters its
     penalty per unit chart area (the lattice integrates it with the face's reference area).
 Frames
-    Stepped at every node when a force needs them (``problem.needs_structure_field``) or
-    when ``track_frames=True``.  Otherwise only the root node's frame is stepped and the
+    Stepped at every node when a force needs them (``problem.needs_structure_field``), when
+    an end is :class:`~cartan.problem.Driven` (unless ``track_frames=False``) or when
+    ``track_frames=True``.  Otherwise only the root node's frame is stepped and the
     field is rebuilt at output times by the trapezoidal Magnus step
     ``Φ_{i+1} = Φ_i exp(h (X_i + X_{i+1})/2)`` along each axis in turn (second order in h,
     whatever the derivative operator).
@@ -87,7 +97,7 @@ from typing import Any
 
 import numpy as np
 
-from ..problem import Clamped, Free, Held, Symmetry, dead_to_body
+from ..problem import Clamped, Driven, Free, Held, Symmetry, dead_to_body
 from .base import Scheme, State, prefix_products
 
 __all__ = ["Collocation", "DerivativeOperator"]
@@ -266,8 +276,8 @@ class Collocation(Scheme):
         Difference operator for ∂_α on every axis.  ``"fourier"`` is allowed only when every
         axis is periodic.
     track_frames : bool, optional
-        Step Φ at every node (default: only when a force needs it).  Needed to measure the
-        temporal integrability residual.
+        Step Φ at every node (default: only when a force needs it or an end is
+        :class:`~cartan.problem.Driven`).  Needed to measure the temporal integrability residual.
 
     Attributes
     ----------
@@ -288,13 +298,21 @@ class Collocation(Scheme):
 
     name = "collocation"
     order = 2
-    #: ``force(raw=True)`` adds the clamped ends' natural-condition term (:meth:`_clamped_traction`),
-    #: so that :meth:`~cartan.schemes.base.Scheme.support_reaction` is the clamp's reaction; no
-    #: :class:`~cartan.problem.Driven` end moves here (``supports_driven_ends`` False)
+    #: ``force(raw=True)`` adds the clamped and driven ends' natural-condition term
+    #: (:meth:`_clamped_traction`), so that :meth:`~cartan.schemes.base.Scheme.support_reaction` is
+    #: the support's reaction
     gives_raw_force = True
+    #: :class:`~cartan.problem.Driven` ends move on the numpy path (module docstring, "Driven ends";
+    #: the compiled operators decline them)
+    supports_driven_ends = True
+    #: media whose Lagrangian couples N and X, d = 1: :mod:`cartan.schemes._collocation_coupled` (numpy path)
+    supports_coupled_lagrangian = True
+    coupled_module = "cartan.schemes._collocation_coupled"
 
     def __init__(self, problem, derivative: str = "fd2", track_frames: bool | None = None):
         super().__init__(problem)
+        if self.coupled_lagrangian:  # what the pointwise discretisation does not cover
+            self._coupled().check_problem(self)
         if problem.grid.glued is not None:
             raise ValueError("the collocation scheme does not support a glued axis (Grid.glued, the sphere's "
                              "chart); use the lattice scheme")
@@ -306,7 +324,10 @@ class Collocation(Scheme):
         if not isinstance(derivative, str) or derivative not in DERIVATIVES:
             raise ValueError(f"derivative must be one of {DERIVATIVES}, got {derivative!r}")
         self.derivative = derivative
-        self.track = problem.needs_structure_field if track_frames is None else bool(track_frames)
+        # a driven end's frame is stepped, Φ(0)exp(tξ) to round-off, when the frames are (the default
+        # with Driven ends); rebuilt from the root node it would be second order only
+        self.track = (problem.needs_structure_field or self._driven is not None) if track_frames is None \
+            else bool(track_frames)
         grid = self.grid
         d = grid.d
         self.h = grid.spacing
@@ -330,17 +351,17 @@ class Collocation(Scheme):
         # zeroed with the clamp mask); the face weight integrates a traction over the other
         # axes (1 for d = 1).
         self._free_ends: list[tuple[int, tuple, float, float, Free | Held | Symmetry, np.ndarray]] = []
-        kinds = (Free, Clamped, Held, Symmetry)
+        kinds = (Free, Clamped, Held, Symmetry, Driven)
         other = sorted({type(b).__name__ for b in problem.boundaries.values() if type(b) not in kinds})
         if other:
-            raise ValueError(f"boundaries: the collocation scheme takes Free, Clamped, Held and Symmetry boundaries, "
-                             f"got {other}; a Driven end runs on scheme='lattice'")
+            raise ValueError(f"boundaries: the collocation scheme takes Free, Clamped, Held, Symmetry and Driven "
+                             f"boundaries, got {other}")
         for axis in range(d):
             if grid.periodic[axis]:
                 continue
             for side, idx, sign in (("start", 0, -1.0), ("end", -1, 1.0)):
                 b = problem.boundary(axis, side)
-                if isinstance(b, Clamped):
+                if isinstance(b, Clamped | Driven):
                     continue
                 sl = [slice(None)] * d
                 sl[axis] = idx
@@ -389,9 +410,17 @@ class Collocation(Scheme):
         forces, constant-field potentials, free (loaded) and clamped ends or faces,
         :class:`~cartan.problem.Held` ends and :class:`~cartan.problem.Symmetry` faces (the
         held components of the clamp mask zeroed as on the numpy path, their free components
-        under the natural condition P = 0), any kinetic metric; a declined
-        :class:`~cartan.compiled.operators.OperatorSet` says why otherwise."""
+        under the natural condition P = 0), any kinetic metric (a medium whose Lagrangian couples N
+        and X is declined: :mod:`cartan.schemes._collocation_coupled`, numpy path); a declined
+        :class:`~cartan.compiled.operators.OperatorSet` says why otherwise (a
+        :class:`~cartan.problem.Driven` end among them: it runs on the numpy path)."""
         ops = self.__dict__.get("_operators")
+        if ops is None and self.coupled_lagrangian:  # (cartan.schemes._collocation_coupled: numpy path)
+            from ..compiled.operators import OperatorSet
+
+            ops = self._operators = OperatorSet.declined(
+                f"the medium {self.medium.name!r} has a Lagrangian that couples N and X (Medium.coupled_lagrangian): "
+                "the collocation steps it on the numpy path")
         if ops is None:
             from ._collocation_ops import collocation_operators
 
@@ -519,7 +548,10 @@ class Collocation(Scheme):
         """
         g = self.group
         X = state.arrays["X"]
-        Q = self.medium.stress(X) if self.rest is None else self.medium.stress_at(X, self.rest)
+        if self.coupled_lagrangian:  # ℓ(N, X): the Hamiltonian stress ∂H/∂X(S_i, X_i) (_collocation_coupled)
+            Q = self.medium.stress_with(state.S, X)
+        else:
+            Q = self.medium.stress(X) if self.rest is None else self.medium.stress_at(X, self.rest)
         W = np.zeros((*self.grid.shape, g.dim))
         for axis, D in enumerate(self.D):
             Qa = Q[..., axis, :]
@@ -535,7 +567,7 @@ class Collocation(Scheme):
         """The force density W ``[*shape, r]`` (:meth:`internal_force` plus the loads and the
         medium's body force), zero at the clamped nodes and held components.
 
-        ``raw``: not zeroed there, and at the clamped ends with the natural condition's term
+        ``raw``: not zeroed there, and at the clamped and driven ends with the natural condition's term
         ``−n_α Q^α/H_end`` of an unloaded end (:meth:`_clamped_traction`), so that ``wW`` is the
         force of the body and the loads on the held components, ``−Lᵀ(wQ)`` plus the loads (the
         supports balance it: :meth:`support_reaction`)."""
@@ -554,7 +586,7 @@ class Collocation(Scheme):
         return W
 
     def _clamped_traction(self, state: State) -> np.ndarray:
-        """``[*shape, r]``: ``−n_α Q^α/H_end`` at the nodes of the clamped ends (per unit reference
+        """``[*shape, r]``: ``−n_α Q^α/H_end`` at the nodes of the clamped and driven ends (per unit reference
         volume on a general chart), zero elsewhere.
 
         With it the clamped nodes' force is the weak form of a free end's, ``wW = −Lᵀ(wQ)`` plus
@@ -569,7 +601,7 @@ class Collocation(Scheme):
             if self.grid.periodic[axis]:
                 continue
             for side, idx, sign in (("start", 0, -1.0), ("end", -1, 1.0)):
-                if isinstance(self.problem.boundary(axis, side), Clamped):
+                if isinstance(self.problem.boundary(axis, side), Clamped | Driven):
                     sl = [slice(None)] * self.grid.d
                     sl[axis] = idx
                     ends.append((axis, tuple(sl), sign, float(D.norm()[idx])))
@@ -577,7 +609,10 @@ class Collocation(Scheme):
             return W
         X = state.arrays["X"]
         for axis, idx, sign, H_end in ends:  # the stress at the end's nodes only
-            Q = self.medium.stress(X[idx]) if self.rest is None else self.medium.stress_at(X[idx], self.rest[idx])
+            if self.coupled_lagrangian:  # ℓ(N, X): the Hamiltonian stress (_collocation_coupled)
+                Q = self.medium.stress_with(state.S[idx], X[idx])
+            else:
+                Q = self.medium.stress(X[idx]) if self.rest is None else self.medium.stress_at(X[idx], self.rest[idx])
             W[idx] -= sign * Q[..., axis, :] / H_end
         if self._inv_volume is not None:
             W *= self._inv_volume[..., None]
@@ -707,3 +742,4 @@ class Collocation(Scheme):
                 prod = prod @ G[k]
             res = max(res, float(np.max(np.abs(g.log(prod)))))
         return res
+
