@@ -41,6 +41,22 @@ TWIST = np.array([0.0, 0.0, 0.0, 0.7, 0.0, 0.0])
 SCREW = np.array([0.1, -0.2, 0.05, 0.3, -0.4, 0.5])
 
 
+def assert_twist_impedance(scheme, integrator, n: int, C: float, J: float, om: float, dt: float = 2e-3,
+                           steps: int = 950) -> None:
+    """Step ``scheme`` from its initial state; at every step the supports act on their own nodes
+    only, and the driven end's torque about d₁ is the torsional impedance's
+    (:func:`assert_torsional_impedance`)."""
+    state = scheme.initial_state()
+    torque, times = [], []
+    for _ in range(steps):
+        integrator.step(scheme, state, dt)
+        R = scheme.support_reaction(state)
+        torque.append(R[-1, 3])
+        times.append(state.t)
+        assert np.all(R[1:-1] == 0.0)  # the supports act on their own nodes only
+    assert_torsional_impedance(torque, times, state, n, C, J, om)
+
+
 def assert_torsional_impedance(torque, times, state, n: int, C: float, J: float, om: float) -> None:
     """Before the reflection returns (t < 2 on a unit rod with c = 1), the end twisted at rate ω
     feels the torque √(CJ)ω of the torsional wave and has done the work √(CJ)ω²t: both to the
@@ -98,18 +114,9 @@ def test_the_torque_of_a_driven_twist_is_the_torsional_impedance():
     reflection from the clamp returns at t = 2L/c (c = 1, L = 1: t = 2).  Its mean over
     t ∈ [0.5, 1.9] agrees to h/L = 1e-2 (the lattice's resolution; measured 2e-5); the external
     work booked from it is √(CJ)ω²t likewise."""
-    C, J, om, n, dt = 1.0, 1.0, 0.1, 101, 2e-3
+    C, J, om, n = 1.0, 1.0, 0.1, 101
     problem = _problem([0.0, 0.0, 0.0, om, 0.0, 0.0], n=n, C=C, J=J)
-    scheme, integ = Lattice(problem), LieVerlet()
-    state = scheme.initial_state()
-    torque, times = [], []
-    for _ in range(950):
-        integ.step(scheme, state, dt)
-        R = scheme.support_reaction(state)
-        torque.append(R[-1, 3])
-        times.append(state.t)
-        assert np.all(R[1:-1] == 0.0)  # the supports act on their own nodes only
-    assert_torsional_impedance(torque, times, state, n, C, J, om)
+    assert_twist_impedance(Lattice(problem), LieVerlet(), n, C, J, om)
 
 
 def test_the_reaction_closes_the_energy_balance_to_second_order():
