@@ -82,7 +82,10 @@ What is exact and what is not
     Unlike the ``lattice`` scheme, the stored strains are independent unknowns: temporal
     integrability (stored X = Φ⁻¹∂_uΦ) holds only to the accuracy of the difference
     operator, and the residual grows by O(Δt·hᵖ) per step (a rate O(hᵖ) in time: the
-    discrete ∂_u has no exact product rule).  Group membership of Φ is exact (round-off)
+    discrete ∂_u has no exact product rule).  On the boundary rows of an open axis the rate is
+    O(h^{p/2}), the SBP rows' order, (D − D_strain)N to first order; where the solution is not
+    smooth it does not fall with h (the clamped–free corners of a plate, N ~ r^0.758:
+    ``docs/schemes.md``, "Open axes and corners").  Group membership of Φ is exact (round-off)
     for the geometric integrators, and a spatially constant N is integrated exactly.  On
     periodic axes the central and spectral operators are skew-symmetric, so the
     semi-discrete energy Σ_i w_i (K(N_i) + U(X_i)) is an exact invariant of the
