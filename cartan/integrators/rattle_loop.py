@@ -34,6 +34,16 @@ P_closing Bᵀ = s·B P Bᵀ``). With damping the force a step starts from is th
 kick left, ``W(N = 0) − ΓN`` (the damping is linear), and a call that starts without it (the
 first, or after a restart) evaluates it the same way: the steps do not depend on how they are
 grouped into calls.
+A trial flow is a kick (:func:`rattle_trial_kick`), the free flow of the edges alone
+(:func:`rattle_trial_flow`: ``op_free_flow``'s passes with its plan and scratch made once per
+call; the frames follow the converged trial's motions, ``op_move``'s operations: the same
+numbers) and the rows' values (:func:`rattle_values`, the edges' logarithms by the group's
+``g_log_chunk``).  The helpers called at every trial or step take the lattice's arrays they read
+(``tail``, ``head``, ``winv``, ``einvh`` …) rather than ``D``: numba counts a reference to
+each of D's arrays at every call of a function that takes it (≈ 0.35 µs a call at n = 11,
+≈ 40 calls a step before); without driven nodes the loop also applies the velocity and the
+scheme's constraint itself (:func:`_rattle_velocity`, :func:`_rattle_zero`: ``op_velocity``'s
+and ``op_constrain``'s operations).
 Driven ends (the operator set's driven nodes, ``D.any_driven``): the velocity the rows are
 applied to is ξ there (``op_velocity``), so ``B_c N`` is ``B_u N_u + B_d ξ`` and the projections
 solve ``B_u N_u = −B_d ξ`` as they stand; the free flow moves the driven nodes by exp(Δtξ)
@@ -80,20 +90,24 @@ def _rattle_fixed(D, n):
     return fixed
 
 
-def rattle_values(D, C, comp, value, out, Xe):
+def rattle_values(einvh, G, comp, value, out, Xe):
     """``out[e, a] = log(G_e)[comp_a]/h − value_a`` ``[E, c]``; returns max |out| (NaN if any is
     NaN).  Keeps the logarithms ``hX_e = log(G_e)`` in ``Xe`` ``[E, r]``: the rows at the same
-    configuration (:func:`rattle_rows` with ``have_log``) take them instead of a second log."""
-    G = C[0]
-    xi = np.empty(R_)  # noqa: F821
+    configuration (:func:`rattle_rows` with ``have_log``) take them instead of a second log.
+    The logarithms are the group's edge pass ``g_log_chunk`` (SE(3): vectorised across the
+    edges, :func:`~cartan.groups.se3.se3_log_chunk_point`, the point kernel's results to
+    round-off), the one the lattice's force takes; nothing is allocated (a trial flow of the
+    loop evaluates the rows' values once: two to five times a step).  ``G`` ``[E, m, m]`` the
+    edges, ``einvh`` ``[E]`` their 1/h (``D.einvh``): the arrays, not the lattice's data ``D``
+    (numba counts a reference to each of D's arrays at every call of a helper that takes it)."""
+    ne = G.shape[0]
+    g_log_chunk(G, 0, ne, Xe)  # noqa: F821
     big = 0.0
     finite = True
-    for e in range(G.shape[0]):
-        g_log(G[e], xi)  # noqa: F821
-        for k in range(R_):  # noqa: F821
-            Xe[e, k] = xi[k]
+    for e in range(ne):
+        ih = einvh[e]
         for a in range(comp.shape[0]):
-            v = xi[comp[a]] * D.einvh[e] - value[a]
+            v = Xe[e, comp[a]] * ih - value[a]
             out[e, a] = v
             if not np.isfinite(v):
                 finite = False
@@ -102,42 +116,37 @@ def rattle_values(D, C, comp, value, out, Xe):
     return big if finite else np.nan
 
 
-def rattle_rows(D, C, comp, Bt, Bh, Ae, Xe, have_log, fixed):
+def rattle_rows(tail, head, einvh, G, comp, Bt, Bh, Ae, Xe, have_log, fixed):
     """The rows of B_c at C: ``Bt[e] = −dexp⁻¹(hX_e)[comp]/h``, ``Bh[e] = dexp⁻¹(−hX_e)[comp]/h``
     ``[E, c, r]``; returns the largest entry on the unknowns (live components, free nodes).
     With ``have_log``, ``Xe`` already holds ``hX_e`` at C (:func:`rattle_values` at the same
-    configuration was the last to write it): no logarithm is taken again.
+    configuration was the last to write it): no logarithm is taken again; otherwise the
+    logarithms are taken as :func:`rattle_values` takes them (``g_log_chunk``).
     ``dexp⁻¹(−ξ)`` is ``dexp⁻¹(ξ) + ad_ξ`` (``x/(eˣ − 1)`` at −x is ``x/(eˣ − 1) + x``): one
     ``g_dexp_inv`` per edge.  Keeps ``hX_e`` in ``Xe`` ``[E, r]`` and all of ``dexp⁻¹(hX_e)`` in
-    ``Ae`` ``[E, r, r]``, for the rows' rate :func:`_rattle_rate`."""
-    G = C[0]
-    xi = np.empty(R_)  # noqa: F821
-    A = np.empty((R_, R_))  # noqa: F821
+    ``Ae`` ``[E, r, r]`` (written there directly), for the rows' rate :func:`_rattle_rate`.
+    ``G`` ``[E, m, m]`` the edges, ``tail``, ``head``, ``einvh`` ``[E]`` the lattice's arrays
+    (not ``D``: see :func:`rattle_values`)."""
+    if not have_log:
+        g_log_chunk(G, 0, G.shape[0], Xe)  # noqa: F821
     ad = np.empty((R_, R_))  # noqa: F821
     big = 0.0
     for e in range(G.shape[0]):
-        if have_log:
-            for k in range(R_):  # noqa: F821
-                xi[k] = Xe[e, k]
-        else:
-            g_log(G[e], xi)  # noqa: F821
-        ih = D.einvh[e]
-        i, j = D.tail[e], D.head[e]
-        g_dexp_inv(xi, A)  # noqa: F821
-        for k in range(R_):  # noqa: F821
-            Xe[e, k] = xi[k]
-            for m in range(R_):  # noqa: F821
-                Ae[e, k, m] = A[k, m]
+        ih = einvh[e]
+        i, j = tail[e], head[e]
+        g_dexp_inv(Xe[e], Ae[e])  # noqa: F821
         for a in range(comp.shape[0]):
+            ka = comp[a]
             for k in range(R_):  # noqa: F821
-                v = -A[comp[a], k] * ih
+                v = -Ae[e, ka, k] * ih
                 Bt[e, a, k] = v
                 if abs(v) > big and not fixed[i, k]:
                     big = abs(v)
-        g_ad(xi, ad)  # noqa: F821
+        g_ad(Xe[e], ad)  # noqa: F821
         for a in range(comp.shape[0]):
+            ka = comp[a]
             for k in range(R_):  # noqa: F821
-                v = (A[comp[a], k] + ad[comp[a], k]) * ih
+                v = (Ae[e, ka, k] + ad[ka, k]) * ih
                 Bh[e, a, k] = v
                 if abs(v) > big and not fixed[j, k]:
                     big = abs(v)
@@ -236,7 +245,7 @@ def _rattle_left(L, e, T, out, f, add):
             out[f, a, b] = out[f, a, b] + s if add else s
 
 
-def rattle_factor(D, Lt, Lh, P, Rt, Rh, F, pdiag):
+def rattle_factor(tail, head, Lt, Lh, P, Rt, Rh, F, pdiag):
     """Assemble and factor ``L P Rᵀ`` on the chain (``F = (sub, diag, sup, inv, mult)``, each
     ``[E, c, c]``): diagonal ``Lt_e P_i Rt_eᵀ + Lh_e P_j Rh_eᵀ``, below ``Lt_e P_i Rh_{e−1}ᵀ``
     (node i = tail of e = head of e − 1), above ``Lh_e P_j Rt_{e+1}ᵀ``; returns False when it
@@ -249,7 +258,7 @@ def rattle_factor(D, Lt, Lh, P, Rt, Rh, F, pdiag):
     Tt = np.empty((R_, Lt.shape[1]))  # noqa: F821
     Th = np.empty((R_, Lt.shape[1]))  # noqa: F821
     for e in range(ne):
-        i, j = D.tail[e], D.head[e]
+        i, j = tail[e], head[e]
         _rattle_right(P, i, Rt, e, Tt, pdiag)
         _rattle_right(P, j, Rh, e, Th, pdiag)
         _rattle_left(Lt, e, Tt, dia, e, False)
@@ -261,7 +270,7 @@ def rattle_factor(D, Lt, Lh, P, Rt, Rh, F, pdiag):
     return bt_factor(sub, dia, sup, inv, mult)
 
 
-def rattle_factor_sym(D, B_t, B_h, P, F, pdiag):
+def rattle_factor_sym(tail, head, B_t, B_h, P, F, pdiag):
     """Assemble and factor the symmetric positive definite ``B P Bᵀ`` on the chain by the block
     Cholesky factorisation (:func:`~cartan.compiled.banded.bs_factor`; ``F = (sub, diag, -, L,
     M)``, each ``[E, c, c]``, solved by ``bs_solve(F[3], F[4], ·, ·)``): the lower triangle of
@@ -275,7 +284,7 @@ def rattle_factor_sym(D, B_t, B_h, P, F, pdiag):
     Tt = np.empty((R_, c))  # noqa: F821
     Th = np.empty((R_, c))  # noqa: F821
     for e in range(ne):
-        i, j = D.tail[e], D.head[e]
+        i, j = tail[e], head[e]
         _rattle_right(P, i, B_t, e, Tt, pdiag)
         _rattle_right(P, j, B_h, e, Th, pdiag)
         for a in range(c):
@@ -289,10 +298,10 @@ def rattle_factor_sym(D, B_t, B_h, P, F, pdiag):
     return bs_factor(sub, dia, F[3], F[4])
 
 
-def rattle_apply(D, Bt, Bh, V, out):
+def rattle_apply(tail, head, Bt, Bh, V, out):
     """``out[e] = Bt_e V_i + Bh_e V_j`` ``[E, c]`` (B_c applied to a nodal field ``V`` ``[n, r]``)."""
     for e in range(Bt.shape[0]):
-        i, j = D.tail[e], D.head[e]
+        i, j = tail[e], head[e]
         for a in range(Bt.shape[1]):
             s = 0.0
             for k in range(R_):  # noqa: F821
@@ -300,13 +309,13 @@ def rattle_apply(D, Bt, Bh, V, out):
             out[e, a] = s
 
 
-def rattle_impulse(D, Bt, Bh, nu, out):
+def rattle_impulse(tail, head, winv, Bt, Bh, nu, out):
     """``out[i] = (B_cᵀν)_i / w_i`` ``[n, r]``: the force density of the nodal impulse B_cᵀν."""
     for i in range(out.shape[0]):
         for k in range(R_):  # noqa: F821
             out[i, k] = 0.0
     for e in range(Bt.shape[0]):
-        i, j = D.tail[e], D.head[e]
+        i, j = tail[e], head[e]
         for k in range(R_):  # noqa: F821
             si = 0.0
             sj = 0.0
@@ -317,17 +326,19 @@ def rattle_impulse(D, Bt, Bh, nu, out):
             out[j, k] += sj
     for i in range(out.shape[0]):
         for k in range(R_):  # noqa: F821
-            out[i, k] *= D.winv[i]
+            out[i, k] *= winv[i]
 
 
-def rattle_project_velocity(D, S, N, Bt, Bh, bmax, F, factored, P, pdiag, fscale, closing, use_closing, half, skip,
-                            res, mu, imp, fixed):
+def rattle_project_velocity(tail, head, winv, S, N, Bt, Bh, bmax, F, factored, P, pdiag, fscale, closing, use_closing,
+                            half, skip, res, mu, imp, fixed):
     """Add the impulse ``½Δt·closing·B_cᵀμ/w`` that makes ``B_c N = 0``: ``(B P Bᵀ)μ = −B N/(½Δt)``
     with ``F`` the block Cholesky factors of ``B P Bᵀ/fscale`` (:func:`rattle_factor_sym`; built
     here, with ``fscale`` = 1, unless ``factored``); with ``skip``, nothing when
     ``max|B N| ≤ 1e-13·max|B|·max|N|`` (tangent to round-off).  ``N`` is the velocity of ``S``
-    on entry.  Returns ``(projected, factored, ok)``."""
-    rattle_apply(D, Bt, Bh, N, res)
+    on entry.  Returns ``(projected, factored, ok)``; after a projection the caller applies the
+    scheme's constraint to S (``op_constrain``, or :func:`_rattle_zero` without driven nodes):
+    the lattice's arrays are passed (``tail``, ``head`` ``[E]``, ``winv`` ``[n]``), not ``D``."""
+    rattle_apply(tail, head, Bt, Bh, N, res)
     if skip:
         rmax = 0.0
         for e in range(res.shape[0]):
@@ -341,28 +352,23 @@ def rattle_project_velocity(D, S, N, Bt, Bh, bmax, F, factored, P, pdiag, fscale
         if rmax <= 1e-13 * bmax * nmax:
             return False, factored, True
     if not factored:
-        if not rattle_factor_sym(D, Bt, Bh, P, F, pdiag):
+        if not rattle_factor_sym(tail, head, Bt, Bh, P, F, pdiag):
             return False, False, False
         factored = True
     bs_solve(F[3], F[4], res, mu)
     for e in range(mu.shape[0]):
         for a in range(mu.shape[1]):
             mu[e, a] = -mu[e, a] / (half * fscale)
-    rattle_impulse(D, Bt, Bh, mu, imp)
-    row = np.empty(R_)  # noqa: F821
+    rattle_impulse(tail, head, winv, Bt, Bh, mu, imp)
     for i in range(S.shape[0]):
-        if use_closing:
-            for k in range(R_):  # noqa: F821
+        for k in range(R_):  # noqa: F821
+            if use_closing:
                 s = 0.0
                 for j in range(R_):  # noqa: F821
                     s += closing[k, j] * imp[i, j]
-                row[k] = s
-        else:
-            for k in range(R_):  # noqa: F821
-                row[k] = imp[i, k]
-        for k in range(R_):  # noqa: F821
-            S[i, k] += half * row[k]
-    op_constrain(D, S)  # noqa: F821
+            else:
+                s = imp[i, k]
+            S[i, k] += half * s
     return True, factored, True
 
 
@@ -371,15 +377,15 @@ def _rattle_project_config(D, C, comp, value, scale, Bt, Bh, Ae, Xe, P, pdiag, F
     Python step's ``_project_configuration``); returns the residual, or −1 when it did not
     converge in ``MAX_ITERATIONS_`` steps (the Python step's limit)."""
     row = np.empty(R_)  # noqa: F821
-    err = rattle_values(D, C, comp, value, cres, Xe)
+    err = rattle_values(D.einvh, C[0], comp, value, cres, Xe)
     for _ in range(MAX_ITERATIONS_):  # noqa: F821
         if err <= 1e-13 * scale:
             return err
-        rattle_rows(D, C, comp, Bt, Bh, Ae, Xe, err >= 0.0, fixed)
-        if not rattle_factor_sym(D, Bt, Bh, P, F, pdiag):
+        rattle_rows(D.tail, D.head, D.einvh, C[0], comp, Bt, Bh, Ae, Xe, err >= 0.0, fixed)
+        if not rattle_factor_sym(D.tail, D.head, Bt, Bh, P, F, pdiag):
             return -1.0
         bs_solve(F[3], F[4], cres, y)
-        rattle_impulse(D, Bt, Bh, y, delta)  # (B_cᵀy)_i / w_i
+        rattle_impulse(D.tail, D.head, D.winv, Bt, Bh, y, delta)  # (B_cᵀy)_i / w_i
         for i in range(delta.shape[0]):  # δ_i = −w_i P_i (B_cᵀy)_i / w_i (P carries the 1/w)
             for k in range(R_):  # noqa: F821
                 s = 0.0
@@ -389,31 +395,25 @@ def _rattle_project_config(D, C, comp, value, scale, Bt, Bh, Ae, Xe, P, pdiag, F
             for k in range(R_):  # noqa: F821
                 delta[i, k] = row[k]
         op_drift(D, C, 1.0, delta, K)  # noqa: F821
-        nxt = rattle_values(D, C, comp, value, cres, Xe)
+        nxt = rattle_values(D.einvh, C[0], comp, value, cres, Xe)
         if nxt > 0.5 * err and nxt <= 1e-10 * scale:
             return nxt
         err = nxt
     return err if err <= 1e-13 * scale else -1.0
 
 
-def _rattle_rate(D, N, comp, Ae, Xe, out):
+def _rattle_rate(tail, head, einvh, N, comp, Ae, Xe, out, vs, ms):
     """``out[e, a]`` = (Ḃ_c N)_{e,a} ``[E, c]``, the rows' second derivative along the drift
     Φ ← Φ exp(εN) (the Python step's ``_rows_rate``): ``ξ'' = ½[ξ', N_i + N_j] +
     (1/12)(ad_ξ ad_ξ' + ad_ξ' ad_ξ)(N_j − N_i)`` over h, with ξ = hX_e, ξ' = dexp⁻¹(−ξ)N_j −
-    dexp⁻¹(ξ)N_i (from ``Ae``, ``Xe`` of :func:`rattle_rows` at the same configuration)."""
-    xi = np.empty(R_)  # noqa: F821
-    u = np.empty(R_)  # noqa: F821
-    sm = np.empty(R_)  # noqa: F821
-    df = np.empty(R_)  # noqa: F821
-    w1 = np.empty(R_)  # noqa: F821
-    w2 = np.empty(R_)  # noqa: F821
-    adx = np.empty((R_, R_))  # noqa: F821
-    adu = np.empty((R_, R_))  # noqa: F821
+    dexp⁻¹(ξ)N_i (from ``Ae``, ``Xe`` of :func:`rattle_rows` at the same configuration).
+    ``vs`` ``[5, r]`` and ``ms`` ``[2, r, r]`` are scratch, allocated once by the loop (this
+    helper is inlined into every step)."""
+    u, sm, df, w1, w2 = vs[0], vs[1], vs[2], vs[3], vs[4]
+    adx, adu = ms[0], ms[1]
     for e in range(Ae.shape[0]):
-        i, j = D.tail[e], D.head[e]
-        for k in range(R_):  # noqa: F821
-            xi[k] = Xe[e, k]
-        g_ad(xi, adx)  # noqa: F821
+        i, j = tail[e], head[e]
+        g_ad(Xe[e], adx)  # noqa: F821
         for k in range(R_):  # noqa: F821
             v = 0.0
             for m in range(R_):  # noqa: F821
@@ -437,10 +437,10 @@ def _rattle_rate(D, N, comp, Ae, Xe, out):
             for m in range(R_):  # noqa: F821
                 p += adu[k, m] * sm[m]
                 q += adx[k, m] * w1[m] + adu[k, m] * w2[m]
-            out[e, a] = (0.5 * p + (1.0 / 12.0) * q) * D.einvh[e]
+            out[e, a] = (0.5 * p + (1.0 / 12.0) * q) * einvh[e]
 
 
-def _rattle_accelerations(D, S, N, W, Bt, Bh, work, acc, out, fixed):
+def _rattle_accelerations(tail, head, inv_metric, S, N, W, Bt, Bh, work, acc, out, fixed):
     """``out = B[M⁺(ad_NᵀS + W)]`` ``[E, c]``: the rows of the unconstrained acceleration ``acc``
     ``[n, r]`` (zero on the components that are no unknowns); ``work`` ``[n, r]`` is scratch."""
     n = S.shape[0]
@@ -449,17 +449,19 @@ def _rattle_accelerations(D, S, N, W, Bt, Bh, work, acc, out, fixed):
         for k in range(R_):  # noqa: F821
             s = 0.0
             for j in range(R_):  # noqa: F821
-                s += D.inv_metric[k, j] * work[i, j]
+                s += inv_metric[k, j] * work[i, j]
             acc[i, k] = 0.0 if fixed[i, k] else s
-    rattle_apply(D, Bt, Bh, acc, out)
+    rattle_apply(tail, head, Bt, Bh, acc, out)
 
 
-def _rattle_predict(D, S, N, W, Bt, Bh, F, comp, Ae, Xe, work, acc, nu, rate, fixed):
+def _rattle_predict(tail, head, einvh, inv_metric, S, N, W, Bt, Bh, F, comp, Ae, Xe, work, acc, nu, rate, fixed, vs,
+                    ms):
     """The force-level multiplier at the step's start (the Python step's ``_predict``):
     ``(B P Bᵀ)λ = −B[M⁺(ad_NᵀS + W)] − Ḃ_c N`` (:func:`_rattle_rate`), ``F`` the block Cholesky
-    factors of ``B P Bᵀ`` (:func:`rattle_factor_sym`); λ into ``nu``; ``rate`` ``[E, c]`` is scratch."""
-    _rattle_accelerations(D, S, N, W, Bt, Bh, work, acc, nu, fixed)
-    _rattle_rate(D, N, comp, Ae, Xe, rate)
+    factors of ``B P Bᵀ`` (:func:`rattle_factor_sym`); λ into ``nu``; ``rate`` ``[E, c]``,
+    ``vs`` ``[5, r]`` and ``ms`` ``[2, r, r]`` are scratch."""
+    _rattle_accelerations(tail, head, inv_metric, S, N, W, Bt, Bh, work, acc, nu, fixed)
+    _rattle_rate(tail, head, einvh, N, comp, Ae, Xe, rate, vs, ms)
     for e in range(nu.shape[0]):
         for a in range(nu.shape[1]):
             nu[e, a] += rate[e, a]
@@ -481,10 +483,10 @@ def _rattle_support_power(D, C, S, N, W, comp, Bt, Bh, P, pdiag, F, factored, wo
     Cholesky factors of ``B P Bᵀ`` when ``factored``, else factored here.  Returns
     ``(power, factored, ok)``."""
     if not factored:
-        if not rattle_factor_sym(D, Bt, Bh, P, F, pdiag):
+        if not rattle_factor_sym(D.tail, D.head, Bt, Bh, P, F, pdiag):
             return 0.0, False, False
         factored = True
-    _rattle_accelerations(D, S, N, W, Bt, Bh, work, acc, lam, fixed)
+    _rattle_accelerations(D.tail, D.head, D.inv_metric, S, N, W, Bt, Bh, work, acc, lam, fixed)
     n = S.shape[0]
     nmax = 0.0
     for i in range(n):
@@ -495,8 +497,8 @@ def _rattle_support_power(D, C, S, N, W, comp, Bt, Bh, P, pdiag, F, factored, wo
         sign = 1.0 if side == 0 else -1.0
         _rattle_copy(C, Cd)
         op_drift(D, Cd, sign * eps, N, K)  # noqa: F821
-        rattle_rows(D, Cd, comp, Btd, Bhd, Aed, Xed, no, fixed)
-        rattle_apply(D, Btd, Bhd, N, rate if side == 0 else rp)
+        rattle_rows(D.tail, D.head, D.einvh, Cd[0], comp, Btd, Bhd, Aed, Xed, no, fixed)
+        rattle_apply(D.tail, D.head, Btd, Bhd, N, rate if side == 0 else rp)
     for e in range(lam.shape[0]):
         for a in range(lam.shape[1]):
             lam[e, a] += (rate[e, a] - rp[e, a]) / (2.0 * eps)
@@ -543,6 +545,96 @@ def _rattle_copy(src, dst):
                     y[i, j, k] = x[i, j, k]
 
 
+def rattle_trial_flow(tail, head, any_clamped, clamped, any_held, held, G, S, pieces, plan, Dn, Di, Pz, xi, out, E,
+                      tmp, eye, wk, TK):
+    """A trial's free flow: ``op_free_flow`` (the lattice's, :mod:`cartan.schemes._lattice_ops`)
+    on the edges ``G`` ``[E, m, m]`` only, its pieces read once per call of the loop (``plan``,
+    ``_flow_plan``) and its scratch (``xi``, ``out`` ``[r]``, ``E``, ``tmp``, ``eye`` (the identity)
+    ``[m, m]``, ``wk`` (``g_work()``), ``TK`` ``[FCHUNK_, r]``) allocated once: the same passes
+    (``_flow_chunk``, ``_driven_flow``) leave each node's motion in ``Dn`` ``[n, m, m]``, then
+    ``Di = Dn⁻¹`` ``[n, m, m]`` (``g_frames_chunk`` with ``Pz`` ``[0, m, m]``: no frame) and the
+    edges ``G_e ← Di_i G_e Dn_j`` (``g_move_chunk``) — ``op_move``'s operations, so the edges
+    are those of ``op_free_flow`` to the bit.  The frames Φ, which the rows do not read, follow
+    once the iteration has converged (``g_frames_chunk`` by the last trial's ``Dn``: the loop).
+    Returns whether a node moved (``op_free_flow``'s result).  The lattice's arrays it reads
+    (``tail``, ``head`` ``[E]``, ``clamped`` ``[n]``, ``held`` ``[n, r]`` and their flags) are
+    passed, not ``D`` (see :func:`rattle_values`); no driven node (the loop takes
+    ``op_free_flow`` then)."""
+    npieces, tau, axial, naxes, axes, coef, cnt, col = plan
+    n = S.shape[0]
+    moved = False
+    for lo in range(0, n, FCHUNK_):  # noqa: F821
+        if _flow_chunk(lo, min(n, lo + FCHUNK_), S, Dn, any_clamped, clamped, any_held, held,  # noqa: F821
+                       pieces, npieces, tau, axial, naxes, axes, coef, cnt, col, eye, xi, out, E, tmp, wk, TK):
+            moved = True
+    if moved:
+        g_frames_chunk(Dn, Di, Pz, 0, n)  # noqa: F821
+        g_move_chunk(Di, Dn, G, tail, head, 0, G.shape[0])  # noqa: F821
+    return moved
+
+
+def rattle_trial_kick(tail, head, winv, Bt, Bh, nu, S0, W, half, imp, S, fixed, own):
+    """A trial's kick ``S = S0 + ½Δt(W + B_cᵀν/w)`` ``[n, r]`` (``imp`` ``[n, r]`` the impulse
+    :func:`rattle_impulse` makes: the same sums in the same order), then, with ``own``, S zeroed
+    where ``fixed`` ``[n, r]`` (:func:`_rattle_fixed`: ``op_constrain``'s components, without
+    driven nodes); ``tail``, ``head`` ``[E]`` and ``winv`` ``[n]`` the lattice's arrays."""
+    n = S.shape[0]
+    for i in range(n):
+        for k in range(R_):  # noqa: F821
+            imp[i, k] = 0.0
+    for e in range(Bt.shape[0]):
+        i, j = tail[e], head[e]
+        for k in range(R_):  # noqa: F821
+            si = 0.0
+            sj = 0.0
+            for a in range(Bt.shape[1]):
+                si += Bt[e, a, k] * nu[e, a]
+                sj += Bh[e, a, k] * nu[e, a]
+            imp[i, k] += si
+            imp[j, k] += sj
+    for i in range(n):
+        for k in range(R_):  # noqa: F821
+            imp[i, k] *= winv[i]
+            S[i, k] = S0[i, k] + half * (W[i, k] + imp[i, k])
+            if own and fixed[i, k]:
+                S[i, k] = 0.0
+
+
+def _rattle_velocity(inv_metric, any_clamped, clamped, any_held, held, S, N):
+    """``N = M⁺S`` ``[n, r]``, zero at clamped nodes and on held components: ``op_velocity`` on
+    a lattice without driven nodes (the same sums), from the lattice's arrays rather than ``D``."""
+    for i in range(S.shape[0]):
+        if any_clamped and clamped[i]:
+            for k in range(R_):  # noqa: F821
+                N[i, k] = 0.0
+        else:
+            for k in range(R_):  # noqa: F821
+                if any_held and held[i, k]:
+                    N[i, k] = 0.0
+                    continue
+                v = 0.0
+                for j in range(R_):  # noqa: F821
+                    v += inv_metric[k, j] * S[i, j]
+                N[i, k] = v
+
+
+def _rattle_zero(S, fixed):
+    """``S[i, k] = 0`` where ``fixed[i, k]`` ``[n, r]``: ``op_constrain`` on a lattice without
+    driven nodes (the gauge components, clamped nodes, held components: :func:`_rattle_fixed`)."""
+    for i in range(S.shape[0]):
+        for k in range(R_):  # noqa: F821
+            if fixed[i, k]:
+                S[i, k] = 0.0
+
+
+def _rattle_copy_edges(src, dst):
+    """``dst ← src`` for ``[E, m, m]`` arrays (a trial restores the edges only)."""
+    for i in range(src.shape[0]):
+        for j in range(src.shape[1]):
+            for k in range(src.shape[2]):
+                dst[i, j, k] = src[i, j, k]
+
+
 def _rattle_factors(ne, c):
     return (np.zeros((ne, c, c)), np.zeros((ne, c, c)), np.zeros((ne, c, c)), np.zeros((ne, c, c)),
             np.zeros((ne, c, c)))
@@ -565,6 +657,12 @@ def rattle_loop(D, C, S, W, have_w, velocity_free, pieces, fracs, closing, comp,
     nc = comp.shape[0]
     half = 0.5 * dt
     fixed = _rattle_fixed(D, n)  # which components are no unknowns of the rows [n, r]
+    # the lattice's arrays the helpers called at every step or trial take, rather than D itself:
+    # numba counts a reference to each of D's arrays at every call of a function that takes it
+    # (≈ 0.35 µs a call, ≈ 40 calls a step)
+    tail, head, winv, einvh, inv_metric = D.tail, D.head, D.winv, D.einvh, D.inv_metric
+    any_clamped, clamped, any_held, held = D.any_clamped, D.clamped, D.any_held, D.held
+    plain = not D.any_driven  # (driven nodes: the operators' op_velocity and op_constrain)
     N = np.empty((n, R_))  # noqa: F821
     Dn = np.empty((n, M_, M_))  # noqa: F821
     rhs = np.empty(R_)  # noqa: F821
@@ -635,6 +733,24 @@ def rattle_loop(D, C, S, W, have_w, velocity_free, pieces, fracs, closing, comp,
     Xed = np.empty((nd_e, R_))  # noqa: F821
     rq = np.empty((ne, nc))
     Wp = np.empty((n, R_))  # noqa: F821
+    rvs = np.empty((5, R_))  # noqa: F821 - the scratch of the rows' rate (_rattle_rate), once per call
+    # the trials' free flow (rattle_trial_flow): its plan and scratch once per call, on chains of at
+    # most FCHUNK_ nodes (one chunk of the flow's passes: the threaded build's op_free_flow, which
+    # longer chains take, would split nothing there either)
+    own_flow = n <= FCHUNK_ and plain  # noqa: F821
+    plan = _flow_plan(pieces, fracs, dt)  # noqa: F821
+    fxi = np.zeros(R_)  # noqa: F821
+    fout = np.empty(R_)  # noqa: F821
+    fE = np.empty((M_, M_))  # noqa: F821
+    ftmp = np.empty((M_, M_))  # noqa: F821
+    feye = np.empty((M_, M_))  # noqa: F821
+    g_exp(fxi, feye)  # noqa: F821 - the identity
+    fwk = g_work()  # noqa: F821
+    fTK = np.empty((FCHUNK_, R_))  # noqa: F821
+    Di = np.empty((n, M_, M_))  # noqa: F821
+    Pz = np.empty((0, M_, M_))  # noqa: F821
+    moved = False
+    rms = np.empty((2, R_, R_))  # noqa: F821
     # run-time booleans (not literals: a literal argument would compile the callee once per value)
     yes = nsteps >= 0
     no = not yes
@@ -643,7 +759,10 @@ def rattle_loop(D, C, S, W, have_w, velocity_free, pieces, fracs, closing, comp,
     bmax = 0.0
     nforce = 0
     niter = 0
-    op_velocity(D, S, N)  # noqa: F821
+    if plain:
+        _rattle_velocity(inv_metric, any_clamped, clamped, any_held, held, S, N)
+    else:
+        op_velocity(D, S, N)  # noqa: F821
     p0d, p0e = 0.0, 0.0
     if not driven:
         p0d, p0e = op_powers(D, C, N, t, K)  # noqa: F821
@@ -657,21 +776,24 @@ def rattle_loop(D, C, S, W, have_w, velocity_free, pieces, fracs, closing, comp,
                     c0[e, a] = cres[e, a]
                     err0 = max(err0, abs(cres[e, a]))
         else:
-            err0 = rattle_values(D, C, comp, value, c0, Xe)
+            err0 = rattle_values(D.einvh, C[0], comp, value, c0, Xe)
         # the offsets of the last steps taken with this Δt, newest first (at most three)
         nprev = 0
         while nprev < 3 and offset_dt[nprev] == dt:
             nprev += 1
         on_manifold = err0 <= 1e-10 * scale
         if not on_manifold and pending:  # the powers at the state as it is (the Python step's order)
-            op_velocity(D, S, N)  # noqa: F821
+            if plain:
+                _rattle_velocity(inv_metric, any_clamped, clamped, any_held, held, S, N)
+            else:
+                op_velocity(D, S, N)  # noqa: F821
             if have_w and velocity_free:
                 for i in range(n):
                     for k in range(R_):  # noqa: F821
                         Wp[i, k] = W[i, k]
             else:
                 op_force(D, C, t, N, Wp, K)  # noqa: F821
-            rattle_rows(D, C, comp, Btd, Bhd, Aed, Xed, no, fixed)
+            rattle_rows(tail, head, einvh, C[0], comp, Btd, Bhd, Aed, Xed, no, fixed)
             p0d, p0e = op_powers(D, C, N, t, K)  # noqa: F821
             pw, _, ok = _rattle_support_power(D, C, S, N, Wp, comp, Btd, Bhd, Pm, pm_diag, Fc, no, work, acc, dnu, cp,
                                               rq, Cd, Bt1, Bh1, Ae, Xe, K, no, fixed)
@@ -687,26 +809,37 @@ def rattle_loop(D, C, S, W, have_w, velocity_free, pieces, fracs, closing, comp,
                                           K, fixed)
             if err0 < 0.0:
                 status[0] = 2
-                info[0] = rattle_values(D, C, comp, value, c0, Xe)
+                info[0] = rattle_values(D.einvh, C[0], comp, value, c0, Xe)
                 break
             have_w = False
             have_b = False
             have_fs = False
         if not have_b:  # (the last values, c0 or the projection's, were taken at C: their logs)
-            bmax = rattle_rows(D, C, comp, Bt0, Bh0, Ae, Xe, yes, fixed)
+            bmax = rattle_rows(tail, head, einvh, C[0], comp, Bt0, Bh0, Ae, Xe, yes, fixed)
             have_fs = False
         # ... with a tangent velocity
-        op_velocity(D, S, N)  # noqa: F821
+        if plain:
+            _rattle_velocity(inv_metric, any_clamped, clamped, any_held, held, S, N)
+        else:
+            op_velocity(D, S, N)  # noqa: F821
         k0 = op_kinetic(D, S) if driven and on_manifold else 0.0  # noqa: F821
-        projected, have_fs, ok = rattle_project_velocity(D, S, N, Bt0, Bh0, bmax, Fs, have_fs, Pm, pm_diag, 1.0,
-                                                         eye, no, half, yes, pres, mu, imp, fixed)
+        projected, have_fs, ok = rattle_project_velocity(tail, head, winv, S, N, Bt0, Bh0, bmax, Fs, have_fs, Pm,
+                                                         pm_diag, 1.0, eye, no, half, yes, pres, mu, imp, fixed)
+        if projected:
+            if plain:
+                _rattle_zero(S, fixed)
+            else:
+                op_constrain(D, S)  # noqa: F821
         if not ok:
             status[0] = 3
             info[0] = np.nan
             break
         if projected:
             have_w = False
-            op_velocity(D, S, N)  # noqa: F821
+            if plain:
+                _rattle_velocity(inv_metric, any_clamped, clamped, any_held, held, S, N)
+            else:
+                op_velocity(D, S, N)  # noqa: F821
             if driven and on_manifold:  # the support's impulse sets the free nodes in motion: its work
                 ext += op_kinetic(D, S) - k0  # noqa: F821
         if not have_w:
@@ -729,12 +862,13 @@ def rattle_loop(D, C, S, W, have_w, velocity_free, pieces, fracs, closing, comp,
                 S0[i, k] = S[i, k]
         _rattle_copy(C, C0)
         if not have_fs:
-            if not rattle_factor_sym(D, Bt0, Bh0, Pm, Fs, pm_diag):
+            if not rattle_factor_sym(tail, head, Bt0, Bh0, Pm, Fs, pm_diag):
                 status[0] = 3
                 info[0] = np.nan
                 break
             have_fs = True
-        _rattle_predict(D, S, N, W, Bt0, Bh0, Fs, comp, Ae, Xe, work, acc, nu, cp, fixed)
+        _rattle_predict(tail, head, einvh, inv_metric, S, N, W, Bt0, Bh0, Fs, comp, Ae, Xe, work, acc, nu, cp, fixed,
+                        rvs, rms)
         for e in range(ne):  # λ, and the predictor λ + (ν − λ) extrapolated from the last steps
             for a in range(nc):
                 lam[e, a] = nu[e, a]
@@ -750,15 +884,18 @@ def rattle_loop(D, C, S, W, have_w, velocity_free, pieces, fracs, closing, comp,
         failed = False
         it = 0
         while True:
-            rattle_impulse(D, Bt0, Bh0, nu, imp)
-            for i in range(n):
-                for k in range(R_):  # noqa: F821
-                    S[i, k] = S0[i, k] + half * (W[i, k] + imp[i, k])
-            op_constrain(D, S)  # noqa: F821
-            _rattle_copy(C0, C)
-            op_free_flow(D, C, S, pieces, fracs, dt, Dn, K)  # noqa: F821
-            op_constrain(D, S)  # noqa: F821
-            err = rattle_values(D, C, comp, value, cres, Xe)
+            rattle_trial_kick(tail, head, winv, Bt0, Bh0, nu, S0, W, half, imp, S, fixed, own_flow)
+            if own_flow:  # the edges only (rattle_trial_flow); the frames once converged, below
+                _rattle_copy_edges(C0[0], C[0])
+                moved = rattle_trial_flow(tail, head, any_clamped, clamped, any_held, held, C[0], S, pieces, plan, Dn,
+                                          Di, Pz, fxi, fout, fE, ftmp, feye, fwk, fTK)
+                _rattle_zero(S, fixed)
+            else:
+                op_constrain(D, S)  # noqa: F821
+                _rattle_copy(C0, C)
+                op_free_flow(D, C, S, pieces, fracs, dt, Dn, K)  # noqa: F821
+                op_constrain(D, S)  # noqa: F821
+            err = rattle_values(D.einvh, C[0], comp, value, cres, Xe)
             if err <= 1e-13 * scale or (factored and err <= 1e-10 * scale and err > 0.5 * prev):
                 break
             if not np.isfinite(err) or it == MAX_ITERATIONS_:  # noqa: F821
@@ -766,10 +903,13 @@ def rattle_loop(D, C, S, W, have_w, velocity_free, pieces, fracs, closing, comp,
                 info[0] = err
                 break
             if not factored and it > 0 and err > SLOW_ * prev:  # noqa: F821 - the chord gains too little
-                rattle_rows(D, C, comp, Bt1, Bh1, Ae, Xe, yes, fixed)
-                op_velocity(D, S, N)  # noqa: F821
+                rattle_rows(tail, head, einvh, C[0], comp, Bt1, Bh1, Ae, Xe, yes, fixed)
+                if plain:
+                    _rattle_velocity(inv_metric, any_clamped, clamped, any_held, held, S, N)
+                else:
+                    op_velocity(D, S, N)  # noqa: F821
                 _rattle_flow_jacobian(D, N, dt, Pj, fixed)
-                if not rattle_factor(D, Bt1, Bh1, Pj, Bt0, Bh0, Fq, no):
+                if not rattle_factor(tail, head, Bt1, Bh1, Pj, Bt0, Bh0, Fq, no):
                     failed = True
                     info[0] = err
                     break
@@ -793,6 +933,8 @@ def rattle_loop(D, C, S, W, have_w, velocity_free, pieces, fracs, closing, comp,
             _rattle_copy(C0, C)
             status[0] = 1
             break
+        if own_flow and moved:  # the frames by the converged trial's motions: Φ_i ← Φ_i Dn_i (op_move's)
+            g_frames_chunk(Dn, Di, C[1], 0, n)  # noqa: F821
         niter += it
         # the next step's offset ν − λ, ν with one more correction of the last matrix (no flow),
         # the older ones moved down (after a projection they do not count: their Δt is cleared)
@@ -814,18 +956,27 @@ def rattle_loop(D, C, S, W, have_w, velocity_free, pieces, fracs, closing, comp,
         offset_dt[0] = dt
         # the closing kick and its velocity multiplier
         t1 = t + dt
-        bmax = rattle_rows(D, C, comp, Bt0, Bh0, Ae, Xe, yes, fixed)  # (the last trial's logs: at C)
+        bmax = rattle_rows(tail, head, einvh, C[0], comp, Bt0, Bh0, Ae, Xe, yes, fixed)  # (the last trial's logs: at C)
         have_b = True
         if velocity_free:
-            op_velocity(D, S, N)  # noqa: F821
+            if plain:
+                _rattle_velocity(inv_metric, any_clamped, clamped, any_held, held, S, N)
+            else:
+                op_velocity(D, S, N)  # noqa: F821
             op_force(D, C, t1, N, W, K)  # noqa: F821
             for i in range(n):
                 for k in range(R_):  # noqa: F821
                     S[i, k] += half * W[i, k]
-            op_constrain(D, S)  # noqa: F821
-            op_velocity(D, S, N)  # noqa: F821
-            _, have_fs, ok = rattle_project_velocity(D, S, N, Bt0, Bh0, bmax, Fs, no, Pm, pm_diag, 1.0, eye, no,
-                                                     half, no, pres, mu, imp, fixed)
+            if plain:
+                _rattle_zero(S, fixed)
+            else:
+                op_constrain(D, S)  # noqa: F821
+            if plain:
+                _rattle_velocity(inv_metric, any_clamped, clamped, any_held, held, S, N)
+            else:
+                op_velocity(D, S, N)  # noqa: F821
+            projected, have_fs, ok = rattle_project_velocity(tail, head, winv, S, N, Bt0, Bh0, bmax, Fs, no, Pm,
+                                                             pm_diag, 1.0, eye, no, half, no, pres, mu, imp, fixed)
         else:
             for i in range(n):
                 for k in range(R_):  # noqa: F821
@@ -839,22 +990,37 @@ def rattle_loop(D, C, S, W, have_w, velocity_free, pieces, fracs, closing, comp,
                     for j in range(R_):  # noqa: F821
                         v += closing[k, j] * rhs[j]
                     S[i, k] = v
-            op_constrain(D, S)  # noqa: F821
-            op_velocity(D, S, N)  # noqa: F821
-            if uniform:  # B P_closing Bᵀ = s·B P Bᵀ: the factors of B P Bᵀ, kept for the next step
-                _, have_fs, ok = rattle_project_velocity(D, S, N, Bt0, Bh0, bmax, Fs, no, Pm, pm_diag, sc, closing,
-                                                         yes, half, no, pres, mu, imp, fixed)
+            if plain:
+                _rattle_zero(S, fixed)
             else:
-                _, _, ok = rattle_project_velocity(D, S, N, Bt0, Bh0, bmax, Fc, no, Pc, pc_diag, 1.0, closing, yes,
-                                                   half, no, pres, mu, imp, fixed)
+                op_constrain(D, S)  # noqa: F821
+            if plain:
+                _rattle_velocity(inv_metric, any_clamped, clamped, any_held, held, S, N)
+            else:
+                op_velocity(D, S, N)  # noqa: F821
+            if uniform:  # B P_closing Bᵀ = s·B P Bᵀ: the factors of B P Bᵀ, kept for the next step
+                projected, have_fs, ok = rattle_project_velocity(tail, head, winv, S, N, Bt0, Bh0, bmax, Fs, no, Pm,
+                                                                 pm_diag, sc, closing, yes, half, no, pres, mu, imp,
+                                                                 fixed)
+            else:
+                projected, _, ok = rattle_project_velocity(tail, head, winv, S, N, Bt0, Bh0, bmax, Fc, no, Pc, pc_diag,
+                                                           1.0, closing, yes, half, no, pres, mu, imp, fixed)
                 have_fs = False
+        if projected:  # (the projection's S under the scheme's constraint)
+            if plain:
+                _rattle_zero(S, fixed)
+            else:
+                op_constrain(D, S)  # noqa: F821
         if not ok:
             status[0] = 3
             info[0] = np.nan
             break
         nforce += 1
         have_w = True
-        op_velocity(D, S, N)  # noqa: F821
+        if plain:
+            _rattle_velocity(inv_metric, any_clamped, clamped, any_held, held, S, N)
+        else:
+            op_velocity(D, S, N)  # noqa: F821
         if not velocity_free:
             _damped(D, W, N)  # noqa: F821
         t = t1
@@ -889,4 +1055,6 @@ def loop_fragment() -> Fragment:
                                        rattle_apply, rattle_impulse, rattle_project_velocity, _rattle_project_config,
                                        _rattle_rate, _rattle_accelerations, _rattle_predict,
                                        _rattle_support_power, _rattle_powers, _rattle_copy,
+                                       rattle_trial_flow, rattle_trial_kick, _rattle_velocity, _rattle_zero,
+                                       _rattle_copy_edges,
                                        _rattle_factors, rattle_loop))
