@@ -6,7 +6,8 @@ The pointwise discretisation N_i = ∂H/∂S(S_i, X_i), Q_i = ∂H/∂X(S_i, X_i
 ℓ = K − U through it is the collocation's own run; the SBP energy identity dH_d/dt = 0 at a
 state; the elastic relativistic string's Hamiltonian error under ``implicit-midpoint`` at order 2
 in Δt; the momentum map; the agreement with the lattice at order 2 in h; the refusals; the three
-elastic scenes from the command line.  Numpy path (the compiled loops decline such media).
+elastic scenes from the command line.  Numpy path (the compiled loops of ``rkmk4`` and ``lie-euler``:
+tests/test_collocation_coupled_compiled.py).
 """
 
 from __future__ import annotations
@@ -20,7 +21,7 @@ from click.testing import CliRunner
 
 import cartan
 from cartan.cli import main
-from cartan.integrators.explicit import RKMK4
+from cartan.integrators.explicit import RKMK4, Overdamped
 from cartan.integrators.implicit import ImplicitMidpoint
 from cartan.schemes.collocation import Collocation
 from cartan.schemes.lattice import Lattice
@@ -205,11 +206,11 @@ def test_agrees_with_the_lattice_at_order_two(case, dt):
 def test_refusals_and_the_compiled_loops_decline():
     problem = _open_string(9, clamped=False)
     scheme = Collocation(problem)
-    ops = scheme.compiled_operators()
-    assert not ops.ok and not ops.loops and "couples N and X" in ops.reason
+    ops = scheme.compiled_operators()  # (the loops of rkmk4 and lie-euler: tests/test_collocation_coupled_compiled.py)
+    assert not ops.ok and ops.loops == ("euler_loop", "rkmk_loop") and "coupling N and X" in ops.reason
     state = scheme.initial_state()
     before = state.copy()
-    assert RKMK4().run_compiled_loop(scheme, state, 0.01, 3) is False
+    assert Overdamped().run_compiled_loop(scheme, state, 0.01, 3) is False
     assert np.array_equal(state.S, before.S)
     ref = cartan.Problem(problem.medium, problem.grid, problem.initial, reference=problem.initial)
     with pytest.raises(ValueError, match="reference"):

@@ -6,7 +6,7 @@ scheme's Lie group integrator with ξ in ∂N.  The raw force there is the weak 
 so the reaction's power closes the semi-discrete energy balance; runs converge to the lattice's
 at second order in h, and the integrability residual at the driven end grows as at a clamp
 (first order in h at the ends: the SBP boundary rows of order p/2; second order inside).
-The compiled operators decline a driven end.
+The compiled operators take driven ends too: tests/test_collocation_driven_compiled.py.
 """
 
 from __future__ import annotations
@@ -206,19 +206,7 @@ def test_the_torque_of_a_driven_twist_is_the_torsional_impedance():
 
 
 # ---------------------------------------------------------------------------- refusals
-def test_the_compiled_operators_decline_and_the_run_takes_the_numpy_path():
-    """The operator set declines a driven end (it would hold the node at rest); a run asked to be
-    compiled takes the numpy path, bit for bit the run with ``compiled=False``."""
-    scheme = Collocation(_problem(TWIST))
-    ops = scheme.compiled_operators()
-    assert not ops.ok and "Driven" in ops.reason
-    state = scheme.initial_state()
-    assert LieVerlet().run_compiled_loop(scheme, state, 2e-3, 5) is False and state.t == 0.0
-    kw = dict(scheme="collocation", integrator="lie-verlet", dt=2e-3, t_end=0.02, save_every=5, progress=False)
-    a = cartan.simulate(_problem(TWIST), compiled=True, **kw)
-    b = cartan.simulate(_problem(TWIST), compiled=False, **kw)
-    for name in ("position", "frame", "S", "X", "external_work"):
-        assert np.array_equal(a[name].values, b[name].values), name
+# (the compiled operators take driven ends: tests/test_collocation_driven_compiled.py)
 
 
 @pytest.mark.parametrize(("integrator", "xi", "match"), [

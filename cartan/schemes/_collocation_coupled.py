@@ -39,8 +39,10 @@ for d = 1 only, as on the lattice: no medium with a d ≥ 2 coupled Lagrangian e
 Not supported with a coupled Lagrangian (``ValueError``): a stress-free ``reference``
 configuration (the medium's Hamiltonian stress has no rest-strain form), held ends and
 symmetry faces (their held components would need the constrained Legendre map), driven ends
-(refused by the base scheme).  The compiled loops decline such media
-(``Collocation.compiled_operators``): every integrator that runs them takes the numpy path.
+(refused by the base scheme).  With the medium's coupled point kernels the compiled operators
+(``Collocation.compiled_operators``, :mod:`cartan.schemes._collocation_ops`) run the same
+pointwise maps in the loops of ``lie-euler``, ``forward-euler`` and ``rkmk4``; the other
+integrators (``implicit-midpoint``) and media without those kernels take the numpy path.
 
 Where it plugs in: the collocation names this module as its ``coupled_module``
 (:attr:`cartan.schemes.base.Scheme.coupled_module`), so the base scheme's

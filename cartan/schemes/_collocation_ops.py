@@ -46,6 +46,30 @@ Held components (``Held`` ends, ``Symmetry`` faces; paper §IV.D)
     energy of a partly held node is ``½ w N·MN`` with those N (``metric`` M).  The free
     components of a held end or a symmetry face take the penalty of an unloaded free end
     (P = 0: ``end_loaded`` False, no power), as ``Collocation._end_load`` does.
+Node forces (``NodeForce``)
+    ``nf_idx``, ``nf_load``, ``nf_follow``, ``nf_w``: ``W_i += P_body/w_q`` at the node (a dead
+    load rotated by Φ there, :func:`_c_node_force`), zero where the node's components are held;
+    their power ``w_i (P_body/w_q)·N_i`` joins the external power (``op_powers_nodal``, bound to
+    ``op_powers`` in the set's module).
+Driven ends (``Driven``; module docstring of :mod:`cartan.schemes.collocation`, "Driven ends")
+    The driven nodes are held (``clamped``) and listed with their ξ and ∂K/∂N(ξ) (``dnodes``,
+    ``xi_d``, ``S_d``); a set that has them adds :func:`driven_fragment` after the loops
+    (``OperatorSet.late``): the velocity ξ, the momentum ∂K/∂N(ξ) and the kinetic energy
+    ½wξ·Mξ there (the lattice's wrappers), ``lie-verlet``'s pieces carry ξ on their directions
+    (``_c_piece_velocity_driven``: the drift moves the driven frames by exp(τξ) and the strains
+    with ξ in ∂_αN, as every other loop's drift does with N = ξ there), and the supports' power
+    ``R·ξ = −w W·ξ`` joins the external power, W the raw force of ``Collocation.force(raw=True)``
+    at the driven nodes — :func:`op_force`'s terms (free-face penalties at corners included)
+    plus the weak-form term ``−n_α Q^α/H_end`` of each clamped or driven end through the node
+    (``Collocation._clamped_traction``; ``dtr_*``), the stress computed at the nodes of their
+    stencils only (``pnodes``).  It serves the loops of ``lie-verlet``, ``lie-euler``,
+    ``rkmk4``, ``overdamped`` and ``implicit-midpoint`` (``OperatorSet.loops``); the compiled
+    diagnostics leave it to the numpy path.
+Coupled Lagrangians (``Medium.coupled_lagrangian``, d = 1; :mod:`cartan.schemes._collocation_coupled`)
+    A medium with coupled point kernels: :func:`coupled_fragment` rebinds the loops'
+    ``op_state_velocity`` and ``op_state_force`` to ``N_i = N(S_i, X_i)`` (zero at clamped nodes)
+    and to the force of the Hamiltonian stress ``Q_i = Q(S_i, X_i)``, node by node; the set
+    serves the loops of ``lie-euler``, ``forward-euler`` and ``rkmk4`` only.
 """
 
 from __future__ import annotations
@@ -55,18 +79,26 @@ from typing import NamedTuple
 import numpy as np
 
 from ..compiled.codegen import Fragment, njit_source
+from ..problem import Clamped, Driven, NodeForce
 from ._lattice_ops import (
     _HELD,
+    COUPLED_LOOPS,
+    COUPLED_REASON,
     _dead_to_body,
     _supported_loads,
+    check_coupled_kernels,
     check_kernels,
     op_constrain,
+    op_constrain_driven,
     op_copy_config,
+    op_drive_driven,
     op_finite_config,
     op_kinetic,
+    op_kinetic_driven,
     op_new_config,
     op_powers,
     op_velocity,
+    op_velocity_driven,
 )
 
 __all__ = ["CollocationData", "collocation_operators"]
@@ -115,6 +147,24 @@ class CollocationData(NamedTuple):
     end_face: np.ndarray  # [e] w/H_end: the face area share (powers)
     has_power: bool
     diagonal: bool  # the kinetic metric is diagonal (M⁺ = diag)
+    # Node forces (``NodeForce``, :func:`_node_forces`)
+    nf_idx: np.ndarray = None  # [q] int64 the node of each node force
+    nf_load: np.ndarray = None  # [q, r] its force P
+    nf_follow: np.ndarray = None  # [q] bool body frame (else spatial: a dead load)
+    nf_w: np.ndarray = None  # [q] the weight w (w·J) it divides P by (``NodeForce.weight``)
+    # Driven ends (:func:`_driven_data`; the driven nodes are also ``clamped``)
+    any_driven: bool = False
+    dnodes: np.ndarray = None  # [nd] int64 the driven nodes
+    dslot: np.ndarray = None  # [n] int64 a node's row in ``dnodes`` (−1: not driven)
+    xi_d: np.ndarray = None  # [n, r] the driven velocity ξ, zero elsewhere ([0, r] without driven ends)
+    S_d: np.ndarray = None  # [n, r] the driven momentum ∂K/∂N(ξ), zero on the gauge components and elsewhere
+    pnodes: np.ndarray = None  # [p] int64 the nodes whose stress the driven nodes' force reads (stencils)
+    dend_ptr: np.ndarray = None  # [nd + 1] int64 CSR: driven node s's end entries ``dend_item[dend_ptr[s]:…]``
+    dend_item: np.ndarray = None  # [·] int64 rows of ``end_idx`` (free faces through a driven node)
+    dtr_ptr: np.ndarray = None  # [nd + 1] int64 CSR: driven node s's clamped or driven ends ``dtr_*``
+    dtr_axis: np.ndarray = None  # [·] int64 the end's axis α
+    dtr_sign: np.ndarray = None  # [·] its outward normal n_α (±1)
+    dtr_H: np.ndarray = None  # [·] its SBP end weight H_end
 
 
 # ---------------------------------------------------------------------------- operators
@@ -169,13 +219,21 @@ def _c_move_work():
 
 
 def op_force(D, C, t, N, W, K):
+    X = C[0]
+    Q = K[0]
+    for i in range(W.shape[0]):
+        m_stress(X[i], D.X0n[i * D.x0step], D.params, Q[i])  # noqa: F821
+    _c_force_of_stress(D, C, t, N, W, K)
+
+
+def _c_force_of_stress(D, C, t, N, W, K):
+    """:func:`op_force` from the nodal stress ``K[0]`` ``[n, d, r]``."""
     X, Phi = C
     Q = K[0]
     n = W.shape[0]
     A = np.empty((R_, R_))  # noqa: F821
     vec = np.empty(R_)  # noqa: F821
     for i in range(n):
-        m_stress(X[i], D.X0n[i * D.x0step], D.params, Q[i])  # noqa: F821
         for k in range(R_):  # noqa: F821
             W[i, k] = 0.0
     for a in range(D_):  # noqa: F821
@@ -217,6 +275,35 @@ def op_force(D, C, t, N, W, K):
         for k in range(R_):  # noqa: F821
             if zero or not D.live[k] or (D.any_held and D.held[i, k]):
                 W[i, k] = 0.0
+    for q in range(D.nf_idx.shape[0]):
+        i = D.nf_idx[q]
+        _c_node_force(D, Phi, q, vec)
+        zero = D.any_clamped and D.clamped[i]
+        for k in range(R_):  # noqa: F821
+            if not (zero or not D.live[k] or (D.any_held and D.held[i, k])):
+                W[i, k] += vec[k] / D.nf_w[q]
+
+
+def _c_node_force(D, Phi, q, out):
+    """``out`` ← the body components of node force q's P (a dead load rotated by Φ at its node)."""
+    if D.nf_follow[q]:
+        for k in range(R_):  # noqa: F821
+            out[k] = D.nf_load[q, k]
+    else:
+        _dead_to_body(D, Phi[D.nf_idx[q]], D.nf_load[q], out)
+
+
+def op_powers_nodal(D, C, N, t, K):
+    """:func:`~cartan.schemes._lattice_ops.op_powers` plus the node forces' power
+    ``Σ_q w_i (P_q/w_q)·N_i`` (``Scheme.powers``: the load's density times the node weight)."""
+    diss, ext = op_powers_loads(D, C, N, t, K)  # noqa: F821
+    vec = np.empty(R_)  # noqa: F821
+    for q in range(D.nf_idx.shape[0]):
+        i = D.nf_idx[q]
+        _c_node_force(D, C[1], q, vec)
+        for k in range(R_):  # noqa: F821
+            ext += D.w[i] * (vec[k] / D.nf_w[q]) * N[i, k]
+    return diss, ext
 
 
 def op_drift(D, C, tau, N, K):
@@ -255,17 +342,7 @@ def op_free_flow(D, C, S, pieces, fracs, dt, Dn, K):
     moved = False
     for p in range(pieces.shape[0]):
         tau = fracs[p] * dt
-        moving = False
-        for i in range(S.shape[0]):
-            clamped = D.any_clamped and D.clamped[i]
-            for k in range(R_):  # noqa: F821
-                v = 0.0
-                if not (clamped or (D.any_held and D.held[i, k])):
-                    for j in range(R_):  # noqa: F821
-                        v += pieces[p, k, j] * S[i, j]
-                Np[i, k] = v
-                moving = moving or v != 0.0
-        if not moving:
+        if not _c_piece_velocity(D, S, pieces, p, Np):
             continue
         moved = True
         for i in range(S.shape[0]):
@@ -274,6 +351,22 @@ def op_free_flow(D, C, S, pieces, fracs, dt, Dn, K):
             g_coad_exp(row, S[i], E, wk)  # noqa: F821
             _c_move_node(D, C, i, E, Np, tau, xi, dn, U, V, tmp, wk)
     return moved
+
+
+def _c_piece_velocity(D, S, pieces, p, Np):
+    """``Np = P_p S`` of :func:`op_free_flow`'s piece p, zero at clamped nodes and on held
+    components; returns whether it is nonzero anywhere (rebound by :func:`driven_fragment`)."""
+    moving = False
+    for i in range(S.shape[0]):
+        clamped = D.any_clamped and D.clamped[i]
+        for k in range(R_):  # noqa: F821
+            v = 0.0
+            if not (clamped or (D.any_held and D.held[i, k])):
+                for j in range(R_):  # noqa: F821
+                    v += pieces[p, k, j] * S[i, j]
+            Np[i, k] = v
+            moving = moving or v != 0.0
+    return moving
 
 
 def op_drift_naive(D, C, tau, N, K):
@@ -331,8 +424,232 @@ def op_nodal_strains(D, C, X):
 
 
 _OPERATORS = (op_work, op_velocity, op_constrain, _dead_to_body, _c_diff, _c_move_node, _c_move_work, op_force,
-              op_drift, op_move, op_free_flow, op_drift_naive, op_powers, op_kinetic, op_potential, op_nodal_strains,
-              op_finite_config, op_copy_config, op_new_config)
+              _c_force_of_stress, _c_node_force, op_drift, op_move, op_free_flow, _c_piece_velocity, op_drift_naive,
+              op_powers, op_kinetic, op_potential, op_nodal_strains, op_finite_config, op_copy_config, op_new_config)
+
+
+# ---------------------------------------------------------------------------- driven ends
+# ``Driven`` ends (module docstring, "Driven ends"): compiled after the loops in a set with driven
+# nodes (``OperatorSet.late``), as the lattice's (:func:`cartan.schemes._lattice_ops.driven_fragment`,
+# whose velocity, constraint and kinetic energy wrappers are shared); a set without driven nodes
+# compiles none of this.
+
+def _c_piece_velocity_driven(D, S, pieces, p, Np):
+    """:func:`_c_piece_velocity` and, at the driven nodes, ξ on the piece's directions
+    (``Scheme.velocity`` there, restricted to the piece as ``LieVerlet._free_flow`` does for a
+    diagonal metric; a non-diagonal metric's pieces hold them, and that integrator refuses them)."""
+    moving = _c_piece_velocity_plain(D, S, pieces, p, Np)  # noqa: F821
+    if D.diagonal:
+        for s in range(D.dnodes.shape[0]):
+            i = D.dnodes[s]
+            for k in range(R_):  # noqa: F821
+                v = D.xi_d[i, k] if pieces[p, k, k] != 0.0 else 0.0
+                Np[i, k] = v
+                moving = moving or v != 0.0
+    return moving
+
+
+def op_powers_driven(D, C, N, t, K):
+    diss, ext = op_powers_plain(D, C, N, t, K)  # noqa: F821
+    return diss, ext + _c_driven_power(D, C, N, K)
+
+
+def _c_driven_power(D, C, N, K):
+    """``Σ_driven −w W·ξ`` over the live components: W the raw force density at the driven nodes
+    (``Collocation.force(raw=True)``: :func:`op_force`'s terms before the node is zeroed, plus the
+    weak-form term ``−n_α Q^α/H_end`` of each clamped or driven end through it,
+    ``Collocation._clamped_traction``), the stress computed at the nodes of their stencils only
+    (``pnodes``, into ``K[0]``) and the damping at the velocity N (ξ there)."""
+    X, Phi = C
+    Q = K[0]
+    for s in range(D.pnodes.shape[0]):
+        i = D.pnodes[s]
+        m_stress(X[i], D.X0n[i * D.x0step], D.params, Q[i])  # noqa: F821
+    A = np.empty((R_, R_))  # noqa: F821
+    vec = np.empty(R_)  # noqa: F821
+    Wv = np.empty(R_)  # noqa: F821
+    nf = D.field.shape[0]
+    power = 0.0
+    for sl in range(D.dnodes.shape[0]):
+        i = D.dnodes[sl]
+        for k in range(R_):  # noqa: F821
+            Wv[k] = 0.0
+        for a in range(D_):  # noqa: F821
+            _c_diff(D, a, i, Q[:, a, :], vec)
+            g_ad(X[i, a], A)  # noqa: F821
+            for k in range(R_):  # noqa: F821
+                s = 0.0
+                for j in range(R_):  # noqa: F821
+                    s += A[j, k] * Q[i, a, j]
+                Wv[k] = (Wv[k] + vec[k]) - s
+        for it in range(D.dend_ptr[sl], D.dend_ptr[sl + 1]):
+            p = D.dend_item[it]
+            a = D.end_axis[p]
+            if not D.end_loaded[p]:
+                for k in range(R_):  # noqa: F821
+                    vec[k] = 0.0
+            elif D.end_follow[p]:
+                for k in range(R_):  # noqa: F821
+                    vec[k] = D.end_load[p, k]
+            else:
+                _dead_to_body(D, Phi[i], D.end_load[p], vec)
+            for k in range(R_):  # noqa: F821
+                Wv[k] += (vec[k] - D.end_sign[p] * Q[i, a, k]) / D.end_H[p]
+        for it in range(D.dtr_ptr[sl], D.dtr_ptr[sl + 1]):
+            a = D.dtr_axis[it]
+            for k in range(R_):  # noqa: F821
+                Wv[k] -= D.dtr_sign[it] * Q[i, a, k] / D.dtr_H[it]
+        if D.charted:
+            for k in range(R_):  # noqa: F821
+                Wv[k] *= D.inv_volume[i]
+        for k in range(R_):  # noqa: F821
+            Wv[k] += -N[i, k] * D.damp[k] + D.ubody[k]
+        if D.has_field:
+            for k in range(nf):
+                v = 0.0
+                for b in range(nf):
+                    v += Phi[i, b + 1, k + 1] * D.field[b]
+                Wv[k] += v
+        for q in range(D.nf_idx.shape[0]):
+            if D.nf_idx[q] == i:
+                _c_node_force(D, Phi, q, vec)
+                for k in range(R_):  # noqa: F821
+                    Wv[k] += vec[k] / D.nf_w[q]
+        for k in range(R_):  # noqa: F821
+            if D.live[k]:
+                power -= D.w[i] * Wv[k] * D.xi_d[i, k]
+    return power
+
+
+#: the operators a set with driven nodes replaces (``op_x = op_x_driven``, the shared one kept as
+#: ``op_x_plain``; ``op_drive``'s default, in the loops, does nothing)
+_DRIVEN_REPLACED = ("op_velocity", "op_constrain", "op_kinetic", "op_powers", "_c_piece_velocity")
+
+
+def driven_fragment() -> Fragment:
+    """The driven ends' operators and the rebinding of the operators' names, to follow the loops
+    in a generated module (``OperatorSet.late``)."""
+    keep = "\n".join(f"{name}_plain = {name}" for name in _DRIVEN_REPLACED)
+    rebind = "\n".join(f"{name} = {name}_driven" for name in (*_DRIVEN_REPLACED, "op_drive"))
+    source = njit_source(op_drive_driven, op_velocity_driven, op_constrain_driven, op_kinetic_driven,
+                         _c_piece_velocity_driven, op_powers_driven, _c_driven_power)
+    return Fragment(source=keep + "\n\n\n" + source + "\n\n\n" + rebind + "\n")
+
+
+#: the loops that move driven ends on the collocation (their Python steps move a driven node by
+#: exp(Δtξ), ``Integrator.driven_reason``; rattle's nodal rows run the Python step)
+DRIVEN_LOOPS = ("lie_verlet_loop", "euler_loop", "rkmk_loop", "implicit_loop")
+#: why a set with driven nodes serves those loops only
+DRIVEN_REASON = ("a Driven end runs compiled in the loops of lie-verlet, lie-euler, rkmk4, overdamped and "
+                 "implicit-midpoint only; the compiled diagnostics leave it to the numpy path")
+
+
+def _driven_data(scheme, data: CollocationData, rows: list) -> dict:
+    """The ``CollocationData`` fields of the driven ends (``Scheme._driven``): the nodes, their ξ
+    and ∂K/∂N(ξ), the nodes whose stress their force reads (``rows``: each axis' difference rows,
+    :func:`_axis_matrix`), the free-face entries through them and the clamped or driven ends
+    through them (the weak-form term of ``Collocation._clamped_traction``)."""
+    n, r, d = data.w.shape[0], data.r, data.d
+    none = np.zeros(0, dtype=np.int64)
+    fields = dict(any_driven=False, dnodes=none, dslot=np.full(n, -1, dtype=np.int64), xi_d=np.zeros((0, r)),
+                  S_d=np.zeros((0, r)), pnodes=none, dend_ptr=np.zeros(1, dtype=np.int64), dend_item=none,
+                  dtr_ptr=np.zeros(1, dtype=np.int64), dtr_axis=none, dtr_sign=np.zeros(0), dtr_H=np.zeros(0))
+    if scheme._driven is None:
+        return fields
+    mask, Nd, Sd = scheme._driven
+    dnodes = np.flatnonzero(np.asarray(mask, dtype=bool).reshape(n)).astype(np.int64)
+    fields["dslot"][dnodes] = np.arange(dnodes.size)
+    # the stencils: node i reads the stress at base + col·stride along each axis, and its own
+    pnodes = set()
+    for i in dnodes.tolist():
+        pnodes.add(i)
+        for a in range(d):
+            s = int(data.stride[a])
+            j = (i // s) % int(data.naxis[a])
+            pnodes.update(i - j * s + c * s for c, _ in rows[a][j])
+    # the clamped and driven ends through each driven node (Collocation._clamped_traction)
+    node = np.arange(n).reshape(data.shape)
+    tr: list[list[tuple[int, float, float]]] = [[] for _ in range(dnodes.size)]
+    slot = fields["dslot"]
+    for a, D in enumerate(scheme.D):
+        if scheme.grid.periodic[a]:
+            continue
+        for side, idx, sign in (("start", 0, -1.0), ("end", -1, 1.0)):
+            if isinstance(scheme.problem.boundary(a, side), Clamped | Driven):
+                sl = [slice(None)] * d
+                sl[a] = idx
+                for i in np.ravel(node[tuple(sl)]):
+                    if slot[i] >= 0:
+                        tr[slot[i]].append((a, sign, float(D.norm()[idx])))
+    ends: list[list[int]] = [[] for _ in range(dnodes.size)]
+    for p, i in enumerate(data.end_idx.tolist()):
+        if slot[i] >= 0:
+            ends[slot[i]].append(p)
+    fields.update(any_driven=True, dnodes=dnodes, xi_d=np.ascontiguousarray(Nd, dtype=float).reshape(n, r),
+                  S_d=np.ascontiguousarray(Sd, dtype=float).reshape(n, r),
+                  pnodes=np.array(sorted(pnodes), dtype=np.int64),
+                  dend_ptr=np.cumsum([0] + [len(e) for e in ends]).astype(np.int64),
+                  dend_item=np.array([p for e in ends for p in e], dtype=np.int64),
+                  dtr_ptr=np.cumsum([0] + [len(e) for e in tr]).astype(np.int64),
+                  dtr_axis=np.array([a for e in tr for a, _, _ in e], dtype=np.int64),
+                  dtr_sign=np.array([sg for e in tr for _, sg, _ in e], dtype=float),
+                  dtr_H=np.array([H for e in tr for _, _, H in e], dtype=float))
+    return fields
+
+
+# ---------------------------------------------------------------------------- coupled Lagrangians
+# A medium whose Lagrangian couples N and X (``Medium.coupled_lagrangian``, d = 1): the pointwise
+# discretisation of :mod:`cartan.schemes._collocation_coupled` with the medium's coupled point
+# kernels (``m_coupled_velocity``, ``m_coupled_stress``).  The loops of ``lie-euler``,
+# ``forward-euler`` and ``rkmk4`` reach the state through ``op_state_velocity`` and
+# ``op_state_force`` (:mod:`cartan.integrators.loops`), which :func:`coupled_fragment` rebinds
+# after the loops (``OperatorSet.late``); every other operator is the uncoupled set's.
+
+def _c_coupled_velocity(D, S, X, i, out):
+    """``out`` ← N(S_i, X_i) = ∂H/∂S by the medium's ``m_coupled_velocity``.
+
+    Raises
+    ------
+    ValueError
+        When the medium finds no velocity (the momentum is outside the range of its Legendre
+        map), as the reference path's ``Medium.velocity_at`` raises."""
+    if not m_coupled_velocity(S[i], X[i], D.params, out):  # noqa: F821
+        raise ValueError("the Legendre map N(S, X) of the medium has no inverse at a node's momentum and strain "
+                         "(its coupled_velocity kernel found no velocity: the momentum is outside the range of the "
+                         "Legendre map); reduce the time step")
+
+
+def op_state_velocity_coupled(D, C, S, N, K):
+    """``N_i = ∂H/∂S(S_i, X_i)`` (``_collocation_coupled.coupled_velocity``), zero at clamped nodes
+    (``Scheme.velocity``)."""
+    X = C[0]
+    for i in range(S.shape[0]):
+        _c_coupled_velocity(D, S, X, i, N[i])
+        if D.any_clamped and D.clamped[i]:
+            for k in range(R_):  # noqa: F821
+                N[i, k] = 0.0
+
+
+def op_state_force_coupled(D, C, S, t, N, W, K):
+    """:func:`op_force` with the Hamiltonian stress ``Q_i = ∂H/∂X(S_i, X_i)``
+    (``_collocation_coupled.coupled_stress``: the medium's ``m_coupled_stress`` at the velocity
+    N(S_i, X_i) of its ``m_coupled_velocity``, at every node: a clamped node's stress enters its
+    neighbours' differences)."""
+    X = C[0]
+    Q = K[0]
+    NH = np.empty(R_)  # noqa: F821
+    for i in range(S.shape[0]):
+        _c_coupled_velocity(D, S, X, i, NH)
+        m_coupled_stress(S[i], X[i], NH, D.params, Q[i])  # noqa: F821
+    _c_force_of_stress(D, C, t, N, W, K)
+
+
+def coupled_fragment() -> Fragment:
+    """The coupled operators (see above) and the rebinding of ``op_state_velocity`` and
+    ``op_state_force`` to them, to follow the loops in a generated module (``OperatorSet.late``)."""
+    rebind = "\n".join(f"{name} = {name}_coupled" for name in ("op_state_velocity", "op_state_force"))
+    source = njit_source(_c_coupled_velocity, op_state_velocity_coupled, op_state_force_coupled)
+    return Fragment(source=source + "\n\n\n" + rebind + "\n")
 
 
 # ---------------------------------------------------------------------------- building the set
@@ -343,12 +660,15 @@ def _why_not(scheme, reference: type) -> str | None:
     from .base import Scheme
 
     medium = scheme.medium
-    if getattr(scheme, "_driven", None) is not None:
-        return "a Driven end runs on the numpy path (the operators hold clamped nodes at rest)"
     if scheme.group.point_kernels() is None:
         return f"the group {scheme.group!r} has no numba point kernels"
-    if medium.point_kernels() is None:
+    kernels = medium.point_kernels()
+    if kernels is None:
         return f"the medium {medium.name!r} declares no point kernels (Medium.point_kernels)"
+    if scheme.coupled_lagrangian and (getattr(kernels, "coupled_velocity", None) is None
+                                      or getattr(kernels, "coupled_stress", None) is None):
+        return (f"the medium {medium.name!r} couples N and X and declares no coupled point kernels "
+                "(MediumKernels.coupled_velocity, coupled_stress)")
     for name in ("force", "internal_force", "drift", "frames", "_boundary_power", "_end_load", "initial_state",
                  "potential_energy", "nodal_strains"):
         if getattr(type(scheme), name) is not getattr(reference, name):
@@ -361,10 +681,10 @@ def _why_not(scheme, reference: type) -> str | None:
             return f"the medium overrides {name}"
     if getattr(medium, "velocity_dependent_forces", False):
         return "the medium has velocity-dependent forces"
-    loads = _supported_loads(scheme, held=True)
+    loads = _supported_loads(_without_node_forces(scheme), held=True)
     if loads is None:
         return ("a load or boundary is not one of Damping, body-frame UniformForce, ConstantFieldPotential "
-                "(of the library's force), Free, Clamped, Held, Symmetry")
+                "(of the library's force), NodeForce, Free, Clamped, Held, Symmetry, Driven")
     if scheme.problem.needs_structure_field and not scheme.track:
         return "a load needs the frames, which are not stepped (track_frames=False)"
     for a, op in enumerate(scheme.D):
@@ -373,6 +693,17 @@ def _why_not(scheme, reference: type) -> str | None:
                     f"(numba has no FFT) it costs O(n²), slower than the reference's FFT beyond "
                     f"{FOURIER_MAX_NODES} nodes")
     return None
+
+
+def _without_node_forces(scheme):
+    """A view of ``scheme`` for :func:`~cartan.schemes._lattice_ops._supported_loads` (its group,
+    and its problem's boundaries and loads but the ``NodeForce`` ones, which the collocation's
+    operators take themselves: ``nf_*``)."""
+    from types import SimpleNamespace
+
+    problem = scheme.problem
+    loads = [ld for ld in problem.loads if type(ld) is not NodeForce]
+    return SimpleNamespace(group=scheme.group, problem=SimpleNamespace(loads=loads, boundaries=problem.boundaries))
 
 
 #: the largest axis on which the ``fourier`` derivative runs compiled, as the dense circulant
@@ -446,7 +777,8 @@ def collocation_operators(scheme, reference: type):
             indptr[a, j] = len(entries)
             entries += row
             indptr[a, j + 1] = len(entries)
-    damp, ubody, field = _supported_loads(scheme, held=True)
+    damp, ubody, field = _supported_loads(_without_node_forces(scheme), held=True)
+    nodal = [ld for ld in scheme.problem.loads if type(ld) is NodeForce]
     node = np.arange(n).reshape(shape)
     ends = [(int(i), axis, sign, H, b, float(f))
             for axis, sl, sign, H, b, face in scheme._free_ends
@@ -482,7 +814,12 @@ def collocation_operators(scheme, reference: type):
                             dtype=np.bool_),
         end_face=np.array([e[5] for e in ends], dtype=float), has_power=bool(scheme.has_external_power()),
         diagonal=bool(scheme.diagonal_metric),
+        nf_idx=np.array([int(np.ravel_multi_index(ld.node, shape)) for ld in nodal], dtype=np.int64),
+        nf_load=np.array([ld.force_components for ld in nodal], dtype=float).reshape(-1, r),
+        nf_follow=np.array([ld.frame == "body" for ld in nodal], dtype=np.bool_),
+        nf_w=np.array([ld.weight for ld in nodal], dtype=float),
     )
+    data = data._replace(**_driven_data(scheme, data, rows))
     frame_key = "Phi" if scheme.track else "Phi_root"
 
     def pack(state):
@@ -499,7 +836,18 @@ def collocation_operators(scheme, reference: type):
 
     fragments = [group.point_kernels(), medium_fragment(kernels),
                  Fragment(imports={"CollocationData": (__name__, "CollocationData")},
-                          constants={"D_": d, "R_": r, "M_": m}, source=njit_source(*_OPERATORS, *_HELD))]
-    return OperatorSet(label=f"collocation × {group!r} × {medium.name}",
-                       key=f"collocation-{group!r}-{kernel_stem(kernels)}",
-                       fragments=fragments, data=data, pack=pack, unpack=unpack, accepts=accepts, nodes=n)
+                          constants={"D_": d, "R_": r, "M_": m},
+                          source=njit_source(*_OPERATORS, *_HELD) + "\n\n\nop_powers_loads = op_powers\n\n\n"
+                          + njit_source(op_powers_nodal) + "\n\n\nop_powers = op_powers_nodal\n")]
+    label, key = f"collocation × {group!r} × {medium.name}", f"collocation-{group!r}-{kernel_stem(kernels)}"
+    if scheme.coupled_lagrangian:  # (d = 1, no reference, driven ends or held components: the scheme refuses them)
+        check_coupled_kernels(medium, kernels, r)
+        return OperatorSet(label=label + " (coupled Lagrangian)", key=key + "-coupled", fragments=fragments,
+                           data=data, pack=pack, unpack=unpack, accepts=accepts, nodes=n, late=[coupled_fragment()],
+                           reason=COUPLED_REASON, loops=COUPLED_LOOPS)
+    if data.any_driven:
+        return OperatorSet(label=label + " (driven ends)", key=key + "-driven", fragments=fragments, data=data,
+                           pack=pack, unpack=unpack, accepts=accepts, nodes=n, late=[driven_fragment()],
+                           reason=DRIVEN_REASON, loops=DRIVEN_LOOPS)
+    return OperatorSet(label=label, key=key, fragments=fragments, data=data, pack=pack, unpack=unpack,
+                       accepts=accepts, nodes=n)

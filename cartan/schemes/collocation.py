@@ -44,8 +44,9 @@ Driven ends (:class:`~cartan.problem.Driven`)
     frames are stepped by default) and their strains by the same Lie group integrator, with ξ in
     ∂_αN.  The raw force there is the weak form of a clamped end's (:meth:`_clamped_traction`),
     so the reaction ``R = −w(W + ad_ξᵀS)`` is the one whose power R·ξ closes the semi-discrete
-    energy balance ``d/dt Σ w(K + U) = Σ_driven R·ξ`` exactly (summation by parts).  Numpy path
-    only: the compiled operators decline a driven end.
+    energy balance ``d/dt Σ w(K + U) = Σ_driven R·ξ`` exactly (summation by parts).  The
+    compiled operators do the same for ``lie-verlet``, ``lie-euler``, ``rkmk4``, ``overdamped``
+    and ``implicit-midpoint`` (``rattle`` runs its Python step here).
 Charts
     The grid is a chart of the body; the energy is summed with the quadrature weights
     (:attr:`~Collocation.chart_weights`).  When the medium measures the reference volume of a
@@ -72,10 +73,12 @@ Compiled loops
     (:meth:`cartan.integrators.base.Integrator.run_compiled_loop`) the scheme's operators
     (:mod:`cartan.schemes._collocation_ops`) for any group and medium with point kernels: d = 1,
     2, 3, ``fd2``, ``fd4`` and ``fourier``, open and periodic axes, the loads that are data
-    (damping, body-frame uniform force, constant-field potentials, end loads, clamps, held
-    ends and symmetry faces).  The CFL estimate (:meth:`~cartan.schemes.base.Scheme.dt_max`)
-    and the blow-up guard's energies run on the same operators
-    (:mod:`cartan.compiled.diagnostics`).  Everything else stays on this module's numpy path,
+    (damping, body-frame uniform force, constant-field potentials, node forces, end loads,
+    clamps, held ends, symmetry faces and driven ends), and media whose Lagrangian couples N and
+    X with coupled point kernels (``lie-euler``, ``forward-euler``, ``rkmk4``).  The CFL
+    estimate (:meth:`~cartan.schemes.base.Scheme.dt_max`) and the blow-up guard's energies run
+    on the same operators (:mod:`cartan.compiled.diagnostics`; not with driven ends or a coupled
+    Lagrangian).  Everything else stays on this module's numpy path,
     the reference the compiled loops are tested against (``docs/schemes.md``).
 
 What is exact and what is not
@@ -305,10 +308,11 @@ class Collocation(Scheme):
     #: (:meth:`_clamped_traction`), so that :meth:`~cartan.schemes.base.Scheme.support_reaction` is
     #: the support's reaction
     gives_raw_force = True
-    #: :class:`~cartan.problem.Driven` ends move on the numpy path (module docstring, "Driven ends";
-    #: the compiled operators decline them)
+    #: :class:`~cartan.problem.Driven` ends move (module docstring, "Driven ends"), in the compiled
+    #: operators too
     supports_driven_ends = True
-    #: media whose Lagrangian couples N and X, d = 1: :mod:`cartan.schemes._collocation_coupled` (numpy path)
+    #: media whose Lagrangian couples N and X, d = 1: :mod:`cartan.schemes._collocation_coupled` (compiled
+    #: with the medium's coupled point kernels for lie-euler, forward-euler and rkmk4)
     supports_coupled_lagrangian = True
     coupled_module = "cartan.schemes._collocation_coupled"
 
@@ -413,17 +417,15 @@ class Collocation(Scheme):
         forces, constant-field potentials, free (loaded) and clamped ends or faces,
         :class:`~cartan.problem.Held` ends and :class:`~cartan.problem.Symmetry` faces (the
         held components of the clamp mask zeroed as on the numpy path, their free components
-        under the natural condition P = 0), any kinetic metric (a medium whose Lagrangian couples N
-        and X is declined: :mod:`cartan.schemes._collocation_coupled`, numpy path); a declined
-        :class:`~cartan.compiled.operators.OperatorSet` says why otherwise (a
-        :class:`~cartan.problem.Driven` end among them: it runs on the numpy path)."""
+        under the natural condition P = 0), :class:`~cartan.problem.Driven` ends (N = ξ and
+        S = ∂K/∂N(ξ) at their nodes, the supports' power R·ξ with the weak-form raw force of
+        :meth:`_clamped_traction`; a set for the loops of ``lie-verlet``, ``lie-euler``,
+        ``rkmk4``, ``overdamped`` and ``implicit-midpoint`` only, the compiled diagnostics left
+        to the numpy path), any kinetic metric, and media whose Lagrangian couples N and X with
+        coupled point kernels (pointwise, :mod:`cartan.schemes._collocation_coupled`; a set for the
+        loops of ``lie-euler``, ``forward-euler`` and ``rkmk4`` only); a declined
+        :class:`~cartan.compiled.operators.OperatorSet` says why otherwise."""
         ops = self.__dict__.get("_operators")
-        if ops is None and self.coupled_lagrangian:  # (cartan.schemes._collocation_coupled: numpy path)
-            from ..compiled.operators import OperatorSet
-
-            ops = self._operators = OperatorSet.declined(
-                f"the medium {self.medium.name!r} has a Lagrangian that couples N and X (Medium.coupled_lagrangian): "
-                "the collocation steps it on the numpy path")
         if ops is None:
             from ._collocation_ops import collocation_operators
 
