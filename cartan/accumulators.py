@@ -15,13 +15,16 @@ and units.  A rate is a function of the state alone, so the rate after a step, k
 next one, equals the one a restart computes afresh: restarts stay bit for bit.
 
 The update runs on the reference (numpy) path after each step (:func:`add`), or inside the
-lattice's generated loops (``lie-verlet``, ``lie-euler``/``forward-euler``, ``rkmk4``) when the
-medium's point kernels give the rates at a node from its velocity
-(:attr:`cartan.medium.MediumKernels.accumulator_rate`): the loops' ``op_accumulate`` hook
-(:mod:`cartan.integrators.loops`, :func:`cartan.schemes._lattice_ops.accumulate_fragment`)
-applies the same update in the same floating-point order, ``a + (½Δt)(r₀ + r₁)``, so the two
-paths differ only by the round-off of the states they step (measured bit for bit on the elastic
-string; ``tests/test_accumulators_compiled.py``).  Without that kernel, or for the other
+generated loops of the lattice and the collocation (``lie-verlet``, ``lie-euler``/``forward-euler``,
+``rkmk4``; with a Lagrangian coupling N and X the last two only) when the medium's point kernels
+give the rates at a node from its velocity (:attr:`cartan.medium.MediumKernels.accumulator_rate`;
+on the collocation the nodal velocity of the loop, N(S_i, X_i) for a coupled Lagrangian): the
+loops' ``op_accumulate`` hook (:mod:`cartan.integrators.loops`,
+:func:`cartan.schemes._lattice_ops.accumulate_fragment`) applies the same update in the same
+floating-point order, ``a + (½Δt)(r₀ + r₁)``, so the two paths differ only by the round-off of
+the states they step (measured bit for bit on the elastic string on both schemes;
+``tests/test_accumulators_compiled.py``, ``tests/test_accumulators_collocation_compiled.py``).
+Without that kernel, or for the other
 compiled paths (the integrators' own loops, the hand-written ones), such a medium steps one by
 one on the numpy path (:func:`cartan.simulate`).  Media that declare none (all but a few) are
 untouched.

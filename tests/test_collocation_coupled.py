@@ -206,8 +206,8 @@ def test_agrees_with_the_lattice_at_order_two(case, dt):
 def test_refusals_and_the_compiled_loops_decline():
     problem = _open_string(9, clamped=False)
     scheme = Collocation(problem)
-    ops = scheme.compiled_operators()  # (the loops of rkmk4 and lie-euler: tests/test_collocation_coupled_compiled.py)
-    assert not ops.ok and ops.loops == ("euler_loop", "rkmk_loop") and "coupling N and X" in ops.reason
+    ops = scheme.compiled_operators()  # (tests/test_collocation_coupled_compiled.py)
+    assert not ops.ok and ops.loops == ("euler_loop", "rkmk_loop", "implicit_loop") and "coupling N and X" in ops.reason
     state = scheme.initial_state()
     before = state.copy()
     assert Overdamped().run_compiled_loop(scheme, state, 0.01, 3) is False

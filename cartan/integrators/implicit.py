@@ -56,7 +56,8 @@ For a medium whose reduced Lagrangian couples velocity and strain
 
 the Legendre transform of the scheme's discrete Hamiltonian H_d (the semi-discrete system the
 other integrators run).  Its discrete Euler–Lagrange equations are the stage equation above
-with two pieces evaluated differently (numpy path only, :meth:`ImplicitMidpoint._residual`):
+with two pieces evaluated differently (:meth:`ImplicitMidpoint._residual`; compiled, the operator
+set's ``op_stage_momentum`` and ``op_state_force``, :mod:`cartan.integrators.newton`):
 
 * ``μ = ∂L/∂N(ξ/Δt, X_{k+½})`` per unit weight: the momenta S whose discrete velocity
   ``N_d(S, X_{k+½})`` at the midpoint configuration is ξ/Δt on the live components
@@ -70,7 +71,11 @@ of the elastic relativistic string; exact when the gauge value is a constant).  
 stays symmetric (order 2) and symplectic, and its momentum maps change by the Newton residual
 only.  A ξ for which the Legendre map has no inverse (outside the medium's range: an acausal
 velocity) counts as outside the domain of the residual (a halving).  The compiled residual and
-blocks decline such media.
+blocks run such media on the sets whose coupled point kernels the medium declares (the lattice's
+half edges, the collocation's nodes): μ by Newton's method per node on the set's discrete
+velocity from the step's momentum S_k
+(:func:`cartan.integrators.newton.im_coupled_momentum`), to the tolerance of the numpy path's
+inversion (started there from the previous stage's μ), so the two agree to round-off.
 
 Newton's method
 ---------------
@@ -248,8 +253,8 @@ def _stage(scheme: Scheme):
     from ..medium import Medium
     from .newton import Stage, domain_rule, newton_module
 
-    if type(scheme.medium).momentum is not Medium.momentum:
-        return None
+    if type(scheme.medium).momentum is not Medium.momentum and not getattr(scheme, "coupled_lagrangian", False):
+        return None  # (a coupled Lagrangian's stage momenta: the operator set's im_coupled_momentum)
     operators = getattr(scheme, "compiled_operators", None)
     ops = operators() if operators is not None else None
     if ops is None or not ops.serves("implicit_loop"):  # (a set with driven ends serves some loops only)
@@ -517,7 +522,7 @@ class ImplicitMidpoint(Integrator):
         (:meth:`_residual`): ``scheme.compiled_diagnostics`` cleared (``simulate(...,
         compiled=False)``), the numpy backend, no compiled operator set for the problem, another state
         layout, or a subclass overriding :meth:`_residual` or :meth:`force`."""
-        if not getattr(scheme, "compiled_diagnostics", True) or getattr(scheme, "coupled_lagrangian", False):
+        if not getattr(scheme, "compiled_diagnostics", True):
             return None
         if type(self)._residual is not ImplicitMidpoint._residual or type(self).force is not Integrator.force:
             return None

@@ -26,6 +26,14 @@ Compiled functions of the generated module (``ImplicitMidpoint`` drives them):
     The end-of-step momentum.
 ``im_norm(w, idx, y)``, ``im_lu_solve(...)``
     The kinetic-energy norms over the unknowns and the substitutions of a SuperLU factorisation.
+``op_stage_momentum(D, C, S, N, mass, mu, K) -> bool``, ``op_stage_held(D, C, S, N, K) -> bool``
+    The stage momenta μ = m N, and no velocity for the components of ξ that are no unknowns.
+    A set of a Lagrangian coupling N and X (``Medium.coupled_lagrangian``) rebinds them after
+    the loops to :func:`im_coupled_momentum` (μ = ∂L/∂N at the midpoint strains: the set's
+    discrete Legendre map inverted, over its ``op_coupled_logs`` and ``op_coupled_velocities``)
+    and :func:`im_coupled_held` (the gauge components of ξ are Δt times the velocity at the
+    start of the step, r⁰ = ct); the force is the set's ``op_state_force`` at (μ, X_{k+½}), the
+    Hamiltonian stress (``op_force`` for every other set).
 ``implicit_loop(...)``
     Whole blocks of steps: the iteration of ``ImplicitMidpoint._step`` in its order, the end
     of each step and the bookkeeping of ``ImplicitMidpoint.step``; it returns to Python for a
@@ -90,6 +98,116 @@ def _im_solve_T(A, w, out, Mw):
     return solve_augmented(Mw, out)  # noqa: F821
 
 
+def op_stage_momentum(D, C, S, N, mass, mu, K):
+    """The stage momenta ``μ = m N`` ``[n, r]`` (a diagonal kinetic metric ``mass`` ``[r]``) at the
+    midpoint configuration ``C`` (unused here, as the step's momentum ``S``); True.  A set of a
+    Lagrangian coupling N and X rebinds it to :func:`im_coupled_momentum` after the loops."""
+    for i in range(N.shape[0]):
+        for k in range(R_):  # noqa: F821
+            mu[i, k] = N[i, k] * mass[k]
+    return True
+
+
+def op_stage_held(D, C, S, N, K):
+    """False: the components of ξ that are no unknowns start at zero (Δtξ_d at driven nodes).  A
+    set of a Lagrangian coupling N and X rebinds it to :func:`im_coupled_held`."""
+    return False
+
+
+def im_coupled_held(D, C, S, N, K):
+    """``N`` ← the velocity of the state ``(C, S)`` (``op_state_velocity``); True: the components
+    of ξ that are no unknowns (the gauge ones, r⁰ = ct in the temporal gauge) are Δt times it."""
+    op_state_velocity(D, C, S, N, K)  # noqa: F821
+    return True
+
+
+def im_coupled_momentum(D, C, S, N, mass, mu, K):
+    """The stage momenta μ ``[n, r]`` whose velocity at the configuration ``C`` is ``N`` on the live
+    components (``Scheme.momentum``: the discrete Legendre map inverted), zero on the gauge ones;
+    False when none is found (N outside the range of the Legendre map).
+
+    Newton's method per node from the step's momentum ``S``: the set's ``op_coupled_velocities``
+    (all nodes, node i's velocity depending on S_i alone) and its Jacobian by forward differences
+    along each live component, perturbing every node at once, until ``|N(μ) − N| ≤ 1e-14·scale``
+    on the live components (the tolerance and scale of
+    :func:`cartan.schemes._coupled.initial_momentum`); the Jacobian is kept while the error falls
+    by 10 or more per iteration.  The set's ``op_coupled_keep`` then keeps what its force at μ
+    can reuse (the lattice's half-edge velocities)."""
+    n = N.shape[0]
+    live = D.live
+    idx = np.empty(R_, dtype=np.int64)  # noqa: F821
+    nl = 0
+    for k in range(R_):  # noqa: F821
+        if live[k]:
+            idx[nl] = k
+            nl += 1
+    big_live = 0.0
+    big_all = 0.0
+    for i in range(n):
+        for k in range(R_):  # noqa: F821
+            a = abs(N[i, k])
+            big_all = max(big_all, a)
+            if live[k]:
+                big_live = max(big_live, a)
+    scale = max(big_live, 1e-3 * big_all, 1e-300)
+    for i in range(n):
+        for k in range(R_):  # noqa: F821
+            mu[i, k] = S[i, k] if live[k] else 0.0
+    op_coupled_logs(D, C, K)  # noqa: F821
+    Nd = np.empty((n, R_))  # noqa: F821
+    Np = np.empty((n, R_))  # noqa: F821
+    Nm = np.empty((n, R_))  # noqa: F821
+    J = np.empty((n, nl, nl))
+    Mw = np.empty((nl, nl + 1))
+    dx = np.empty(nl)
+    have_j = False
+    err_prev = np.inf
+    for _ in range(IM_COUPLED_ITER_):  # noqa: F821
+        if not op_coupled_velocities(D, C, mu, Nd, K):  # noqa: F821
+            return False
+        err = 0.0
+        for i in range(n):
+            for a in range(nl):
+                e = abs(Nd[i, idx[a]] - N[i, idx[a]])
+                if not np.isfinite(e):
+                    return False
+                err = max(err, e)
+        if err <= IM_COUPLED_TOL_ * scale:  # noqa: F821
+            op_coupled_keep(D, C, mu, K)  # noqa: F821
+            return True
+        if not have_j or err > 0.1 * err_prev:
+            pmax = 0.0
+            for i in range(n):
+                for a in range(nl):
+                    pmax = max(pmax, abs(mu[i, idx[a]]))
+            for b in range(nl):
+                k = idx[b]
+                eps = 1e-7 * max(pmax, abs(mass[k]) * scale, 1e-300)
+                for i in range(n):
+                    Nm[i, k] = mu[i, k]  # (kept: restored exactly)
+                    mu[i, k] += eps
+                ok_p = op_coupled_velocities(D, C, mu, Np, K)  # noqa: F821
+                for i in range(n):
+                    mu[i, k] = Nm[i, k]
+                if not ok_p:
+                    return False
+                for i in range(n):
+                    for a in range(nl):
+                        J[i, a, b] = (Np[i, idx[a]] - Nd[i, idx[a]]) / eps
+            have_j = True
+        err_prev = err
+        for i in range(n):
+            for a in range(nl):
+                for b in range(nl):
+                    Mw[a, b] = J[i, a, b]
+                Mw[a, nl] = N[i, idx[a]] - Nd[i, idx[a]]
+            if not solve_augmented(Mw, dx):  # noqa: F821
+                return False
+            for a in range(nl):
+                mu[i, idx[a]] += dx[a]
+    return False
+
+
 def im_residual(D, C0, Cw, S, xi, dt, t, mass, dom, radius, B, K):
     """The stage residual at ξ ``[n, r]`` into ``B`` ``[6, n, r]`` (N = ξ/Δt, W, μ, BW, Dmu, R);
     ``Cw`` ← the midpoint configuration ``C0·exp(ξ/2)``; False (nothing computed) outside the
@@ -103,7 +221,9 @@ def im_residual(D, C0, Cw, S, xi, dt, t, mass, dom, radius, B, K):
     for i in range(n):
         for k in range(R_):  # noqa: F821
             N[i, k] = xi[i, k] / dt
-    op_force(D, Cw, t + 0.5 * dt, N, W, K)  # noqa: F821
+    if not op_stage_momentum(D, Cw, S, N, mass, mu, K):  # noqa: F821 - μ = m N, or ∂ℓ/∂N (coupled)
+        return False
+    op_state_force(D, Cw, mu, t + 0.5 * dt, N, W, K)  # noqa: F821 - op_force, or at (μ, X) (coupled)
     A = np.empty((R_, R_))  # noqa: F821
     Mw = np.empty((R_, R_ + 1))  # noqa: F821
     E = np.empty((M_, M_))  # noqa: F821
@@ -113,7 +233,6 @@ def im_residual(D, C0, Cw, S, xi, dt, t, mass, dom, radius, B, K):
     vec = np.empty(R_)  # noqa: F821
     for i in range(n):
         for k in range(R_):  # noqa: F821
-            mu[i, k] = N[i, k] * mass[k]
             h[k] = 0.5 * xi[i, k]
             x[k] = xi[i, k]
             m[k] = mu[i, k]
@@ -222,9 +341,17 @@ def implicit_loop(D, C, Cw, S, mass, dom, radius, unk, w_over_m, w_times_m, lu, 
     status = 0
     fresh = resume
     in_step = resume
+    isunk = np.zeros(n * r, dtype=np.bool_)
+    for k in range(nunk):
+        isunk[unk[k]] = True
     while done < nsteps:
         if not in_step:
             # ---- start of a step: the initial iterate
+            if op_stage_held(D, C, S, Nv, K):  # noqa: F821 - (a coupled Lagrangian: the gauge components of ξ)
+                Nf = Nv.reshape(n * r)
+                for j in range(n * r):
+                    if not isunk[j]:
+                        xd[j] = dt * Nf[j]
             if not reuse:
                 have_lu = False
             got = False
@@ -240,7 +367,7 @@ def implicit_loop(D, C, Cw, S, mass, dom, radius, unk, w_over_m, w_times_m, lu, 
                     cur = a
                     got = True
             if not got:
-                op_velocity(D, S, Nv)  # noqa: F821
+                op_state_velocity(D, C, S, Nv, K)  # noqa: F821
                 Nf = Nv.reshape(n * r)
                 xa = XI[a]
                 xa[:] = xd
@@ -391,7 +518,9 @@ def implicit_loop(D, C, Cw, S, mass, dom, radius, unk, w_over_m, w_times_m, lu, 
 def loop_fragment() -> Fragment:
     """The residual, the end of a step and Newton's loop as one fragment of a generated module."""
     return Fragment(imports={"solve_augmented": ("cartan.compiled.linalg", "solve_augmented")},
-                    source=njit_source(_im_in_domain, _im_solve_T, im_residual, im_momentum, im_norm, im_lu_solve,
+                    constants={"IM_COUPLED_ITER_": 60, "IM_COUPLED_TOL_": 1e-14},
+                    source=njit_source(_im_in_domain, _im_solve_T, op_stage_momentum, op_stage_held, im_coupled_held,
+                                       im_coupled_momentum, im_residual, im_momentum, im_norm, im_lu_solve,
                                        _im_slot, _im_norms, implicit_loop))
 
 
@@ -495,9 +624,11 @@ class Stage:
         return {k: B[i].reshape(self.shape) for i, k in enumerate(("N", "W", "mu", "BW", "Dmu", "R")) if k != "N"}
 
     def velocity(self, state: Any) -> np.ndarray:
-        """N = M⁺S of ``state`` by the operators (``[*shape, r]``)."""
+        """The velocity of ``state`` by the operators (``[*shape, r]``): N = M⁺S, or the discrete
+        Legendre map of a Lagrangian coupling N and X (``op_state_velocity``)."""
         N = np.empty((self.n, self.r))
-        self.module.op_velocity(self.ops.data, _contiguous(state.S, (self.n, self.r)), N)
+        self.module.op_state_velocity(self.ops.data, self.ops.pack(state), _contiguous(state.S, (self.n, self.r)),
+                                      N, self.K)
         return N.reshape(self.shape)
 
     def drifted(self, state: Any, xi: np.ndarray, tau: float) -> Any:

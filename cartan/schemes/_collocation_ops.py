@@ -68,8 +68,10 @@ Driven ends (``Driven``; module docstring of :mod:`cartan.schemes.collocation`, 
 Coupled Lagrangians (``Medium.coupled_lagrangian``, d = 1; :mod:`cartan.schemes._collocation_coupled`)
     A medium with coupled point kernels: :func:`coupled_fragment` rebinds the loops'
     ``op_state_velocity`` and ``op_state_force`` to ``N_i = N(S_i, X_i)`` (zero at clamped nodes)
-    and to the force of the Hamiltonian stress ``Q_i = Q(S_i, X_i)``, node by node; the set
-    serves the loops of ``lie-euler``, ``forward-euler`` and ``rkmk4`` only.
+    and to the force of the Hamiltonian stress ``Q_i = Q(S_i, X_i)``, node by node, and
+    ``implicit-midpoint``'s stage momenta to ``S_i`` solving ``N(S_i, X_i) = N_i`` per node
+    (:func:`cartan.integrators.newton.im_coupled_momentum` over :func:`op_coupled_velocities`); the
+    set serves the loops of ``lie-euler``, ``forward-euler``, ``rkmk4`` and ``implicit-midpoint`` only.
 """
 
 from __future__ import annotations
@@ -82,10 +84,15 @@ from ..compiled.codegen import Fragment, njit_source
 from ..problem import Clamped, Driven, NodeForce
 from ._lattice_ops import (
     _HELD,
+    ACCUMULATE_LOOPS,
+    COUPLED_ACCUMULATE_LOOPS,
     COUPLED_LOOPS,
     COUPLED_REASON,
+    COUPLED_STAGE,
+    _accumulated,
     _dead_to_body,
     _supported_loads,
+    accumulate_fragment,
     check_coupled_kernels,
     check_kernels,
     op_constrain,
@@ -165,6 +172,9 @@ class CollocationData(NamedTuple):
     dtr_axis: np.ndarray = None  # [·] int64 the end's axis α
     dtr_sign: np.ndarray = None  # [·] its outward normal n_α (±1)
     dtr_H: np.ndarray = None  # [·] its SBP end weight H_end
+    # Per-node accumulators (``_lattice_ops.accumulate_fragment``; ``[0, n]`` without them)
+    acc: np.ndarray = None  # [a, n] the accumulators, loaded by ``pack`` and written back by ``unpack``
+    acc_rate: np.ndarray = None  # [a, n] their rates at the last state the loop accumulated at
 
 
 # ---------------------------------------------------------------------------- operators
@@ -644,12 +654,35 @@ def op_state_force_coupled(D, C, S, t, N, W, K):
     _c_force_of_stress(D, C, t, N, W, K)
 
 
+def op_coupled_logs(D, C, K):
+    """Nothing: the strains are the state's (``C[0]``); the lattice's computes its edge logarithms
+    here (``implicit-midpoint``'s stage momenta, :func:`cartan.integrators.newton.im_coupled_momentum`)."""
+    return
+
+
+def op_coupled_velocities(D, C, S, N, K):
+    """``N_i = N(S_i, X_i)`` ``[n, r]`` at every node (no clamping); False where the medium's
+    ``m_coupled_velocity`` finds no velocity (instead of raising)."""
+    X = C[0]
+    for i in range(S.shape[0]):
+        if not m_coupled_velocity(S[i], X[i], D.params, N[i]):  # noqa: F821
+            return False
+    return True
+
+
+def op_coupled_keep(D, C, S, K):
+    """Nothing: the force solves each node's Legendre map itself."""
+    return
+
+
 def coupled_fragment() -> Fragment:
-    """The coupled operators (see above) and the rebinding of ``op_state_velocity`` and
-    ``op_state_force`` to them, to follow the loops in a generated module (``OperatorSet.late``)."""
+    """The coupled operators (see above) and the rebinding of ``op_state_velocity``,
+    ``op_state_force`` and ``implicit-midpoint``'s stage operators to them, to follow the loops in a
+    generated module (``OperatorSet.late``)."""
     rebind = "\n".join(f"{name} = {name}_coupled" for name in ("op_state_velocity", "op_state_force"))
-    source = njit_source(_c_coupled_velocity, op_state_velocity_coupled, op_state_force_coupled)
-    return Fragment(source=source + "\n\n\n" + rebind + "\n")
+    source = njit_source(_c_coupled_velocity, op_state_velocity_coupled, op_state_force_coupled, op_coupled_logs,
+                         op_coupled_velocities, op_coupled_keep)
+    return Fragment(source=source + "\n\n\n" + rebind + "\n" + COUPLED_STAGE)
 
 
 # ---------------------------------------------------------------------------- building the set
@@ -821,18 +854,28 @@ def collocation_operators(scheme, reference: type):
     )
     data = data._replace(**_driven_data(scheme, data, rows))
     frame_key = "Phi" if scheme.track else "Phi_root"
+    # per-node accumulators, as the lattice's (``_lattice_ops.accumulate_fragment``): the loops'
+    # ``op_accumulate`` gets the nodal velocity N (coupled: N(S_i, X_i) of ``op_state_velocity``);
+    # not with driven ends, whose set serves the loops without the hook too
+    acc_names = () if data.any_driven else _accumulated(medium, kernels)
+    acc_keys = [f"accumulator_{name}" for name in acc_names]  # (cartan.accumulators.key)
+    data = data._replace(acc=np.zeros((len(acc_names), n)), acc_rate=np.zeros((len(acc_names), n)))
 
     def pack(state):
         X = np.ascontiguousarray(state.arrays["X"], dtype=float).reshape(n, d, r).copy()
         Phi = np.ascontiguousarray(state.arrays[frame_key], dtype=float).reshape(-1, m, m).copy()
+        for j, k in enumerate(acc_keys):
+            data.acc[j] = np.asarray(state.arrays[k], dtype=float).reshape(n)
         return (X, Phi)
 
     def unpack(state, C):
         state.arrays["X"] = C[0].reshape(state.arrays["X"].shape).copy()
         state.arrays[frame_key] = C[1].reshape(state.arrays[frame_key].shape).copy()
+        for j, k in enumerate(acc_keys):
+            state.arrays[k] = data.acc[j].reshape(shape).copy()
 
     def accepts(state) -> bool:
-        return set(state.arrays) == {"X", frame_key}
+        return set(state.arrays) == {"X", frame_key, *acc_keys}
 
     fragments = [group.point_kernels(), medium_fragment(kernels),
                  Fragment(imports={"CollocationData": (__name__, "CollocationData")},
@@ -840,14 +883,16 @@ def collocation_operators(scheme, reference: type):
                           source=njit_source(*_OPERATORS, *_HELD) + "\n\n\nop_powers_loads = op_powers\n\n\n"
                           + njit_source(op_powers_nodal) + "\n\n\nop_powers = op_powers_nodal\n")]
     label, key = f"collocation × {group!r} × {medium.name}", f"collocation-{group!r}-{kernel_stem(kernels)}"
+    acc_late, acc_stem = ([accumulate_fragment()], "-acc") if acc_names else ([], "")
     if scheme.coupled_lagrangian:  # (d = 1, no reference, driven ends or held components: the scheme refuses them)
         check_coupled_kernels(medium, kernels, r)
-        return OperatorSet(label=label + " (coupled Lagrangian)", key=key + "-coupled", fragments=fragments,
-                           data=data, pack=pack, unpack=unpack, accepts=accepts, nodes=n, late=[coupled_fragment()],
-                           reason=COUPLED_REASON, loops=COUPLED_LOOPS)
+        return OperatorSet(label=label + " (coupled Lagrangian)", key=key + "-coupled" + acc_stem,
+                           fragments=fragments, data=data, pack=pack, unpack=unpack, accepts=accepts, nodes=n,
+                           late=[coupled_fragment(), *acc_late], reason=COUPLED_REASON, loops=COUPLED_LOOPS,
+                           accumulates=COUPLED_ACCUMULATE_LOOPS if acc_names else ())
     if data.any_driven:
         return OperatorSet(label=label + " (driven ends)", key=key + "-driven", fragments=fragments, data=data,
                            pack=pack, unpack=unpack, accepts=accepts, nodes=n, late=[driven_fragment()],
                            reason=DRIVEN_REASON, loops=DRIVEN_LOOPS)
-    return OperatorSet(label=label, key=key, fragments=fragments, data=data, pack=pack, unpack=unpack,
-                       accepts=accepts, nodes=n)
+    return OperatorSet(label=label, key=key + acc_stem, fragments=fragments, data=data, pack=pack, unpack=unpack,
+                       accepts=accepts, nodes=n, late=acc_late, accumulates=ACCUMULATE_LOOPS if acc_names else ())

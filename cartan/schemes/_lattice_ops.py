@@ -963,22 +963,78 @@ def op_state_force_coupled(D, C, S, t, N, W, K):
     _edge_force(D, C, N, W, K)
 
 
-_COUPLED = (op_work_coupled, _coupled_solve, op_state_velocity_coupled, op_state_force_coupled)
+def op_coupled_logs(D, C, K):
+    """The edges' logarithms into ``K[2]``, for :func:`op_coupled_velocities` (``implicit-midpoint``'s
+    stage momenta, :func:`cartan.integrators.newton.im_coupled_momentum`)."""
+    g_log_chunk(C[0], 0, D.tail.shape[0], K[2])  # noqa: F821
+
+
+def op_coupled_velocities(D, C, S, N, K):
+    """``N_i = Σ_{e∋i} (h/2w_i) N(S_i, X_e)`` ``[n, r]`` at the logarithms of
+    :func:`op_coupled_logs` (in ``K[2]``), every node (no clamping), the half-edge velocities in
+    ``K[6]`` (the cache of :func:`_coupled_solve` invalidated; :func:`op_coupled_keep` validates
+    it); False where the medium's ``m_coupled_velocity`` finds no velocity (instead of raising)."""
+    XI, NH = K[2], K[6]
+    K[9][0] = 0
+    n = S.shape[0]
+    half = 0.5 * D.cell
+    X = np.empty((D_, R_))  # noqa: F821
+    for i in range(n):
+        for k in range(R_):  # noqa: F821
+            N[i, k] = 0.0
+    for e in range(D.tail.shape[0]):
+        for k in range(R_):  # noqa: F821
+            X[0, k] = XI[e, k] / D.cell
+        i = D.tail[e]
+        if not m_coupled_velocity(S[i], X, D.params, NH[e, 0]):  # noqa: F821
+            return False
+        for k in range(R_):  # noqa: F821
+            N[i, k] += half * NH[e, 0, k]
+        j = D.head[e]
+        if not m_coupled_velocity(S[j], X, D.params, NH[e, 1]):  # noqa: F821
+            return False
+        for k in range(R_):  # noqa: F821
+            N[j, k] += half * NH[e, 1, k]
+    for i in range(n):
+        for k in range(R_):  # noqa: F821
+            N[i, k] = N[i, k] / D.w[i]
+    return True
+
+
+def op_coupled_keep(D, C, S, K):
+    """Validate the cache of :func:`_coupled_solve` for the last :func:`op_coupled_velocities`
+    (at ``S`` and the logarithms in ``K[2]``), so that the force at S reuses its half-edge
+    velocities — the same values, a function of (S, X) alone."""
+    XI, SK, XK = K[2], K[7], K[8]
+    for e in range(XI.shape[0]):
+        for k in range(R_):  # noqa: F821
+            XK[e, k] = XI[e, k]
+    for i in range(S.shape[0]):
+        for k in range(R_):  # noqa: F821
+            SK[i, k] = S[i, k]
+    K[9][0] = 1
+
+
+_COUPLED = (op_work_coupled, _coupled_solve, op_state_velocity_coupled, op_state_force_coupled, op_coupled_logs,
+            op_coupled_velocities, op_coupled_keep)
 #: the loops that run a coupled Lagrangian (``lie-euler``, ``forward-euler``: ``euler_loop``;
-#: ``rkmk4``: ``rkmk_loop``); the integrators without momentum (``overdamped``, ``kinematic``),
-#: which share ``rkmk_loop``, decline it (``Integrator.run_compiled_loop``)
-COUPLED_LOOPS = ("euler_loop", "rkmk_loop")
+#: ``rkmk4``: ``rkmk_loop``; ``implicit-midpoint``: ``implicit_loop``, with the stage momenta of
+#: :func:`cartan.integrators.newton.im_coupled_momentum`); the integrators without momentum
+#: (``overdamped``, ``kinematic``), which share ``rkmk_loop``, decline it (``Integrator.run_compiled_loop``)
+COUPLED_LOOPS = ("euler_loop", "rkmk_loop", "implicit_loop")
+#: the rebinding of the stage operators of ``implicit-midpoint`` (:mod:`cartan.integrators.newton`)
+COUPLED_STAGE = "op_stage_momentum = im_coupled_momentum\nop_stage_held = im_coupled_held\n"
 #: why a set of a coupled Lagrangian serves those loops only
-COUPLED_REASON = ("a Lagrangian coupling N and X runs compiled in the loops of lie-euler, forward-euler and rkmk4 "
-                  "only; implicit-midpoint and the compiled diagnostics leave it to the numpy path")
+COUPLED_REASON = ("a Lagrangian coupling N and X runs compiled in the loops of lie-euler, forward-euler, rkmk4 "
+                  "and implicit-midpoint only; the compiled diagnostics leave it to the numpy path")
 
 
 def coupled_fragment() -> Fragment:
-    """The coupled operators (see above) and the rebinding of ``op_work``, ``op_state_velocity``
-    and ``op_state_force`` to them, to follow the loops in a generated module
-    (``OperatorSet.late``)."""
+    """The coupled operators (see above) and the rebinding of ``op_work``, ``op_state_velocity``,
+    ``op_state_force`` and ``implicit-midpoint``'s stage operators (:data:`COUPLED_STAGE`) to them,
+    to follow the loops in a generated module (``OperatorSet.late``)."""
     rebind = "\n".join(f"{name} = {name}_coupled" for name in ("op_work", "op_state_velocity", "op_state_force"))
-    return Fragment(source=njit_source(*_COUPLED) + "\n\n\n" + rebind + "\n")
+    return Fragment(source=njit_source(*_COUPLED) + "\n\n\n" + rebind + "\n" + COUPLED_STAGE)
 
 
 # ---------------------------------------------------------------------------- per-node accumulators
@@ -989,7 +1045,8 @@ def coupled_fragment() -> Fragment:
 # (``OperatorSet.late``).  The accumulators ride in the data (``D.acc`` ``[a, n]``: ``pack`` loads
 # them from the state, ``unpack`` writes them back), with the rates of the last state
 # (``D.acc_rate``), and are updated by the trapezoidal rule in the floating-point order of
-# :func:`cartan.accumulators.add`, ``a + (½Δt)(r_before + r_after)``.
+# :func:`cartan.accumulators.add`, ``a + (½Δt)(r_before + r_after)``.  The collocation's sets
+# (:mod:`._collocation_ops`) take the same fragment with the same fields in their data.
 
 def op_accumulate_rates(D, C, S, N, dt, begin):
     """``D.acc_rate`` ← the rates at velocity N (``m_accumulator_rate`` per node); unless
@@ -1008,6 +1065,9 @@ def op_accumulate_rates(D, C, S, N, dt, begin):
 #: the loops that call ``op_accumulate`` (``lie-verlet``; ``lie-euler``, ``forward-euler``;
 #: ``rkmk4`` with momentum)
 ACCUMULATE_LOOPS = ("lie_verlet_loop", "euler_loop", "rkmk_loop")
+#: those of them a set of a coupled Lagrangian serves (``implicit-midpoint``'s loop calls no
+#: ``op_accumulate``: its runs step the accumulators on the numpy path)
+COUPLED_ACCUMULATE_LOOPS = tuple(name for name in COUPLED_LOOPS if name in ACCUMULATE_LOOPS)
 
 
 def accumulate_fragment() -> Fragment:
@@ -1629,7 +1689,7 @@ def lattice_operators(scheme, reference: type):
         return OperatorSet(label=label + " (coupled Lagrangian)", key=key + "-coupled" + acc_stem, fragments=fragments,
                            data=data, pack=pack, unpack=unpack, accepts=accepts, nodes=n,
                            late=[coupled_fragment(), *acc_late], reason=COUPLED_REASON, loops=COUPLED_LOOPS,
-                           accumulates=COUPLED_LOOPS if acc_names else ())
+                           accumulates=COUPLED_ACCUMULATE_LOOPS if acc_names else ())
     if data.any_driven:  # (no threaded build: its passes over the nodes know no driven node)
         return OperatorSet(label=label + " (driven ends)", key=key + "-driven", fragments=fragments, data=data,
                            pack=pack, unpack=unpack, accepts=accepts, nodes=n, late=[driven_fragment()],

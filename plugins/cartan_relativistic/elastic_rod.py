@@ -18,8 +18,9 @@ The lattice steps the Hamiltonian system with ``rkmk4`` (order 4), ``lie-euler``
 ``implicit-midpoint`` (order 2, symplectic: the discrete Lagrangian method of the Legendre
 transform of H_d) (:mod:`cartan.schemes._coupled`); ``lie-verlet`` refuses it.  With the
 built-in laws (``quadratic``, ``quartic``) the medium declares compiled point kernels
-(:meth:`point_kernels`) and ``rkmk4``, ``lie-euler`` and ``forward-euler`` run in the generated
-compiled loops; ``implicit-midpoint`` and the other laws step on the numpy path.
+(:meth:`point_kernels`) and ``rkmk4``, ``lie-euler``, ``forward-euler`` and ``implicit-midpoint``
+run in the generated compiled loops, on the lattice and the collocation; the other laws step on
+the numpy path.
 
 A general rest-frame energy ε(λ) = μc² + W(λ) is given as ``law``
 (:class:`cartan_relativistic.elastic.ElasticLaw`: W, W′, W″), checked on construction at λ = 1

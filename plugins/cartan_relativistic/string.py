@@ -78,6 +78,15 @@ def nambu_goto_stress(X, X0, p, Q):  # pragma: no cover - compiled
         Q[0, k] = 0.0
 
 
+@njit(cache=True)
+def nambu_goto_proper_time_rate(N, p, out):  # pragma: no cover - compiled
+    """dτ/dt = √(−⟨y_N, y_N⟩)/c at one node into ``out[0]`` (y_N = N[0:4], c = p[1]; the rate of the
+    accumulator ``proper_time``, :meth:`RelativisticRod.accumulator_rates`, in its floating-point
+    order): ⟨Λy, Λy⟩ = ⟨y, y⟩ for the node's Lorentz frame Λ, so the rate needs the velocity alone."""
+    minus = N[0] * N[0] - N[1] * N[1] - N[2] * N[2] - N[3] * N[3]
+    out[0] = math.sqrt(max(minus, 0.0)) / p[1]
+
+
 def loop_exact(sigma: np.ndarray, t: float, radius: float, c: float = 1.0, tilt: float = 0.0,
                boost: float = 0.0) -> tuple[np.ndarray, np.ndarray]:
     """Exact Nambu–Goto loop in conformal–temporal gauge: lab positions and velocities.
@@ -150,9 +159,9 @@ class RelativisticRod(KernelMedium):
     clocks : bool, optional
         Accumulate each node's proper time τ in the run (the output ``proper_time``
         ``(time, node)``, continued exactly by restarts; :mod:`cartan.accumulators`).  Default:
-        off for the Nambu–Goto string (its rate needs the node's Lorentz frame: the
-        accumulator steps on the numpy path, not the compiled loops), on for the elastic string
-        (its compiled loops integrate it, docs §3).
+        off for the Nambu–Goto string, on for the elastic string; the compiled loops integrate
+        it for both (the rate is a Lorentz invariant of the node's velocity,
+        :func:`nambu_goto_proper_time_rate`; docs §4, "Proper time per node").
 
     Notes
     -----
@@ -237,9 +246,11 @@ class RelativisticRod(KernelMedium):
     def accumulator_rates(self, q: np.ndarray, X: np.ndarray, N: np.ndarray, grid: Any) -> dict[str, np.ndarray]:
         """``dτ/dt = √(−⟨ṙ, ṙ⟩)/c`` per node, ``[*grid.shape]``, ṙ = Λ y_N the node's 4-velocity in
         the run's time t: 1/γ in the conformal–temporal gauge (ṙ⁰ = c), 1 for a run in proper time
-        (``kinematic``, U = (c, 0, 0, 0))."""
-        _, rdot = self.lab_events(q, N)
-        minus = -np.einsum("...i,i,...i->...", rdot, _ETA, rdot)
+        (``kinematic``, U = (c, 0, 0, 0)).  Λ is a Lorentz transformation, ⟨Λy, Λy⟩ = ⟨y, y⟩, so the
+        rate is computed from y_N = N[..., 0:4] alone (``q`` unused), in the floating-point order of
+        the compiled rate (:func:`nambu_goto_proper_time_rate`): the two paths agree bit for bit."""
+        y = np.asarray(N, dtype=float)
+        minus = y[..., 0] * y[..., 0] - y[..., 1] * y[..., 1] - y[..., 2] * y[..., 2] - y[..., 3] * y[..., 3]
         return {"proper_time": np.sqrt(np.maximum(minus, 0.0)) / self.c}
 
     def kinetic_metric(self) -> np.ndarray:
@@ -258,7 +269,12 @@ class RelativisticRod(KernelMedium):
         return X0
 
     def point_kernels(self) -> MediumKernels:
-        return MediumKernels(nambu_goto_energy, nambu_goto_stress, np.array([self.tension]))
+        """The Nambu–Goto point kernels (parameters (T, c)); with ``clocks=True`` also the rate of the
+        proper time (:func:`nambu_goto_proper_time_rate`), which runs the clocks in the compiled loops."""
+        if not self.clocks:
+            return MediumKernels(nambu_goto_energy, nambu_goto_stress, np.array([self.tension]))
+        return MediumKernels(nambu_goto_energy, nambu_goto_stress, np.array([self.tension, self.c]),
+                             accumulator_rate=nambu_goto_proper_time_rate)
 
     def check_support(self, support: Any, end: str) -> None:
         """Refuse an end of the Nambu–Goto string that holds the time component U₀ = ∂_t r⁰.
