@@ -22,6 +22,7 @@ import numpy as np
 import pytest
 from cartan_relativistic.string import RelativisticRod
 from numba import njit
+from toys import elastic_string
 
 import cartan
 from cartan.integrators.explicit import RKMK4, LieEuler
@@ -32,18 +33,8 @@ pytestmark = pytest.mark.filterwarnings("ignore::cartan.StabilityWarning")
 
 
 def _problem(kind: str, clocks: bool = True, n: int = 9):
-    """The elastic string (quadratic law, k = 0.25): ``clamped`` (stretched, bent, moving in
-    3-D, held at its start) or ``ring`` (closed, spinning and breathing)."""
-    rod = cartan.medium("relativistic-rod", energy="elastic", stiffness=0.25, clocks=clocks)
-    if kind == "ring":
-        grid = cartan.Grid(n, length=2 * math.pi, periodic=True)
-        return cartan.Problem(rod, grid, rod.initial_state(grid, "ring", radius=1.1, spin=0.3, radial_speed=0.1))
-    grid = cartan.Grid(n, length=1.0)
-    u = grid.coordinates(0)
-    x = np.stack([1.1 * u, 0.05 * np.sin(np.pi * u), 0.02 * u * u], -1)
-    v = np.stack([0.2 * np.cos(np.pi * u), 0.3 * np.sin(2 * np.pi * u), 0.1 * u], -1)
-    v[0] = 0.0
-    return cartan.Problem(rod, grid, rod.state_from(x, v), boundaries={"start": cartan.Clamped()})
+    """The elastic string (quadratic law, k = 0.25): ``clamped`` or ``ring`` (:func:`toys.elastic_string`)."""
+    return elastic_string(kind, n, clocks=clocks)
 
 
 # ---------------------------------------------------------------------------- declarations

@@ -18,6 +18,7 @@ import numpy as np
 import pytest
 from cartan_relativistic.elastic import ElasticLaw
 from cartan_relativistic.string import RelativisticRod
+from toys import elastic_string
 
 import cartan
 from cartan.integrators.explicit import RKMK4, LieEuler, Overdamped
@@ -30,20 +31,8 @@ LAWS = {"quadratic": {"stiffness": 0.25}, "quartic": {"law": ElasticLaw.quartic(
 
 def _problem(kind: str, law: str = "quadratic", n: int = 9):
     """An elastic string without clocks (the clocks in the loops: tests/test_accumulators_compiled.py):
-    ``free`` (stretched, bent, moving in 3-D), ``clamped`` (the same, held at its start) or
-    ``ring`` (a closed string, spinning and breathing)."""
-    rod = cartan.medium("relativistic-rod", energy="elastic", clocks=False, **LAWS[law])
-    if kind == "ring":
-        grid = cartan.Grid(n, length=2 * math.pi, periodic=True)
-        return cartan.Problem(rod, grid, rod.initial_state(grid, "ring", radius=1.1, spin=0.3, radial_speed=0.1))
-    grid = cartan.Grid(n, length=1.0)
-    u = grid.coordinates(0)
-    x = np.stack([1.1 * u, 0.05 * np.sin(np.pi * u), 0.02 * u * u], -1)
-    v = np.stack([0.2 * np.cos(np.pi * u), 0.3 * np.sin(2 * np.pi * u), 0.1 * u], -1)
-    if kind == "free":
-        return cartan.Problem(rod, grid, rod.state_from(x, v))
-    v[0] = 0.0
-    return cartan.Problem(rod, grid, rod.state_from(x, v), boundaries={"start": cartan.Clamped()})
+    ``free``, ``clamped`` or ``ring`` (:func:`toys.elastic_string`)."""
+    return elastic_string(kind, n, law=LAWS[law])
 
 
 # ---------------------------------------------------------------------------- declarations

@@ -19,10 +19,9 @@ the lattice).  The Newton loop of each set compiles on first use (≈ 60–120 s
 
 from __future__ import annotations
 
-import math
-
 import numpy as np
 import pytest
+from toys import elastic_string
 
 import cartan
 from cartan.integrators import ImplicitMidpoint
@@ -42,18 +41,9 @@ SCHEMES = {"lattice": Lattice, "collocation": Collocation}
 
 
 def _problem(kind: str, n: int = 9) -> cartan.Problem:
-    """The elastic string (quadratic law, k = 0.25, no clocks): ``ring`` (closed, spinning and
-    breathing) or ``clamped`` (stretched, bent, moving in 3-D, held at its start)."""
-    rod = cartan.medium("relativistic-rod", energy="elastic", stiffness=0.25, clocks=False)
-    if kind == "ring":
-        grid = cartan.Grid(n, length=2 * math.pi, periodic=True)
-        return cartan.Problem(rod, grid, rod.initial_state(grid, "ring", radius=1.1, spin=0.3, radial_speed=0.1))
-    grid = cartan.Grid(n, length=1.0)
-    u = grid.coordinates(0)
-    x = np.stack([1.1 * u, 0.05 * np.sin(np.pi * u), 0.02 * u * u], -1)
-    v = np.stack([0.2 * np.cos(np.pi * u), 0.3 * np.sin(2 * np.pi * u), 0.1 * u], -1)
-    v[0] = 0.0
-    return cartan.Problem(rod, grid, rod.state_from(x, v), boundaries={"start": cartan.Clamped()})
+    """The elastic string (quadratic law, k = 0.25, no clocks): ``ring`` or ``clamped``
+    (:func:`toys.elastic_string`)."""
+    return elastic_string(kind, n)
 
 
 class PythonDriver(ImplicitMidpoint):

@@ -498,3 +498,23 @@ def frames_of(ds, k: int = -1) -> np.ndarray:
     Phi[..., 0, 0] = 1.0
     Phi[..., 1:, 0], Phi[..., 1:, 1:] = pos, E
     return Phi
+
+
+def elastic_string(kind: str, n: int = 9, clocks: bool = False, law: dict | None = None) -> Problem:
+    """The elastic relativistic string (``law``: the medium's law keywords, default the quadratic
+    law with k = 0.25): ``free`` (stretched, bent, moving in 3-D), ``clamped`` (the same, held at
+    its start) or ``ring`` (a closed string, spinning and breathing)."""
+    import math
+
+    rod = cartan.medium("relativistic-rod", energy="elastic", clocks=clocks, **(law or {"stiffness": 0.25}))
+    if kind == "ring":
+        grid = Grid(n, length=2 * math.pi, periodic=True)
+        return Problem(rod, grid, rod.initial_state(grid, "ring", radius=1.1, spin=0.3, radial_speed=0.1))
+    grid = Grid(n, length=1.0)
+    u = grid.coordinates(0)
+    x = np.stack([1.1 * u, 0.05 * np.sin(np.pi * u), 0.02 * u * u], -1)
+    v = np.stack([0.2 * np.cos(np.pi * u), 0.3 * np.sin(2 * np.pi * u), 0.1 * u], -1)
+    if kind == "free":
+        return Problem(rod, grid, rod.state_from(x, v))
+    v[0] = 0.0
+    return Problem(rod, grid, rod.state_from(x, v), boundaries={"start": Clamped()})

@@ -578,23 +578,9 @@ def rattle_trial_kick(tail, head, winv, Bt, Bh, nu, S0, W, half, imp, S, fixed, 
     :func:`rattle_impulse` makes: the same sums in the same order), then, with ``own``, S zeroed
     where ``fixed`` ``[n, r]`` (:func:`_rattle_fixed`: ``op_constrain``'s components, without
     driven nodes); ``tail``, ``head`` ``[E]`` and ``winv`` ``[n]`` the lattice's arrays."""
-    n = S.shape[0]
-    for i in range(n):
+    rattle_impulse(tail, head, winv, Bt, Bh, nu, imp)
+    for i in range(S.shape[0]):
         for k in range(R_):  # noqa: F821
-            imp[i, k] = 0.0
-    for e in range(Bt.shape[0]):
-        i, j = tail[e], head[e]
-        for k in range(R_):  # noqa: F821
-            si = 0.0
-            sj = 0.0
-            for a in range(Bt.shape[1]):
-                si += Bt[e, a, k] * nu[e, a]
-                sj += Bh[e, a, k] * nu[e, a]
-            imp[i, k] += si
-            imp[j, k] += sj
-    for i in range(n):
-        for k in range(R_):  # noqa: F821
-            imp[i, k] *= winv[i]
             S[i, k] = S0[i, k] + half * (W[i, k] + imp[i, k])
             if own and fixed[i, k]:
                 S[i, k] = 0.0

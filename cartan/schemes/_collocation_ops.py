@@ -258,14 +258,7 @@ def _c_force_of_stress(D, C, t, N, W, K):
                 W[i, k] = (W[i, k] + vec[k]) - s
     for p in range(D.end_idx.shape[0]):
         i, a = D.end_idx[p], D.end_axis[p]
-        if not D.end_loaded[p]:
-            for k in range(R_):  # noqa: F821
-                vec[k] = 0.0
-        elif D.end_follow[p]:
-            for k in range(R_):  # noqa: F821
-                vec[k] = D.end_load[p, k]
-        else:
-            _dead_to_body(D, Phi[i], D.end_load[p], vec)
+        _c_end_load(D, Phi, i, p, vec)
         for k in range(R_):  # noqa: F821
             W[i, k] += (vec[k] - D.end_sign[p] * Q[i, a, k]) / D.end_H[p]
     nf = D.field.shape[0]
@@ -292,6 +285,19 @@ def _c_force_of_stress(D, C, t, N, W, K):
         for k in range(R_):  # noqa: F821
             if not (zero or not D.live[k] or (D.any_held and D.held[i, k])):
                 W[i, k] += vec[k] / D.nf_w[q]
+
+
+def _c_end_load(D, Phi, i, p, out):
+    """``out`` ``(r,)``: the load P of end entry ``p`` at node ``i`` in body components (zero when
+    unloaded, as given for a follower load, a dead load rotated by Φᵢ)."""
+    if not D.end_loaded[p]:
+        for k in range(R_):  # noqa: F821
+            out[k] = 0.0
+    elif D.end_follow[p]:
+        for k in range(R_):  # noqa: F821
+            out[k] = D.end_load[p, k]
+    else:
+        _dead_to_body(D, Phi[i], D.end_load[p], out)
 
 
 def _c_node_force(D, Phi, q, out):
@@ -433,9 +439,10 @@ def op_nodal_strains(D, C, X):
     X[...] = C[0]
 
 
-_OPERATORS = (op_work, op_velocity, op_constrain, _dead_to_body, _c_diff, _c_move_node, _c_move_work, op_force,
-              _c_force_of_stress, _c_node_force, op_drift, op_move, op_free_flow, _c_piece_velocity, op_drift_naive,
-              op_powers, op_kinetic, op_potential, op_nodal_strains, op_finite_config, op_copy_config, op_new_config)
+_OPERATORS = (op_work, op_velocity, op_constrain, _dead_to_body, _c_end_load, _c_diff, _c_move_node, _c_move_work,
+              op_force, _c_force_of_stress, _c_node_force, op_drift, op_move, op_free_flow, _c_piece_velocity,
+              op_drift_naive, op_powers, op_kinetic, op_potential, op_nodal_strains, op_finite_config, op_copy_config,
+              op_new_config)
 
 
 # ---------------------------------------------------------------------------- driven ends
@@ -495,14 +502,7 @@ def _c_driven_power(D, C, N, K):
         for it in range(D.dend_ptr[sl], D.dend_ptr[sl + 1]):
             p = D.dend_item[it]
             a = D.end_axis[p]
-            if not D.end_loaded[p]:
-                for k in range(R_):  # noqa: F821
-                    vec[k] = 0.0
-            elif D.end_follow[p]:
-                for k in range(R_):  # noqa: F821
-                    vec[k] = D.end_load[p, k]
-            else:
-                _dead_to_body(D, Phi[i], D.end_load[p], vec)
+            _c_end_load(D, Phi, i, p, vec)
             for k in range(R_):  # noqa: F821
                 Wv[k] += (vec[k] - D.end_sign[p] * Q[i, a, k]) / D.end_H[p]
         for it in range(D.dtr_ptr[sl], D.dtr_ptr[sl + 1]):
