@@ -28,7 +28,7 @@ import math
 
 import numpy as np
 import pytest
-from test_accumulators_compiled import _problem, _same, _Timed
+from test_accumulators_compiled import _problem, _same, _Timed, assert_clock_run_is_the_numpy_run
 
 import cartan
 from cartan.schemes.collocation import Collocation
@@ -102,20 +102,8 @@ def test_nambu_goto_rate_kernel_is_accumulator_rates_bit_for_bit():
 @pytest.mark.parametrize("kind", ["clamped", "ring"])
 @pytest.mark.parametrize("name", ["rkmk4", "lie-euler"])
 def test_compiled_collocation_run_with_clocks_is_the_numpy_run(generated_runs, name, kind):
-    problem = _problem(kind)
-    calls = generated_runs
     kw = dict(integrator=name, scheme="collocation", dt=0.01, t_end=0.2, save_every=5, progress=False)
-    compiled = cartan.simulate(problem, **kw)
-    assert calls and all(calls)  # every block ran in the generated loop
-    calls.clear()
-    reference = cartan.simulate(problem, compiled=False, **kw)
-    assert not calls
-    _same(compiled, reference)
-    tau, t = reference["proper_time"].values, reference.time.values
-    moving = slice(1, None) if kind == "clamped" else slice(None)
-    assert np.all(tau[-1, moving] < t[-1] - 1e-4)  # (the moving clocks lag the lab time)
-    if kind == "clamped":  # the clamped end is at rest in the lab: τ = t exactly, on both paths
-        assert np.array_equal(compiled["proper_time"].values[:, 0], t)
+    assert_clock_run_is_the_numpy_run(_problem(kind), kind, generated_runs, kw)
 
 
 @pytest.mark.slow

@@ -87,12 +87,10 @@ def _same(a, b, keys=None):
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize("kind", ["clamped", "ring"])
-@pytest.mark.parametrize(("name", "cls"), [("rkmk4", RKMK4), ("lie-euler", LieEuler)])
-def test_compiled_run_with_clocks_is_the_numpy_run(generated_runs, name, cls, kind):
-    problem = _problem(kind)
-    calls = generated_runs
-    kw = dict(integrator=name, dt=0.01, t_end=0.2, save_every=5, progress=False)
+def assert_clock_run_is_the_numpy_run(problem, kind: str, calls: list, kw: dict):
+    """``simulate(problem, **kw)`` runs every block in the generated loop (``calls``) and equals the
+    numpy run (:func:`_same`); the moving clocks lag the lab time and a clamped end's is τ = t
+    exactly.  Returns the compiled run."""
     compiled = cartan.simulate(problem, **kw)
     assert calls and all(calls)  # every block ran in the generated loop
     calls.clear()
@@ -104,6 +102,14 @@ def test_compiled_run_with_clocks_is_the_numpy_run(generated_runs, name, cls, ki
     assert np.all(tau[-1, moving] < t[-1] - 1e-4)  # (the moving clocks lag the lab time)
     if kind == "clamped":  # the clamped end is at rest in the lab: τ = t exactly, on both paths
         assert np.array_equal(compiled["proper_time"].values[:, 0], t)
+    return compiled
+
+
+@pytest.mark.parametrize("kind", ["clamped", "ring"])
+@pytest.mark.parametrize(("name", "cls"), [("rkmk4", RKMK4), ("lie-euler", LieEuler)])
+def test_compiled_run_with_clocks_is_the_numpy_run(generated_runs, name, cls, kind):
+    kw = dict(integrator=name, dt=0.01, t_end=0.2, save_every=5, progress=False)
+    compiled = assert_clock_run_is_the_numpy_run(_problem(kind), kind, generated_runs, kw)
     # the state is that of the run without clocks (numpy path; to round-off as above)
     plain = cartan.simulate(_problem(kind, clocks=False), compiled=False, **kw)
     for key in ("S", "frame", "kinetic_energy", "potential_energy"):
