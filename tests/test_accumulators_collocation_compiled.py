@@ -28,7 +28,13 @@ import math
 
 import numpy as np
 import pytest
-from test_accumulators_compiled import _problem, _same, _Timed, assert_clock_run_is_the_numpy_run
+from test_accumulators_compiled import (
+    _problem,
+    _same,
+    _Timed,
+    assert_clock_restart_is_exact,
+    assert_clock_run_is_the_numpy_run,
+)
 
 import cartan
 from cartan.schemes.collocation import Collocation
@@ -110,16 +116,8 @@ def test_compiled_collocation_run_with_clocks_is_the_numpy_run(generated_runs, n
 def test_compiled_collocation_run_with_clocks_restarts_bit_for_bit(tmp_path, generated_runs):
     """8 steps in one block, and 4 steps then continued from the checkpoint: the state and the
     accumulated proper time agree bit for bit, every block in the generated loop."""
-    calls = generated_runs
-    kw = dict(integrator="rkmk4", scheme="collocation", dt=0.02, progress=False)
-    whole = cartan.simulate(_problem("ring"), t_end=0.16, save_every=8, **kw)
-    cartan.simulate(_problem("ring"), t_end=0.08, save_every=4, output=tmp_path / "part.nc", **kw)
-    cont = cartan.simulate(_problem("ring"), restart=tmp_path / "part.nc", t_end=0.16, save_every=4,
-                           output=tmp_path / "cont.nc", **kw)
-    assert calls and all(calls)
-    for key in ("proper_time", "S", "frame"):
-        assert np.array_equal(cont[key].values[-1], whole[key].values[-1]), key
-    assert np.all(cont["proper_time"].values[-1] < 0.16 - 1e-3)
+    assert_clock_restart_is_exact(tmp_path, generated_runs, integrator="rkmk4", scheme="collocation", dt=0.02,
+                                  progress=False)
 
 
 @pytest.mark.slow

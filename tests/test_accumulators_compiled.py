@@ -122,8 +122,12 @@ def test_compiled_run_with_clocks_restarts_bit_for_bit(tmp_path, generated_runs)
     """8 steps in one block, and 4 steps then continued from the checkpoint (the rates computed
     afresh from the state there, as the loop kept them): the state and the accumulated proper time
     agree bit for bit, every block in the generated loop."""
-    calls = generated_runs
-    kw = dict(integrator="rkmk4", dt=0.02, progress=False)
+    assert_clock_restart_is_exact(tmp_path, generated_runs, integrator="rkmk4", dt=0.02, progress=False)
+
+
+def assert_clock_restart_is_exact(tmp_path, calls: list, **kw) -> None:
+    """The ring run to t = 0.16 in one block equals the run to 0.08 continued from its checkpoint,
+    bit for bit in the proper time, S and the frames; every block in the generated loop."""
     whole = cartan.simulate(_problem("ring"), t_end=0.16, save_every=8, **kw)
     cartan.simulate(_problem("ring"), t_end=0.08, save_every=4, output=tmp_path / "part.nc", **kw)
     cont = cartan.simulate(_problem("ring"), restart=tmp_path / "part.nc", t_end=0.16, save_every=4,

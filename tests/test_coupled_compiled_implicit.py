@@ -21,6 +21,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from test_driven_compiled_implicit import PythonDriver, _start
 from toys import elastic_string
 
 import cartan
@@ -44,20 +45,6 @@ def _problem(kind: str, n: int = 9) -> cartan.Problem:
     """The elastic string (quadratic law, k = 0.25, no clocks): ``ring`` or ``clamped``
     (:func:`toys.elastic_string`)."""
     return elastic_string(kind, n)
-
-
-class PythonDriver(ImplicitMidpoint):
-    """``implicit-midpoint`` stepped by the Python driver only (``compiled_advance`` declines for a
-    subclass that overrides ``step``)."""
-
-    def step(self, scheme, state, dt):
-        super().step(scheme, state, dt)
-
-
-def _start(scheme):
-    state = scheme.initial_state()
-    state.scalars["nstep"] = 0
-    return state
 
 
 def _rel(a: np.ndarray, b: np.ndarray) -> float:
