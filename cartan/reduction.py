@@ -425,12 +425,14 @@ def reduction_pays(run: _ResolvedRun) -> bool:
     Not where the full run's steps go to the ``lattice`` scheme's hand-written compiled loops
     (``Lattice.compiled_advance``: SE(3) rods with ``lie-verlet`` or ``overdamped`` of order 1,
     :func:`cartan.schemes._lattice_compiled.runs`): they are vectorised for SE(3) rods, and SE(2)
-    has the generated loops only, on which the SE(2) run of a planar rod takes 2.8–5.6× longer
-    than the SE(3) run (``lie-verlet``, n = 21–1001 nodes, measured in one process).  Everywhere
-    else the reduced run costs no more: the generated loops on both groups (``rkmk4``: the
-    SE(2) run 0.68–0.95× the SE(3) one at n = 21–1001; ``lie-euler``, ``forward-euler``,
-    ``overdamped`` of order 2, ``collocation``), the Python loop, integrators with their own
-    compiled blocks (``implicit-midpoint``, 1.3–1.4× faster reduced).
+    has the generated loops only, on which the SE(2) run of a planar rod costs about what the
+    SE(3) run does (0.85–1.18× its time, ``lie-verlet``, n = 101–1001 nodes): nothing to gain.
+    Everywhere else the reduced run is faster: the generated loops on both groups, whose SE(2)
+    passes are closed-form as SE(3)'s (the SE(3) run takes 2.3–3.0× the reduced one's time with
+    ``rkmk4``, 2.3–3.2× with ``lie-euler``, 1.7–2.2× with ``lie-verlet`` on a problem the
+    hand-written loops decline, at n = 101–1001; ``forward-euler``, ``overdamped`` of order 2,
+    ``collocation``), the Python loop, integrators with their own compiled blocks
+    (``implicit-midpoint``, 2.1–2.85×).
 
     Parameters
     ----------

@@ -164,7 +164,8 @@ def g_axis_flow(k, t, s, acc, work):
 #: lattice's operators: per piece its τ, directions and ``(P_p)_kk``): ``Dn_i`` from the identity, then per
 #: piece the times of its directions (zero at clamped nodes and held components) and ``g_axis_flow`` along
 #: each; whether a node moved.  The operators call it only where the group has it in closed form
-#: (``AXIAL_FLOW_CLOSED_``, a constant of the generated module: ``se3_axial_flow_chunk_point``), and
+#: (``AXIAL_FLOW_CLOSED_``, a constant of the generated module: ``se3_axial_flow_chunk_point``,
+#: ``se2_axial_flow_chunk_point``), and
 #: otherwise run these same steps themselves
 FUSED_OPS["axial_flow_chunk"] = """
 def g_axial_flow_chunk(lo, hi, S, Dn, any_clamped, clamped, any_held, held, npieces, tau, naxes, axes, coef):

@@ -36,20 +36,35 @@ Kernels
 -------
 The per-point kernels ``se2_*_point`` are public, allocation-free and
 ``@njit(cache=True)``; the batch loops ``_*_batch`` map them over ``P`` flattened points and
-are listed in :attr:`SE2._kernels`.
+are listed in :attr:`SE2._kernels`.  The generated compiled loops also bind the fused kernels
+(products with ``Ad_gᵀ``, ``dexp(ξ)⁻ᵀ``, ``dexp(ξ)⁻¹``, ``𝓔``, and the one-axis free flow
+:func:`se2_axis_flow_point`: a shift or a turn, without the 3 × 3 matrices) and the passes over
+edges and nodes of the lattice (``se2_log_chunk_point``, ``se2_dexp_inv_T_pair_chunk_point``,
+``se2_move_chunk_point``, ``se2_frames_chunk_point``, ``se2_axial_flow_chunk_point``), each a
+function compiled once and cached, the edge passes and the free flow vectorised across their
+elements as SE(3)'s are (:mod:`cartan.groups.se3`).  Each gives the point kernels' results to
+round-off (``tests/test_se2_chunks.py``).
 """
 
 from __future__ import annotations
 
 import numpy as np
 from numba import njit
+from numba.extending import register_jitable
 
 from ._batch import kernel_table
 from .base import SymmetryGroup
+from .se3 import _turn, _turn_coeffs_direct, _turn_coeffs_series
 from .so3 import (
+    ATAN_SERIES,
+    ATAN_SERIES_X2,
+    SMALL_THETA2,
+    TAYLOR_CINV,
+    _cinv_direct,
     dexp_coeffs_np,
     dexp_inv_coeff_np,
     exp_coeffs_np,
+    horner,
     so3_dexp_coeffs,
     so3_dexp_inv_coeff,
     so3_exp_coeffs,
@@ -57,18 +72,31 @@ from .so3 import (
 
 __all__ = [
     "SE2",
+    "se2_Ad_T_point",
+    "se2_Ad_inv_apply_point",
     "se2_Ad_point",
+    "se2_E_apply_point",
     "se2_E_point",
     "se2_act_point",
     "se2_ad_point",
+    "se2_axial_flow_chunk_point",
+    "se2_axis_flow_point",
     "se2_bracket_point",
+    "se2_coad_exp_point",
     "se2_compose_point",
+    "se2_dexp_inv_T_pair_chunk_point",
+    "se2_dexp_inv_T_pair_point",
+    "se2_dexp_inv_T_point",
+    "se2_dexp_inv_apply_point",
     "se2_dexp_inv_point",
     "se2_dexp_point",
     "se2_exp_point",
+    "se2_frames_chunk_point",
     "se2_hat_point",
     "se2_inverse_point",
+    "se2_log_chunk_point",
     "se2_log_point",
+    "se2_move_chunk_point",
     "se2_vee_point",
 ]
 
@@ -251,6 +279,389 @@ def se2_dexp_inv_point(xi, out):
 def se2_E_point(dt, xi, out):
     """``out`` (3, 3) ← ``𝓔(Δt, ξ) = Δt·dexp(Δt ξ)`` for scalar ``dt``."""
     _dexp_scaled(dt * xi[0], dt * xi[1], dt * xi[2], dt, out)
+
+
+# ---------------------------------------------------------------------- fused kernels and passes
+# The generated loops bind these (``g_<op>`` of :data:`cartan.compiled.kernels.FUSED_OPS`) instead
+# of the forms built there from the 3 × 3 matrices of the point kernels above: the same products,
+# without the matrices, and the passes over edges and nodes as functions compiled once and cached.
+@njit(cache=True, inline='always')
+def se2_Ad_T_point(g, v, out):
+    """``out`` (3,) ← ``Ad_gᵀ v = (Rᵀv_t; v_ω + a₂v₁ − a₁v₂)`` for ``g = (a; R)`` (3, 3)."""
+    v0, v1, v2 = v[0], v[1], v[2]
+    out[0] = g[1, 1] * v0 + g[2, 1] * v1
+    out[1] = g[1, 2] * v0 + g[2, 2] * v1
+    out[2] = (g[2, 0] * v0 + -g[1, 0] * v1) + v2
+
+
+@register_jitable(inline='always')
+def _dexp_inv_T6(x1, x2, w, c, q0, q1, q2):
+    """``dexp(ξ)⁻ᵀ q`` (3 scalars) for ``ξ = (x1, x2, w)`` with ``c`` =
+    :func:`so3_dexp_inv_coeff` ``(w²)``: the transpose of :func:`se2_dexp_inv_point`'s matrix
+    ``[[α, h, wc x1 − ½x2], [−h, α, wc x2 + ½x1], [0, 0, 1]]`` (``α = 1 − w²c``, ``h = ½w``) on q."""
+    alpha = 1.0 - w * w * c
+    h = 0.5 * w
+    wc = w * c
+    return (alpha * q0 + -h * q1, h * q0 + alpha * q1,
+            ((wc * x1 - 0.5 * x2) * q0 + (wc * x2 + 0.5 * x1) * q1) + q2)
+
+
+@register_jitable(inline='always')
+def _ad_T_add6(x1, x2, w, q0, q1, q2, o0, o1, o2):
+    """``o + ad_ξᵀ q = o + (w q₁, −w q₀, x₂q₀ − x₁q₁)`` (the columns of :func:`se2_ad_point`): with
+    ``o = dexp(ξ)⁻ᵀ q``, ``dexp(−ξ)⁻ᵀ q`` (``dexp⁻¹(−ξ) = dexp⁻¹(ξ) + ad_ξ``), the head term of an edge."""
+    return o0 + w * q1, o1 + -w * q0, (o2 + x2 * q0) + -x1 * q1
+
+
+@njit(cache=True, inline='always')
+def se2_dexp_inv_T_point(xi, q, out):
+    """``out`` (3,) ← ``dexp(ξ)⁻ᵀ q`` without the matrix (:func:`_dexp_inv_T6`)."""
+    w = xi[2]
+    out[0], out[1], out[2] = _dexp_inv_T6(xi[0], xi[1], w, so3_dexp_inv_coeff(w * w), q[0], q[1], q[2])
+
+
+@njit(cache=True, inline='always')
+def se2_dexp_inv_T_pair_point(xi, q, out, out_neg):
+    """``out`` (3,) ← ``dexp(ξ)⁻ᵀ q`` and ``out_neg`` (3,) ← ``dexp(−ξ)⁻ᵀ q = dexp(ξ)⁻ᵀ q + ad_ξᵀ q``."""
+    x1, x2, w = xi[0], xi[1], xi[2]
+    q0, q1, q2 = q[0], q[1], q[2]
+    o = _dexp_inv_T6(x1, x2, w, so3_dexp_inv_coeff(w * w), q0, q1, q2)
+    out[0], out[1], out[2] = o
+    out_neg[0], out_neg[1], out_neg[2] = _ad_T_add6(x1, x2, w, q0, q1, q2, o[0], o[1], o[2])
+
+
+@njit(cache=True, inline='always')
+def se2_dexp_inv_apply_point(xi, v, out, work):
+    """``out`` (3,) ← ``dexp(ξ)⁻¹ v`` without the matrix (:func:`se2_dexp_inv_point`); ``work`` is unused."""
+    x1, x2, w = xi[0], xi[1], xi[2]
+    c = so3_dexp_inv_coeff(w * w)
+    alpha = 1.0 - w * w * c
+    h = 0.5 * w
+    wc = w * c
+    v0, v1, v2 = v[0], v[1], v[2]
+    out[0] = (alpha * v0 + h * v1) + (wc * x1 - 0.5 * x2) * v2
+    out[1] = (-h * v0 + alpha * v1) + (wc * x2 + 0.5 * x1) * v2
+    out[2] = v2
+
+
+@njit(cache=True, inline='always')
+def se2_Ad_inv_apply_point(g, X, out, work):
+    """``out[a]`` (3,) ← ``Ad_{g⁻¹} X[a]`` for every row of ``X`` ``(k, 3)``: with ``g⁻¹ = (b; Rᵀ)``,
+    ``b = −Rᵀa`` (:func:`se2_inverse_point`), ``(Rᵀx_t + x_ω (b₂, −b₁); x_ω)``; ``work`` is unused."""
+    a1, a2 = g[1, 0], g[2, 0]
+    b1 = -(g[1, 1] * a1 + g[2, 1] * a2)
+    b2 = -(g[1, 2] * a1 + g[2, 2] * a2)
+    for r in range(X.shape[0]):
+        x0, x1, x2 = X[r, 0], X[r, 1], X[r, 2]
+        out[r, 0] = (g[1, 1] * x0 + g[2, 1] * x1) + b2 * x2
+        out[r, 1] = (g[1, 2] * x0 + g[2, 2] * x1) + -b1 * x2
+        out[r, 2] = x2
+
+
+@njit(cache=True, inline='always')
+def se2_E_apply_point(dt, xi, V, out, work):
+    """``out[a]`` (3,) ← ``𝓔(Δt, ξ) V[a]`` for every row of ``V`` ``(k, 3)``: the entries of
+    :func:`se2_E_point` (``Δt·dexp(Δtξ)``) on each row, without the matrix; ``work`` is unused."""
+    v1, v2, w = dt * xi[0], dt * xi[1], dt * xi[2]
+    a = so3_exp_coeffs(w * w)[0]
+    b, c = so3_dexp_coeffs(w * w)
+    wb = w * b
+    wc = w * c
+    e00, e01, e02 = dt * a, -dt * wb, dt * (wc * v1 + b * v2)
+    e10, e12 = dt * wb, dt * (wc * v2 - b * v1)
+    for r in range(V.shape[0]):
+        u0, u1, u2 = V[r, 0], V[r, 1], V[r, 2]
+        out[r, 0] = (e00 * u0 + e01 * u1) + e02 * u2
+        out[r, 1] = (e10 * u0 + e00 * u1) + e12 * u2
+        out[r, 2] = dt * u2
+
+
+@njit(cache=True, inline='always')
+def se2_coad_exp_point(xi, s, E, work):
+    """``E`` (3, 3) ← ``exp(ξ)`` (:func:`se2_exp_point`) and ``s`` (3,) ← ``Ad_Eᵀ s`` in place
+    (:func:`se2_Ad_T_point`); ``work`` is unused."""
+    se2_exp_point(xi, E)
+    s0, s1, s2 = s[0], s[1], s[2]
+    s[0] = E[1, 1] * s0 + E[2, 1] * s1
+    s[1] = E[1, 2] * s0 + E[2, 2] * s1
+    s[2] = (E[2, 0] * s0 + -E[1, 0] * s1) + s2
+
+
+@njit(cache=True, inline='always')
+def se2_axis_flow_point(k, t, s, acc, work):
+    """The free flow along one basis axis: ``E = exp(t b_k)``, ``s ← Ad_Eᵀ s`` and ``acc ← acc E``
+    for ``s`` (3,) and ``acc`` (3, 3) in place, without the matrices; ``work`` is unused.
+
+    A translation along ``e₁`` (``k = 0``) or ``e₂`` (``k = 1``): ``E = (t e_k; I)``, so
+    ``Ad_Eᵀ s`` adds ``−t s₁`` (k = 0) or ``t s₀`` (k = 1) to ``s₂``, and ``acc``'s translation moves
+    by ``t`` times its rotation's column k.  The rotation (``k = 2``): ``E = (0; R(t))`` with cosine
+    ``1 − Bt²`` and sine ``At`` (the coefficients of :func:`so3_exp_coeffs`), ``Ad_Eᵀ s = (Rᵀs_t; s₂)``
+    and the two columns of ``acc``'s rotation turn (as :func:`cartan.groups.se3.se3_axis_flow_point`)."""
+    if k == 0:
+        s[2] -= t * s[1]
+        acc[1, 0] += t * acc[1, 1]
+        acc[2, 0] += t * acc[2, 1]
+        return
+    if k == 1:
+        s[2] += t * s[0]
+        acc[1, 0] += t * acc[1, 2]
+        acc[2, 0] += t * acc[2, 2]
+        return
+    c, sn = _turn_coeffs_series(t) if t * t < SMALL_THETA2 else _turn_coeffs_direct(t)
+    s[0], s[1] = _turn(c, sn, s[0], s[1])
+    for i in range(1, 3):
+        acc[i, 1], acc[i, 2] = _turn(c, sn, acc[i, 1], acc[i, 2])
+
+
+@njit(cache=True, inline='always')
+def se2_axial_flow_chunk_point(lo, hi, S, Dn, any_clamped, clamped, any_held, held, npieces, tau, naxes, axes,
+                               coef):
+    """The free flow of ``lie-verlet`` at the nodes ``lo ≤ i < hi`` when every piece is axial: piece
+    by piece, the times ``t = τ_p (P_p)_kk S_k`` of its directions (zero at clamped nodes and held
+    components), then :func:`se2_axis_flow_point` along each, ``S`` ``(n, 3)`` in place and the
+    motions ``Dn`` ``(n, 3, 3)`` (rows ``lo … hi − 1``, from the identity); returns whether a node
+    moved.  :func:`_axial_flow_chunk`, compiled once and cached: the nodes' momenta and motions as
+    one row per entry, each axis flow a branch-free pass over them (as SE(3)'s
+    ``se3_axial_flow_chunk_point``); a node whose time is zero is turned or shifted by zero instead
+    of being skipped (the same values)."""
+    return _axial_flow_chunk(lo, hi, S, Dn, any_clamped, clamped, any_held, held, npieces, tau, naxes, axes, coef)
+
+
+@njit(cache=True, error_model='numpy')
+def _axial_flow_chunk(lo, hi, S, Dn, any_clamped, clamped, any_held, held, npieces, tau, naxes, axes, coef):
+    lo = max(lo, 0)
+    nb = max(hi - lo, 0)
+    # rows: S (0–2), the motion's translation (3–4) and rotation row by row (5–8), from the identity
+    F = np.zeros((9, nb))
+    T = np.empty((3, nb))
+    CS = np.empty(nb)
+    SN = np.empty(nb)
+    for i0 in range(nb):
+        i = lo + i0
+        F[0, i0] = S[i, 0]
+        F[1, i0] = S[i, 1]
+        F[2, i0] = S[i, 2]
+        F[5, i0] = 1.0
+        F[8, i0] = 1.0
+    moved = 0
+    for p in range(npieces):
+        taup = tau[p]
+        for c in range(naxes[p]):  # every time of the piece first (its flows leave its S alone)
+            k = axes[p, c]
+            cp = coef[p, c]
+            for i0 in range(nb):
+                i = lo + i0
+                t = taup * (cp * F[k, i0])
+                T[c, i0] = 0.0 if (any_clamped and clamped[i]) or (any_held and held[i, k]) else t
+        for c in range(naxes[p]):
+            k = axes[p, c]
+            for i0 in range(nb):
+                moved += T[c, i0] != 0.0
+            if k == 0:
+                for i0 in range(nb):
+                    t = T[c, i0]
+                    F[2, i0] -= t * F[1, i0]
+                    F[3, i0] += t * F[5, i0]
+                    F[4, i0] += t * F[7, i0]
+                continue
+            if k == 1:
+                for i0 in range(nb):
+                    t = T[c, i0]
+                    F[2, i0] += t * F[0, i0]
+                    F[3, i0] += t * F[6, i0]
+                    F[4, i0] += t * F[8, i0]
+                continue
+            nbad = 0
+            for i0 in range(nb):  # the cosines and sines: series, then closed forms where t² ≥ SMALL_THETA2
+                t = T[c, i0]
+                nbad += t * t >= SMALL_THETA2
+                CS[i0], SN[i0] = _turn_coeffs_series(t)
+            if nbad:
+                for i0 in range(nb):
+                    t = T[c, i0]
+                    if t * t >= SMALL_THETA2:
+                        CS[i0], SN[i0] = _turn_coeffs_direct(t)
+            for i0 in range(nb):
+                cs, sn = CS[i0], SN[i0]
+                F[0, i0], F[1, i0] = _turn(cs, sn, F[0, i0], F[1, i0])
+                F[5, i0], F[6, i0] = _turn(cs, sn, F[5, i0], F[6, i0])
+                F[7, i0], F[8, i0] = _turn(cs, sn, F[7, i0], F[8, i0])
+    for i0 in range(nb):
+        i = lo + i0
+        S[i, 0] = F[0, i0]
+        S[i, 1] = F[1, i0]
+        S[i, 2] = F[2, i0]
+        _store6(Dn, i, F[3, i0], F[4, i0], F[5, i0], F[6, i0], F[7, i0], F[8, i0])
+    return moved > 0
+
+
+@register_jitable(inline='always')
+def _store6(A, e, a1, a2, r00, r01, r10, r11):
+    """``A[e]`` ← the SE(2) element of translation ``(a1, a2)`` and rotation ``[[r00, r01], [r10, r11]]``."""
+    A[e, 0, 0] = 1.0
+    A[e, 0, 1] = 0.0
+    A[e, 0, 2] = 0.0
+    A[e, 1, 0] = a1
+    A[e, 2, 0] = a2
+    A[e, 1, 1] = r00
+    A[e, 1, 2] = r01
+    A[e, 2, 1] = r10
+    A[e, 2, 2] = r11
+
+
+@register_jitable(inline='always')
+def _compose6(ga1, ga2, g00, g01, g10, g11, ha1, ha2, h00, h01, h10, h11):
+    """The product of two SE(2) elements given by their 6 entries ``(a1, a2, r00, r01, r10, r11)``:
+    :func:`se2_compose_point`'s sums without its products by the exact zeros and ones of the
+    first row (the same values; a zero may differ in sign), 6 scalars."""
+    return ((ga1 + g00 * ha1) + g01 * ha2, (ga2 + g10 * ha1) + g11 * ha2,
+            g00 * h00 + g01 * h10, g00 * h01 + g01 * h11, g10 * h00 + g11 * h10, g10 * h01 + g11 * h11)
+
+
+@njit(cache=True, inline='always')
+def se2_move_chunk_point(Di, Dn, G, tail, head, lo, hi):
+    """``G[e]`` ← ``Di[tail[e]] G[e] Dn[head[e]]`` for ``lo ≤ e < hi`` (all ``(·, 3, 3)``): two
+    :func:`se2_compose_point` in scalar code (:func:`_compose6`), :func:`_move_chunk`, compiled
+    once and cached."""
+    _move_chunk(Di, Dn, G, tail, head, lo, hi)
+
+
+@njit(cache=True, error_model='numpy')
+def _move_chunk(Di, Dn, G, tail, head, lo, hi):
+    for e in range(max(lo, 0), hi):
+        i, j = tail[e], head[e]
+        t = _compose6(Di[i, 1, 0], Di[i, 2, 0], Di[i, 1, 1], Di[i, 1, 2], Di[i, 2, 1], Di[i, 2, 2],
+                      G[e, 1, 0], G[e, 2, 0], G[e, 1, 1], G[e, 1, 2], G[e, 2, 1], G[e, 2, 2])
+        o = _compose6(t[0], t[1], t[2], t[3], t[4], t[5],
+                      Dn[j, 1, 0], Dn[j, 2, 0], Dn[j, 1, 1], Dn[j, 1, 2], Dn[j, 2, 1], Dn[j, 2, 2])
+        _store6(G, e, o[0], o[1], o[2], o[3], o[4], o[5])
+
+
+@njit(cache=True, inline='always')
+def se2_frames_chunk_point(Dn, Di, Phi, lo, hi):
+    """``Di[i]`` ← ``Dn[i]⁻¹`` (:func:`se2_inverse_point`) for ``lo ≤ i < hi``, and ``Phi[i]`` ←
+    ``Phi[i] Dn[i]`` (:func:`se2_compose_point`) for the rows of ``Phi`` among them (``Phi``
+    ``(f, 3, 3)``, f = n or 1): in scalar code, :func:`_frames_chunk`, compiled once and cached."""
+    _frames_chunk(Dn, Di, Phi, lo, hi)
+
+
+@njit(cache=True, error_model='numpy')
+def _frames_chunk(Dn, Di, Phi, lo, hi):
+    lo = max(lo, 0)
+    for i in range(lo, hi):
+        se2_inverse_point(Dn[i], Di[i])
+    for i in range(lo, min(hi, Phi.shape[0])):
+        o = _compose6(Phi[i, 1, 0], Phi[i, 2, 0], Phi[i, 1, 1], Phi[i, 1, 2], Phi[i, 2, 1], Phi[i, 2, 2],
+                      Dn[i, 1, 0], Dn[i, 2, 0], Dn[i, 1, 1], Dn[i, 1, 2], Dn[i, 2, 1], Dn[i, 2, 2])
+        _store6(Phi, i, o[0], o[1], o[2], o[3], o[4], o[5])
+
+
+#: edges per block of the edge passes (:func:`se2_log_chunk_point`,
+#: :func:`se2_dexp_inv_T_pair_chunk_point`): their structure-of-arrays scratch stays in the L1 cache
+SOA_BLOCK = 256
+
+
+@njit(cache=True, inline='always')
+def se2_log_chunk_point(G, lo, hi, XI):
+    """``XI[e]`` (3,) ← ``log G[e]`` (:func:`se2_log_point`) for ``lo ≤ e < hi``, ``G`` ``(E, 3, 3)``,
+    ``XI`` ``(E, 3)``: :func:`_log_chunk`, compiled once and cached."""
+    _log_chunk(G, lo, hi, XI)
+
+
+@njit(cache=True, error_model='numpy')
+def _log_chunk(G, lo, hi, XI):
+    """In blocks of :data:`SOA_BLOCK` edges: the angle ``ω = atan2(y, x)`` (``y = g₃₂ − g₂₃``,
+    ``x = g₂₂ + g₃₃``) as ``(y/x)·atan(u)/u`` with ``u = y/x`` and ``atan(u)/u`` from
+    :data:`cartan.groups.so3.ATAN_SERIES`, and ``V⁻¹``'s coefficient from its series, in one
+    branch-free loop that LLVM vectorises; the edges that series does not cover (``u² ≥ 1/400``,
+    a turn of 0.1 rad or more, or ``x ≤ 0``) taken again by :func:`se2_log_point`.  Its results
+    to round-off (``atan(u)/u`` from its series instead of ``atan2``)."""
+    A = np.empty((6, SOA_BLOCK))
+    bad = np.empty(SOA_BLOCK, dtype=np.bool_)
+    lo = max(lo, 0)
+    for c0 in range(lo, hi, SOA_BLOCK):
+        nb = min(hi - c0, SOA_BLOCK)
+        for e0 in range(nb):
+            e = c0 + e0
+            A[0, e0] = G[e, 2, 1] - G[e, 1, 2]
+            A[1, e0] = G[e, 1, 1] + G[e, 2, 2]
+            A[2, e0] = G[e, 1, 0]
+            A[3, e0] = G[e, 2, 0]
+        nbad = 0
+        for e0 in range(nb):
+            y, x, a1, a2 = A[0, e0], A[1, e0], A[2, e0], A[3, e0]
+            u = y / x
+            u2 = u * u
+            w = u * horner(u2, ATAN_SERIES)
+            w2 = w * w
+            alpha = 1.0 - w2 * horner(w2, TAYLOR_CINV)
+            h = 0.5 * w
+            A[0, e0] = alpha * a1 + h * a2
+            A[1, e0] = alpha * a2 - h * a1
+            A[2, e0] = w
+            b = (u2 >= ATAN_SERIES_X2) | (x <= 0.0)
+            bad[e0] = b
+            nbad += b
+        for e0 in range(nb):
+            e = c0 + e0
+            XI[e, 0] = A[0, e0]
+            XI[e, 1] = A[1, e0]
+            XI[e, 2] = A[2, e0]
+        if nbad:
+            for e0 in range(nb):
+                if bad[e0]:
+                    se2_log_point(G[c0 + e0], XI[c0 + e0])
+
+
+@njit(cache=True, inline='always')
+def se2_dexp_inv_T_pair_chunk_point(XI, Q, scale, lo, hi, VT, VH):
+    """``VT[e]`` ← ``s_e dexp(ξ_e)⁻ᵀ q_e`` and ``VH[e]`` ← ``s_e dexp(−ξ_e)⁻ᵀ q_e``
+    (:func:`se2_dexp_inv_T_pair_point`) for ``lo ≤ e < hi`` (``XI``, ``Q``, ``VT``, ``VH``
+    ``(E, 3)``; ``scale`` ``(E,)`` or empty: 1): :func:`_dexp_inv_T_pair_chunk`, compiled once and
+    cached."""
+    _dexp_inv_T_pair_chunk(XI, Q, scale, lo, hi, VT, VH)
+
+
+@njit(cache=True, error_model='numpy')
+def _dexp_inv_T_pair_chunk(XI, Q, scale, lo, hi, VT, VH):
+    """In blocks of :data:`SOA_BLOCK` edges: the coefficient ``c`` of ``V⁻¹`` from its series
+    everywhere and from its closed form where ``ω² ≥ SMALL_THETA2`` (the branches of
+    :func:`so3_dexp_inv_coeff`), then one branch-free loop that LLVM vectorises: the coefficients
+    and operations of :func:`se2_dexp_inv_T_pair_point`, its results to the bit."""
+    A = np.empty((6, SOA_BLOCK))
+    B = np.empty((6, SOA_BLOCK))
+    K = np.empty(SOA_BLOCK)
+    lo = max(lo, 0)
+    scaled = scale.shape[0] > 0
+    for c0 in range(lo, hi, SOA_BLOCK):
+        nb = min(hi - c0, SOA_BLOCK)
+        for e0 in range(nb):
+            e = c0 + e0
+            for k in range(3):
+                A[k, e0] = XI[e, k]
+                A[k + 3, e0] = Q[e, k]
+        nbad = 0
+        for e0 in range(nb):
+            t2 = A[2, e0] * A[2, e0]
+            nbad += t2 >= SMALL_THETA2
+            K[e0] = horner(t2, TAYLOR_CINV)
+        if nbad:
+            for e0 in range(nb):
+                t2 = A[2, e0] * A[2, e0]
+                if t2 >= SMALL_THETA2:
+                    K[e0] = _cinv_direct(t2)
+        for e0 in range(nb):
+            x1, x2, w, q0, q1, q2 = A[0, e0], A[1, e0], A[2, e0], A[3, e0], A[4, e0], A[5, e0]
+            o = _dexp_inv_T6(x1, x2, w, K[e0], q0, q1, q2)
+            h = _ad_T_add6(x1, x2, w, q0, q1, q2, o[0], o[1], o[2])
+            B[0, e0], B[1, e0], B[2, e0] = o
+            B[3, e0], B[4, e0], B[5, e0] = h
+        for e0 in range(nb):
+            e = c0 + e0
+            s = scale[e] if scaled else 1.0
+            for k in range(3):
+                VT[e, k] = s * B[k, e0]
+                VH[e, k] = s * B[k + 3, e0]
 
 
 # ---------------------------------------------------------------------- numba batch loops

@@ -437,9 +437,9 @@ def _flow_chunk(lo, hi, S, Dn, any_clamped, clamped, any_held, held, pieces, npi
     """The free flow of :func:`op_free_flow` at the nodes ``lo ≤ i < hi`` (``hi − lo ≤`` the rows of
     ``TK``, the directions' times): ``Dn_i`` from the identity, then each piece as passes over the
     nodes; returns whether a node moved.  When every piece is axial and the group has the whole
-    chunk's flow in closed form (``AXIAL_FLOW_CLOSED_``: SE(3)), ``g_axial_flow_chunk`` runs the
+    chunk's flow in closed form (``AXIAL_FLOW_CLOSED_``: SE(3), SE(2)), ``g_axial_flow_chunk`` runs the
     same steps as passes vectorised across the chunk's nodes (the same results, to the bit)."""
-    if AXIAL_FLOW_CLOSED_:  # noqa: F821 - every piece axial: the group's pass over the chunk (SE(3))
+    if AXIAL_FLOW_CLOSED_:  # noqa: F821 - every piece axial: the group's pass over the chunk (SE(3), SE(2))
         every = True
         for p in range(npieces):
             every = every and axial[p]
