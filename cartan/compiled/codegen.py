@@ -114,7 +114,9 @@ def _kernel_files(module_name: str, name: str) -> tuple[str, ...]:
     checks their stamps at every call and reads them again when one changed, so that an edited
     kernel still makes a new module."""
     module = importlib.import_module(module_name)
-    func = getattr(getattr(module, name), "py_func", getattr(module, name))
+    obj = getattr(module, name)
+    # a function, a dispatcher (``py_func``) or an intrinsic (``_defn``)
+    func = getattr(obj, "py_func", None) or getattr(obj, "_defn", None) or obj
     try:
         files = {inspect.getsourcefile(func) or ""}
     except TypeError:
@@ -198,7 +200,7 @@ def _render_text(fragments: Iterable[Fragment]) -> str:
     # the kernels are compiled from their Python source inside the module: the medium's
     # (``m_``) and the loops' helpers (``_``) inlined into their callers (numba IR inlining),
     # the group's (``g_``) compiled once per signature and left to LLVM to inline
-    lines.append("_jit = lambda f, how: (f if isinstance(f, type)"
+    lines.append("_jit = lambda f, how: (f if isinstance(f, type) or hasattr(f, '_defn')"
                  " else njit(inline=how, error_model='numpy')(getattr(f, 'py_func', f)))")
     for alias in sorted(imports):
         lines.append(f"{alias} = _jit(_{alias}, {_inline(alias)!r})")

@@ -19,6 +19,11 @@ The loops of ``lie-verlet``, ``lie-euler``/``forward-euler`` and ``rkmk4`` (with
 :func:`op_accumulate` with the velocity of the state at their start and after every step: a
 no-op here, rebound by a set that integrates a medium's per-node accumulators
 (:mod:`cartan.accumulators`, :func:`cartan.schemes._lattice_ops.accumulate_fragment`).
+
+The loops of ``lie-verlet`` and ``lie-euler``/``forward-euler`` begin with ``D = unmanaged_(D)``
+(:mod:`cartan.compiled.unmanaged`): the operators they call receive the data's arrays without
+reference counts, which numba otherwise takes per array at every call (docs/performance.md,
+"Generated loops"); ``rkmk_loop`` measured slower with it and keeps the counted data.
 """
 
 from __future__ import annotations
@@ -110,6 +115,7 @@ def lie_verlet_loop(D, C, S, W, have_w, velocity_free, pieces, fracs, closing, t
     ``fracs`` of Δt, palindromic), half kick; W carries the force between steps (FSAL).  With
     damping (not ``velocity_free``) the closing kick is implicit in the damping,
     ``S⁺ = closing·(S½ + ½Δt W(N = 0))`` with ``closing = (I + ½ΔtΓM⁺)⁻¹`` ``[r, r]``."""
+    D = unmanaged_(D)  # noqa: F821 - its arrays without reference counts (cartan.compiled.unmanaged)
     K = op_work(D)  # noqa: F821
     n = S.shape[0]
     N = np.empty((n, R_))  # noqa: F821
@@ -181,6 +187,7 @@ def _lie_poisson(N, S, W, out):
 def euler_loop(D, C, S, geometric, t, dt, nsteps, diss, ext, check, limit):
     """``lie-euler`` (``geometric``: S⁺ = Ad*_{exp ΔtN}S + 𝓔(Δt, N)ᵀW, exact drift) and
     ``forward-euler`` (S += Δt(ad_NᵀS + W), naive drift)."""
+    D = unmanaged_(D)  # noqa: F821 - its arrays without reference counts (cartan.compiled.unmanaged)
     K = op_work(D)  # noqa: F821
     n = S.shape[0]
     N = np.empty((n, R_))  # noqa: F821
@@ -382,7 +389,7 @@ LOOPS = {"lie_verlet_loop": lie_verlet_loop, "euler_loop": euler_loop, "rkmk_loo
 def loop_fragment() -> Fragment:
     """The loops and their helpers as one fragment of a generated module (``KINEMATIC_`` False:
     :func:`kinematic_fragment` sets it in the modules that carry a prescribed velocity)."""
-    return Fragment(constants={"KINEMATIC_": False},
+    return Fragment(imports={"unmanaged_": ("cartan.compiled.unmanaged", "unmanaged")}, constants={"KINEMATIC_": False},
                     source=njit_source(op_drive, op_state_velocity, op_state_force, op_accumulate, _coad_exp, _blown,
                                        _damped, _book, lie_verlet_loop, _lie_poisson, euler_loop, _kinematic_velocity,
                                        _stage_velocity, rkmk_loop))
