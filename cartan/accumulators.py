@@ -16,16 +16,21 @@ next one, equals the one a restart computes afresh: restarts stay bit for bit.
 
 The update runs on the reference (numpy) path after each step (:func:`add`), or inside the
 generated loops of the lattice and the collocation (``lie-verlet``, ``lie-euler``/``forward-euler``,
-``rkmk4``; with a Lagrangian coupling N and X the last two only) when the medium's point kernels
+``rkmk4``, ``implicit-midpoint``'s Newton blocks; with a Lagrangian coupling N and X all but
+``lie-verlet``) when the medium's point kernels
 give the rates at a node from its velocity (:attr:`cartan.medium.MediumKernels.accumulator_rate`;
 on the collocation the nodal velocity of the loop, N(S_i, X_i) for a coupled Lagrangian): the
 loops' ``op_accumulate`` hook (:mod:`cartan.integrators.loops`,
 :func:`cartan.schemes._lattice_ops.accumulate_fragment`) applies the same update in the same
 floating-point order, ``a + (½Δt)(r₀ + r₁)``, so the two paths differ only by the round-off of
-the states they step (measured bit for bit on the elastic string on both schemes;
-``tests/test_accumulators_compiled.py``, ``tests/test_accumulators_collocation_compiled.py``).
-Without that kernel, or for the other
-compiled paths (the integrators' own loops, the hand-written ones), such a medium steps one by
+the states they step (measured bit for bit on the elastic string on both schemes with the
+explicit loops; ``implicit-midpoint``, whose compiled and numpy steps agree to the Newton
+tolerance's round-off, to 1e-12; ``tests/test_accumulators_compiled.py``,
+``tests/test_accumulators_collocation_compiled.py``).  ``implicit_loop``
+(:mod:`cartan.integrators.newton`) takes the rates at the start of each call and after every
+step from the velocity ``op_state_velocity`` gives, as :func:`rates` takes them from
+``Scheme.velocity``.  Without that kernel, or for the other
+compiled paths (the hand-written loops), such a medium steps one by
 one on the numpy path (:func:`cartan.simulate`).  Media that declare none (all but a few) are
 untouched.
 """

@@ -191,6 +191,12 @@ class MediumKernels:
         The Hamiltonian stress ``Q = ∂H/∂X(S, X)`` ``(d, r)`` at the same point
         (:meth:`Medium.stress_with`), ``N`` being what ``coupled_velocity`` gave there (one
         solve of the Legendre map serves both).
+    coupled_jacobian : numba function ``(S, X, N, p, J) -> bool``, optional
+        The Hessian of H in S, ``J = ∂N/∂S(S, X)`` ``(r, r)`` (the inverse of ∂²L/∂N² on the
+        live components), at the same point, ``N`` being what ``coupled_velocity`` gave there;
+        False when it has none.  ``implicit-midpoint``'s compiled stage momenta (the Legendre map
+        inverted per node, :func:`cartan.integrators.newton.im_coupled_momentum`) then take
+        their Newton Jacobian from it instead of by forward differences of ``coupled_velocity``.
     accumulator_rate : numba function ``(N, p, out) -> None``, optional
         For a medium that declares :meth:`Medium.accumulators`: their rates at one node from its
         velocity ``N`` ``(r,)`` into ``out`` ``(a,)``, one per accumulator in the order of
@@ -219,6 +225,7 @@ class MediumKernels:
     coupled_velocity: Callable | None = None
     coupled_stress: Callable | None = None
     accumulator_rate: Callable | None = None
+    coupled_jacobian: Callable | None = None
 
 
 @njit(cache=True)

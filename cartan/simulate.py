@@ -344,7 +344,10 @@ def _advance(
         # hand-written loops, the integrator's generated loop over the scheme's operators
         paths = []
         generic = getattr(integrator, "run_compiled_loop", None)
-        if compiled and acc and generic is not None and _takes_accumulators(scheme):
+        takes = _accumulating_loops(scheme) if compiled and acc else ()
+        if takes and integrator.advance_loop in takes:  # (e.g. implicit-midpoint's Newton blocks)
+            paths.append(integrator.compiled_advance)
+        if takes and generic is not None:
             paths.append(generic)
         if compiled and not acc:
             own = getattr(integrator, "compiled_advance", None)
@@ -389,17 +392,17 @@ def _advance(
     return nsteps, None
 
 
-def _takes_accumulators(scheme: Scheme) -> bool:
-    """Whether the scheme's compiled operator set integrates the medium's per-node accumulators
-    in its loops (``OperatorSet.accumulates``; the integrator's ``run_compiled_loop`` declines
-    the loops that do not)."""
+def _accumulating_loops(scheme: Scheme) -> tuple[str, ...]:
+    """The generated loops in which the scheme's compiled operator set integrates the medium's
+    per-node accumulators (``OperatorSet.accumulates``; the integrator's ``run_compiled_loop``
+    declines the loops that do not); empty: none."""
     from ._backend import get_backend
 
     operators = getattr(scheme, "compiled_operators", None)
     if operators is None or get_backend() != "numba":
-        return False
+        return ()
     ops = operators()
-    return bool(getattr(ops, "accumulates", ()))
+    return tuple(getattr(ops, "accumulates", ()))
 
 
 #: the reason :func:`_advance` gives for a whole block whose compiled loop stopped early

@@ -11,7 +11,9 @@ string's ``lie-verlet`` loop with a test accumulator, ≈ 45 s): the compiled ru
 run — the same formulas in the same floating-point order (the rate, the trapezoidal update
 ``a + ½Δt (r₀ + r₁)`` of ``cartan.accumulators.add``), so every saved field, ``proper_time``
 included, agrees to 1e-12 of its scale (round-off of 20 steps; measured: bit for bit) — the spy
-that the loops took the steps, and a restart from the checkpoint bit for bit.
+that the loops took the steps, and a restart from the checkpoint bit for bit.  The same for
+``implicit-midpoint``'s Newton blocks (``implicit_loop``; lattice and collocation, ≈ 60–150 s each
+to compile), whose states agree with the numpy run's to the round-off of the Newton tolerance.
 """
 
 from __future__ import annotations
@@ -45,8 +47,8 @@ def test_operator_set_takes_the_clocks_of_the_elastic_string():
     of its plain set."""
     scheme = Lattice(_problem("clamped"))
     ops = scheme.compiled_operators()
-    assert ops.accumulates == ("euler_loop", "rkmk_loop") and set(ops.accumulates) <= set(ops.loops)
-    assert "implicit_loop" not in ops.accumulates  # (implicit-midpoint's loop has no op_accumulate)
+    assert ops.accumulates == ("euler_loop", "rkmk_loop", "implicit_loop") and set(ops.accumulates) <= set(ops.loops)
+    assert "ACCUMULATES_" in ops.late[-1].constants  # (implicit_loop computes the velocities the rates need)
     state = cartan.accumulators.start(scheme, scheme.initial_state())
     assert "accumulator_proper_time" in state.arrays and ops.accepts(state)
     plain = Lattice(_problem("clamped", clocks=False)).compiled_operators()
@@ -54,7 +56,7 @@ def test_operator_set_takes_the_clocks_of_the_elastic_string():
     rod = cartan.medium("relativistic-rod", clocks=True)
     grid = cartan.Grid(8, length=2 * math.pi, periodic=True)
     ng = Lattice(cartan.Problem(rod, grid, rod.initial_state(grid, "loop")))
-    assert ng.compiled_operators().accumulates == ("lie_verlet_loop", "euler_loop", "rkmk_loop")
+    assert ng.compiled_operators().accumulates == ("lie_verlet_loop", "euler_loop", "rkmk_loop", "implicit_loop")
     assert ng.compiled_operators().accepts(cartan.accumulators.start(ng, ng.initial_state()))
     assert cartan.medium("relativistic-rod").point_kernels().accumulator_rate is None
 
@@ -86,17 +88,16 @@ def _same(a, b, keys=None):
         assert np.abs(x - y).max() <= 1e-12 * max(np.abs(y).max(), 1e-300), key
 
 
-@pytest.mark.slow
-def assert_clock_run_is_the_numpy_run(problem, kind: str, calls: list, kw: dict):
+def assert_clock_run_is_the_numpy_run(problem, kind: str, calls: list, kw: dict, keys=None):
     """``simulate(problem, **kw)`` runs every block in the generated loop (``calls``) and equals the
-    numpy run (:func:`_same`); the moving clocks lag the lab time and a clamped end's is τ = t
-    exactly.  Returns the compiled run."""
+    numpy run (:func:`_same`: every saved field, or those of ``keys``); the moving clocks lag the
+    lab time and a clamped end's is τ = t exactly.  Returns the compiled run."""
     compiled = cartan.simulate(problem, **kw)
     assert calls and all(calls)  # every block ran in the generated loop
     calls.clear()
     reference = cartan.simulate(problem, compiled=False, **kw)
     assert not calls
-    _same(compiled, reference)
+    _same(compiled, reference, keys)
     tau, t = reference["proper_time"].values, reference.time.values
     moving = slice(1, None) if kind == "clamped" else slice(None)
     assert np.all(tau[-1, moving] < t[-1] - 1e-4)  # (the moving clocks lag the lab time)
@@ -105,6 +106,7 @@ def assert_clock_run_is_the_numpy_run(problem, kind: str, calls: list, kw: dict)
     return compiled
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("kind", ["clamped", "ring"])
 @pytest.mark.parametrize(("name", "cls"), [("rkmk4", RKMK4), ("lie-euler", LieEuler)])
 def test_compiled_run_with_clocks_is_the_numpy_run(generated_runs, name, cls, kind):
@@ -125,10 +127,11 @@ def test_compiled_run_with_clocks_restarts_bit_for_bit(tmp_path, generated_runs)
     assert_clock_restart_is_exact(tmp_path, generated_runs, integrator="rkmk4", dt=0.02, progress=False)
 
 
-def assert_clock_restart_is_exact(tmp_path, calls: list, **kw) -> None:
-    """The ring run to t = 0.16 in one block equals the run to 0.08 continued from its checkpoint,
-    bit for bit in the proper time, S and the frames; every block in the generated loop."""
-    whole = cartan.simulate(_problem("ring"), t_end=0.16, save_every=8, **kw)
+def assert_clock_restart_is_exact(tmp_path, calls: list, whole_every: int = 8, **kw) -> None:
+    """The ring run to t = 0.16 in one block (``whole_every`` steps a save) equals the run to 0.08
+    continued from its checkpoint, bit for bit in the proper time, S and the frames; every block in
+    the generated loop."""
+    whole = cartan.simulate(_problem("ring"), t_end=0.16, save_every=whole_every, **kw)
     cartan.simulate(_problem("ring"), t_end=0.08, save_every=4, output=tmp_path / "part.nc", **kw)
     cont = cartan.simulate(_problem("ring"), restart=tmp_path / "part.nc", t_end=0.16, save_every=4,
                            output=tmp_path / "cont.nc", **kw)
@@ -179,3 +182,56 @@ def test_lie_verlet_loop_integrates_accumulators(generated_runs):
     reference = cartan.simulate(problem, compiled=False, **kw)
     _same(compiled, reference, ("S", "frame", "speed", "kinetic_energy", "potential_energy", "energy"))
     assert np.all(np.diff(reference["speed"].values[:, 0]) > 0.1)  # (it accumulates: |N_{0:4}|² ≥ c²)
+
+
+# ---------------------------------------------------------------------------- slow: implicit-midpoint
+@pytest.fixture
+def implicit_blocks(monkeypatch) -> list:
+    """What ``ImplicitMidpoint.compiled_advance`` returned, call by call (True: its Newton blocks,
+    ``implicit_loop``, took the steps)."""
+    from cartan.integrators import ImplicitMidpoint
+
+    calls = []
+    real = ImplicitMidpoint.compiled_advance
+
+    def spy(self, *args, **kwargs):
+        ran = real(self, *args, **kwargs)
+        calls.append(ran)
+        return ran
+
+    monkeypatch.setattr(ImplicitMidpoint, "compiled_advance", spy)
+    return calls
+
+
+#: the fields compared between the compiled and the numpy implicit-midpoint runs (those of scale ≫ round-off)
+_IMPLICIT_KEYS = ("X", "N", "S", "position", "frame", "kinetic_energy", "potential_energy", "energy",
+                  "total_momentum", "angular_momentum_z", "lorentz_factor", "stretch", "tension", "proper_time")
+
+
+@pytest.mark.slow  # (the coupled sets' Newton loops with clocks compile on first use: 60–120 s each)
+@pytest.mark.parametrize(("scheme", "kind"), [("lattice", "ring"), ("lattice", "clamped"), ("collocation", "ring")])
+def test_implicit_midpoint_with_clocks_is_the_numpy_run(implicit_blocks, scheme, kind):
+    """``implicit-midpoint``'s Newton blocks integrate the clocks (the rates at the start and the end
+    of each step, the update of ``cartan.accumulators.add``): every block compiled, every field,
+    ``proper_time`` included, the numpy run's to 1e-12 of its scale — both paths converge Newton's
+    method to the same iterations and invert the Legendre map to 1e-14 of the velocity scale
+    (tests/test_coupled_compiled_implicit.py), and the rates and the update are the same operations —
+    and the state the run's without clocks to 1e-12 (the clocks do not act on the motion).  The
+    fields whose values are themselves round-off on the ring (≈ 1e-16–1e-25: the residuals, the
+    momentum along x, y, z, J_x, J_y, lab z) are left out (:data:`_IMPLICIT_KEYS`)."""
+    kw = dict(integrator="implicit-midpoint", scheme=scheme, dt=0.01, t_end=0.2, save_every=5, progress=False)
+    compiled = assert_clock_run_is_the_numpy_run(_problem(kind), kind, implicit_blocks, kw, keys=_IMPLICIT_KEYS)
+    plain = cartan.simulate(_problem(kind, clocks=False), compiled=False, **kw)
+    for key in ("S", "frame", "kinetic_energy", "potential_energy"):
+        x, y = compiled[key].values, plain[key].values
+        assert np.abs(x - y).max() <= 1e-12 * np.abs(y).max(), key
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("scheme", ["lattice", "collocation"])
+def test_implicit_midpoint_with_clocks_restarts_bit_for_bit(tmp_path, implicit_blocks, scheme):
+    """4 steps a save in one run, and the same run stopped after 4 steps and continued from its
+    checkpoint (the Newton blocks forget the kept Jacobian at every save, ``begin_block``; the rates
+    computed afresh from the state there): the state and the proper time bit for bit."""
+    assert_clock_restart_is_exact(tmp_path, implicit_blocks, whole_every=4, integrator="implicit-midpoint",
+                                  scheme=scheme, dt=0.02, progress=False)

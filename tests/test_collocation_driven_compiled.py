@@ -110,9 +110,10 @@ def _assert_agree(scheme, ref, fast, dissipates: bool = False, momentum: bool = 
 
 def test_the_driven_set_serves_the_loops():
     """The set is no longer declined: the driven nodes with their ξ and ∂K/∂N(ξ), the nodes of
-    their stencils, the weak-form term of the driven end through them; not ``ok`` (the compiled
-    diagnostics stay on the numpy path), it serves the loops of the integrators that move driven
-    ends and not rattle's (the collocation's nodal rows run the Python step)."""
+    their stencils, the weak-form term of the driven end through them; not ``ok``, it serves the
+    loops of the integrators that move driven ends and the compiled diagnostics
+    (tests/test_driven_diagnostics.py), not rattle's (the collocation's nodal rows run the Python
+    step)."""
     scheme = Collocation(_arc(TWIST))
     ops = scheme.compiled_operators()
     data = ops.data

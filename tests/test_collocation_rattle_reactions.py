@@ -139,10 +139,11 @@ def test_symmetry_face_on_collocation():
     """The half s ≤ L/2 of the arc pinned by ball joints, with a ``Symmetry`` face at s = L/2 (the
     node slides in the plane x = 0 and turns about x only), on the collocation scheme (n = 6): the
     rows at round-off, the face node on its plane exactly, the held components zero; it moves
-    as the whole arc's first half to the scheme's accuracy (the face's boundary rows against the
-    whole's interior stencil: max position difference over t ≤ 0.3 measured 2.1e-2, 6.1e-3,
-    2.1e-3 at n = 11, 21, 41 for the whole; asserted < 0.05 at n = 11, where the middle moves
-    by 0.028)."""
+    as the whole arc's first half to the scheme's accuracy (max position difference over t ≤ 0.3
+    measured 2.1e-2, 6.1e-3, 2.1e-3 at n = 11, 21, 41 for the whole, almost all of it the
+    collocated grid's odd–even mode, first order between two supports: docs/schemes.md,
+    "Between two supports: the odd–even error"; asserted < 0.05 at n = 11, where the middle
+    moves by 0.028)."""
     full = pinned_arc(end=None)
     full = cartan.Problem(full.medium, full.grid, full.initial,
                           {"start": cartan.Held((0, 1, 2)), "end": cartan.Held((0, 1, 2))}, loads=full.loads)

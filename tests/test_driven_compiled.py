@@ -112,13 +112,17 @@ def test_rattle_without_rows_runs_lie_verlets_loop():
     _assert_end_moves_by_exp(scheme, fast, TWIST)
 
 
-def test_the_other_compiled_paths_decline():
-    """The compiled diagnostics leave driven ends to the numpy path: the set is not ``ok``, and
-    says why (implicit-midpoint's Newton loop takes them: tests/test_driven_compiled_implicit.py)."""
+def test_the_set_serves_the_driven_loops():
+    """The set with driven ends is not ``ok`` (the hand-written loops decline it), says why, and
+    serves the generated loops that move driven ends and the compiled diagnostics
+    (tests/test_driven_diagnostics.py; implicit-midpoint's Newton loop:
+    tests/test_driven_compiled_implicit.py)."""
+    from cartan.compiled.diagnostics import SERVED
+
     scheme = Lattice(_problem(TWIST))
     ops = scheme.compiled_operators()
     assert not ops.ok and "Driven" in ops.reason and "diagnostics" in ops.reason
-    assert ops.serves("implicit_loop") and ops.serves("rattle_loop")
+    assert ops.serves("implicit_loop") and ops.serves("rattle_loop") and ops.serves(SERVED)
 
 
 @pytest.mark.slow  # (each loop compiles on first use: ≈ 25–50 s on a fresh cache)

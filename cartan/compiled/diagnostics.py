@@ -20,6 +20,16 @@ them by round-off; both return None when the scheme has no operator set that cov
 state, and the caller then uses the reference methods.  Saved frames always use the
 reference methods.
 
+A set that serves some loops only (``OperatorSet.reason``, ``OperatorSet.loops``) runs the
+diagnostics when it lists :data:`SERVED` among them: the collocation's set with
+:class:`~cartan.problem.Driven` ends (:mod:`cartan.schemes._collocation_ops`), whose driven
+nodes are held (``clamped``), so that the probe's drift leaves them where the power iteration
+zeroes the directions (``v = 0`` there, ``W = 0`` there, as ``Scheme.dt_max`` does), whose
+``op_kinetic`` adds their ½ w ξ·Mξ (``Scheme.kinetic_energy`` with N = ξ there) and whose
+``op_potential`` is a clamped set's.  The supports' power R·ξ (the weak-form raw force at the
+driven nodes) is not the diagnostics' business: the loops book it in ``external_work``
+(``op_powers``), which the guard reads from the state.
+
 :func:`loop_fragment` adds the compiled functions to every generated module
 (:data:`cartan.compiled.operators.LOOP_SOURCES`); they compile on first call only.
 """
@@ -33,7 +43,12 @@ import numpy as np
 
 from .codegen import Fragment, njit_source
 
-__all__ = ["compiled_stiffness_probe", "diag_stiffness_probe", "guard_energies", "loop_fragment"]
+__all__ = ["SERVED", "compiled_stiffness_probe", "diag_stiffness_probe", "guard_energies", "loop_fragment"]
+
+#: the name under which an operator set that serves some loops only (``OperatorSet.loops``)
+#: lists these diagnostics, the probe's and the guard's energies (``OperatorSet.serves``: a
+#: function name of the set's module, here the probe's)
+SERVED = "diag_stiffness_probe"
 
 
 # ---------------------------------------------------------------------------- compiled
@@ -65,15 +80,15 @@ def loop_fragment() -> Fragment:
 # ---------------------------------------------------------------------------- Python side
 def _operators(scheme, state) -> Any | None:
     """The scheme's operator set when compiled diagnostics may use it for ``state``: the numba
-    backend, ``scheme.compiled_diagnostics`` set, a set that covers the problem and accepts
-    the state's layout; None otherwise."""
+    backend, ``scheme.compiled_diagnostics`` set, a set that serves the diagnostics (every loop,
+    or :data:`SERVED` among its ``loops``) and accepts the state's layout; None otherwise."""
     from .._backend import get_backend
 
     if get_backend() != "numba" or not getattr(scheme, "compiled_diagnostics", False):
         return None
     operators = getattr(scheme, "compiled_operators", None)
     ops = operators() if operators is not None else None
-    if ops is None or not ops.ok or not ops.accepts(state):
+    if ops is None or not ops.serves(SERVED) or not ops.accepts(state):
         return None
     return ops
 

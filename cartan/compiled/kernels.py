@@ -296,7 +296,8 @@ def _importable(func) -> bool:
 def medium_fragment(kernels) -> Fragment:
     """``m_energy`` and ``m_stress`` bound to a medium's declared point kernels (and
     ``m_coupled_velocity``, ``m_coupled_stress`` when it declares them, a Lagrangian coupling N
-    and X; ``m_accumulator_rate``, the rates of per-node accumulators): imported from their
+    and X, and ``m_coupled_jacobian``, ∂N/∂S, when declared too; ``m_accumulator_rate``, the
+    rates of per-node accumulators): imported from their
     module, or, when that module cannot be imported (a script, a notebook, ``exec``), from
     :mod:`cartan.compiled.runtime`, where they are registered under a name derived from their
     code."""
@@ -306,7 +307,8 @@ def medium_fragment(kernels) -> Fragment:
     for alias, func in (("m_energy", kernels.energy), ("m_stress", kernels.stress),
                         ("m_coupled_velocity", getattr(kernels, "coupled_velocity", None)),
                         ("m_coupled_stress", getattr(kernels, "coupled_stress", None)),
-                        ("m_accumulator_rate", getattr(kernels, "accumulator_rate", None))):
+                        ("m_accumulator_rate", getattr(kernels, "accumulator_rate", None)),
+                        ("m_coupled_jacobian", getattr(kernels, "coupled_jacobian", None))):
         if func is None:
             continue
         py = getattr(func, "py_func", func)

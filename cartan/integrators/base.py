@@ -56,6 +56,10 @@ class Integrator(abc.ABC):
     #: True for integrators that hold the medium's constrained strains
     #: (:meth:`~cartan.medium.Medium.constrained_strains`) with multipliers (``rattle``)
     constrained: ClassVar[bool] = False
+    #: the generated loop that :meth:`compiled_advance` runs over the scheme's operator set, if it
+    #: runs one (``implicit-midpoint``: ``"implicit_loop"``): ``simulate`` offers it a run with
+    #: per-node accumulators when the set integrates them in that loop (``OperatorSet.accumulates``)
+    advance_loop: ClassVar[str | None] = None
 
     def __init__(self, **options: Any):
         if options:

@@ -305,6 +305,7 @@ class ImplicitMidpoint(Integrator):
     symplectic = True
     explicit = False
     stability = np.inf
+    advance_loop = "implicit_loop"  # (compiled_advance: the Newton blocks over the operator set)
 
     def __init__(self, tol: float = 1e-10, max_iter: int = 25, fd_step: float = 1e-6, contraction: float = 0.25,
                  reuse_jacobian: bool = True, predictor: bool = True):

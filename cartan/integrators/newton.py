@@ -32,11 +32,18 @@ Compiled functions of the generated module (``ImplicitMidpoint`` drives them):
     the loops to :func:`im_coupled_momentum` (μ = ∂L/∂N at the midpoint strains: the set's
     discrete Legendre map inverted, over its ``op_coupled_logs`` and ``op_coupled_velocities``)
     and :func:`im_coupled_held` (the gauge components of ξ are Δt times the velocity at the
-    start of the step, r⁰ = ct); the force is the set's ``op_state_force`` at (μ, X_{k+½}), the
-    Hamiltonian stress (``op_force`` for every other set).
+    start of the step, r⁰ = ct), and, when the medium declares ``MediumKernels.coupled_jacobian``,
+    :func:`op_coupled_jacobian` (the Newton Jacobian of that inversion in closed form); the force
+    is the set's ``op_state_force`` at (μ, X_{k+½}), the Hamiltonian stress (``op_force`` for
+    every other set).
 ``implicit_loop(...)``
     Whole blocks of steps: the iteration of ``ImplicitMidpoint._step`` in its order, the end
-    of each step and the bookkeeping of ``ImplicitMidpoint.step``; it returns to Python for a
+    of each step and the bookkeeping of ``ImplicitMidpoint.step``, and the medium's per-node
+    accumulators when the set integrates them (``ACCUMULATES_``, set by
+    :func:`cartan.schemes._lattice_ops.accumulate_fragment`): ``op_accumulate`` with the velocity
+    of the state at the start of the call and after every step (the trapezoidal rule of
+    :func:`cartan.accumulators.add`, as :func:`cartan.simulate` applies it after a Python step);
+    it returns to Python for a
     fresh Jacobian (:data:`NEED_JACOBIAN`, assembled by finite differences of ``im_residual``
     and factorised by ``scipy.sparse.linalg.splu``) and when a step fails.  Driven ends
     (:class:`~cartan.problem.Driven`, a set with driven nodes): ξ = Δtξ_d there in every
@@ -114,6 +121,15 @@ def op_stage_held(D, C, S, N, K):
     return False
 
 
+def op_coupled_jacobian(D, C, S, idx, J, K):
+    """False: no closed form, :func:`im_coupled_momentum` takes forward differences.  A coupled set
+    whose medium declares ``MediumKernels.coupled_jacobian`` rebinds it to ``J[i, a, b] =
+    ∂N_i[idx[a]]/∂S_i[idx[b]]`` (``J`` ``[n, nl, nl]``, the live components ``idx``) at the momentum
+    ``S`` of its last ``op_coupled_velocities`` (whose velocities it reuses), True unless the
+    medium's kernel fails."""
+    return False
+
+
 def im_coupled_held(D, C, S, N, K):
     """``N`` ← the velocity of the state ``(C, S)`` (``op_state_velocity``); True: the components
     of ξ that are no unknowns (the gauge ones, r⁰ = ct in the temporal gauge) are Δt times it."""
@@ -127,8 +143,9 @@ def im_coupled_momentum(D, C, S, N, mass, mu, K):
     False when none is found (N outside the range of the Legendre map).
 
     Newton's method per node from the step's momentum ``S``: the set's ``op_coupled_velocities``
-    (all nodes, node i's velocity depending on S_i alone) and its Jacobian by forward differences
-    along each live component, perturbing every node at once, until ``|N(μ) − N| ≤ 1e-14·scale``
+    (all nodes, node i's velocity depending on S_i alone) and its Jacobian — the set's closed form
+    (:func:`op_coupled_jacobian`, the medium's ``coupled_jacobian`` kernel) or else forward
+    differences along each live component, perturbing every node at once — until ``|N(μ) − N| ≤ 1e-14·scale``
     on the live components (the tolerance and scale of
     :func:`cartan.schemes._coupled.initial_momentum`); the Jacobian is kept while the error falls
     by 10 or more per iteration.  The set's ``op_coupled_keep`` then keeps what its force at μ
@@ -176,24 +193,25 @@ def im_coupled_momentum(D, C, S, N, mass, mu, K):
             op_coupled_keep(D, C, mu, K)  # noqa: F821
             return True
         if not have_j or err > 0.1 * err_prev:
-            pmax = 0.0
-            for i in range(n):
-                for a in range(nl):
-                    pmax = max(pmax, abs(mu[i, idx[a]]))
-            for b in range(nl):
-                k = idx[b]
-                eps = 1e-7 * max(pmax, abs(mass[k]) * scale, 1e-300)
-                for i in range(n):
-                    Nm[i, k] = mu[i, k]  # (kept: restored exactly)
-                    mu[i, k] += eps
-                ok_p = op_coupled_velocities(D, C, mu, Np, K)  # noqa: F821
-                for i in range(n):
-                    mu[i, k] = Nm[i, k]
-                if not ok_p:
-                    return False
+            if not op_coupled_jacobian(D, C, mu, idx[:nl], J, K):  # (closed form: at the velocities just found)
+                pmax = 0.0
                 for i in range(n):
                     for a in range(nl):
-                        J[i, a, b] = (Np[i, idx[a]] - Nd[i, idx[a]]) / eps
+                        pmax = max(pmax, abs(mu[i, idx[a]]))
+                for b in range(nl):
+                    k = idx[b]
+                    eps = 1e-7 * max(pmax, abs(mass[k]) * scale, 1e-300)
+                    for i in range(n):
+                        Nm[i, k] = mu[i, k]  # (kept: restored exactly)
+                        mu[i, k] += eps
+                    ok_p = op_coupled_velocities(D, C, mu, Np, K)  # noqa: F821
+                    for i in range(n):
+                        mu[i, k] = Nm[i, k]
+                    if not ok_p:
+                        return False
+                    for i in range(n):
+                        for a in range(nl):
+                            J[i, a, b] = (Np[i, idx[a]] - Nd[i, idx[a]]) / eps
             have_j = True
         err_prev = err
         for i in range(n):
@@ -344,6 +362,9 @@ def implicit_loop(D, C, Cw, S, mass, dom, radius, unk, w_over_m, w_times_m, lu, 
     isunk = np.zeros(n * r, dtype=np.bool_)
     for k in range(nunk):
         isunk[unk[k]] = True
+    if ACCUMULATES_:  # noqa: F821 - per-node accumulators: the rates at the start of the (current) step
+        op_state_velocity(D, C, S, Nv, K)  # noqa: F821
+        op_accumulate(D, C, S, Nv, dt, True)  # noqa: F821
     while done < nsteps:
         if not in_step:
             # ---- start of a step: the initial iterate
@@ -496,6 +517,9 @@ def implicit_loop(D, C, Cw, S, mass, dom, radius, unk, w_over_m, w_times_m, lu, 
         im_momentum(xi, B[2], B[1], B[3], dt, S)
         op_drift(D, C, 1.0, xi, K)  # noqa: F821
         op_constrain(D, S)  # noqa: F821
+        if ACCUMULATES_:  # noqa: F821 - a ← a + ½Δt (r(before) + r(after)), as cartan.accumulators.add
+            op_state_velocity(D, C, S, Nv, K)  # noqa: F821
+            op_accumulate(D, C, S, Nv, dt, False)  # noqa: F821
         t = t + dt
         diss = diss + dt * pd
         ext = ext + dt * pe
@@ -518,10 +542,10 @@ def implicit_loop(D, C, Cw, S, mass, dom, radius, unk, w_over_m, w_times_m, lu, 
 def loop_fragment() -> Fragment:
     """The residual, the end of a step and Newton's loop as one fragment of a generated module."""
     return Fragment(imports={"solve_augmented": ("cartan.compiled.linalg", "solve_augmented")},
-                    constants={"IM_COUPLED_ITER_": 60, "IM_COUPLED_TOL_": 1e-14},
-                    source=njit_source(_im_in_domain, _im_solve_T, op_stage_momentum, op_stage_held, im_coupled_held,
-                                       im_coupled_momentum, im_residual, im_momentum, im_norm, im_lu_solve,
-                                       _im_slot, _im_norms, implicit_loop))
+                    constants={"IM_COUPLED_ITER_": 60, "IM_COUPLED_TOL_": 1e-14, "ACCUMULATES_": False},
+                    source=njit_source(_im_in_domain, _im_solve_T, op_stage_momentum, op_stage_held,
+                                       op_coupled_jacobian, im_coupled_held, im_coupled_momentum, im_residual,
+                                       im_momentum, im_norm, im_lu_solve, _im_slot, _im_norms, implicit_loop))
 
 
 # ---------------------------------------------------------------------------- Python glue

@@ -63,8 +63,9 @@ Driven ends (``Driven``; module docstring of :mod:`cartan.schemes.collocation`, 
     plus the weak-form term ``−n_α Q^α/H_end`` of each clamped or driven end through the node
     (``Collocation._clamped_traction``; ``dtr_*``), the stress computed at the nodes of their
     stencils only (``pnodes``).  It serves the loops of ``lie-verlet``, ``lie-euler``,
-    ``rkmk4``, ``overdamped`` and ``implicit-midpoint`` (``OperatorSet.loops``); the compiled
-    diagnostics leave it to the numpy path.
+    ``rkmk4``, ``overdamped`` and ``implicit-midpoint`` (``OperatorSet.loops``) and the compiled
+    diagnostics (:mod:`cartan.compiled.diagnostics`: the CFL probe's drift and force, the driven
+    nodes held; the guard's ``op_kinetic`` with their ½wξ·Mξ and ``op_potential``).
 Coupled Lagrangians (``Medium.coupled_lagrangian``, d = 1; :mod:`cartan.schemes._collocation_coupled`)
     A medium with coupled point kernels: :func:`coupled_fragment` rebinds the loops'
     ``op_state_velocity`` and ``op_state_force`` to ``N_i = N(S_i, X_i)`` (zero at clamped nodes)
@@ -81,11 +82,13 @@ from typing import NamedTuple
 import numpy as np
 
 from ..compiled.codegen import Fragment, njit_source
+from ..compiled.diagnostics import SERVED as DIAGNOSTICS_SERVED
 from ..problem import Clamped, Driven, NodeForce
 from ._lattice_ops import (
     _HELD,
     ACCUMULATE_LOOPS,
     COUPLED_ACCUMULATE_LOOPS,
+    COUPLED_JACOBIAN,
     COUPLED_LOOPS,
     COUPLED_REASON,
     COUPLED_STAGE,
@@ -547,11 +550,12 @@ def driven_fragment() -> Fragment:
 
 
 #: the loops that move driven ends on the collocation (their Python steps move a driven node by
-#: exp(Δtξ), ``Integrator.driven_reason``; rattle's nodal rows run the Python step)
-DRIVEN_LOOPS = ("lie_verlet_loop", "euler_loop", "rkmk_loop", "implicit_loop")
+#: exp(Δtξ), ``Integrator.driven_reason``; rattle's nodal rows run the Python step), and the
+#: compiled diagnostics (the CFL probe and the guard's energies, ``cartan.compiled.diagnostics.SERVED``)
+DRIVEN_LOOPS = ("lie_verlet_loop", "euler_loop", "rkmk_loop", "implicit_loop", DIAGNOSTICS_SERVED)
 #: why a set with driven nodes serves those loops only
 DRIVEN_REASON = ("a Driven end runs compiled in the loops of lie-verlet, lie-euler, rkmk4, overdamped and "
-                 "implicit-midpoint only; the compiled diagnostics leave it to the numpy path")
+                 "implicit-midpoint and in the compiled diagnostics only (rattle's nodal rows: the numpy path)")
 
 
 def _driven_data(scheme, data: CollocationData, rows: list) -> dict:
@@ -675,14 +679,33 @@ def op_coupled_keep(D, C, S, K):
     return
 
 
-def coupled_fragment() -> Fragment:
+def op_coupled_jacobian_kernel(D, C, S, idx, J, K):
+    """``J[i, a, b] = ∂N_i[idx[a]]/∂S_i[idx[b]]`` by the medium's ``m_coupled_jacobian`` at
+    (S_i, X_i) and the velocity N(S_i, X_i) (solved again: the set keeps none); False where the
+    kernels have none (the caller takes forward differences)."""
+    X = C[0]
+    nl = idx.shape[0]
+    N = np.empty(R_)  # noqa: F821
+    Jp = np.empty((R_, R_))  # noqa: F821
+    for i in range(S.shape[0]):
+        if not (m_coupled_velocity(S[i], X[i], D.params, N)  # noqa: F821
+                and m_coupled_jacobian(S[i], X[i], N, D.params, Jp)):  # noqa: F821
+            return False
+        for a in range(nl):
+            for b in range(nl):
+                J[i, a, b] = Jp[idx[a], idx[b]]
+    return True
+
+
+def coupled_fragment(jacobian: bool = False) -> Fragment:
     """The coupled operators (see above) and the rebinding of ``op_state_velocity``,
     ``op_state_force`` and ``implicit-midpoint``'s stage operators to them, to follow the loops in a
-    generated module (``OperatorSet.late``)."""
+    generated module (``OperatorSet.late``); with ``jacobian`` (``MediumKernels.coupled_jacobian``)
+    also :func:`op_coupled_jacobian_kernel`."""
     rebind = "\n".join(f"{name} = {name}_coupled" for name in ("op_state_velocity", "op_state_force"))
     source = njit_source(_c_coupled_velocity, op_state_velocity_coupled, op_state_force_coupled, op_coupled_logs,
-                         op_coupled_velocities, op_coupled_keep)
-    return Fragment(source=source + "\n\n\n" + rebind + "\n" + COUPLED_STAGE)
+                         op_coupled_velocities, op_coupled_keep, *((op_coupled_jacobian_kernel,) if jacobian else ()))
+    return Fragment(source=source + "\n\n\n" + rebind + "\n" + COUPLED_STAGE + (COUPLED_JACOBIAN if jacobian else ""))
 
 
 # ---------------------------------------------------------------------------- building the set
@@ -888,7 +911,8 @@ def collocation_operators(scheme, reference: type):
         check_coupled_kernels(medium, kernels, r)
         return OperatorSet(label=label + " (coupled Lagrangian)", key=key + "-coupled" + acc_stem,
                            fragments=fragments, data=data, pack=pack, unpack=unpack, accepts=accepts, nodes=n,
-                           late=[coupled_fragment(), *acc_late], reason=COUPLED_REASON, loops=COUPLED_LOOPS,
+                           late=[coupled_fragment(getattr(kernels, "coupled_jacobian", None) is not None), *acc_late],
+                           reason=COUPLED_REASON, loops=COUPLED_LOOPS,
                            accumulates=COUPLED_ACCUMULATE_LOOPS if acc_names else ())
     if data.any_driven:
         return OperatorSet(label=label + " (driven ends)", key=key + "-driven", fragments=fragments, data=data,

@@ -101,6 +101,7 @@ from typing import NamedTuple
 import numpy as np
 
 from ..compiled.codegen import Fragment, njit_source
+from ..compiled.diagnostics import SERVED as DIAGNOSTICS_SERVED
 
 __all__ = ["LatticeData", "lattice_operators"]
 
@@ -1015,6 +1016,36 @@ def op_coupled_keep(D, C, S, K):
     K[9][0] = 1
 
 
+def op_coupled_jacobian_kernel(D, C, S, idx, J, K):
+    """``J[i, a, b] = ∂N_i[idx[a]]/∂S_i[idx[b]] = Σ_{e∋i} (h/2w_i) ∂N/∂S(S_i, X_e)`` by the medium's
+    ``m_coupled_jacobian`` at the half-edge velocities of the last :func:`op_coupled_velocities`
+    (at ``S``, in ``K[6]``); False where the kernel has none (the caller takes forward differences)."""
+    XI, NH = K[2], K[6]
+    nl = idx.shape[0]
+    half = 0.5 * D.cell
+    X = np.empty((D_, R_))  # noqa: F821
+    Jp = np.empty((R_, R_))  # noqa: F821
+    for i in range(S.shape[0]):
+        for a in range(nl):
+            for b in range(nl):
+                J[i, a, b] = 0.0
+    for e in range(D.tail.shape[0]):
+        for k in range(R_):  # noqa: F821
+            X[0, k] = XI[e, k] / D.cell
+        for end in range(2):
+            i = D.tail[e] if end == 0 else D.head[e]
+            if not m_coupled_jacobian(S[i], X, NH[e, end], D.params, Jp):  # noqa: F821
+                return False
+            for a in range(nl):
+                for b in range(nl):
+                    J[i, a, b] += half * Jp[idx[a], idx[b]]
+    for i in range(S.shape[0]):
+        for a in range(nl):
+            for b in range(nl):
+                J[i, a, b] = J[i, a, b] / D.w[i]
+    return True
+
+
 _COUPLED = (op_work_coupled, _coupled_solve, op_state_velocity_coupled, op_state_force_coupled, op_coupled_logs,
             op_coupled_velocities, op_coupled_keep)
 #: the loops that run a coupled Lagrangian (``lie-euler``, ``forward-euler``: ``euler_loop``;
@@ -1029,12 +1060,19 @@ COUPLED_REASON = ("a Lagrangian coupling N and X runs compiled in the loops of l
                   "and implicit-midpoint only; the compiled diagnostics leave it to the numpy path")
 
 
-def coupled_fragment() -> Fragment:
+#: the rebinding of the stage momenta's Jacobian to the medium's closed form (``coupled_jacobian``)
+COUPLED_JACOBIAN = "op_coupled_jacobian = op_coupled_jacobian_kernel\n"
+
+
+def coupled_fragment(jacobian: bool = False) -> Fragment:
     """The coupled operators (see above) and the rebinding of ``op_work``, ``op_state_velocity``,
     ``op_state_force`` and ``implicit-midpoint``'s stage operators (:data:`COUPLED_STAGE`) to them,
-    to follow the loops in a generated module (``OperatorSet.late``)."""
+    to follow the loops in a generated module (``OperatorSet.late``); with ``jacobian`` (the medium
+    declares ``MediumKernels.coupled_jacobian``) also :func:`op_coupled_jacobian_kernel`."""
     rebind = "\n".join(f"{name} = {name}_coupled" for name in ("op_work", "op_state_velocity", "op_state_force"))
-    return Fragment(source=njit_source(*_COUPLED) + "\n\n\n" + rebind + "\n" + COUPLED_STAGE)
+    extra = (op_coupled_jacobian_kernel,) if jacobian else ()
+    return Fragment(source=njit_source(*_COUPLED, *extra) + "\n\n\n" + rebind + "\n" + COUPLED_STAGE
+                    + (COUPLED_JACOBIAN if jacobian else ""))
 
 
 # ---------------------------------------------------------------------------- per-node accumulators
@@ -1063,17 +1101,18 @@ def op_accumulate_rates(D, C, S, N, dt, begin):
 
 
 #: the loops that call ``op_accumulate`` (``lie-verlet``; ``lie-euler``, ``forward-euler``;
-#: ``rkmk4`` with momentum)
-ACCUMULATE_LOOPS = ("lie_verlet_loop", "euler_loop", "rkmk_loop")
-#: those of them a set of a coupled Lagrangian serves (``implicit-midpoint``'s loop calls no
-#: ``op_accumulate``: its runs step the accumulators on the numpy path)
+#: ``rkmk4`` with momentum; ``implicit-midpoint``'s Newton blocks, :mod:`cartan.integrators.newton`)
+ACCUMULATE_LOOPS = ("lie_verlet_loop", "euler_loop", "rkmk_loop", "implicit_loop")
+#: those of them a set of a coupled Lagrangian serves
 COUPLED_ACCUMULATE_LOOPS = tuple(name for name in COUPLED_LOOPS if name in ACCUMULATE_LOOPS)
 
 
 def accumulate_fragment() -> Fragment:
     """:func:`op_accumulate_rates` and the rebinding of ``op_accumulate`` to it, to follow the
-    loops in a generated module (``OperatorSet.late``)."""
-    return Fragment(source=njit_source(op_accumulate_rates) + "\n\n\nop_accumulate = op_accumulate_rates\n")
+    loops in a generated module (``OperatorSet.late``); ``ACCUMULATES_`` (False in
+    :mod:`cartan.integrators.newton`) tells ``implicit_loop`` to compute the velocities it needs."""
+    return Fragment(constants={"ACCUMULATES_": True},
+                    source=njit_source(op_accumulate_rates) + "\n\n\nop_accumulate = op_accumulate_rates\n")
 
 
 def _accumulated(medium, kernels) -> tuple[str, ...]:
@@ -1688,7 +1727,8 @@ def lattice_operators(scheme, reference: type):
         check_coupled_kernels(medium, kernels, r)
         return OperatorSet(label=label + " (coupled Lagrangian)", key=key + "-coupled" + acc_stem, fragments=fragments,
                            data=data, pack=pack, unpack=unpack, accepts=accepts, nodes=n,
-                           late=[coupled_fragment(), *acc_late], reason=COUPLED_REASON, loops=COUPLED_LOOPS,
+                           late=[coupled_fragment(getattr(kernels, "coupled_jacobian", None) is not None), *acc_late],
+                           reason=COUPLED_REASON, loops=COUPLED_LOOPS,
                            accumulates=COUPLED_ACCUMULATE_LOOPS if acc_names else ())
     if data.any_driven:  # (no threaded build: its passes over the nodes know no driven node)
         return OperatorSet(label=label + " (driven ends)", key=key + "-driven", fragments=fragments, data=data,
@@ -1702,10 +1742,10 @@ def lattice_operators(scheme, reference: type):
 #: the loops that move driven ends (``lie-verlet``, ``lie-euler``, ``rkmk4``, ``overdamped``, ``rattle``,
 #: ``implicit-midpoint``:
 #: their Python steps move a driven node by exp(Δtξ), ``Integrator.driven_reason``)
-DRIVEN_LOOPS = ("lie_verlet_loop", "euler_loop", "rkmk_loop", "rattle_loop", "implicit_loop")
+DRIVEN_LOOPS = ("lie_verlet_loop", "euler_loop", "rkmk_loop", "rattle_loop", "implicit_loop", DIAGNOSTICS_SERVED)
 #: why a set with driven nodes serves those loops only
 DRIVEN_REASON = ("a Driven end runs compiled in the loops of lie-verlet, lie-euler, rkmk4, overdamped, rattle and "
-                 "implicit-midpoint only; the compiled diagnostics leave it to the numpy path")
+                 "implicit-midpoint and in the compiled diagnostics only")
 
 
 def _driven_data(scheme, data: LatticeData, n: int, r: int) -> dict:

@@ -36,7 +36,11 @@ Open axes and boundary conditions (paper §IV.D, n_α Q^α = P on ∂M)
     body components get N = 0, S = 0 and W = 0 (the clamp mask ``(*shape, r)`` of
     :meth:`~cartan.schemes.base.Scheme._clamp_mask`) and the free ones the penalty of an
     unloaded free end (P = 0), on the numpy path and the compiled one.  Solutions converge with
-    order 2 (fd2) and about 3 (fd4, boundary rows of order 2) on open axes.
+    order 2 (fd2) and about 3 (fd4, boundary rows of order 2) on open axes — except for an
+    odd–even part of the positions between two ends that hold the translations (an arch under
+    ``rattle``: the collocated grid's odd–even mode, which the central stencils do not see at
+    interior nodes, excited at O(h) there, with fd2 and fd4 alike; ``docs/schemes.md``, "Between
+    two supports").
 Driven ends (:class:`~cartan.problem.Driven`)
     A clamp that moves with its body velocity ξ: at its nodes N = ξ and S = ∂K/∂N(ξ) at every
     step (:meth:`~cartan.schemes.base.Scheme.velocity`, ``constrain``) and the force is not
@@ -77,8 +81,8 @@ Compiled loops
     clamps, held ends, symmetry faces and driven ends), and media whose Lagrangian couples N and
     X with coupled point kernels (``lie-euler``, ``forward-euler``, ``rkmk4``).  The CFL
     estimate (:meth:`~cartan.schemes.base.Scheme.dt_max`) and the blow-up guard's energies run
-    on the same operators (:mod:`cartan.compiled.diagnostics`; not with driven ends or a coupled
-    Lagrangian).  Everything else stays on this module's numpy path,
+    on the same operators (:mod:`cartan.compiled.diagnostics`; with driven ends too, not with a
+    coupled Lagrangian).  Everything else stays on this module's numpy path,
     the reference the compiled loops are tested against (``docs/schemes.md``).
 
 What is exact and what is not
@@ -420,8 +424,8 @@ class Collocation(Scheme):
         under the natural condition P = 0), :class:`~cartan.problem.Driven` ends (N = ξ and
         S = ∂K/∂N(ξ) at their nodes, the supports' power R·ξ with the weak-form raw force of
         :meth:`_clamped_traction`; a set for the loops of ``lie-verlet``, ``lie-euler``,
-        ``rkmk4``, ``overdamped`` and ``implicit-midpoint`` only, the compiled diagnostics left
-        to the numpy path), any kinetic metric, and media whose Lagrangian couples N and X with
+        ``rkmk4``, ``overdamped`` and ``implicit-midpoint`` and the compiled diagnostics only), any
+        kinetic metric, and media whose Lagrangian couples N and X with
         coupled point kernels (pointwise, :mod:`cartan.schemes._collocation_coupled`; a set for the
         loops of ``lie-euler``, ``forward-euler`` and ``rkmk4`` only); a declined
         :class:`~cartan.compiled.operators.OperatorSet` says why otherwise."""

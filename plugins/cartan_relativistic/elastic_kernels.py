@@ -10,7 +10,9 @@ temporal-gauge forms of :mod:`cartan_relativistic.elastic` for the built-in laws
   of max(|v⃗|, 10⁻³c)); False when it does not converge;
 * :func:`stress_point` — Q⃗ = ∂H/∂x⃗′ = −∂ℓ/∂x⃗′ at (v⃗, x⃗′), the v⃗ that
   :func:`velocity_point` solved (one Newton solve per half-edge serves both);
-* :func:`hamiltonian_point` — H = p⃗·v⃗ − ℓ − μc².
+* :func:`hamiltonian_point` — H = p⃗·v⃗ − ℓ − μc²;
+* :func:`coupled_jacobian_point` — ∂v⃗/∂p⃗ = (∂²ℓ/∂v⃗²)⁻¹ at the v⃗ solved, the Jacobian of the
+  Legendre map's inversion in ``implicit-midpoint``'s compiled stage momenta.
 
 These are the point kernels the compiled coupled-Lagrangian path needs from the medium (the
 half-edge velocities and stresses of :mod:`cartan.schemes._coupled`): :func:`medium_kernels`
@@ -32,9 +34,9 @@ from numba import njit
 
 from cartan.compiled.linalg import solve_augmented
 
-__all__ = ["coupled_stress_point", "coupled_velocity_point", "energy_point", "hamiltonian_point", "law_kernel",
-           "law_point", "medium_kernels", "momentum_hessian_point", "potential_stress_point", "stress_point",
-           "velocity_batch", "velocity_point", "velocity_solve"]
+__all__ = ["coupled_jacobian_point", "coupled_stress_point", "coupled_velocity_point", "energy_point",
+           "hamiltonian_point", "law_kernel", "law_point", "medium_kernels", "momentum_hessian_point",
+           "potential_stress_point", "stress_point", "velocity_batch", "velocity_point", "velocity_solve"]
 
 #: the built-in laws with kernels, by kind
 KINDS = ("quadratic", "quartic")
@@ -253,6 +255,30 @@ def coupled_stress_point(S, X, N, prm, Q):  # pragma: no cover - compiled
 
 
 @njit(cache=True)
+def coupled_jacobian_point(S, X, N, prm, J):  # pragma: no cover - compiled
+    """J = ∂N/∂S(S, X) = ∂²H/∂S²: (∂²ℓ/∂v⃗²)⁻¹ (:func:`momentum_hessian_point` at v⃗ = N[1:4]) on slots
+    1–3, zero elsewhere (the gauge slot 0 is c, the others zero); False outside the light cone or
+    where the Hessian is singular."""
+    for a in range(J.shape[0]):
+        for b in range(J.shape[1]):
+            J[a, b] = 0.0
+    H = np.empty((3, 3))
+    if not momentum_hessian_point(N[1:4], X[0, 1:4], int(prm[0]), prm[4:], prm[1], prm[2], np.empty(3), H):
+        return False
+    col = np.empty(3)
+    e = np.zeros(3)
+    A = np.empty((3, 4))
+    for b in range(3):
+        e[b] = 1.0
+        if not _solve3(H, e, col, A):
+            return False
+        e[b] = 0.0
+        for a in range(3):
+            J[1 + a, 1 + b] = col[a]
+    return True
+
+
+@njit(cache=True)
 def proper_time_rate_point(N, prm, out):  # pragma: no cover - compiled
     """dτ/dt = √(1 − |v⃗|²/c²) at one node, v⃗ = N[1:4], into ``out[0]`` (the rate of the
     accumulator ``proper_time``, ``accumulator_rates``; in its floating-point order)."""
@@ -267,7 +293,7 @@ ITERATIONS = 40
 
 def medium_kernels(law: Any, mu: float, c: float):
     """The :class:`cartan.medium.MediumKernels` of the elastic string with the law ``law``
-    (potential and coupled kernels, the rate of the proper time, parameters (kind, μc², c,
+    (potential and coupled kernels with ∂N/∂S, the rate of the proper time, parameters (kind, μc², c,
     iterations, law parameters…)),
     or None for a law without kernels (:func:`law_kernel`)."""
     from cartan.medium import MediumKernels
@@ -278,4 +304,5 @@ def medium_kernels(law: Any, mu: float, c: float):
     kind, prm = found
     params = np.concatenate([[float(kind), float(mu) * float(c) ** 2, float(c), float(ITERATIONS)], prm])
     return MediumKernels(energy_point, potential_stress_point, params, coupled_velocity=coupled_velocity_point,
-                         coupled_stress=coupled_stress_point, accumulator_rate=proper_time_rate_point)
+                         coupled_stress=coupled_stress_point, accumulator_rate=proper_time_rate_point,
+                         coupled_jacobian=coupled_jacobian_point)
