@@ -4,8 +4,8 @@ against the groups' matrices.
 ``g_Ad_inv_apply`` (``Ad_{g⁻¹}`` applied to rows), ``g_E_apply`` (``𝓔(τ, ξ)`` applied to
 rows), ``g_dexp_inv_apply`` (``dexp⁻¹(ξ)`` applied to a vector) and ``g_coad_exp`` (exp(ξ) and
 ``Ad_{exp ξ}ᵀ`` applied to a momentum in place) are compiled in a generated module twice:
-with the group's closed forms (SO(3), SE(3)) and with the generic defaults built from the
-matrix kernels; SE(2) and SO(4) have no closed forms and take the defaults.  Both are compared
+with the group's closed forms (SO(3), SE(3), SE(2)) and with the generic defaults built from
+the matrix kernels; SO(4) has no closed forms and takes the defaults.  Both are compared
 with the numpy reference path of the group (``G.Ad``, ``G.inverse``, ``G.E``)
 at small arguments (|ξ| ≈ 1e-9: the Taylor-series branch of every coefficient) and at ordinary
 ones (0.3–2 rad).
@@ -84,7 +84,7 @@ def _rel(a, b) -> float:
     return float(np.max(np.abs(a - b)) / max(float(np.max(np.abs(b))), 1e-300))
 
 
-CASES = [(name, closed) for name in ("SO3", "SE3") for closed in (True, False)] + [("SE2", True), ("SO4", True)]
+CASES = [(name, closed) for name in ("SO3", "SE3", "SE2") for closed in (True, False)] + [("SO4", True)]
 SCALES = [1e-9, 0.3, 1.0, 2.0]
 
 
@@ -153,10 +153,10 @@ def test_coad_exp(compiled, scale):
 
 
 def test_closed_forms_are_bound():
-    """SO(3) and SE(3) bind their closed forms; SE(2) takes the defaults from its matrices."""
-    for name in ("SO3", "SE3"):
+    """SO(3), SE(3) and SE(2) bind their closed forms; SO(4) takes the defaults from its matrices."""
+    for name in ("SO3", "SE3", "SE2"):
         frag = _group(name).point_kernels()
         for op in ("Ad_inv_apply", "E_apply", "dexp_inv_apply"):
             assert frag.imports[f"g_{op}"][1] == f"{name.lower()}_{op}_point"
-    frag = _group("SE2").point_kernels()
+    frag = _group("SO4").point_kernels()
     assert "g_E_apply" not in frag.imports and "def g_E_apply(" in frag.source
