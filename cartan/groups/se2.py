@@ -53,8 +53,18 @@ from numba import njit
 from numba.extending import register_jitable
 
 from ._batch import kernel_table
+from ._chunks import (
+    _turn,
+    _turn_coeffs_direct,
+    _turn_coeffs_series,
+    axial_times,
+    count_moved,
+    load_pair_block,
+    store_block,
+    store_scaled_pair_block,
+    turn_coeffs_chunk,
+)
 from .base import SymmetryGroup
-from .se3 import _turn, _turn_coeffs_direct, _turn_coeffs_series
 from .so3 import (
     ATAN_SERIES,
     ATAN_SERIES_X2,
@@ -445,18 +455,10 @@ def _axial_flow_chunk(lo, hi, S, Dn, any_clamped, clamped, any_held, held, npiec
         F[8, i0] = 1.0
     moved = 0
     for p in range(npieces):
-        taup = tau[p]
-        for c in range(naxes[p]):  # every time of the piece first (its flows leave its S alone)
-            k = axes[p, c]
-            cp = coef[p, c]
-            for i0 in range(nb):
-                i = lo + i0
-                t = taup * (cp * F[k, i0])
-                T[c, i0] = 0.0 if (any_clamped and clamped[i]) or (any_held and held[i, k]) else t
+        axial_times(F, T, lo, nb, p, tau, naxes, axes, coef, any_clamped, clamped, any_held, held)
         for c in range(naxes[p]):
             k = axes[p, c]
-            for i0 in range(nb):
-                moved += T[c, i0] != 0.0
+            moved += count_moved(T, c, nb)
             if k == 0:
                 for i0 in range(nb):
                     t = T[c, i0]
@@ -471,16 +473,7 @@ def _axial_flow_chunk(lo, hi, S, Dn, any_clamped, clamped, any_held, held, npiec
                     F[3, i0] += t * F[6, i0]
                     F[4, i0] += t * F[8, i0]
                 continue
-            nbad = 0
-            for i0 in range(nb):  # the cosines and sines: series, then closed forms where t² ≥ SMALL_THETA2
-                t = T[c, i0]
-                nbad += t * t >= SMALL_THETA2
-                CS[i0], SN[i0] = _turn_coeffs_series(t)
-            if nbad:
-                for i0 in range(nb):
-                    t = T[c, i0]
-                    if t * t >= SMALL_THETA2:
-                        CS[i0], SN[i0] = _turn_coeffs_direct(t)
+            turn_coeffs_chunk(T, c, nb, CS, SN)
             for i0 in range(nb):
                 cs, sn = CS[i0], SN[i0]
                 F[0, i0], F[1, i0] = _turn(cs, sn, F[0, i0], F[1, i0])
@@ -602,11 +595,7 @@ def _log_chunk(G, lo, hi, XI):
             b = (u2 >= ATAN_SERIES_X2) | (x <= 0.0)
             bad[e0] = b
             nbad += b
-        for e0 in range(nb):
-            e = c0 + e0
-            XI[e, 0] = A[0, e0]
-            XI[e, 1] = A[1, e0]
-            XI[e, 2] = A[2, e0]
+        store_block(A, c0, nb, 3, XI)
         if nbad:
             for e0 in range(nb):
                 if bad[e0]:
@@ -635,11 +624,7 @@ def _dexp_inv_T_pair_chunk(XI, Q, scale, lo, hi, VT, VH):
     scaled = scale.shape[0] > 0
     for c0 in range(lo, hi, SOA_BLOCK):
         nb = min(hi - c0, SOA_BLOCK)
-        for e0 in range(nb):
-            e = c0 + e0
-            for k in range(3):
-                A[k, e0] = XI[e, k]
-                A[k + 3, e0] = Q[e, k]
+        load_pair_block(XI, Q, c0, nb, 3, A)
         nbad = 0
         for e0 in range(nb):
             t2 = A[2, e0] * A[2, e0]
@@ -656,12 +641,7 @@ def _dexp_inv_T_pair_chunk(XI, Q, scale, lo, hi, VT, VH):
             h = _ad_T_add6(x1, x2, w, q0, q1, q2, o[0], o[1], o[2])
             B[0, e0], B[1, e0], B[2, e0] = o
             B[3, e0], B[4, e0], B[5, e0] = h
-        for e0 in range(nb):
-            e = c0 + e0
-            s = scale[e] if scaled else 1.0
-            for k in range(3):
-                VT[e, k] = s * B[k, e0]
-                VH[e, k] = s * B[k + 3, e0]
+        store_scaled_pair_block(B, scale, scaled, c0, nb, 3, VT, VH)
 
 
 # ---------------------------------------------------------------------- numba batch loops

@@ -34,6 +34,17 @@ from numba import njit
 from numba.extending import register_jitable
 
 from ._batch import kernel_table
+from ._chunks import (
+    _turn,
+    _turn_coeffs_direct,
+    _turn_coeffs_series,
+    axial_times,
+    count_moved,
+    load_pair_block,
+    store_block,
+    store_scaled_pair_block,
+    turn_coeffs_chunk,
+)
 from .base import SymmetryGroup
 from .so3 import (
     SMALL_THETA2,
@@ -174,28 +185,6 @@ def _inv_compose12(t0, t1, t2, r00, r01, r02, r10, r11, r12, r20, r21, r22,
             r00 * h11 + r10 * h21 + r20 * h31, r00 * h12 + r10 * h22 + r20 * h32, r00 * h13 + r10 * h23 + r20 * h33,
             r01 * h11 + r11 * h21 + r21 * h31, r01 * h12 + r11 * h22 + r21 * h32, r01 * h13 + r11 * h23 + r21 * h33,
             r02 * h11 + r12 * h21 + r22 * h31, r02 * h12 + r12 * h22 + r22 * h32, r02 * h13 + r12 * h23 + r22 * h33)
-
-
-@register_jitable(inline='always')
-def _turn(cs, sn, x, y):
-    """``(x, y)`` turned by the plane rotation of cosine ``cs`` and sine ``sn``:
-    ``(cs x + sn y, cs y − sn x)`` (the components in the turned basis)."""
-    return cs * x + sn * y, cs * y - sn * x
-
-
-@register_jitable(inline='always')
-def _turn_coeffs_series(t):
-    """``(cos t, sin t)`` as ``(1 − Bt², At)`` with ``A``, ``B`` from their series (t² < 0.01)."""
-    t2 = t * t
-    return 1.0 - horner(t2, TAYLOR_B) * t2, horner(t2, TAYLOR_A) * t
-
-
-@register_jitable(inline='always')
-def _turn_coeffs_direct(t):
-    """``(cos t, sin t)`` as ``(1 − Bt², At)`` with ``A``, ``B`` in closed form (t ≠ 0)."""
-    t2 = t * t
-    a, b = _exp_coeffs_direct(t2)
-    return 1.0 - b * t2, a * t
 
 
 _UNIT = ((1.0, 0.0, 0.0), (0.0, 1.0, 0.0), (0.0, 0.0, 1.0))
@@ -504,18 +493,10 @@ def _axial_flow_chunk(lo, hi, S, Dn, any_clamped, clamped, any_held, held, npiec
         F[17, i0] = 1.0
     moved = 0
     for p in range(npieces):
-        taup = tau[p]
-        for c in range(naxes[p]):  # every time of the piece first (its flows leave its S alone)
-            k = axes[p, c]
-            cp = coef[p, c]
-            for i0 in range(nb):
-                i = lo + i0
-                t = taup * (cp * F[k, i0])
-                T[c, i0] = 0.0 if (any_clamped and clamped[i]) or (any_held and held[i, k]) else t
+        axial_times(F, T, lo, nb, p, tau, naxes, axes, coef, any_clamped, clamped, any_held, held)
         for c in range(naxes[p]):
             k = axes[p, c]
-            for i0 in range(nb):
-                moved += T[c, i0] != 0.0
+            moved += count_moved(T, c, nb)
             if k == 0:
                 for i0 in range(nb):
                     _shift_node(F, i0, T[c, i0], 0, 1, 2)
@@ -528,16 +509,7 @@ def _axial_flow_chunk(lo, hi, S, Dn, any_clamped, clamped, any_held, held, npiec
                 for i0 in range(nb):
                     _shift_node(F, i0, T[c, i0], 2, 0, 1)
                 continue
-            nbad = 0
-            for i0 in range(nb):  # the cosines and sines: series, then closed forms where t² ≥ SMALL_THETA2
-                t = T[c, i0]
-                nbad += t * t >= SMALL_THETA2
-                CS[i0], SN[i0] = _turn_coeffs_series(t)
-            if nbad:
-                for i0 in range(nb):
-                    t = T[c, i0]
-                    if t * t >= SMALL_THETA2:
-                        CS[i0], SN[i0] = _turn_coeffs_direct(t)
+            turn_coeffs_chunk(T, c, nb, CS, SN)
             if k == 3:
                 for i0 in range(nb):
                     _turn_node(F, i0, CS[i0], SN[i0], 1, 2)
@@ -711,10 +683,7 @@ def _log_chunk(G, lo, hi, XI):
             L[5, e0] = v[5]
             bad[e0] = v[7]
             nbad += v[7]
-        for e0 in range(nb):
-            e = c0 + e0
-            for k in range(6):
-                XI[e, k] = L[k, e0]
+        store_block(L, c0, nb, 6, XI)
         if nbad:
             for e0 in range(nb):
                 if bad[e0]:
@@ -749,11 +718,7 @@ def _dexp_inv_T_pair_chunk(XI, Q, scale, lo, hi, VT, VH):
     scaled = scale.shape[0] > 0
     for c0 in range(lo, hi, SOA_BLOCK):
         nb = min(hi - c0, SOA_BLOCK)
-        for e0 in range(nb):
-            e = c0 + e0
-            for k in range(6):
-                A[k, e0] = XI[e, k]
-                A[k + 6, e0] = Q[e, k]
+        load_pair_block(XI, Q, c0, nb, 6, A)
         nbad = 0
         for e0 in range(nb):  # the series (θ < 0.1) everywhere, then the closed forms where θ ≥ 0.1
             t2 = A[3, e0] * A[3, e0] + A[4, e0] * A[4, e0] + A[5, e0] * A[5, e0]
@@ -771,12 +736,7 @@ def _dexp_inv_T_pair_chunk(XI, Q, scale, lo, hi, VT, VH):
             h = _ad_T_add12(r0, r1, r2, w0, w1, w2, q0, q1, q2, q3, q4, q5, o[0], o[1], o[2], o[3], o[4], o[5])
             B[0, e0], B[1, e0], B[2, e0], B[3, e0], B[4, e0], B[5, e0] = o
             B[6, e0], B[7, e0], B[8, e0], B[9, e0], B[10, e0], B[11, e0] = h
-        for e0 in range(nb):
-            e = c0 + e0
-            s = scale[e] if scaled else 1.0
-            for k in range(6):
-                VT[e, k] = s * B[k, e0]
-                VH[e, k] = s * B[k + 6, e0]
+        store_scaled_pair_block(B, scale, scaled, c0, nb, 6, VT, VH)
 
 
 @njit(cache=True, inline='always')
