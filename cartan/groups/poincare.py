@@ -48,7 +48,10 @@ numba kernels (:attr:`Poincare._kernels`): hat, vee, compose, inverse, act, exp,
 bracket.  ``dexp``, ``dexp_inv`` and ``E`` use the numpy path on both backends (the ``Q``
 block needs a matrix exponential).  The generated loops also bind the fused one-axis free flow
 :func:`poincare_axis_flow_point` (lattice ``lie-verlet``: a shift, a boost or a turn in one
-plane, every axis in closed form).
+plane, every axis in closed form) and the fused products :func:`poincare_coad_exp_point`,
+:func:`poincare_dexp_inv_apply_point`, :func:`poincare_E_apply_point` and
+:func:`poincare_Ad_inv_apply_point` (``lie-euler``, the RKMK stages, collocation); these, exp
+and 𝓔 take a pure translation ``{y; 0}`` (exp = ``(y; I)``, ad² = 0) in line.
 """
 
 from __future__ import annotations
@@ -93,16 +96,20 @@ from .so13 import (
 __all__ = [
     "Poincare",
     "poincare_Ad_T_point",
+    "poincare_Ad_inv_apply_point",
     "poincare_Ad_point",
+    "poincare_E_apply_point",
     "poincare_E_point",
     "poincare_V_coeffs",
     "poincare_act_point",
     "poincare_ad_point",
     "poincare_axis_flow_point",
     "poincare_bracket_point",
+    "poincare_coad_exp_point",
     "poincare_compose_point",
     "poincare_dexp_inv_T_pair_chunk_point",
     "poincare_dexp_inv_T_pair_point",
+    "poincare_dexp_inv_apply_point",
     "poincare_dexp_inv_point",
     "poincare_exp_point",
     "poincare_frames_chunk_point",
@@ -318,9 +325,38 @@ def poincare_act_point(g, x, out):
             + g[i + 1, 4] * x[3]
 
 
+@register_jitable(inline='always')
+def _lorentz_zero(xi):
+    """Whether the Lorentz part ``(c; d)`` of ``xi`` (10,) is exactly zero (ξ a pure translation)."""
+    return ((xi[4] == 0.0) & (xi[5] == 0.0) & (xi[6] == 0.0) & (xi[7] == 0.0) & (xi[8] == 0.0)
+            & (xi[9] == 0.0))
+
+
+@register_jitable(inline='always')
+def _translation_element(y0, y1, y2, y3, out):
+    """``out`` (5, 5) ← the pure translation ``(y; I)``."""
+    for a in range(5):
+        for b in range(5):
+            out[a, b] = 1.0 if a == b else 0.0
+    out[1, 0], out[2, 0], out[3, 0], out[4, 0] = y0, y1, y2, y3
+
+
+@register_jitable(inline='always')
+def _translation_N(y0, y1, y2, y3, z):
+    """``N(y) ζ = Z_ζ y`` (4,) for ``ζ = (c; d)`` the entries 4..9 of ``z`` (10,),
+    ``N(y) = [[y⃗ᵀ, 0], [y₀ I, −ŷ⃗]]``."""
+    c1, c2, c3, d1, d2, d3 = z[4], z[5], z[6], z[7], z[8], z[9]
+    return (y1 * c1 + y2 * c2 + y3 * c3, y0 * c1 + y3 * d2 - y2 * d3,
+            y0 * c2 - y3 * d1 + y1 * d3, y0 * c3 + y2 * d1 - y1 * d2)
+
+
 @njit(cache=True)
 def poincare_exp_point(xi, out):
-    """``out`` (5, 5) ← ``exp{y; Z} = (V y; exp Z)`` for ``xi`` (10,)."""
+    """``out`` (5, 5) ← ``exp{y; Z} = (V y; exp Z)`` for ``xi`` (10,); a pure translation
+    (Z = 0 exactly: V = I, exp Z = I) directly."""
+    if _lorentz_zero(xi):
+        _translation_element(xi[0], xi[1], xi[2], xi[3], out)
+        return
     c1, c2, c3, d1, d2, d3 = xi[4], xi[5], xi[6], xi[7], xi[8], xi[9]
     x = _theta2(c1, c2, c3, d1, d2, d3)
     co, sh = so13_exp_coeffs(x)
@@ -761,6 +797,19 @@ def poincare_E_point(dt, xi, out):
     """``out`` (10, 10) ← 𝓔(Δt, ξ) = Δt·Σ (Δt ad_ξ)^k/(k + 1)!: exactly Δt(I + ½Δt ad_ξ) for a
     pure translation, the series through (Δt ad)⁵ below :data:`POINCARE_SERIES_Z`, else the
     Van Loan block exponential."""
+    if _lorentz_zero(xi):  # 𝓔 = Δt I + ½Δt² ad_ξ, ad_ξ = [[0, −N(y)], [0, 0]]: 24 entries
+        for i in range(10):
+            for j in range(10):
+                out[i, j] = dt if i == j else 0.0
+        y0, y1, y2, y3 = xi[0], xi[1], xi[2], xi[3]
+        ny = (y1, y2, y3, 0.0, 0.0, 0.0,
+              y0, 0.0, 0.0, 0.0, y3, -y2,
+              0.0, y0, 0.0, -y3, 0.0, y1,
+              0.0, 0.0, y0, y2, -y1, 0.0)
+        for i in range(4):
+            for j in range(6):
+                out[i, j + 4] = dt * (0.5 * (-ny[6 * i + j] * dt))
+        return
     A = np.empty((10, 10))
     z = _poincare_scaled_ad(xi, dt, A)
     if z >= POINCARE_SERIES_Z:
@@ -841,6 +890,101 @@ def poincare_Ad_T_point(g, v, out):
         for j in range(10):
             s += A[j, k] * v[j]
         out[k] = s
+
+
+# ---------------------------------------------------------------------- fused products
+# ``g_<op>`` of :data:`cartan.compiled.kernels.FUSED_OPS` (the generated loops' free flow, stage
+# velocities and updates): a pure translation (Lorentz part exactly zero, as the string's nodal
+# velocities and motions are) in line, where exp, Ad, dexp⁻¹ and 𝓔 are affine in the translation;
+# any other element through the point kernels.  ``work`` is unused.
+
+
+@njit(cache=True, inline='always')
+def poincare_coad_exp_point(xi, s, E, work):
+    """``E`` (5, 5) ← ``exp(ξ)`` and ``s`` (10,) ← ``Ad_Eᵀ s`` in place: for ``ξ = {y; 0}``,
+    ``E = (y; I)`` and ``s_Z ← s_Z − N(y)ᵀ s_y`` (:func:`poincare_Ad_T_point`'s form), else
+    :func:`poincare_exp_point` and :func:`poincare_Ad_T_point`."""
+    if _lorentz_zero(xi):
+        y0, y1, y2, y3 = xi[0], xi[1], xi[2], xi[3]
+        _translation_element(y0, y1, y2, y3, E)
+        a = _translation_ad_T(y0, y1, y2, y3, s[0], s[1], s[2], s[3])
+        for k in range(6):
+            s[4 + k] += a[k]
+        return
+    poincare_exp_point(xi, E)
+    out = np.empty(10)
+    poincare_Ad_T_point(E, s, out)
+    for k in range(10):
+        s[k] = out[k]
+
+
+@njit(cache=True, inline='always')
+def poincare_dexp_inv_apply_point(xi, v, out, work):
+    """``out`` (10,) ← ``dexp⁻¹(ξ) v``: for ``ξ = {y; 0}`` (ad_ξ² = 0, ad_ξ v = {−N(y)v_Z; 0})
+    ``{v_y + ½N(y)v_Z; v_Z}``, else :func:`poincare_dexp_inv_point` times ``v``."""
+    if _lorentz_zero(xi):
+        n = _translation_N(xi[0], xi[1], xi[2], xi[3], v)
+        for k in range(4):
+            out[k] = v[k] + 0.5 * n[k]
+        for k in range(4, 10):
+            out[k] = v[k]
+        return
+    A = np.empty((10, 10))
+    poincare_dexp_inv_point(xi, A)
+    for k in range(10):
+        t = 0.0
+        for j in range(10):
+            t += A[k, j] * v[j]
+        out[k] = t
+
+
+@njit(cache=True, inline='always')
+def poincare_E_apply_point(tau, xi, V, out, work):
+    """``out[a]`` (10,) ← ``𝓔(τ, ξ) V[a]`` for every row of ``V`` ``(k, 10)``: for ``ξ = {y; 0}``
+    (𝓔 = τ(I + ½τ ad_ξ)) ``τ{v_y − ½τN(y)v_Z; v_Z}``, else :func:`poincare_E_point` times the rows."""
+    if _lorentz_zero(xi):
+        y0, y1, y2, y3 = xi[0], xi[1], xi[2], xi[3]
+        for a in range(V.shape[0]):
+            n = _translation_N(y0, y1, y2, y3, V[a])
+            for k in range(4):
+                out[a, k] = tau * (V[a, k] - 0.5 * tau * n[k])
+            for k in range(4, 10):
+                out[a, k] = tau * V[a, k]
+        return
+    A = np.empty((10, 10))
+    poincare_E_point(tau, xi, A)
+    for a in range(V.shape[0]):
+        for k in range(10):
+            t = 0.0
+            for j in range(10):
+                t += A[k, j] * V[a, j]
+            out[a, k] = t
+
+
+@njit(cache=True, inline='always')
+def poincare_Ad_inv_apply_point(g, X, out, work):
+    """``out[a]`` (10,) ← ``Ad_{g⁻¹} X[a]`` for every row of ``X`` ``(k, 10)``: for ``g = (t; I)``
+    (``Ad_{g⁻¹} = [[I, N(t)], [0, I]]``) ``{x_y + N(t)x_Z; x_Z}``, else :func:`poincare_inverse_point`
+    and :func:`poincare_Ad_point` times the rows."""
+    if _pure_translation(g):
+        t0, t1, t2, t3 = g[1, 0], g[2, 0], g[3, 0], g[4, 0]
+        for a in range(X.shape[0]):
+            n = _translation_N(t0, t1, t2, t3, X[a])
+            for k in range(4):
+                out[a, k] = X[a, k] + n[k]
+            for k in range(4, 10):
+                out[a, k] = X[a, k]
+        return
+    gi = np.empty((5, 5))
+    A = np.empty((10, 10))
+    _inverse5(g, gi)
+    poincare_Ad_point(gi, A)
+    for a in range(X.shape[0]):
+        for k in range(10):
+            t = 0.0
+            for j in range(10):
+                t += A[k, j] * X[a, j]
+            out[a, k] = t
 
 
 @njit(cache=True, inline='always')
