@@ -900,6 +900,16 @@ def poincare_Ad_T_point(g, v, out):
 
 
 @njit(cache=True, inline='always')
+def _matvec10(A, v, out):
+    """``out`` (10,) ← ``A v`` for ``A`` (10, 10)."""
+    for k in range(10):
+        t = 0.0
+        for j in range(10):
+            t += A[k, j] * v[j]
+        out[k] = t
+
+
+@njit(cache=True, inline='always')
 def poincare_coad_exp_point(xi, s, E, work):
     """``E`` (5, 5) ← ``exp(ξ)`` and ``s`` (10,) ← ``Ad_Eᵀ s`` in place: for ``ξ = {y; 0}``,
     ``E = (y; I)`` and ``s_Z ← s_Z − N(y)ᵀ s_y`` (:func:`poincare_Ad_T_point`'s form), else
@@ -931,11 +941,7 @@ def poincare_dexp_inv_apply_point(xi, v, out, work):
         return
     A = np.empty((10, 10))
     poincare_dexp_inv_point(xi, A)
-    for k in range(10):
-        t = 0.0
-        for j in range(10):
-            t += A[k, j] * v[j]
-        out[k] = t
+    _matvec10(A, v, out)
 
 
 @njit(cache=True, inline='always')
@@ -954,11 +960,7 @@ def poincare_E_apply_point(tau, xi, V, out, work):
     A = np.empty((10, 10))
     poincare_E_point(tau, xi, A)
     for a in range(V.shape[0]):
-        for k in range(10):
-            t = 0.0
-            for j in range(10):
-                t += A[k, j] * V[a, j]
-            out[a, k] = t
+        _matvec10(A, V[a], out[a])
 
 
 @njit(cache=True, inline='always')
@@ -980,11 +982,7 @@ def poincare_Ad_inv_apply_point(g, X, out, work):
     _inverse5(g, gi)
     poincare_Ad_point(gi, A)
     for a in range(X.shape[0]):
-        for k in range(10):
-            t = 0.0
-            for j in range(10):
-                t += A[k, j] * X[a, j]
-            out[a, k] = t
+        _matvec10(A, X[a], out[a])
 
 
 @njit(cache=True, inline='always')
