@@ -128,7 +128,7 @@ def test_collocation_lie_verlet_loop_integrates_accumulators(generated_runs):
     grid = cartan.Grid(16, length=2 * math.pi, periodic=True)
     problem = cartan.Problem(med, grid, med.initial_state(grid, "loop"))
     ops = Collocation(problem).compiled_operators()
-    assert ops.accumulates == ("lie_verlet_loop", "euler_loop", "rkmk_loop")
+    assert ops.accumulates == ("lie_verlet_loop", "euler_loop", "rkmk_loop", "implicit_loop")
     calls = generated_runs
     kw = dict(integrator="lie-verlet", scheme="collocation", dt=grid.spacing[0] / 4, t_end=0.5, save_every=4,
               progress=False)
