@@ -174,7 +174,8 @@ def test_lie_verlet_loop_integrates_accumulators(generated_runs):
     med = _Timed()
     grid = cartan.Grid(16, length=2 * math.pi, periodic=True)
     problem = cartan.Problem(med, grid, med.initial_state(grid, "loop"))
-    assert Lattice(problem).compiled_operators().accumulates == ("lie_verlet_loop", "euler_loop", "rkmk_loop", "implicit_loop")
+    loops = ("lie_verlet_loop", "euler_loop", "rkmk_loop", "implicit_loop")
+    assert Lattice(problem).compiled_operators().accumulates == loops
     calls = generated_runs
     kw = dict(integrator="lie-verlet", dt=grid.spacing[0] / 2, t_end=0.5, save_every=4, progress=False)
     compiled = cartan.simulate(problem, **kw)
