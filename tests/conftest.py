@@ -43,22 +43,28 @@ def _temporary_files_stay_in_the_session(tmp_path_factory):
     tempfile.tempdir = before
 
 
-@pytest.fixture
-def generated_runs(monkeypatch) -> list:
-    """What ``Integrator.run_compiled_loop`` returned, call by call (True: the generated loop
-    took the steps)."""
-    from cartan.integrators import Integrator
-
+def record_returns(monkeypatch, owner, name: str) -> list:
+    """Wrap the method ``owner.name`` so that each call's return value is appended to the list
+    returned here (a spy: the method still runs)."""
     calls = []
-    real = Integrator.run_compiled_loop
+    real = getattr(owner, name)
 
     def spy(self, *args, **kwargs):
         ran = real(self, *args, **kwargs)
         calls.append(ran)
         return ran
 
-    monkeypatch.setattr(Integrator, "run_compiled_loop", spy)
+    monkeypatch.setattr(owner, name, spy)
     return calls
+
+
+@pytest.fixture
+def generated_runs(monkeypatch) -> list:
+    """What ``Integrator.run_compiled_loop`` returned, call by call (True: the generated loop
+    took the steps)."""
+    from cartan.integrators import Integrator
+
+    return record_returns(monkeypatch, Integrator, "run_compiled_loop")
 
 
 # ---------------------------------------------------------------------------- compile profile

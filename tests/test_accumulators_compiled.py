@@ -190,18 +190,11 @@ def test_lie_verlet_loop_integrates_accumulators(generated_runs):
 def implicit_blocks(monkeypatch) -> list:
     """What ``ImplicitMidpoint.compiled_advance`` returned, call by call (True: its Newton blocks,
     ``implicit_loop``, took the steps)."""
+    from conftest import record_returns
+
     from cartan.integrators import ImplicitMidpoint
 
-    calls = []
-    real = ImplicitMidpoint.compiled_advance
-
-    def spy(self, *args, **kwargs):
-        ran = real(self, *args, **kwargs)
-        calls.append(ran)
-        return ran
-
-    monkeypatch.setattr(ImplicitMidpoint, "compiled_advance", spy)
-    return calls
+    return record_returns(monkeypatch, ImplicitMidpoint, "compiled_advance")
 
 
 #: the fields compared between the compiled and the numpy implicit-midpoint runs (those of scale ≫ round-off)
